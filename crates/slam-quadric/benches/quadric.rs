@@ -32,7 +32,8 @@ fn arc_views() -> Vec<BoxView> {
             let phi = (-9.0 + 4.5 * i as f64).to_radians();
             let c = Point3::new(15.0 * phi.sin(), 0.0, -15.0 * phi.cos());
             let target = Point3::new(0.0, 0.0, 0.0);
-            let pose = Isometry3::face_towards(&c, &target, &-Vector3::y());
+            // camera y (down) is world +y
+            let pose = Isometry3::face_towards(&c, &target, &Vector3::y());
             let cam = Camera::new(k, pose);
             let b = project(&e, &cam).and_then(|c| c.clipped_bounds(&img)).expect("visible");
             BoxView::new(cam, b)
