@@ -8,7 +8,7 @@ use std::hint::black_box;
 use criterion::{criterion_group, criterion_main, Criterion};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use slam_quadric::{
-    init::{all_methods, BoxView},
+    init::{all_methods, BoxView, Dqp},
     predict_box, project, BoundsModel, Camera, Ellipsoid, ImageSize, Intrinsics,
 };
 
@@ -53,7 +53,9 @@ fn benches(c: &mut Criterion) {
         b.iter(|| predict_box(black_box(&e), black_box(&cam), &BoundsModel::Full))
     });
     let views = arc_views();
-    for m in all_methods() {
+    let mut methods = all_methods();
+    methods.push(Box::new(Dqp::with_centre_correction()));
+    for m in methods {
         c.bench_function(&format!("init/{}/5 views", m.name()), |b| b.iter(|| m.initialize(black_box(&views))));
     }
 }

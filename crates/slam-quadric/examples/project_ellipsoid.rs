@@ -18,7 +18,9 @@ fn main() -> ExitCode {
         Ok(v) if v.is_empty() => vec![2.0, 0.9, 15.0, 0.2],
         Ok(v) if v.len() == 4 => v,
         _ => {
-            eprintln!("usage: project_ellipsoid [X Y Z YAW]   (camera frame: x right, y down, z forward; metres, radians)");
+            eprintln!(
+                "usage: project_ellipsoid [X Y Z YAW]   (camera frame: x right, y down, z forward; metres, radians)"
+            );
             return ExitCode::from(2);
         }
     };
@@ -26,7 +28,10 @@ fn main() -> ExitCode {
     let image = ImageSize::new(1242.0, 375.0);
     let camera = Camera::new(k, Isometry3::identity());
     let car = Ellipsoid::new(
-        Isometry3::from_parts(Translation3::new(vals[0], vals[1], vals[2]), UnitQuaternion::from_euler_angles(0.0, vals[3], 0.0)),
+        Isometry3::from_parts(
+            Translation3::new(vals[0], vals[1], vals[2]),
+            UnitQuaternion::from_euler_angles(0.0, vals[3], 0.0),
+        ),
         Vector3::new(2.1, 0.8, 0.85),
     );
     println!("camera  : KITTI colour intrinsics, image 1242x375, at the world origin looking along +z");

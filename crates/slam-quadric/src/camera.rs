@@ -77,10 +77,7 @@ impl Camera {
             return None;
         }
         let k = &self.intrinsics;
-        Some(Vector2::new(
-            k.fx * pc.x / pc.z + k.skew * pc.y / pc.z + k.cx,
-            k.fy * pc.y / pc.z + k.cy,
-        ))
+        Some(Vector2::new(k.fx * pc.x / pc.z + k.skew * pc.y / pc.z + k.cx, k.fy * pc.y / pc.z + k.cy))
     }
 
     /// Unit direction (world frame) of the ray through a pixel.
@@ -105,10 +102,8 @@ mod tests {
     #[test]
     fn projection_matrix_matches_point_projection() {
         let k = Intrinsics::new(700.0, 710.0, 600.0, 180.0);
-        let pose = Isometry3::from_parts(
-            Translation3::new(1.0, -0.5, 2.0),
-            UnitQuaternion::from_euler_angles(0.1, -0.2, 0.3),
-        );
+        let pose =
+            Isometry3::from_parts(Translation3::new(1.0, -0.5, 2.0), UnitQuaternion::from_euler_angles(0.1, -0.2, 0.3));
         let cam = Camera::new(k, pose);
         let x = Point3::new(3.0, 1.0, 12.0);
         let p = cam.projection_matrix() * x.to_homogeneous();

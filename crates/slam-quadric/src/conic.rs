@@ -48,7 +48,9 @@ impl fmt::Display for ProjectionError {
             ProjectionError::NotFinite => "ellipsoid or camera has NaN or infinite values",
             ProjectionError::BehindCamera => "ellipsoid is behind the camera",
             ProjectionError::CameraInside => "camera is inside the ellipsoid",
-            ProjectionError::NotEllipse => "ellipsoid crosses the camera's principal plane; its outline is not an ellipse",
+            ProjectionError::NotEllipse => {
+                "ellipsoid crosses the camera's principal plane; its outline is not an ellipse"
+            }
             ProjectionError::OutsideImage => "projected ellipse does not overlap the image",
         };
         f.write_str(s)
@@ -314,10 +316,14 @@ fn quadratic_roots(a: f64, b: f64, c: f64) -> Vec<f64> {
 fn ellipse_derivative(c: &Matrix3<f64>, e: &Ellipse2, dc: &Matrix3<f64>) -> (Vector2<f64>, Matrix2<f64>) {
     let c22 = c[(2, 2)];
     let d22 = dc[(2, 2)];
-    let dcent = Vector2::new(dc[(0, 2)] / c22 - c[(0, 2)] * d22 / (c22 * c22), dc[(1, 2)] / c22 - c[(1, 2)] * d22 / (c22 * c22));
+    let dcent = Vector2::new(
+        dc[(0, 2)] / c22 - c[(0, 2)] * d22 / (c22 * c22),
+        dc[(1, 2)] / c22 - c[(1, 2)] * d22 / (c22 * c22),
+    );
     let top = Matrix2::new(c[(0, 0)], c[(0, 1)], c[(1, 0)], c[(1, 1)]);
     let dtop = Matrix2::new(dc[(0, 0)], dc[(0, 1)], dc[(1, 0)], dc[(1, 1)]);
-    let mut dshape = -dtop / c22 + top * d22 / (c22 * c22) + dcent * e.centre.transpose() + e.centre * dcent.transpose();
+    let mut dshape =
+        -dtop / c22 + top * d22 / (c22 * c22) + dcent * e.centre.transpose() + e.centre * dcent.transpose();
     dshape = 0.5 * (dshape + dshape.transpose());
     (dcent, dshape)
 }
@@ -380,7 +386,10 @@ impl BoundsModel {
 
 /// Derivatives of `C* = P Q* Pᵀ` with respect to the camera pose tangent (6, right perturbation of
 /// world-from-camera, `[ω, v]`) and the ellipsoid tangent (9, see [`Ellipsoid::retract`]).
-pub fn conic_derivatives(ellipsoid: &Ellipsoid, camera: &Camera) -> (Matrix3<f64>, [Matrix3<f64>; 6], [Matrix3<f64>; 9]) {
+pub fn conic_derivatives(
+    ellipsoid: &Ellipsoid,
+    camera: &Camera,
+) -> (Matrix3<f64>, [Matrix3<f64>; 6], [Matrix3<f64>; 9]) {
     let k = camera.intrinsics.matrix();
     let t_cw = camera.camera_from_world().to_homogeneous();
     let p = camera.projection_matrix();
@@ -428,7 +437,11 @@ pub struct BoxPrediction {
 /// Predicted box of an ellipsoid in a camera under a bounds model, with analytic Jacobians.
 ///
 /// Sides of a clipped box that sit on the image border or at a corner have zero derivative.
-pub fn predict_box(ellipsoid: &Ellipsoid, camera: &Camera, model: &BoundsModel) -> Result<BoxPrediction, ProjectionError> {
+pub fn predict_box(
+    ellipsoid: &Ellipsoid,
+    camera: &Camera,
+    model: &BoundsModel,
+) -> Result<BoxPrediction, ProjectionError> {
     let conic = project(ellipsoid, camera)?;
     let e = conic.ellipse().ok_or(ProjectionError::NotEllipse)?;
     let (c, d_cam, d_quad) = conic_derivatives(ellipsoid, camera);
@@ -473,10 +486,7 @@ pub fn predict_box(ellipsoid: &Ellipsoid, camera: &Camera, model: &BoundsModel) 
 /// Intersection over union of an ellipsoid's projected (clipped) box with a box; 0 when the ellipsoid
 /// does not project into the image.
 pub fn projected_iou(ellipsoid: &Ellipsoid, camera: &Camera, image: &ImageSize, bbox: &BBox) -> f64 {
-    project(ellipsoid, camera)
-        .and_then(|c| c.clipped_bounds(image))
-        .map(|b| b.iou(bbox))
-        .unwrap_or(0.0)
+    project(ellipsoid, camera).and_then(|c| c.clipped_bounds(image)).map(|b| b.iou(bbox)).unwrap_or(0.0)
 }
 
 #[cfg(test)]
@@ -534,8 +544,8 @@ mod tests {
                 }
             }
         }
-        for k in 0..4 {
-            assert!((bb[k] - cb.to_array()[k]).abs() < 1.0, "side {k}: sampled {} exact {}", bb[k], cb.to_array()[k]);
+        for (k, (sampled, exact)) in bb.iter().zip(cb.to_array()).enumerate() {
+            assert!((sampled - exact).abs() < 1.0, "side {k}: sampled {sampled} exact {exact}");
         }
     }
 

@@ -265,7 +265,10 @@ mod tests {
 
     fn sample() -> Ellipsoid {
         Ellipsoid::new(
-            Isometry3::from_parts(Translation3::new(3.0, -1.0, 12.0), UnitQuaternion::from_euler_angles(0.2, -0.4, 1.1)),
+            Isometry3::from_parts(
+                Translation3::new(3.0, -1.0, 12.0),
+                UnitQuaternion::from_euler_angles(0.2, -0.4, 1.1),
+            ),
             Vector3::new(2.1, 0.8, 0.9),
         )
     }

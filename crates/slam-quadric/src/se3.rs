@@ -26,9 +26,7 @@ pub fn so3_left_jacobian(w: &Vector3<f64>) -> Matrix3<f64> {
         return Matrix3::identity() + 0.5 * wx + wx * wx / 6.0;
     }
     let theta = theta2.sqrt();
-    Matrix3::identity()
-        + (1.0 - theta.cos()) / theta2 * wx
-        + (theta - theta.sin()) / (theta2 * theta) * wx * wx
+    Matrix3::identity() + (1.0 - theta.cos()) / theta2 * wx + (theta - theta.sin()) / (theta2 * theta) * wx * wx
 }
 
 /// Inverse of [`so3_left_jacobian`].

@@ -7,8 +7,8 @@ use nalgebra::{DMatrix, Isometry3, Matrix4};
 use serde_json::Value;
 use slam_quadric::{
     conic::project_unchecked,
-    init::{BoxView, Conic, Dqp, Initializer, QSlamSvd, Reference, Tri},
     init::Degeneracy,
+    init::{BoxView, Conic, Dqp, Initializer, QSlamSvd, Reference, Tri},
     predict_box, project, se3, BBox, BoundsModel, Camera, Ellipsoid, ImageSize, InitError, Intrinsics, ProjectionError,
     Tangent9,
 };
@@ -101,7 +101,11 @@ fn projection_cases() {
             assert!(conic.bounds().is_err(), "case {id}: library has no bounds");
         }
         // camera-inside flag
-        assert_eq!(e.contains_point(&cam.centre()), c["contains_camera"].as_bool().expect("flag"), "case {id}: contains");
+        assert_eq!(
+            e.contains_point(&cam.centre()),
+            c["contains_camera"].as_bool().expect("flag"),
+            "case {id}: contains"
+        );
         // visibility: our whole-ellipsoid test against the labels
         let label = c["label"].as_str().expect("label");
         let projected = project(&e, &cam);
@@ -255,7 +259,12 @@ fn multiview_cases() -> Vec<MultiView> {
                     BoxView::new(cam, BBox::from_array(vecf(&v["true_box_xyxy"]).try_into().expect("4")))
                 })
                 .collect();
-            MultiView { truth, truth_q: mat(&c["truth_Q_normalized"]), views, mode: c["mode"].as_str().expect("mode").into() }
+            MultiView {
+                truth,
+                truth_q: mat(&c["truth_Q_normalized"]),
+                views,
+                mode: c["mode"].as_str().expect("mode").into(),
+            }
         })
         .collect()
 }
@@ -339,7 +348,8 @@ fn tri_recovers_with_true_centre_and_with_centre_correction() {
 fn dqp_recovers_in_a_frame_where_the_truth_only_yaws() {
     for (i, mv) in multiview_cases().iter().enumerate() {
         let yaw = nalgebra::UnitQuaternion::from_axis_angle(&nalgebra::Vector3::y_axis(), 20f64.to_radians());
-        let frame = mv.truth.world_from_quadric * Isometry3::from_parts(nalgebra::Translation3::new(3.0, -1.0, -30.0), yaw);
+        let frame =
+            mv.truth.world_from_quadric * Isometry3::from_parts(nalgebra::Translation3::new(3.0, -1.0, -30.0), yaw);
         let dqp = Dqp { reference: Reference::Frame(frame), ..Dqp::with_centre_correction() };
         assert_recovers("DQP(true centre)", i, mv, dqp.solve_with_centre(&mv.views, &mv.truth.centre()));
         if is_orbit(mv) {

@@ -135,7 +135,11 @@ fn box_jacobians_match_central_differences() {
         let e = Ellipsoid::new(
             Isometry3::from_parts(
                 Translation3::new(rng.uniform(-14.0, 14.0), rng.uniform(-2.0, 3.0), rng.uniform(6.0, 30.0)),
-                UnitQuaternion::from_euler_angles(rng.uniform(-3.0, 3.0), rng.uniform(-1.0, 1.0), rng.uniform(-3.0, 3.0)),
+                UnitQuaternion::from_euler_angles(
+                    rng.uniform(-3.0, 3.0),
+                    rng.uniform(-1.0, 1.0),
+                    rng.uniform(-3.0, 3.0),
+                ),
             ),
             Vector3::new(rng.uniform(0.4, 2.5), rng.uniform(0.4, 2.5), rng.uniform(0.4, 2.5)),
         );
@@ -143,7 +147,11 @@ fn box_jacobians_match_central_differences() {
             kitti(),
             Isometry3::from_parts(
                 Translation3::new(rng.uniform(-1.0, 1.0), rng.uniform(-0.3, 0.3), rng.uniform(-1.0, 1.0)),
-                UnitQuaternion::from_euler_angles(rng.uniform(-0.1, 0.1), rng.uniform(-0.2, 0.2), rng.uniform(-0.1, 0.1)),
+                UnitQuaternion::from_euler_angles(
+                    rng.uniform(-0.1, 0.1),
+                    rng.uniform(-0.2, 0.2),
+                    rng.uniform(-0.1, 0.1),
+                ),
             ),
         );
         for (mi, model) in [BoundsModel::Full, BoundsModel::Clipped(IMAGE)].iter().enumerate() {
@@ -182,7 +190,12 @@ fn box_jacobians_match_central_differences() {
             if mi == 1 && (err_c > 1e-3 || err_q > 1e-3) {
                 continue;
             }
-            assert!(err_c < 1e-5, "trial {trial} model {mi}: camera jacobian rel err {err_c:e}\n{}\n{}", num_cam, pred.d_camera);
+            assert!(
+                err_c < 1e-5,
+                "trial {trial} model {mi}: camera jacobian rel err {err_c:e}\n{}\n{}",
+                num_cam,
+                pred.d_camera
+            );
             assert!(err_q < 1e-5, "trial {trial} model {mi}: quadric jacobian rel err {err_q:e}");
             checked[mi] += 1;
         }
@@ -234,7 +247,10 @@ impl Lcg {
 /// looking at it; the object is a car-sized ellipsoid 0.9 m below the cameras, yawed by `yaw`.
 fn arc_scene(yaw: f64, axes: Vector3<f64>) -> (Ellipsoid, Vec<BoxView>) {
     let truth = Ellipsoid::new(
-        Isometry3::from_parts(Translation3::new(0.0, 0.9, 15.0), UnitQuaternion::from_axis_angle(&Vector3::y_axis(), yaw)),
+        Isometry3::from_parts(
+            Translation3::new(0.0, 0.9, 15.0),
+            UnitQuaternion::from_axis_angle(&Vector3::y_axis(), yaw),
+        ),
         axes,
     );
     let views = (0..5)
@@ -352,17 +368,34 @@ fn results_are_in_front_of_every_camera_or_errors() {
                 let s = 40.0;
                 let x0 = b.xmin + rng.uniform(-s, s);
                 let y0 = b.ymin + rng.uniform(-s, s);
-                BoxView::new(v.camera, BBox::new(x0, y0, x0 + b.width() * rng.uniform(0.5, 1.5), y0 + b.height() * rng.uniform(0.5, 1.5)))
+                BoxView::new(
+                    v.camera,
+                    BBox::new(x0, y0, x0 + b.width() * rng.uniform(0.5, 1.5), y0 + b.height() * rng.uniform(0.5, 1.5)),
+                )
             })
             .collect();
         for m in all_methods() {
             if let Ok(e) = m.initialize(&noisy) {
                 assert!(e.is_valid());
                 for v in &noisy {
-                    assert_eq!(slam_quadric::classify(&e, &v.camera), slam_quadric::Visibility::InFront, "{}", m.name());
+                    assert_eq!(
+                        slam_quadric::classify(&e, &v.camera),
+                        slam_quadric::Visibility::InFront,
+                        "{}",
+                        m.name()
+                    );
                 }
             }
         }
     }
 }
 
+#[cfg(feature = "serde")]
+#[test]
+fn serde_round_trip() {
+    let (truth, views) = arc_scene(0.05, Vector3::new(2.0, 0.8, 0.9));
+    let text = serde_json::to_string(&(truth, &views)).expect("serialise");
+    let (e, v): (Ellipsoid, Vec<BoxView>) = serde_json::from_str(&text).expect("deserialise");
+    assert_eq!(e, truth);
+    assert_eq!(v, views);
+}

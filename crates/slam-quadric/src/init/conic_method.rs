@@ -69,8 +69,11 @@ impl Conic {
             let c = c / c.norm();
             for (r, &(ra, rb)) in SYM3.iter().enumerate() {
                 for (col, &(j, k)) in SYM4.iter().enumerate() {
-                    a[(6 * i + r, col)] =
-                        if j == k { p[(ra, j)] * p[(rb, j)] } else { p[(ra, j)] * p[(rb, k)] + p[(ra, k)] * p[(rb, j)] };
+                    a[(6 * i + r, col)] = if j == k {
+                        p[(ra, j)] * p[(rb, j)]
+                    } else {
+                        p[(ra, j)] * p[(rb, k)] + p[(ra, k)] * p[(rb, j)]
+                    };
                 }
                 a[(6 * i + r, 10 + i)] = -c[(ra, rb)];
             }

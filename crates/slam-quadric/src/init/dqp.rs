@@ -300,7 +300,15 @@ impl Tri {
         let mut a = DMatrix::zeros(planes.len(), 7);
         for (r, p) in planes.iter().enumerate() {
             let (n, d) = (Vector3::new(p[0], p[1], p[2]), p[3]);
-            let row = [n.x * n.x, 2.0 * n.x * n.y, 2.0 * n.x * n.z, n.y * n.y, 2.0 * n.y * n.z, n.z * n.z, d * d + 2.0 * d * n.dot(&t)];
+            let row = [
+                n.x * n.x,
+                2.0 * n.x * n.y,
+                2.0 * n.x * n.z,
+                n.y * n.y,
+                2.0 * n.y * n.z,
+                n.z * n.z,
+                d * d + 2.0 * d * n.dot(&t),
+            ];
             for (c, v) in row.iter().enumerate() {
                 a[(r, c)] = *v;
             }

@@ -99,10 +99,16 @@ impl fmt::Display for InitError {
         match self {
             InitError::TooFewViews { got, need } => write!(f, "too few views: got {got}, need {need}"),
             InitError::InvalidView { view, reason: Some(r) } => write!(f, "view {view}: {r}"),
-            InitError::InvalidView { view, reason: None } => write!(f, "view {view}: camera pose or intrinsics not finite"),
+            InitError::InvalidView { view, reason: None } => {
+                write!(f, "view {view}: camera pose or intrinsics not finite")
+            }
             InitError::Degenerate(Degeneracy::SingleCentre) => write!(f, "degenerate views: all cameras at one centre"),
-            InitError::Degenerate(Degeneracy::ParallelRays) => write!(f, "degenerate views: rays through the box centres are parallel"),
-            InitError::Degenerate(Degeneracy::RankDeficient) => write!(f, "degenerate views: linear system is rank deficient"),
+            InitError::Degenerate(Degeneracy::ParallelRays) => {
+                write!(f, "degenerate views: rays through the box centres are parallel")
+            }
+            InitError::Degenerate(Degeneracy::RankDeficient) => {
+                write!(f, "degenerate views: linear system is rank deficient")
+            }
             InitError::NotEllipsoid(e) => write!(f, "solution is not an ellipsoid: {e}"),
             InitError::BehindCamera { view } => write!(f, "solution is not in front of camera {view}"),
             InitError::CameraInside { view } => write!(f, "solution contains camera {view}"),
