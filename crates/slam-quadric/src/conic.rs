@@ -483,6 +483,29 @@ pub fn predict_box(
     Ok(BoxPrediction { bbox, d_camera, d_quadric })
 }
 
+/// A box-measurement residual with its Jacobians.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoxResidual {
+    /// `predicted − measured`, `[xmin, ymin, xmax, ymax]`, pixels.
+    pub error: nalgebra::Vector4<f64>,
+    /// `∂error / ∂ξ_camera` (4×6), as in [`BoxPrediction::d_camera`].
+    pub d_camera: nalgebra::SMatrix<f64, 4, 6>,
+    /// `∂error / ∂ξ_quadric` (4×9), as in [`BoxPrediction::d_quadric`].
+    pub d_quadric: nalgebra::SMatrix<f64, 4, 9>,
+}
+
+/// Box-measurement error `predicted − measured` with the Jacobians of [`predict_box`] (the measured
+/// box is a constant). This is the residual of the box factor in object optimisation.
+pub fn box_error(
+    ellipsoid: &Ellipsoid,
+    camera: &Camera,
+    measured: &BBox,
+    model: &BoundsModel,
+) -> Result<BoxResidual, ProjectionError> {
+    let p = predict_box(ellipsoid, camera, model)?;
+    Ok(BoxResidual { error: p.bbox.to_vector() - measured.to_vector(), d_camera: p.d_camera, d_quadric: p.d_quadric })
+}
+
 /// Intersection over union of an ellipsoid's projected (clipped) box with a box; 0 when the ellipsoid
 /// does not project into the image.
 pub fn projected_iou(ellipsoid: &Ellipsoid, camera: &Camera, image: &ImageSize, bbox: &BBox) -> f64 {

@@ -47,7 +47,8 @@ pub mod se3;
 pub use bbox::{BBox, BoxError, ImageSize};
 pub use camera::{Camera, Intrinsics};
 pub use conic::{
-    classify, predict_box, project, BoundsModel, BoxPrediction, DualConic, Ellipse2, ProjectionError, Visibility,
+    box_error, classify, predict_box, project, BoundsModel, BoxPrediction, BoxResidual, DualConic, Ellipse2,
+    ProjectionError, Visibility,
 };
 pub use ellipsoid::{ConstrainError, Ellipsoid, Tangent9};
 pub use init::{BoxView, InitError, Initializer};
