@@ -1,0 +1,48 @@
+//! `slam-app`: the command-line front of the quadric-SLAM workspace.
+
+mod assoc_cmd;
+
+use std::{io::IsTerminal, path::PathBuf};
+
+use clap::{Parser, Subcommand};
+
+/// Stereo object SLAM with ellipsoid landmarks: studies and tools.
+#[derive(Parser, Debug)]
+#[command(name = "slam-app", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Compare object associators (ODA vs IoU-only): ID switches on simulated crossings and on real
+    /// KITTI tracking annotations.
+    #[command(subcommand)]
+    Assoc(assoc_cmd::AssocCommand),
+}
+
+/// A path inside the repository's `fixtures/`: relative to the working directory if it exists there,
+/// else relative to this source tree.
+pub(crate) fn fixture(rel: &str) -> PathBuf {
+    let local = PathBuf::from("fixtures").join(rel);
+    if local.exists() {
+        return local;
+    }
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures").join(rel)
+}
+
+fn main() -> anyhow::Result<()> {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .with_ansi(std::io::stderr().is_terminal())
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Assoc(cmd) => assoc_cmd::run(cmd),
+    }
+}

@@ -1,0 +1,26 @@
+//! Shared vocabulary and trait seams of the quadric-SLAM workspace.
+//!
+//! Implementation crates meet here instead of depending on each other: `slam-assoc` implements
+//! [`assoc::Associator`], and a pipeline holds a `Box<dyn Associator>` chosen from configuration.
+//! The crate is deliberately small: typed ids, object classes, detections with optional instance masks,
+//! and the association contract. Geometry comes from `slam-quadric`, re-exported as [`geometry`].
+
+#![warn(missing_docs)]
+
+pub mod assoc;
+pub mod detection;
+
+/// The geometry crate, re-exported so that users of the seams need one dependency.
+pub use slam_quadric as geometry;
+
+pub use assoc::{Assignment, AssociationInput, Associator, PointPair, TrackView};
+pub use detection::{ClassId, Detection, Mask, Region, TrackId};
+
+/// Common types, meant to be glob-imported: `use slam_core::prelude::*;`.
+pub mod prelude {
+    pub use crate::{
+        assoc::{Assignment, AssociationInput, Associator, PointPair, TrackView},
+        detection::{ClassId, Detection, Mask, Region, TrackId},
+        geometry::{BBox, Camera, Ellipsoid, ImageSize, Intrinsics},
+    };
+}

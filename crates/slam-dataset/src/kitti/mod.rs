@@ -1,0 +1,5 @@
+//! KITTI readers.
+
+pub mod calib;
+pub mod poses;
+pub mod tracking;

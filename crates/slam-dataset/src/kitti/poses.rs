@@ -1,0 +1,56 @@
+//! KITTI odometry-style pose files: one row-major 3×4 `[R | t]` per line (12 numbers).
+
+use std::path::Path;
+
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
+
+use crate::{parse_numbers, read_text, DatasetError};
+
+/// Read a KITTI pose file. Each line is a camera-to-world pose `T_w←c` (as KITTI ground truth and
+/// ORB-SLAM3 write them). Blank lines are an error (they would shift frame indices).
+pub fn read_kitti_poses(path: impl AsRef<Path>) -> Result<Vec<Isometry3<f64>>, DatasetError> {
+    let path = path.as_ref();
+    let text = read_text(path)?;
+    let mut poses = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let fields: Vec<&str> = line.split_whitespace().collect();
+        if fields.len() != 12 {
+            return Err(DatasetError::Parse {
+                path: path.to_path_buf(),
+                line: i + 1,
+                message: format!("expected 12 numbers, found {}", fields.len()),
+            });
+        }
+        let v = parse_numbers(path, i + 1, &fields)?;
+        let r = Matrix3::new(v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10]);
+        let err = (r.transpose() * r - Matrix3::identity()).norm();
+        if err > 1e-3 || r.determinant() < 0.0 {
+            return Err(DatasetError::Parse {
+                path: path.to_path_buf(),
+                line: i + 1,
+                message: format!("rotation part is not a rotation (‖RᵀR − I‖ = {err:.2e})"),
+            });
+        }
+        let rot = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&r));
+        poses.push(Isometry3::from_parts(Translation3::from(Vector3::new(v[3], v[7], v[11])), rot));
+    }
+    if poses.is_empty() {
+        return Err(DatasetError::Invalid { path: path.to_path_buf(), message: "no poses".into() });
+    }
+    Ok(poses)
+}
+
+/// Write poses in the same format (12 numbers per line, 9 significant decimals), atomically.
+pub fn write_kitti_poses(path: impl AsRef<Path>, poses: &[Isometry3<f64>]) -> Result<(), DatasetError> {
+    let path = path.as_ref();
+    let mut out = String::new();
+    for p in poses {
+        let r = p.rotation.to_rotation_matrix().into_inner();
+        let t = p.translation.vector;
+        let row = |k: usize| format!("{:.9e} {:.9e} {:.9e} {:.9e}", r[(k, 0)], r[(k, 1)], r[(k, 2)], t[k]);
+        out.push_str(&format!("{} {} {}\n", row(0), row(1), row(2)));
+    }
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, out).map_err(|source| DatasetError::Io { path: tmp.clone(), source })?;
+    std::fs::rename(&tmp, path).map_err(|source| DatasetError::Io { path: path.to_path_buf(), source })
+}

@@ -1,0 +1,66 @@
+//! Dataset readers for quadric SLAM. Every reader returns [`DatasetError`] values that name the file
+//! and, for parse errors, the 1-based line; none panics on malformed input.
+
+#![warn(missing_docs)]
+
+pub mod classes;
+pub mod kitti;
+
+use std::path::{Path, PathBuf};
+
+/// Errors of the dataset readers.
+#[derive(Debug, thiserror::Error)]
+pub enum DatasetError {
+    /// The file could not be read.
+    #[error("cannot read {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// A line could not be parsed.
+    #[error("{path}:{line}: {message}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// The file parsed but lacks something required.
+    #[error("{path}: {message}")]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// What is missing or inconsistent.
+        message: String,
+    },
+}
+
+/// Read a whole file as UTF-8 text, with the path in the error.
+pub(crate) fn read_text(path: &Path) -> Result<String, DatasetError> {
+    let bytes = std::fs::read(path).map_err(|source| DatasetError::Io { path: path.to_path_buf(), source })?;
+    String::from_utf8(bytes).map_err(|e| DatasetError::Parse {
+        path: path.to_path_buf(),
+        line: 1 + e.as_bytes()[..e.utf8_error().valid_up_to()].iter().filter(|&&b| b == b'\n').count(),
+        message: "not valid UTF-8".into(),
+    })
+}
+
+/// Parse whitespace-separated finite numbers of one line.
+pub(crate) fn parse_numbers(path: &Path, line: usize, fields: &[&str]) -> Result<Vec<f64>, DatasetError> {
+    fields
+        .iter()
+        .map(|f| match f.parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            Ok(_) => {
+                Err(DatasetError::Parse { path: path.to_path_buf(), line, message: format!("non-finite number '{f}'") })
+            }
+            Err(_) => {
+                Err(DatasetError::Parse { path: path.to_path_buf(), line, message: format!("not a number: '{f}'") })
+            }
+        })
+        .collect()
+}

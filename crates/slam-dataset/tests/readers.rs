@@ -1,0 +1,91 @@
+//! Readers on the shipped KITTI tracking fixtures and on malformed input.
+
+use std::path::PathBuf;
+
+use slam_dataset::{
+    classes,
+    kitti::{calib::Calib, poses::read_kitti_poses, tracking::read_tracking_labels},
+    DatasetError,
+};
+
+fn fixture(rel: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/kitti_tracking").join(rel)
+}
+
+#[test]
+fn sequence_0000() {
+    let labels = read_tracking_labels(fixture("0000/label_02.txt")).expect("labels");
+    assert_eq!(labels.len(), 1089); // META.md: 1089 lines
+    let cars = labels.iter().filter(|l| l.kind == "Car").count();
+    assert_eq!(cars, 243);
+    let van = &labels[2];
+    assert_eq!((van.frame, van.track_id, van.kind.as_str()), (0, 0, "Van"));
+    assert_eq!(van.class, Some(classes::CAR));
+    assert!((van.bbox.xmin - 296.744956).abs() < 1e-9 && (van.location[2] - 13.410495).abs() < 1e-9);
+    assert!(labels[0].is_dont_care() && labels[0].class.is_none());
+    let poses = read_kitti_poses(fixture("0000/poses_orbslam3.txt")).expect("poses");
+    assert_eq!(poses.len(), 154);
+    assert!(poses[0].translation.vector.norm() < 1e-12);
+    let calib = Calib::read(fixture("0000/calib.txt")).expect("calib");
+    let p2 = calib.matrix3x4("P2").expect("P2");
+    assert!((p2[(0, 0)] - 721.5377).abs() < 1e-9 && (p2[(0, 3)] - 44.85728).abs() < 1e-9);
+    assert!(calib.matrix3x4("P9").is_err());
+}
+
+fn write_tmp(name: &str, bytes: &[u8]) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("slam-dataset-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("tmp dir");
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).expect("write");
+    p
+}
+
+fn parse_line(e: DatasetError) -> usize {
+    match e {
+        DatasetError::Parse { line, .. } => line,
+        other => panic!("expected a parse error, got {other}"),
+    }
+}
+
+#[test]
+fn malformed_labels_name_the_line() {
+    let good = "0 0 Car 0 0 -1.5 10 20 50 60 1.5 1.6 3.9 1.0 1.7 20.0 0.1\n";
+    let cases: [(&str, String); 5] = [
+        ("truncated", format!("{good}0 1 Car 0 0 -1.5 10 20\n")),
+        ("nan", format!("{good}{good}0 1 Car 0 0 -1.5 10 20 nan 60 1.5 1.6 3.9 1.0 1.7 20.0 0.1\n")),
+        ("word", "x 1 Car 0 0 -1.5 10 20 50 60 1.5 1.6 3.9 1.0 1.7 20.0 0.1\n".to_string()),
+        ("emptybox", format!("{good}0 1 Car 0 0 -1.5 50 20 50 60 1.5 1.6 3.9 1.0 1.7 20.0 0.1\n")),
+        ("inf", format!("{good}0 1 Car 0 0 -1.5 10 20 inf 60 1.5 1.6 3.9 1.0 1.7 20.0 0.1\n")),
+    ];
+    let expected = [2, 3, 1, 2, 2];
+    for ((name, text), line) in cases.iter().zip(expected) {
+        let p = write_tmp(&format!("{name}.txt"), text.as_bytes());
+        let e = read_tracking_labels(&p).expect_err(name);
+        assert!(e.to_string().contains(&p.display().to_string()), "{e}");
+        assert_eq!(parse_line(e), line, "{name}");
+    }
+    // non-UTF-8
+    let p = write_tmp("bin.txt", b"0 0 Car\n\xff\xfe\n");
+    assert_eq!(parse_line(read_tracking_labels(&p).expect_err("binary")), 2);
+    // empty file: no labels, not an error
+    let p = write_tmp("empty.txt", b"");
+    assert!(read_tracking_labels(&p).expect("empty").is_empty());
+    // missing file
+    let e = read_tracking_labels("/nonexistent/label.txt").expect_err("missing");
+    assert!(matches!(e, DatasetError::Io { .. }) && e.to_string().contains("/nonexistent/label.txt"));
+}
+
+#[test]
+fn malformed_poses_and_calib() {
+    let p = write_tmp("poses.txt", b"1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0\n");
+    assert_eq!(parse_line(read_kitti_poses(&p).expect_err("short")), 2);
+    let p = write_tmp("poses2.txt", b"2 0 0 0 0 1 0 0 0 0 1 0\n");
+    assert_eq!(parse_line(read_kitti_poses(&p).expect_err("not a rotation")), 1);
+    let p = write_tmp("poses3.txt", b"");
+    assert!(matches!(read_kitti_poses(&p), Err(DatasetError::Invalid { .. })));
+    let p = write_tmp("calib.txt", b"P0: 1 2 3\nP1:\n");
+    assert_eq!(parse_line(Calib::read(&p).expect_err("no values")), 2);
+    let p = write_tmp("calib2.txt", b"P0: 1 2 3\n");
+    let c = Calib::read(&p).expect("parses");
+    assert_eq!(parse_line(c.matrix3x4("P0").expect_err("short")), 1);
+}
