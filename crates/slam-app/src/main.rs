@@ -1,6 +1,7 @@
 //! `slam-app`: the command-line front of the quadric-SLAM workspace.
 
 mod assoc_cmd;
+mod optim_cmd;
 
 use std::{io::IsTerminal, path::PathBuf};
 
@@ -20,6 +21,8 @@ enum Command {
     /// KITTI tracking annotations.
     #[command(subcommand)]
     Assoc(assoc_cmd::AssocCommand),
+    /// Benchmark the optimiser on real BA and pose-graph problems against Ceres / GTSAM anchors.
+    OptimBench(optim_cmd::OptimBenchArgs),
 }
 
 /// A path inside the repository's `fixtures/`: relative to the working directory if it exists there,
@@ -44,5 +47,6 @@ fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Assoc(cmd) => assoc_cmd::run(cmd),
+        Command::OptimBench(a) => optim_cmd::run(&a),
     }
 }

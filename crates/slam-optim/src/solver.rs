@@ -1,0 +1,887 @@
+//! The graph and the Levenberg–Marquardt solver.
+//!
+//! Each iteration linearises every factor, whitens it with its noise model and reweights it with
+//! `sqrt(ρ'(s))` of its robust kernel, and solves
+//!
+//! ```text
+//! (JᵀJ + diag(JᵀJ)_clamped / μ) δ = −Jᵀr
+//! ```
+//!
+//! with Marquardt's diagonal scaling clamped to `[min_diagonal, max_diagonal]` and a trust-region
+//! radius `μ` updated as in Ceres: after a step with gain ratio `ρ > min_relative_decrease`,
+//! `μ ← μ / max(1/3, 1 − (2ρ − 1)³)`; after a rejected step `μ ← μ / v`, `v ← 2v`. Variables marked
+//! for elimination (BA points) are removed by the Schur complement; the reduced system is factorised
+//! with a dense Cholesky when small and faer's sparse Cholesky (symbolic analysis reused) otherwise. A
+//! failed factorisation, or a trial point where a factor cannot be evaluated, is a rejected step.
+
+use std::{
+    collections::{BTreeSet, HashMap},
+    time::{Duration, Instant},
+};
+
+use nalgebra::{DMatrix, DVector};
+
+use crate::{
+    factor::{Factor, FactorError},
+    noise::NoiseModel,
+    robust::{RobustKernel, L2},
+    values::{Key, Values},
+};
+
+/// Errors of graph building and solving.
+#[derive(Debug, thiserror::Error)]
+pub enum OptimError {
+    /// A factor failed at the starting point.
+    #[error("factor {factor} cannot be evaluated at the initial values: {source}")]
+    InitialEvaluation {
+        /// Index of the factor in the graph.
+        factor: usize,
+        /// Why.
+        source: FactorError,
+    },
+    /// The noise model does not fit the factor.
+    #[error("factor {factor}: noise model does not fit a residual of dimension {dim}")]
+    BadNoise {
+        /// Index of the factor.
+        factor: usize,
+        /// Residual dimension.
+        dim: usize,
+    },
+    /// A factor joins two variables marked for elimination.
+    #[error("factor {factor} joins two eliminated variables; Schur elimination needs at most one per factor")]
+    Elimination {
+        /// Index of the factor.
+        factor: usize,
+    },
+    /// The cost is not finite at the starting point.
+    #[error("the initial cost is not finite")]
+    NonFiniteCost,
+}
+
+struct Entry {
+    factor: Box<dyn Factor>,
+    noise: NoiseModel,
+    kernel: Box<dyn RobustKernel>,
+}
+
+/// A factor graph: factors with their noise models and robust kernels.
+#[derive(Default)]
+pub struct Graph {
+    entries: Vec<Entry>,
+}
+
+impl Graph {
+    /// An empty graph.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Add a factor; returns its index.
+    pub fn add(
+        &mut self,
+        factor: impl Factor + 'static,
+        noise: NoiseModel,
+        kernel: impl RobustKernel + 'static,
+    ) -> Result<usize, OptimError> {
+        self.add_boxed(Box::new(factor), noise, Box::new(kernel))
+    }
+
+    /// Add a boxed factor and kernel.
+    pub fn add_boxed(
+        &mut self,
+        factor: Box<dyn Factor>,
+        noise: NoiseModel,
+        kernel: Box<dyn RobustKernel>,
+    ) -> Result<usize, OptimError> {
+        if !noise.fits(factor.dim()) {
+            return Err(OptimError::BadNoise { factor: self.entries.len(), dim: factor.dim() });
+        }
+        self.entries.push(Entry { factor, noise, kernel });
+        Ok(self.entries.len() - 1)
+    }
+
+    /// Add a plain least-squares factor with unit noise.
+    pub fn add_l2(&mut self, factor: impl Factor + 'static) -> usize {
+        let n = self.entries.len();
+        self.entries.push(Entry { factor: Box::new(factor), noise: NoiseModel::Unit, kernel: Box::new(L2) });
+        n
+    }
+
+    /// Number of factors.
+    pub fn len(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// True when the graph has no factor.
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+
+    /// The cost `½ Σ ρ(‖W r‖²)` at `values`.
+    pub fn cost(&self, values: &Values) -> Result<f64, OptimError> {
+        let mut c = 0.0;
+        for (i, e) in self.entries.iter().enumerate() {
+            let mut r =
+                e.factor.evaluate(values, None).map_err(|source| OptimError::InitialEvaluation { factor: i, source })?;
+            e.noise.whiten(&mut r);
+            c += 0.5 * e.kernel.evaluate(r.norm_squared())[0];
+        }
+        Ok(c)
+    }
+
+    /// The whitened residual of one factor (before the kernel), for inspection.
+    pub fn whitened_residual(&self, factor: usize, values: &Values) -> Option<Result<DVector<f64>, FactorError>> {
+        let e = self.entries.get(factor)?;
+        Some(e.factor.evaluate(values, None).map(|mut r| {
+            e.noise.whiten(&mut r);
+            r
+        }))
+    }
+}
+
+/// Solver settings; defaults follow Ceres' LM defaults.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LmParams {
+    /// Iteration cap (accepted plus rejected steps).
+    pub max_iterations: usize,
+    /// Stop when `|Δcost| / cost < function_tolerance` after an accepted step.
+    pub function_tolerance: f64,
+    /// Stop when the largest gradient component is below this.
+    pub gradient_tolerance: f64,
+    /// Stop when `‖δ‖ ≤ parameter_tolerance (‖x‖ + parameter_tolerance)`.
+    pub parameter_tolerance: f64,
+    /// Initial trust-region radius `μ`.
+    pub initial_radius: f64,
+    /// Largest radius.
+    pub max_radius: f64,
+    /// Smallest radius before giving up.
+    pub min_radius: f64,
+    /// Clamp of the Marquardt diagonal, lower.
+    pub min_diagonal: f64,
+    /// Clamp of the Marquardt diagonal, upper.
+    pub max_diagonal: f64,
+    /// Smallest gain ratio of an accepted step.
+    pub min_relative_decrease: f64,
+    /// Reduced systems up to this size are factorised densely, larger ones with sparse Cholesky.
+    pub dense_limit: usize,
+}
+
+impl Default for LmParams {
+    fn default() -> Self {
+        Self {
+            max_iterations: 100,
+            function_tolerance: 1e-6,
+            gradient_tolerance: 1e-10,
+            parameter_tolerance: 1e-8,
+            initial_radius: 1e4,
+            max_radius: 1e16,
+            min_radius: 1e-32,
+            min_diagonal: 1e-6,
+            max_diagonal: 1e32,
+            min_relative_decrease: 1e-3,
+            dense_limit: 2000,
+        }
+    }
+}
+
+/// Why the solver stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Termination {
+    /// Relative cost change below the function tolerance.
+    FunctionTolerance,
+    /// Gradient below the gradient tolerance.
+    GradientTolerance,
+    /// Step below the parameter tolerance.
+    ParameterTolerance,
+    /// Iteration cap reached.
+    MaxIterations,
+    /// The trust region shrank below its minimum without an acceptable step.
+    NoProgress,
+    /// Nothing to optimise.
+    NoFreeVariables,
+}
+
+/// What happened in one iteration (for observers).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IterationInfo {
+    /// Iteration number, from 1.
+    pub iteration: usize,
+    /// Cost after the iteration.
+    pub cost: f64,
+    /// Cost decrease of the trial step (negative when it got worse; NaN when it could not be evaluated).
+    pub cost_change: f64,
+    /// Trust-region radius used.
+    pub radius: f64,
+    /// Norm of the trial step.
+    pub step_norm: f64,
+    /// Whether the step was accepted.
+    pub accepted: bool,
+}
+
+/// Watches iterations (logging, visualisation) without touching the solver.
+pub trait Observer {
+    /// Called after every iteration.
+    fn on_iteration(&mut self, info: &IterationInfo);
+}
+
+/// Result of a solve.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Summary {
+    /// Cost at the start.
+    pub initial_cost: f64,
+    /// Cost at the end.
+    pub final_cost: f64,
+    /// Iterations (accepted plus rejected).
+    pub iterations: usize,
+    /// Accepted steps.
+    pub accepted: usize,
+    /// Why it stopped.
+    pub termination: Termination,
+    /// Wall time of the solve.
+    pub elapsed: Duration,
+    /// Size of the system factorised (after Schur elimination).
+    pub reduced_dim: usize,
+    /// Whether the sparse Cholesky was used.
+    pub sparse: bool,
+}
+
+/// The solver: settings plus which variables are fixed and which are eliminated.
+#[derive(Debug, Clone, Default)]
+pub struct LevenbergMarquardt {
+    /// Settings.
+    pub params: LmParams,
+    fixed: BTreeSet<Key>,
+    eliminate: BTreeSet<Key>,
+}
+
+/// One factor's weighted, whitened linearisation.
+struct Lin {
+    r: DVector<f64>,
+    /// Per key of the factor: Jacobian block, or `None` when the key is fixed.
+    j: Vec<Option<DMatrix<f64>>>,
+}
+
+/// Index of a free variable in the solve.
+#[derive(Debug, Clone, Copy)]
+enum Slot {
+    Reduced { var: usize },
+    Eliminated { var: usize },
+}
+
+struct Layout {
+    slots: HashMap<Key, Slot>,
+    reduced: Vec<(Key, usize, usize)>,    // key, offset, dim
+    eliminated: Vec<(Key, usize)>,        // key, dim
+}
+
+struct ElimBlock {
+    hee: DMatrix<f64>,
+    ge: DVector<f64>,
+    /// `(reduced var, J_eᵀ J_r)` blocks, d_e × d_r, sorted by reduced var.
+    links: Vec<(usize, DMatrix<f64>)>,
+}
+
+/// Block pattern of the reduced system for the sparse path: which `(a, b)` blocks (`a ≥ b`) exist,
+/// where their entries sit in the compressed-column lower triangle, and the symbolic factorisation.
+struct Pattern {
+    index: HashMap<(usize, usize), usize>,
+    /// Per block, the CSC value position of each entry in column-major order (`usize::MAX` for the
+    /// unused upper half of diagonal blocks).
+    positions: Vec<Vec<usize>>,
+    /// Per block, its `(a, b)`.
+    pairs: Vec<(usize, usize)>,
+    /// CSC value position of each scalar diagonal entry.
+    diag: Vec<usize>,
+    symbolic: faer::sparse::SymbolicSparseColMat<usize>,
+    llt: faer::sparse::linalg::solvers::SymbolicLlt<usize>,
+}
+
+impl Pattern {
+    fn build(layout: &Layout, graph: &Graph) -> Option<Self> {
+        let mut pairs: BTreeSet<(usize, usize)> = (0..layout.reduced.len()).map(|a| (a, a)).collect();
+        let mut elim_links: Vec<BTreeSet<usize>> = vec![BTreeSet::new(); layout.eliminated.len()];
+        for e in &graph.entries {
+            let mut red = Vec::new();
+            let mut el = None;
+            for k in e.factor.keys() {
+                match layout.slots.get(k) {
+                    Some(Slot::Reduced { var }) => red.push(*var),
+                    Some(Slot::Eliminated { var }) => el = Some(*var),
+                    None => {}
+                }
+            }
+            for &a in &red {
+                for &b in &red {
+                    if a >= b {
+                        pairs.insert((a, b));
+                    }
+                }
+                if let Some(ev) = el {
+                    elim_links[ev].insert(a);
+                }
+            }
+        }
+        for links in &elim_links {
+            for &a in links {
+                for &b in links {
+                    if a >= b {
+                        pairs.insert((a, b));
+                    }
+                }
+            }
+        }
+        let pairs: Vec<(usize, usize)> = pairs.into_iter().collect();
+        let n: usize = layout.reduced.iter().map(|r| r.2).sum();
+        // blocks by column var, rows ascending
+        let mut by_col: Vec<Vec<usize>> = vec![Vec::new(); layout.reduced.len()];
+        for (i, &(_, b)) in pairs.iter().enumerate() {
+            by_col[b].push(i);
+        }
+        for col in &mut by_col {
+            col.sort_by_key(|&i| pairs[i].0);
+        }
+        let mut positions: Vec<Vec<usize>> =
+            pairs.iter().map(|&(a, b)| vec![usize::MAX; layout.reduced[a].2 * layout.reduced[b].2]).collect();
+        let mut col_ptr = Vec::with_capacity(n + 1);
+        let mut row_idx = Vec::new();
+        let mut diag = vec![0; n];
+        col_ptr.push(0);
+        for (b, col) in by_col.iter().enumerate() {
+            let (_, rb, db) = layout.reduced[b];
+            for j in 0..db {
+                for &bi in col {
+                    let a = pairs[bi].0;
+                    let (_, ra, da) = layout.reduced[a];
+                    for i in 0..da {
+                        if a == b && i < j {
+                            continue;
+                        }
+                        if a == b && i == j {
+                            diag[rb + j] = row_idx.len();
+                        }
+                        positions[bi][j * da + i] = row_idx.len();
+                        row_idx.push(ra + i);
+                    }
+                }
+                col_ptr.push(row_idx.len());
+            }
+        }
+        let symbolic = faer::sparse::SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
+        let llt = faer::sparse::linalg::solvers::SymbolicLlt::try_new(symbolic.as_ref(), faer::Side::Lower).ok()?;
+        let index = pairs.iter().enumerate().map(|(i, p)| (*p, i)).collect();
+        Some(Self { index, positions, pairs, diag, symbolic, llt })
+    }
+}
+
+/// The reduced Hessian: dense (lower triangle used) or block-sparse following a [`Pattern`].
+enum Reduced {
+    Dense(DMatrix<f64>),
+    Sparse(Vec<DMatrix<f64>>),
+}
+
+struct Normal {
+    h: Reduced,
+    g: DVector<f64>,
+    elim: Vec<ElimBlock>,
+}
+
+impl LevenbergMarquardt {
+    /// A solver with the given settings.
+    pub fn new(params: LmParams) -> Self {
+        Self { params, ..Self::default() }
+    }
+
+    /// Hold a variable constant (gauge fixing, old keyframes, known cameras).
+    pub fn fix(&mut self, k: Key) -> &mut Self {
+        self.fixed.insert(k);
+        self
+    }
+
+    /// Eliminate a variable by the Schur complement (BA points). A factor may touch at most one
+    /// eliminated variable.
+    pub fn eliminate(&mut self, k: Key) -> &mut Self {
+        self.eliminate.insert(k);
+        self
+    }
+
+    fn layout(&self, graph: &Graph, values: &Values) -> Result<Layout, OptimError> {
+        let mut free: BTreeSet<Key> = BTreeSet::new();
+        for (i, e) in graph.entries.iter().enumerate() {
+            let mut n_elim = 0;
+            for &k in e.factor.keys() {
+                if values.get(k).is_none() {
+                    return Err(OptimError::InitialEvaluation { factor: i, source: FactorError::WrongVariable(k) });
+                }
+                if self.fixed.contains(&k) {
+                    continue;
+                }
+                if self.eliminate.contains(&k) {
+                    n_elim += 1;
+                }
+                free.insert(k);
+            }
+            if n_elim > 1 {
+                return Err(OptimError::Elimination { factor: i });
+            }
+        }
+        let mut slots = HashMap::new();
+        let (mut reduced, mut eliminated) = (Vec::new(), Vec::new());
+        let mut off = 0;
+        for k in free {
+            let dim = values.get(k).map(|v| v.dim()).unwrap_or(0);
+            if self.eliminate.contains(&k) {
+                slots.insert(k, Slot::Eliminated { var: eliminated.len() });
+                eliminated.push((k, dim));
+            } else {
+                slots.insert(k, Slot::Reduced { var: reduced.len() });
+                reduced.push((k, off, dim));
+                off += dim;
+            }
+        }
+        Ok(Layout { slots, reduced, eliminated })
+    }
+
+    /// Cost and (optionally) linearisations at `values`. `Err(i, e)` names the failing factor.
+    fn linearize(
+        &self,
+        graph: &Graph,
+        values: &Values,
+        jac: bool,
+    ) -> Result<(f64, Vec<Lin>), (usize, FactorError)> {
+        let mut cost = 0.0;
+        let mut lins = Vec::with_capacity(if jac { graph.entries.len() } else { 0 });
+        let mut buf = Vec::new();
+        for (i, e) in graph.entries.iter().enumerate() {
+            let mut r = e.factor.evaluate(values, if jac { Some(&mut buf) } else { None }).map_err(|err| (i, err))?;
+            e.noise.whiten(&mut r);
+            let s = r.norm_squared();
+            let [rho, d1, _] = e.kernel.evaluate(s);
+            if !rho.is_finite() {
+                return Err((i, FactorError::Undefined("non-finite residual".into())));
+            }
+            cost += 0.5 * rho;
+            if jac {
+                let w = d1.max(0.0).sqrt();
+                r *= w;
+                let j = e
+                    .factor
+                    .keys()
+                    .iter()
+                    .zip(buf.drain(..))
+                    .map(|(k, mut jk)| {
+                        if self.fixed.contains(k) {
+                            None
+                        } else {
+                            e.noise.whiten_jacobian(&mut jk);
+                            jk *= w;
+                            Some(jk)
+                        }
+                    })
+                    .collect();
+                lins.push(Lin { r, j });
+            }
+        }
+        Ok((cost, lins))
+    }
+
+    fn normal_equations(&self, graph: &Graph, layout: &Layout, lins: &[Lin], pattern: Option<&Pattern>) -> Normal {
+        let n_red: usize = layout.reduced.iter().map(|r| r.2).sum();
+        let mut h = match pattern {
+            None => Reduced::Dense(DMatrix::zeros(n_red, n_red)),
+            Some(p) => Reduced::Sparse(
+                p.pairs.iter().map(|&(a, b)| DMatrix::zeros(layout.reduced[a].2, layout.reduced[b].2)).collect(),
+            ),
+        };
+        let mut g = DVector::zeros(n_red);
+        let mut elim: Vec<ElimBlock> = layout
+            .eliminated
+            .iter()
+            .map(|&(_, d)| ElimBlock { hee: DMatrix::zeros(d, d), ge: DVector::zeros(d), links: Vec::new() })
+            .collect();
+        let mut red: Vec<(usize, &DMatrix<f64>)> = Vec::new();
+        for (e, lin) in graph.entries.iter().zip(lins) {
+            red.clear();
+            let mut el: Option<(usize, &DMatrix<f64>)> = None;
+            for (k, j) in e.factor.keys().iter().zip(&lin.j) {
+                let Some(j) = j else { continue };
+                match layout.slots.get(k) {
+                    Some(Slot::Reduced { var }) => red.push((*var, j)),
+                    Some(Slot::Eliminated { var }) => el = Some((*var, j)),
+                    None => {}
+                }
+            }
+            for ai in 0..red.len() {
+                let (a, ja) = red[ai];
+                let (_, ra, da) = layout.reduced[a];
+                g.rows_mut(ra, da).gemv_tr(1.0, ja, &lin.r, 1.0);
+                for &(b, jb) in &red[..=ai] {
+                    let (row, col, jr, jc) = if a >= b { (a, b, ja, jb) } else { (b, a, jb, ja) };
+                    match (&mut h, pattern) {
+                        (Reduced::Dense(m), _) => {
+                            let (rr, rc) = (layout.reduced[row].1, layout.reduced[col].1);
+                            add_atb(m.as_mut_slice(), n_red, rr, rc, 1.0, jr, jc);
+                        }
+                        (Reduced::Sparse(blocks), Some(p)) => {
+                            if let Some(&i) = p.index.get(&(row, col)) {
+                                let ld = blocks[i].nrows();
+                                add_atb(blocks[i].as_mut_slice(), ld, 0, 0, 1.0, jr, jc);
+                            }
+                        }
+                        (Reduced::Sparse(_), None) => {}
+                    }
+                }
+            }
+            if let Some((ev, je)) = el {
+                let eb = &mut elim[ev];
+                let ld = eb.hee.nrows();
+                add_atb(eb.hee.as_mut_slice(), ld, 0, 0, 1.0, je, je);
+                eb.ge.gemv_tr(1.0, je, &lin.r, 1.0);
+                for &(a, ja) in &red {
+                    match eb.links.iter_mut().find(|(v, _)| *v == a) {
+                        Some((_, m)) => {
+                            let ld = m.nrows();
+                            add_atb(m.as_mut_slice(), ld, 0, 0, 1.0, je, ja)
+                        }
+                        None => eb.links.push((a, je.tr_mul(ja))),
+                    }
+                }
+            }
+        }
+        for eb in &mut elim {
+            eb.links.sort_by_key(|(a, _)| *a);
+        }
+        Normal { h, g, elim }
+    }
+
+    /// Solve the damped system for the full step (reduced then eliminated variables), or `None` when a
+    /// factorisation fails.
+    fn damped_step(
+        &self,
+        layout: &Layout,
+        ne: &Normal,
+        radius: f64,
+        pattern: Option<&Pattern>,
+    ) -> Option<(DVector<f64>, Vec<DVector<f64>>)> {
+        let p = &self.params;
+        let damp = |x: f64| x.clamp(p.min_diagonal, p.max_diagonal) / radius;
+        let n_red: usize = layout.reduced.iter().map(|r| r.2).sum();
+        let mut rhs = ne.g.clone();
+        // Assemble the damped reduced matrix: dense, or CSC values following the pattern.
+        let mut dense = None;
+        let mut vals = Vec::new();
+        match (&ne.h, pattern) {
+            (Reduced::Dense(m), _) => {
+                let mut m = m.clone();
+                for i in 0..n_red {
+                    let v = m[(i, i)];
+                    m[(i, i)] += damp(v);
+                }
+                dense = Some(m);
+            }
+            (Reduced::Sparse(blocks), Some(pat)) => {
+                vals = vec![0.0; pat.symbolic.row_idx().len()];
+                for (blk, pos) in blocks.iter().zip(&pat.positions) {
+                    for (v, &q) in blk.iter().zip(pos) {
+                        if q != usize::MAX {
+                            vals[q] += v;
+                        }
+                    }
+                }
+                for &q in &pat.diag {
+                    let v = vals[q];
+                    vals[q] += damp(v);
+                }
+            }
+            (Reduced::Sparse(_), None) => return None,
+        }
+        // Schur complement of the eliminated variables.
+        let mut hinvs = Vec::with_capacity(ne.elim.len());
+        let mut v: Vec<DMatrix<f64>> = Vec::new();
+        let mut prod = DMatrix::zeros(0, 0);
+        for eb in &ne.elim {
+            let hinv = if eb.hee.nrows() == 3 {
+                let mut h = nalgebra::Matrix3::from_column_slice(eb.hee.as_slice());
+                for i in 0..3 {
+                    let x = h[(i, i)];
+                    h[(i, i)] += damp(x);
+                }
+                let inv = h.cholesky()?.inverse();
+                DMatrix::from_column_slice(3, 3, inv.as_slice())
+            } else {
+                let mut h = eb.hee.clone();
+                for i in 0..h.nrows() {
+                    let x = h[(i, i)];
+                    h[(i, i)] += damp(x);
+                }
+                h.cholesky()?.inverse()
+            };
+            let hg = &hinv * &eb.ge;
+            while v.len() < eb.links.len() {
+                v.push(DMatrix::zeros(0, 0));
+            }
+            for (ai, (a, ca)) in eb.links.iter().enumerate() {
+                if v[ai].shape() != ca.shape() {
+                    v[ai] = DMatrix::zeros(ca.nrows(), ca.ncols());
+                }
+                v[ai].gemm(1.0, &hinv, ca, 0.0);
+                let (_, ra, da) = layout.reduced[*a];
+                rhs.rows_mut(ra, da).gemv_tr(-1.0, ca, &hg, 1.0);
+            }
+            for (ai, (a, _)) in eb.links.iter().enumerate() {
+                let (_, ra, da) = layout.reduced[*a];
+                for (b, cb) in &eb.links[..=ai] {
+                    let (_, rb, db) = layout.reduced[*b];
+                    // S_ab −= C_aᵀ H⁻¹ C_b = V_aᵀ C_b
+                    if let Some(m) = dense.as_mut() {
+                        add_atb(m.as_mut_slice(), n_red, ra, rb, -1.0, &v[ai], cb);
+                    } else if let Some(pat) = pattern {
+                        let i = *pat.index.get(&(*a, *b))?;
+                        if prod.shape() != (da, db) {
+                            prod = DMatrix::zeros(da, db);
+                        }
+                        prod.gemm_tr(1.0, &v[ai], cb, 0.0);
+                        for (x, &q) in prod.iter().zip(&pat.positions[i]) {
+                            if q != usize::MAX {
+                                vals[q] -= x;
+                            }
+                        }
+                    }
+                }
+            }
+            hinvs.push(hinv);
+        }
+        let dred = if n_red == 0 {
+            DVector::zeros(0)
+        } else if let Some(m) = dense {
+            dense_solve(&m, &rhs)?
+        } else {
+            let pat = pattern?;
+            sparse_solve(pat, &vals, &rhs)?
+        };
+        if !dred.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        // Back-substitution.
+        let mut delim = Vec::with_capacity(ne.elim.len());
+        for (eb, hinv) in ne.elim.iter().zip(&hinvs) {
+            let mut t = eb.ge.clone();
+            for (a, c) in &eb.links {
+                let (_, off, d) = layout.reduced[*a];
+                t.gemv(1.0, c, &dred.rows(off, d), 1.0);
+            }
+            delim.push(-(hinv * t));
+        }
+        Some((dred, delim))
+    }
+
+    /// Optimise `values` in place.
+    pub fn solve(&self, graph: &Graph, values: &mut Values, mut observer: Option<&mut dyn Observer>) -> Result<Summary, OptimError> {
+        let start = Instant::now();
+        let p = self.params;
+        let layout = self.layout(graph, values)?;
+        let n_red: usize = layout.reduced.iter().map(|r| r.2).sum();
+        let (mut cost, mut lins) = self
+            .linearize(graph, values, true)
+            .map_err(|(factor, source)| OptimError::InitialEvaluation { factor, source })?;
+        if !cost.is_finite() {
+            return Err(OptimError::NonFiniteCost);
+        }
+        let initial_cost = cost;
+        let mut summary = Summary {
+            initial_cost,
+            final_cost: cost,
+            iterations: 0,
+            accepted: 0,
+            termination: Termination::MaxIterations,
+            elapsed: Duration::ZERO,
+            reduced_dim: n_red,
+            sparse: n_red > p.dense_limit,
+        };
+        if layout.reduced.is_empty() && layout.eliminated.is_empty() {
+            summary.termination = Termination::NoFreeVariables;
+            summary.elapsed = start.elapsed();
+            return Ok(summary);
+        }
+        let mut radius = p.initial_radius;
+        let mut decrease = 2.0;
+        let pattern = if summary.sparse { Pattern::build(&layout, graph) } else { None };
+        if summary.sparse && pattern.is_none() {
+            return Err(OptimError::NonFiniteCost);
+        }
+        let mut ne = self.normal_equations(graph, &layout, &lins, pattern.as_ref());
+        loop {
+            if summary.iterations >= p.max_iterations {
+                summary.termination = Termination::MaxIterations;
+                break;
+            }
+            let gmax = ne.g.amax().max(ne.elim.iter().map(|e| e.ge.amax()).fold(0.0, f64::max));
+            if gmax <= p.gradient_tolerance {
+                summary.termination = Termination::GradientTolerance;
+                break;
+            }
+            summary.iterations += 1;
+            let step = self.damped_step(&layout, &ne, radius, pattern.as_ref());
+            let mut info = IterationInfo {
+                iteration: summary.iterations,
+                cost,
+                cost_change: f64::NAN,
+                radius,
+                step_norm: 0.0,
+                accepted: false,
+            };
+            let mut accepted = false;
+            if let Some((dred, delim)) = step {
+                let step_norm = (dred.norm_squared() + delim.iter().map(|d| d.norm_squared()).sum::<f64>()).sqrt();
+                info.step_norm = step_norm;
+                let x_norm = values.iter().map(|(_, v)| v.norm_squared()).sum::<f64>().sqrt();
+                if step_norm <= p.parameter_tolerance * (x_norm + p.parameter_tolerance) {
+                    summary.termination = Termination::ParameterTolerance;
+                    if let Some(o) = observer.as_deref_mut() {
+                        o.on_iteration(&info);
+                    }
+                    break;
+                }
+                // model decrease from the stored linearisation
+                let model = model_decrease(graph, &layout, &lins, &dred, &delim);
+                let mut trial = values.clone();
+                for &(k, off, d) in &layout.reduced {
+                    if let Some(v) = values.get(k) {
+                        trial.set(k, v.retract(dred.rows(off, d).as_slice()));
+                    }
+                }
+                for (&(k, _), de) in layout.eliminated.iter().zip(&delim) {
+                    if let Some(v) = values.get(k) {
+                        trial.set(k, v.retract(de.as_slice()));
+                    }
+                }
+                if let Ok((new_cost, _)) = self.linearize(graph, &trial, false) {
+                    let change = cost - new_cost;
+                    info.cost_change = change;
+                    let rho = if model > 0.0 { change / model } else { f64::NEG_INFINITY };
+                    if new_cost.is_finite() && rho > p.min_relative_decrease {
+                        accepted = true;
+                        *values = trial;
+                        let rel = change.abs() / cost.max(f64::MIN_POSITIVE);
+                        cost = new_cost;
+                        radius = (radius / (1.0f64 / 3.0).max(1.0 - (2.0 * rho - 1.0).powi(3))).min(p.max_radius);
+                        decrease = 2.0;
+                        summary.accepted += 1;
+                        info.cost = cost;
+                        if rel < p.function_tolerance {
+                            summary.termination = Termination::FunctionTolerance;
+                            if let Some(o) = observer.as_deref_mut() {
+                                o.on_iteration(&IterationInfo { accepted: true, ..info });
+                            }
+                            break;
+                        }
+                        match self.linearize(graph, values, true) {
+                            Ok((c, l)) => {
+                                cost = c;
+                                lins = l;
+                                ne = self.normal_equations(graph, &layout, &lins, pattern.as_ref());
+                            }
+                            Err(_) => {
+                                summary.termination = Termination::NoProgress;
+                                break;
+                            }
+                        }
+                    }
+                }
+            }
+            info.accepted = accepted;
+            tracing::trace!(iteration = info.iteration, cost = info.cost, radius, accepted, "lm iteration");
+            if let Some(o) = observer.as_deref_mut() {
+                o.on_iteration(&info);
+            }
+            if !accepted {
+                radius /= decrease;
+                decrease *= 2.0;
+                if radius < p.min_radius {
+                    summary.termination = Termination::NoProgress;
+                    break;
+                }
+            }
+        }
+        summary.final_cost = cost;
+        summary.elapsed = start.elapsed();
+        tracing::debug!(
+            initial = summary.initial_cost,
+            final_cost = summary.final_cost,
+            iterations = summary.iterations,
+            termination = ?summary.termination,
+            "lm finished"
+        );
+        Ok(summary)
+    }
+}
+
+/// `m[ra.., rb..] += alpha · aᵀ b` on a column-major buffer with leading dimension `ld` (`a`: r × da,
+/// `b`: r × db). The hot loop of the normal equations and the Schur complement; plain slices beat
+/// nalgebra's generic small-matrix kernels here.
+#[inline]
+fn add_atb(m: &mut [f64], ld: usize, ra: usize, rb: usize, alpha: f64, a: &DMatrix<f64>, b: &DMatrix<f64>) {
+    let r = a.nrows();
+    let (sa, sb) = (a.as_slice(), b.as_slice());
+    let da = a.ncols();
+    for (j, bj) in sb.chunks_exact(r).enumerate() {
+        let start = (rb + j) * ld + ra;
+        let col = &mut m[start..start + da];
+        for (out, ai) in col.iter_mut().zip(sa.chunks_exact(r)) {
+            let acc: f64 = ai.iter().zip(bj).map(|(x, y)| x * y).sum();
+            *out += alpha * acc;
+        }
+    }
+}
+
+/// `½‖r‖² − ½‖r + Jδ‖²` summed over factors (the decrease the linear model predicts).
+fn model_decrease(graph: &Graph, layout: &Layout, lins: &[Lin], dred: &DVector<f64>, delim: &[DVector<f64>]) -> f64 {
+    let mut total = 0.0;
+    let mut jd = DVector::zeros(0);
+    for (e, lin) in graph.entries.iter().zip(lins) {
+        if jd.len() != lin.r.len() {
+            jd = DVector::zeros(lin.r.len());
+        } else {
+            jd.fill(0.0);
+        }
+        for (k, j) in e.factor.keys().iter().zip(&lin.j) {
+            let Some(j) = j else { continue };
+            match layout.slots.get(k) {
+                Some(Slot::Reduced { var }) => {
+                    let (_, off, d) = layout.reduced[*var];
+                    jd.gemv(1.0, j, &dred.rows(off, d), 1.0);
+                }
+                Some(Slot::Eliminated { var }) => jd.gemv(1.0, j, &delim[*var], 1.0),
+                None => {}
+            }
+        }
+        total -= lin.r.dot(&jd) + 0.5 * jd.norm_squared();
+    }
+    total
+}
+
+/// Solve `S δ = −rhs` for a dense symmetric `S` (lower triangle read) with faer's blocked Cholesky.
+fn dense_solve(m: &DMatrix<f64>, rhs: &DVector<f64>) -> Option<DVector<f64>> {
+    use faer::linalg::solvers::Solve;
+    let n = rhs.len();
+    let fm = faer::MatRef::from_column_major_slice(m.as_slice(), n, n);
+    let llt = fm.llt(faer::Side::Lower).ok()?;
+    let mut b = faer::Mat::<f64>::from_fn(n, 1, |i, _| -rhs[i]);
+    llt.solve_in_place(b.as_mut());
+    Some(DVector::from_fn(n, |i, _| b[(i, 0)]))
+}
+
+/// Solve the reduced system `S δ = −rhs` with faer's sparse Cholesky (lower triangle in `vals`,
+/// following the pattern), reusing the symbolic factorisation.
+fn sparse_solve(pat: &Pattern, vals: &[f64], rhs: &DVector<f64>) -> Option<DVector<f64>> {
+    use faer::{
+        linalg::solvers::Solve,
+        sparse::{linalg::solvers::Llt, SparseColMatRef},
+        Side,
+    };
+    let n = rhs.len();
+    let mat = SparseColMatRef::new(pat.symbolic.as_ref(), vals);
+    let llt = Llt::try_new_with_symbolic(pat.llt.clone(), mat, Side::Lower).ok()?;
+    let mut b = faer::Mat::<f64>::from_fn(n, 1, |i, _| -rhs[i]);
+    llt.solve_in_place(b.as_mut());
+    Some(DVector::from_fn(n, |i, _| b[(i, 0)]))
+}

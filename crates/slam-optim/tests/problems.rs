@@ -1,0 +1,70 @@
+//! Real BA and pose-graph problems (fixtures/optim): the anchors' initial costs and spot residuals are
+//! reproduced exactly, and the solver reaches the reference minima.
+
+use std::path::PathBuf;
+
+use slam_optim::{
+    io::{read_bal, read_g2o},
+    LevenbergMarquardt, LmParams,
+};
+
+fn fixture(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/optim").join(name)
+}
+
+fn rel(a: f64, b: f64) -> f64 {
+    (a - b).abs() / b.abs()
+}
+
+#[test]
+fn bal_initial_costs_and_spot_residuals() {
+    for (file, l2, huber, r0) in [
+        ("dubrovnik-3-7-pre.txt", 2.764220e+03, 2.359657e+02, [-8.013417270353, 7.900505424598]),
+        ("problem-49-7776-pre.txt", 8.509125e+05, 1.206505e+05, [-9.020226301243, 11.263958304987]),
+        ("problem-16-22106-pre.txt", 4.185660e+06, 5.225660e+05, [-8.013417270353, 7.900505424598]),
+    ] {
+        let p = read_bal(fixture(file), None).expect("reads");
+        assert!(rel(p.graph.cost(&p.values).expect("cost"), l2) < 5e-7, "{file} L2");
+        let r = p.graph.whitened_residual(0, &p.values).expect("factor 0").expect("evaluates");
+        assert!((r[0] - r0[0]).abs() < 1e-9 && (r[1] - r0[1]).abs() < 1e-9, "{file}: {r}");
+        let h = read_bal(fixture(file), Some(1.0)).expect("reads");
+        assert!(rel(h.graph.cost(&h.values).expect("cost"), huber) < 5e-7, "{file} Huber");
+    }
+}
+
+#[test]
+fn dubrovnik_converges_to_zero() {
+    let mut p = read_bal(fixture("dubrovnik-3-7-pre.txt"), None).expect("reads");
+    let mut lm = LevenbergMarquardt::new(LmParams { function_tolerance: 1e-14, parameter_tolerance: 1e-14, ..LmParams::default() });
+    for &k in &p.points {
+        lm.eliminate(k);
+    }
+    let s = lm.solve(&p.graph, &mut p.values, None).expect("solves");
+    assert!(s.final_cost < 1e-6, "{s:?}");
+}
+
+#[test]
+fn problem_16_l2_reaches_the_minimum_in_ten_iterations() {
+    let mut p = read_bal(fixture("problem-16-22106-pre.txt"), None).expect("reads");
+    let mut lm = LevenbergMarquardt::default();
+    for &k in &p.points {
+        lm.eliminate(k);
+    }
+    let s = lm.solve(&p.graph, &mut p.values, None).expect("solves");
+    eprintln!("{s:?}");
+    assert!(rel(s.final_cost, 1.803390e+04) < 1e-3, "{s:?}");
+    assert!(s.iterations <= 10, "{s:?}");
+}
+
+#[test]
+fn pose_graph_initial_costs_and_minima() {
+    for (file, initial, minimum) in [("sphere2500.g2o", 1.305658e+06, 6.757010e+02), ("parking-garage.g2o", 8.363602e+03, 6.341924e-01)] {
+        let mut p = read_g2o(fixture(file)).expect("reads");
+        assert!(rel(p.graph.cost(&p.values).expect("cost"), initial) < 5e-7, "{file}");
+        let mut lm = LevenbergMarquardt::default();
+        lm.fix(p.cameras[0]);
+        let s = lm.solve(&p.graph, &mut p.values, None).expect("solves");
+        eprintln!("{file}: {s:?}");
+        assert!(rel(s.final_cost, minimum) < 1e-3, "{file}: {s:?}");
+    }
+}
