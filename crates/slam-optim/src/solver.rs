@@ -269,7 +269,8 @@ enum Slot {
 }
 
 struct Layout {
-    slots: HashMap<Key, Slot>,
+    /// Slot of each key (`None` for fixed or unused variables), indexed by `Key.0`.
+    slots: Vec<Option<Slot>>,
     reduced: Vec<(Key, usize, usize)>,    // key, offset, dim
     eliminated: Vec<(Key, usize)>,        // key, dim
 }
@@ -304,9 +305,9 @@ impl Pattern {
             let mut red = Vec::new();
             let mut el = None;
             for k in e.factor.keys() {
-                match layout.slots.get(k) {
-                    Some(Slot::Reduced { var }) => red.push(*var),
-                    Some(Slot::Eliminated { var }) => el = Some(*var),
+                match layout.slots.get(k.0).copied().flatten() {
+                    Some(Slot::Reduced { var }) => red.push(var),
+                    Some(Slot::Eliminated { var }) => el = Some(var),
                     None => {}
                 }
             }
@@ -373,6 +374,46 @@ impl Pattern {
     }
 }
 
+/// Inverse of a damped eliminated block: fixed-size for points, dynamic otherwise.
+enum HInv {
+    Three(nalgebra::Matrix3<f64>),
+    Dyn(DMatrix<f64>),
+}
+
+impl HInv {
+    fn mul_vec(&self, x: &[f64]) -> Vec<f64> {
+        match self {
+            HInv::Three(h) => (h * nalgebra::Vector3::from_column_slice(x)).as_slice().to_vec(),
+            HInv::Dyn(h) => (h * DVector::from_column_slice(x)).as_slice().to_vec(),
+        }
+    }
+
+    /// `out` = row-major `H⁻¹ C` (d_e × n).
+    fn mul_mat_rowmajor(&self, c: &DMatrix<f64>, out: &mut Vec<f64>) {
+        let (de, n) = c.shape();
+        out.clear();
+        out.resize(de * n, 0.0);
+        let cs = c.as_slice();
+        match self {
+            HInv::Three(h) => {
+                for (i, col) in cs.chunks_exact(3).enumerate() {
+                    let v = h * nalgebra::Vector3::new(col[0], col[1], col[2]);
+                    out[i] = v.x;
+                    out[n + i] = v.y;
+                    out[2 * n + i] = v.z;
+                }
+            }
+            HInv::Dyn(h) => {
+                for (i, col) in cs.chunks_exact(de).enumerate() {
+                    for k in 0..de {
+                        out[k * n + i] = (0..de).map(|l| h[(k, l)] * col[l]).sum();
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// The reduced Hessian: dense (lower triangle used) or block-sparse following a [`Pattern`].
 enum Reduced {
     Dense(DMatrix<f64>),
@@ -424,16 +465,16 @@ impl LevenbergMarquardt {
                 return Err(OptimError::Elimination { factor: i });
             }
         }
-        let mut slots = HashMap::new();
+        let mut slots = vec![None; values.len()];
         let (mut reduced, mut eliminated) = (Vec::new(), Vec::new());
         let mut off = 0;
         for k in free {
             let dim = values.get(k).map(|v| v.dim()).unwrap_or(0);
             if self.eliminate.contains(&k) {
-                slots.insert(k, Slot::Eliminated { var: eliminated.len() });
+                slots[k.0] = Some(Slot::Eliminated { var: eliminated.len() });
                 eliminated.push((k, dim));
             } else {
-                slots.insert(k, Slot::Reduced { var: reduced.len() });
+                slots[k.0] = Some(Slot::Reduced { var: reduced.len() });
                 reduced.push((k, off, dim));
                 off += dim;
             }
@@ -499,32 +540,41 @@ impl LevenbergMarquardt {
             .map(|&(_, d)| ElimBlock { hee: DMatrix::zeros(d, d), ge: DVector::zeros(d), links: Vec::new() })
             .collect();
         let mut red: Vec<(usize, &DMatrix<f64>)> = Vec::new();
+        let mut rowmajor: Vec<Vec<f64>> = Vec::new();
         for (e, lin) in graph.entries.iter().zip(lins) {
             red.clear();
             let mut el: Option<(usize, &DMatrix<f64>)> = None;
             for (k, j) in e.factor.keys().iter().zip(&lin.j) {
                 let Some(j) = j else { continue };
-                match layout.slots.get(k) {
-                    Some(Slot::Reduced { var }) => red.push((*var, j)),
-                    Some(Slot::Eliminated { var }) => el = Some((*var, j)),
+                match layout.slots.get(k.0).copied().flatten() {
+                    Some(Slot::Reduced { var }) => red.push((var, j)),
+                    Some(Slot::Eliminated { var }) => el = Some((var, j)),
                     None => {}
                 }
             }
+            while rowmajor.len() < red.len() {
+                rowmajor.push(Vec::new());
+            }
+            for (ai, &(_, ja)) in red.iter().enumerate() {
+                transpose_into(ja, &mut rowmajor[ai]);
+            }
+            let rdim = lin.r.len();
             for ai in 0..red.len() {
                 let (a, ja) = red[ai];
                 let (_, ra, da) = layout.reduced[a];
                 g.rows_mut(ra, da).gemv_tr(1.0, ja, &lin.r, 1.0);
-                for &(b, jb) in &red[..=ai] {
-                    let (row, col, jr, jc) = if a >= b { (a, b, ja, jb) } else { (b, a, jb, ja) };
+                for (bi, &(b, jb)) in red[..=ai].iter().enumerate() {
+                    // H_rc += J_rᵀ J_c with r ≥ c
+                    let (row, col, tr, jc) = if a >= b { (a, b, ai, jb) } else { (b, a, bi, ja) };
+                    let dr = layout.reduced[row].2;
                     match (&mut h, pattern) {
                         (Reduced::Dense(m), _) => {
                             let (rr, rc) = (layout.reduced[row].1, layout.reduced[col].1);
-                            add_atb(m.as_mut_slice(), n_red, rr, rc, 1.0, jr, jc);
+                            add_atb(m.as_mut_slice(), n_red, rr, rc, 1.0, &rowmajor[tr], dr, jc.as_slice(), rdim);
                         }
                         (Reduced::Sparse(blocks), Some(p)) => {
                             if let Some(&i) = p.index.get(&(row, col)) {
-                                let ld = blocks[i].nrows();
-                                add_atb(blocks[i].as_mut_slice(), ld, 0, 0, 1.0, jr, jc);
+                                add_atb(blocks[i].as_mut_slice(), dr, 0, 0, 1.0, &rowmajor[tr], dr, jc.as_slice(), rdim);
                             }
                         }
                         (Reduced::Sparse(_), None) => {}
@@ -533,15 +583,11 @@ impl LevenbergMarquardt {
             }
             if let Some((ev, je)) = el {
                 let eb = &mut elim[ev];
-                let ld = eb.hee.nrows();
-                add_atb(eb.hee.as_mut_slice(), ld, 0, 0, 1.0, je, je);
+                eb.hee.gemm_tr(1.0, je, je, 1.0);
                 eb.ge.gemv_tr(1.0, je, &lin.r, 1.0);
                 for &(a, ja) in &red {
                     match eb.links.iter_mut().find(|(v, _)| *v == a) {
-                        Some((_, m)) => {
-                            let ld = m.nrows();
-                            add_atb(m.as_mut_slice(), ld, 0, 0, 1.0, je, ja)
-                        }
+                        Some((_, m)) => m.gemm_tr(1.0, je, ja, 1.0),
                         None => eb.links.push((a, je.tr_mul(ja))),
                     }
                 }
@@ -596,36 +642,38 @@ impl LevenbergMarquardt {
         }
         // Schur complement of the eliminated variables.
         let mut hinvs = Vec::with_capacity(ne.elim.len());
-        let mut v: Vec<DMatrix<f64>> = Vec::new();
+        let mut vt: Vec<Vec<f64>> = Vec::new();
         let mut prod = DMatrix::zeros(0, 0);
         for eb in &ne.elim {
-            let hinv = if eb.hee.nrows() == 3 {
+            let de = eb.hee.nrows();
+            // H_ee⁻¹ (damped), fixed-size for points
+            let hinv = if de == 3 {
                 let mut h = nalgebra::Matrix3::from_column_slice(eb.hee.as_slice());
                 for i in 0..3 {
                     let x = h[(i, i)];
                     h[(i, i)] += damp(x);
                 }
-                let inv = h.cholesky()?.inverse();
-                DMatrix::from_column_slice(3, 3, inv.as_slice())
+                HInv::Three(h.cholesky()?.inverse())
             } else {
                 let mut h = eb.hee.clone();
-                for i in 0..h.nrows() {
+                for i in 0..de {
                     let x = h[(i, i)];
                     h[(i, i)] += damp(x);
                 }
-                h.cholesky()?.inverse()
+                HInv::Dyn(h.cholesky()?.inverse())
             };
-            let hg = &hinv * &eb.ge;
-            while v.len() < eb.links.len() {
-                v.push(DMatrix::zeros(0, 0));
+            let hg: Vec<f64> = hinv.mul_vec(eb.ge.as_slice());
+            while vt.len() < eb.links.len() {
+                vt.push(Vec::new());
             }
             for (ai, (a, ca)) in eb.links.iter().enumerate() {
-                if v[ai].shape() != ca.shape() {
-                    v[ai] = DMatrix::zeros(ca.nrows(), ca.ncols());
-                }
-                v[ai].gemm(1.0, &hinv, ca, 0.0);
+                hinv.mul_mat_rowmajor(ca, &mut vt[ai]);
                 let (_, ra, da) = layout.reduced[*a];
-                rhs.rows_mut(ra, da).gemv_tr(-1.0, ca, &hg, 1.0);
+                // rhs_a −= C_aᵀ H⁻¹ g_e
+                for (i, col) in ca.as_slice().chunks_exact(de).enumerate().take(da) {
+                    let dot: f64 = col.iter().zip(&hg).map(|(x, y)| x * y).sum();
+                    rhs[ra + i] -= dot;
+                }
             }
             for (ai, (a, _)) in eb.links.iter().enumerate() {
                 let (_, ra, da) = layout.reduced[*a];
@@ -633,13 +681,14 @@ impl LevenbergMarquardt {
                     let (_, rb, db) = layout.reduced[*b];
                     // S_ab −= C_aᵀ H⁻¹ C_b = V_aᵀ C_b
                     if let Some(m) = dense.as_mut() {
-                        add_atb(m.as_mut_slice(), n_red, ra, rb, -1.0, &v[ai], cb);
+                        add_atb(m.as_mut_slice(), n_red, ra, rb, -1.0, &vt[ai], da, cb.as_slice(), de);
                     } else if let Some(pat) = pattern {
                         let i = *pat.index.get(&(*a, *b))?;
                         if prod.shape() != (da, db) {
                             prod = DMatrix::zeros(da, db);
                         }
-                        prod.gemm_tr(1.0, &v[ai], cb, 0.0);
+                        prod.fill(0.0);
+                        add_atb(prod.as_mut_slice(), da, 0, 0, 1.0, &vt[ai], da, cb.as_slice(), de);
                         for (x, &q) in prod.iter().zip(&pat.positions[i]) {
                             if q != usize::MAX {
                                 vals[q] -= x;
@@ -669,7 +718,8 @@ impl LevenbergMarquardt {
                 let (_, off, d) = layout.reduced[*a];
                 t.gemv(1.0, c, &dred.rows(off, d), 1.0);
             }
-            delim.push(-(hinv * t));
+            let x = hinv.mul_vec(t.as_slice());
+            delim.push(-DVector::from_vec(x));
         }
         Some((dred, delim))
     }
@@ -815,20 +865,34 @@ impl LevenbergMarquardt {
     }
 }
 
-/// `m[ra.., rb..] += alpha · aᵀ b` on a column-major buffer with leading dimension `ld` (`a`: r × da,
-/// `b`: r × db). The hot loop of the normal equations and the Schur complement; plain slices beat
-/// nalgebra's generic small-matrix kernels here.
+/// `m[ra.., rb..] += alpha · Aᵀ B` on a column-major buffer with leading dimension `ld`, where `at` holds
+/// `A` (r × da) row by row (`at[k·da + i] = A(k, i)`) and `b` holds `B` (r × db) column-major. The
+/// inner loop is an axpy over contiguous memory, which the compiler vectorises; this is the hot loop of
+/// the normal equations and of the Schur complement.
 #[inline]
-fn add_atb(m: &mut [f64], ld: usize, ra: usize, rb: usize, alpha: f64, a: &DMatrix<f64>, b: &DMatrix<f64>) {
-    let r = a.nrows();
-    let (sa, sb) = (a.as_slice(), b.as_slice());
-    let da = a.ncols();
-    for (j, bj) in sb.chunks_exact(r).enumerate() {
+fn add_atb(m: &mut [f64], ld: usize, ra: usize, rb: usize, alpha: f64, at: &[f64], da: usize, b: &[f64], r: usize) {
+    for (j, bj) in b.chunks_exact(r).enumerate() {
         let start = (rb + j) * ld + ra;
         let col = &mut m[start..start + da];
-        for (out, ai) in col.iter_mut().zip(sa.chunks_exact(r)) {
-            let acc: f64 = ai.iter().zip(bj).map(|(x, y)| x * y).sum();
-            *out += alpha * acc;
+        for (k, &bkj) in bj.iter().enumerate() {
+            let f = alpha * bkj;
+            let ak = &at[k * da..(k + 1) * da];
+            for (o, a) in col.iter_mut().zip(ak) {
+                *o += f * a;
+            }
+        }
+    }
+}
+
+/// Row-major copy of a column-major matrix into `out`.
+#[inline]
+fn transpose_into(a: &DMatrix<f64>, out: &mut Vec<f64>) {
+    let (r, c) = a.shape();
+    out.clear();
+    out.resize(r * c, 0.0);
+    for (i, col) in a.as_slice().chunks_exact(r).enumerate() {
+        for (k, v) in col.iter().enumerate() {
+            out[k * c + i] = *v;
         }
     }
 }
@@ -845,12 +909,12 @@ fn model_decrease(graph: &Graph, layout: &Layout, lins: &[Lin], dred: &DVector<f
         }
         for (k, j) in e.factor.keys().iter().zip(&lin.j) {
             let Some(j) = j else { continue };
-            match layout.slots.get(k) {
+            match layout.slots.get(k.0).copied().flatten() {
                 Some(Slot::Reduced { var }) => {
-                    let (_, off, d) = layout.reduced[*var];
+                    let (_, off, d) = layout.reduced[var];
                     jd.gemv(1.0, j, &dred.rows(off, d), 1.0);
                 }
-                Some(Slot::Eliminated { var }) => jd.gemv(1.0, j, &delim[*var], 1.0),
+                Some(Slot::Eliminated { var }) => jd.gemv(1.0, j, &delim[var], 1.0),
                 None => {}
             }
         }
