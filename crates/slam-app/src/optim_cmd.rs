@@ -35,12 +35,60 @@ struct Anchor {
 }
 
 const ANCHORS: [Anchor; 6] = [
-    Anchor { name: "problem-49 L2", file: "problem-49-7776-pre.txt", huber: None, best_known: 1.334424e4, reference_cost: 1.334432e4, reference: "Ceres 1T", reference_seconds: 1.95 },
-    Anchor { name: "problem-49 Huber", file: "problem-49-7776-pre.txt", huber: Some(1.0), best_known: 7.647950e3, reference_cost: 7.648723e3, reference: "Ceres 1T", reference_seconds: 2.41 },
-    Anchor { name: "problem-16 L2", file: "problem-16-22106-pre.txt", huber: None, best_known: 1.803390e4, reference_cost: 1.803390e4, reference: "Ceres 1T", reference_seconds: 0.71 },
-    Anchor { name: "problem-16 Huber", file: "problem-16-22106-pre.txt", huber: Some(1.0), best_known: 1.233667e4, reference_cost: 1.233701e4, reference: "Ceres 1T", reference_seconds: 5.66 },
-    Anchor { name: "sphere2500", file: "sphere2500.g2o", huber: None, best_known: 6.757010e2, reference_cost: 6.757010e2, reference: "GTSAM", reference_seconds: 0.30 },
-    Anchor { name: "parking-garage", file: "parking-garage.g2o", huber: None, best_known: 6.341924e-1, reference_cost: 6.341924e-1, reference: "GTSAM", reference_seconds: 0.25 },
+    Anchor {
+        name: "problem-49 L2",
+        file: "problem-49-7776-pre.txt",
+        huber: None,
+        best_known: 1.334424e4,
+        reference_cost: 1.334432e4,
+        reference: "Ceres 1T",
+        reference_seconds: 1.95,
+    },
+    Anchor {
+        name: "problem-49 Huber",
+        file: "problem-49-7776-pre.txt",
+        huber: Some(1.0),
+        best_known: 7.647950e3,
+        reference_cost: 7.648723e3,
+        reference: "Ceres 1T",
+        reference_seconds: 2.41,
+    },
+    Anchor {
+        name: "problem-16 L2",
+        file: "problem-16-22106-pre.txt",
+        huber: None,
+        best_known: 1.803390e4,
+        reference_cost: 1.803390e4,
+        reference: "Ceres 1T",
+        reference_seconds: 0.71,
+    },
+    Anchor {
+        name: "problem-16 Huber",
+        file: "problem-16-22106-pre.txt",
+        huber: Some(1.0),
+        best_known: 1.233667e4,
+        reference_cost: 1.233701e4,
+        reference: "Ceres 1T",
+        reference_seconds: 5.66,
+    },
+    Anchor {
+        name: "sphere2500",
+        file: "sphere2500.g2o",
+        huber: None,
+        best_known: 6.757010e2,
+        reference_cost: 6.757010e2,
+        reference: "GTSAM",
+        reference_seconds: 0.30,
+    },
+    Anchor {
+        name: "parking-garage",
+        file: "parking-garage.g2o",
+        huber: None,
+        best_known: 6.341924e-1,
+        reference_cost: 6.341924e-1,
+        reference: "GTSAM",
+        reference_seconds: 0.25,
+    },
 ];
 
 fn load(dir: &std::path::Path, a: &Anchor) -> anyhow::Result<(Problem, LevenbergMarquardt)> {

@@ -27,7 +27,8 @@ pub trait Factor: Send + Sync {
     /// Residual dimension.
     fn dim(&self) -> usize;
     /// Residual and, on request, Jacobians.
-    fn evaluate(&self, values: &Values, jacobians: Option<&mut Vec<DMatrix<f64>>>) -> Result<DVector<f64>, FactorError>;
+    fn evaluate(&self, values: &Values, jacobians: Option<&mut Vec<DMatrix<f64>>>)
+        -> Result<DVector<f64>, FactorError>;
 }
 
 /// Numeric Jacobians by central differences in the tangent spaces (step `h`), for tests of analytic

@@ -172,7 +172,8 @@ pub fn read_g2o(path: impl AsRef<Path>) -> Result<Problem, ProblemError> {
         };
         match *tag {
             "VERTEX_SE3:QUAT" => {
-                let id: i64 = f.get(1).and_then(|s| s.parse().ok()).ok_or_else(|| parse_err(i + 1, "bad vertex id".into()))?;
+                let id: i64 =
+                    f.get(1).and_then(|s| s.parse().ok()).ok_or_else(|| parse_err(i + 1, "bad vertex id".into()))?;
                 let v = nums(2, 7)?;
                 let k = values.add(Var::Pose(pose_of(&v)?));
                 if ids.insert(id, k).is_some() {
@@ -181,8 +182,10 @@ pub fn read_g2o(path: impl AsRef<Path>) -> Result<Problem, ProblemError> {
                 cameras.push(k);
             }
             "EDGE_SE3:QUAT" => {
-                let a: i64 = f.get(1).and_then(|s| s.parse().ok()).ok_or_else(|| parse_err(i + 1, "bad edge id".into()))?;
-                let b: i64 = f.get(2).and_then(|s| s.parse().ok()).ok_or_else(|| parse_err(i + 1, "bad edge id".into()))?;
+                let a: i64 =
+                    f.get(1).and_then(|s| s.parse().ok()).ok_or_else(|| parse_err(i + 1, "bad edge id".into()))?;
+                let b: i64 =
+                    f.get(2).and_then(|s| s.parse().ok()).ok_or_else(|| parse_err(i + 1, "bad edge id".into()))?;
                 let v = nums(3, 7 + 21)?;
                 let z = pose_of(&v[..7])?;
                 let mut info = DMatrix::zeros(6, 6);
@@ -207,11 +210,9 @@ pub fn read_g2o(path: impl AsRef<Path>) -> Result<Problem, ProblemError> {
         let (Some(&ka), Some(&kb)) = (ids.get(&a), ids.get(&b)) else {
             return Err(parse_err(line, format!("edge {a}-{b} refers to an unknown vertex")));
         };
-        let noise =
-            NoiseModel::from_information(&info).ok_or_else(|| parse_err(line, "information matrix not positive definite".into()))?;
-        graph
-            .add(Between::new(ka, kb, z), noise, L2)
-            .map_err(|e| parse_err(line, e.to_string()))?;
+        let noise = NoiseModel::from_information(&info)
+            .ok_or_else(|| parse_err(line, "information matrix not positive definite".into()))?;
+        graph.add(Between::new(ka, kb, z), noise, L2).map_err(|e| parse_err(line, e.to_string()))?;
     }
     Ok(Problem { graph, values, cameras, points: Vec::new() })
 }

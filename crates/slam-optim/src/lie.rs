@@ -28,7 +28,9 @@ fn q_block(w: &Vector3<f64>, v: &Vector3<f64>) -> Matrix3<f64> {
     let a = (th - s) / (th2 * th);
     let b = (th2 + 2.0 * c - 2.0) / (2.0 * th2 * th2);
     let d = (2.0 * th - 3.0 * s + th * c) / (2.0 * th2 * th2 * th);
-    0.5 * vx + a * (wx * vx + vx * wx + wx * vx * wx) + b * (wx * wx * vx + vx * wx * wx - 3.0 * wx * vx * wx)
+    0.5 * vx
+        + a * (wx * vx + vx * wx + wx * vx * wx)
+        + b * (wx * wx * vx + vx * wx * wx - 3.0 * wx * vx * wx)
         + d * (wx * vx * wx * wx + wx * wx * vx * wx)
 }
 

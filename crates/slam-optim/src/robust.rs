@@ -80,7 +80,7 @@ mod tests {
         let h = 1e-6;
         for &s in &[0.0, 0.3, 0.99, 1.5, 4.0, 8.9, 9.5, 30.0] {
             let [rho, d1, d2] = k.evaluate(s);
-            assert!(rho >= 0.0 && d1 >= 0.0 && d1 <= 1.0 + 1e-12, "{k:?} s={s}");
+            assert!(rho >= 0.0 && (0.0..=1.0 + 1e-12).contains(&d1), "{k:?} s={s}");
             if s > h {
                 let [p, dp, _] = k.evaluate(s + h);
                 let [m, dm, _] = k.evaluate(s - h);

@@ -121,8 +121,10 @@ impl Graph {
     pub fn cost(&self, values: &Values) -> Result<f64, OptimError> {
         let mut c = 0.0;
         for (i, e) in self.entries.iter().enumerate() {
-            let mut r =
-                e.factor.evaluate(values, None).map_err(|source| OptimError::InitialEvaluation { factor: i, source })?;
+            let mut r = e
+                .factor
+                .evaluate(values, None)
+                .map_err(|source| OptimError::InitialEvaluation { factor: i, source })?;
             e.noise.whiten(&mut r);
             c += 0.5 * e.kernel.evaluate(r.norm_squared())[0];
         }
@@ -282,8 +284,8 @@ enum Slot {
 struct Layout {
     /// Slot of each key (`None` for fixed or unused variables), indexed by `Key.0`.
     slots: Vec<Option<Slot>>,
-    reduced: Vec<(Key, usize, usize)>,    // key, offset, dim
-    eliminated: Vec<(Key, usize)>,        // key, dim
+    reduced: Vec<(Key, usize, usize)>, // key, offset, dim
+    eliminated: Vec<(Key, usize)>,     // key, dim
 }
 
 struct ElimBlock {
@@ -508,12 +510,7 @@ impl LevenbergMarquardt {
     }
 
     /// Cost and (optionally) linearisations at `values`. `Err(i, e)` names the failing factor.
-    fn linearize(
-        &self,
-        graph: &Graph,
-        values: &Values,
-        jac: bool,
-    ) -> Result<(f64, Vec<Lin>), (usize, FactorError)> {
+    fn linearize(&self, graph: &Graph, values: &Values, jac: bool) -> Result<(f64, Vec<Lin>), (usize, FactorError)> {
         let mut cost = 0.0;
         let mut lins = Vec::with_capacity(if jac { graph.entries.len() } else { 0 });
         let mut buf = Vec::new();
@@ -595,11 +592,18 @@ impl LevenbergMarquardt {
                     match (&mut h, pattern) {
                         (Reduced::Dense(m), _) => {
                             let (rr, rc) = (layout.reduced[row].1, layout.reduced[col].1);
-                            add_atb(m.as_mut_slice(), n_red, rr, rc, 1.0, &rowmajor[tr], dr, jc.as_slice(), rdim);
+                            add_atb(m.as_mut_slice(), n_red, (rr, rc), 1.0, (&rowmajor[tr], dr), (jc.as_slice(), rdim));
                         }
                         (Reduced::Sparse(blocks), Some(p)) => {
                             if let Some(&i) = p.index.get(&(row, col)) {
-                                add_atb(blocks[i].as_mut_slice(), dr, 0, 0, 1.0, &rowmajor[tr], dr, jc.as_slice(), rdim);
+                                add_atb(
+                                    blocks[i].as_mut_slice(),
+                                    dr,
+                                    (0, 0),
+                                    1.0,
+                                    (&rowmajor[tr], dr),
+                                    (jc.as_slice(), rdim),
+                                );
                             }
                         }
                         (Reduced::Sparse(_), None) => {}
@@ -706,14 +710,14 @@ impl LevenbergMarquardt {
                     let (_, rb, db) = layout.reduced[*b];
                     // S_ab −= C_aᵀ H⁻¹ C_b = V_aᵀ C_b
                     if let Some(m) = dense.as_mut() {
-                        add_atb(m.as_mut_slice(), n_red, ra, rb, -1.0, &vt[ai], da, cb.as_slice(), de);
+                        add_atb(m.as_mut_slice(), n_red, (ra, rb), -1.0, (&vt[ai], da), (cb.as_slice(), de));
                     } else if let Some(pat) = pattern {
                         let i = *pat.index.get(&(*a, *b))?;
                         if prod.shape() != (da, db) {
                             prod = DMatrix::zeros(da, db);
                         }
                         prod.fill(0.0);
-                        add_atb(prod.as_mut_slice(), da, 0, 0, 1.0, &vt[ai], da, cb.as_slice(), de);
+                        add_atb(prod.as_mut_slice(), da, (0, 0), 1.0, (&vt[ai], da), (cb.as_slice(), de));
                         for (x, &q) in prod.iter().zip(&pat.positions[i]) {
                             if q != usize::MAX {
                                 vals[q] -= x;
@@ -750,7 +754,12 @@ impl LevenbergMarquardt {
     }
 
     /// Optimise `values` in place.
-    pub fn solve(&self, graph: &Graph, values: &mut Values, mut observer: Option<&mut dyn Observer>) -> Result<Summary, OptimError> {
+    pub fn solve(
+        &self,
+        graph: &Graph,
+        values: &mut Values,
+        mut observer: Option<&mut dyn Observer>,
+    ) -> Result<Summary, OptimError> {
         let start = Instant::now();
         let p = self.params;
         let layout = self.layout(graph, values)?;
@@ -895,7 +904,14 @@ impl LevenbergMarquardt {
 /// inner loop is an axpy over contiguous memory, which the compiler vectorises; this is the hot loop of
 /// the normal equations and of the Schur complement.
 #[inline]
-fn add_atb(m: &mut [f64], ld: usize, ra: usize, rb: usize, alpha: f64, at: &[f64], da: usize, b: &[f64], r: usize) {
+fn add_atb(
+    m: &mut [f64],
+    ld: usize,
+    (ra, rb): (usize, usize),
+    alpha: f64,
+    (at, da): (&[f64], usize),
+    (b, r): (&[f64], usize),
+) {
     for (j, bj) in b.chunks_exact(r).enumerate() {
         let start = (rb + j) * ld + ra;
         let col = &mut m[start..start + da];

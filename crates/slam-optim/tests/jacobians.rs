@@ -3,7 +3,10 @@
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3, Vector4};
 use slam_optim::{
     factor::numeric_jacobians,
-    factors::{AxisPrior, BalReprojection, Between, BoxFactor, MonoReprojection, PointPrior, PosePrior, StereoReprojection, TexturePlane},
+    factors::{
+        AxisPrior, BalReprojection, Between, BoxFactor, MonoReprojection, PointPrior, PosePrior, StereoReprojection,
+        TexturePlane,
+    },
     BalCamera, Factor, Values, Var,
 };
 use slam_quadric::{project, BoundsModel, Camera, Ellipsoid, ImageSize, Intrinsics};
@@ -49,7 +52,17 @@ fn reprojection_factors() {
         check(&MonoReprojection::new(kp, kx, K, [600.0, 170.0]), &v, "mono");
         check(&StereoReprojection::new(kp, kx, K, 0.54, [600.0, 170.0, 580.0]), &v, "stereo");
         // BAL: camera looks down −z
-        let cam = [rng.u(-0.5, 0.5), rng.u(-0.5, 0.5), rng.u(-0.5, 0.5), rng.u(-1.0, 1.0), rng.u(-1.0, 1.0), rng.u(-1.0, 1.0), rng.u(400.0, 900.0), rng.u(-0.3, 0.3), rng.u(-0.1, 0.1)];
+        let cam = [
+            rng.u(-0.5, 0.5),
+            rng.u(-0.5, 0.5),
+            rng.u(-0.5, 0.5),
+            rng.u(-1.0, 1.0),
+            rng.u(-1.0, 1.0),
+            rng.u(-1.0, 1.0),
+            rng.u(400.0, 900.0),
+            rng.u(-0.3, 0.3),
+            rng.u(-0.1, 0.1),
+        ];
         let r = nalgebra::Rotation3::from_scaled_axis(Vector3::new(cam[0], cam[1], cam[2]));
         let want_cam = Vector3::new(rng.u(-1.0, 1.0), rng.u(-1.0, 1.0), -rng.u(3.0, 10.0));
         let x = r.inverse() * (want_cam - Vector3::new(cam[3], cam[4], cam[5]));

@@ -35,7 +35,11 @@ fn bal_initial_costs_and_spot_residuals() {
 #[test]
 fn dubrovnik_converges_to_zero() {
     let mut p = read_bal(fixture("dubrovnik-3-7-pre.txt"), None).expect("reads");
-    let mut lm = LevenbergMarquardt::new(LmParams { function_tolerance: 1e-14, parameter_tolerance: 1e-14, ..LmParams::default() });
+    let mut lm = LevenbergMarquardt::new(LmParams {
+        function_tolerance: 1e-14,
+        parameter_tolerance: 1e-14,
+        ..LmParams::default()
+    });
     for &k in &p.points {
         lm.eliminate(k);
     }
@@ -58,7 +62,9 @@ fn problem_16_l2_reaches_the_minimum_in_ten_iterations() {
 
 #[test]
 fn pose_graph_initial_costs_and_minima() {
-    for (file, initial, minimum) in [("sphere2500.g2o", 1.305658e+06, 6.757010e+02), ("parking-garage.g2o", 8.363602e+03, 6.341924e-01)] {
+    for (file, initial, minimum) in
+        [("sphere2500.g2o", 1.305658e+06, 6.757010e+02), ("parking-garage.g2o", 8.363602e+03, 6.341924e-01)]
+    {
         let mut p = read_g2o(fixture(file)).expect("reads");
         assert!(rel(p.graph.cost(&p.values).expect("cost"), initial) < 5e-7, "{file}");
         let mut lm = LevenbergMarquardt::new(LmParams::pose_graph());
@@ -75,4 +81,3 @@ fn pose_graph_initial_costs_and_minima() {
         assert!(rel(s.final_cost, minimum) < 1e-3, "{file} defaults: {s:?}");
     }
 }
-

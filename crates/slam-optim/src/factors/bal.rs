@@ -33,7 +33,11 @@ impl Factor for BalReprojection {
         2
     }
 
-    fn evaluate(&self, values: &Values, jacobians: Option<&mut Vec<DMatrix<f64>>>) -> Result<DVector<f64>, FactorError> {
+    fn evaluate(
+        &self,
+        values: &Values,
+        jacobians: Option<&mut Vec<DMatrix<f64>>>,
+    ) -> Result<DVector<f64>, FactorError> {
         let c = values.bal(self.keys[0]).ok_or(FactorError::WrongVariable(self.keys[0]))?.0;
         let x = values.point(self.keys[1]).ok_or(FactorError::WrongVariable(self.keys[1]))?;
         let r = Vector3::new(c[0], c[1], c[2]);

@@ -48,11 +48,16 @@ impl Factor for BoxFactor {
         4
     }
 
-    fn evaluate(&self, values: &Values, jacobians: Option<&mut Vec<DMatrix<f64>>>) -> Result<DVector<f64>, FactorError> {
+    fn evaluate(
+        &self,
+        values: &Values,
+        jacobians: Option<&mut Vec<DMatrix<f64>>>,
+    ) -> Result<DVector<f64>, FactorError> {
         let pose = values.pose(self.keys[0]).ok_or(FactorError::WrongVariable(self.keys[0]))?;
         let e = values.ellipsoid(self.keys[1]).ok_or(FactorError::WrongVariable(self.keys[1]))?;
         let cam = Camera::new(self.k, *pose);
-        let r = box_error(e, &cam, &self.measured, &self.model).map_err(|err| FactorError::Undefined(err.to_string()))?;
+        let r =
+            box_error(e, &cam, &self.measured, &self.model).map_err(|err| FactorError::Undefined(err.to_string()))?;
         if let Some(jac) = jacobians {
             jac.clear();
             jac.push(DMatrix::from_column_slice(4, 6, r.d_camera.as_slice()));
@@ -86,7 +91,11 @@ impl Factor for AxisPrior {
         3
     }
 
-    fn evaluate(&self, values: &Values, jacobians: Option<&mut Vec<DMatrix<f64>>>) -> Result<DVector<f64>, FactorError> {
+    fn evaluate(
+        &self,
+        values: &Values,
+        jacobians: Option<&mut Vec<DMatrix<f64>>>,
+    ) -> Result<DVector<f64>, FactorError> {
         let e = values.ellipsoid(self.keys[0]).ok_or(FactorError::WrongVariable(self.keys[0]))?;
         if let Some(jac) = jacobians {
             let mut j = DMatrix::zeros(3, 9);
@@ -125,7 +134,11 @@ impl Factor for TexturePlane {
         1
     }
 
-    fn evaluate(&self, values: &Values, jacobians: Option<&mut Vec<DMatrix<f64>>>) -> Result<DVector<f64>, FactorError> {
+    fn evaluate(
+        &self,
+        values: &Values,
+        jacobians: Option<&mut Vec<DMatrix<f64>>>,
+    ) -> Result<DVector<f64>, FactorError> {
         let e = values.ellipsoid(self.keys[0]).ok_or(FactorError::WrongVariable(self.keys[0]))?;
         let n = Vector3::new(self.plane[0], self.plane[1], self.plane[2]);
         let r = e.rotation();

@@ -9,9 +9,16 @@ use crate::{
     values::{Key, Values},
 };
 
-/// Camera-frame point and its Jacobians with respect to the pose tangent (right perturbation of `T_wc`)
-/// and the world point.
-fn camera_point(values: &Values, keys: &[Key; 2]) -> Result<(Vector3<f64>, Matrix3<f64>, Matrix3<f64>, Matrix3<f64>), FactorError> {
+/// A camera-frame point `p_c` and its Jacobians with respect to the pose tangent (right perturbation
+/// of `T_wc`: rotation part `d_w`, translation part `d_v`) and the world point (`d_x`).
+struct CameraPoint {
+    pc: Vector3<f64>,
+    d_w: Matrix3<f64>,
+    d_v: Matrix3<f64>,
+    d_x: Matrix3<f64>,
+}
+
+fn camera_point(values: &Values, keys: &[Key; 2]) -> Result<CameraPoint, FactorError> {
     let t_wc = values.pose(keys[0]).ok_or(FactorError::WrongVariable(keys[0]))?;
     let x = values.point(keys[1]).ok_or(FactorError::WrongVariable(keys[1]))?;
     let pc = t_wc.inverse_transform_point(&nalgebra::Point3::from(*x)).coords;
@@ -20,7 +27,7 @@ fn camera_point(values: &Values, keys: &[Key; 2]) -> Result<(Vector3<f64>, Matri
     }
     let r_cw = t_wc.rotation.to_rotation_matrix().into_inner().transpose();
     // T_wc Exp([ω, v]) ⇒ p_c ← Exp(−[ω, v]) p_c ≈ p_c + p_c × ω − v
-    Ok((pc, hat(&pc), -Matrix3::identity(), r_cw))
+    Ok(CameraPoint { pc, d_w: hat(&pc), d_v: -Matrix3::identity(), d_x: r_cw })
 }
 
 /// Monocular reprojection: residual `π(K, p_c) − u_obs` (2).
@@ -42,7 +49,14 @@ fn project_rows(k: &Intrinsics, pc: &Vector3<f64>) -> ([f64; 2], nalgebra::Matri
     let (x, y, z) = (pc.x, pc.y, pc.z);
     let u = k.fx * x / z + k.skew * y / z + k.cx;
     let v = k.fy * y / z + k.cy;
-    let j = nalgebra::Matrix2x3::new(k.fx / z, k.skew / z, -(k.fx * x + k.skew * y) / (z * z), 0.0, k.fy / z, -k.fy * y / (z * z));
+    let j = nalgebra::Matrix2x3::new(
+        k.fx / z,
+        k.skew / z,
+        -(k.fx * x + k.skew * y) / (z * z),
+        0.0,
+        k.fy / z,
+        -k.fy * y / (z * z),
+    );
     ([u, v], j)
 }
 
@@ -55,8 +69,12 @@ impl Factor for MonoReprojection {
         2
     }
 
-    fn evaluate(&self, values: &Values, jacobians: Option<&mut Vec<DMatrix<f64>>>) -> Result<DVector<f64>, FactorError> {
-        let (pc, dpc_dw, dpc_dv, dpc_dx) = camera_point(values, &self.keys)?;
+    fn evaluate(
+        &self,
+        values: &Values,
+        jacobians: Option<&mut Vec<DMatrix<f64>>>,
+    ) -> Result<DVector<f64>, FactorError> {
+        let CameraPoint { pc, d_w: dpc_dw, d_v: dpc_dv, d_x: dpc_dx } = camera_point(values, &self.keys)?;
         let (uv, j) = project_rows(&self.k, &pc);
         if let Some(jac) = jacobians {
             let mut jp = DMatrix::zeros(2, 6);
@@ -96,8 +114,12 @@ impl Factor for StereoReprojection {
         3
     }
 
-    fn evaluate(&self, values: &Values, jacobians: Option<&mut Vec<DMatrix<f64>>>) -> Result<DVector<f64>, FactorError> {
-        let (pc, dpc_dw, dpc_dv, dpc_dx) = camera_point(values, &self.keys)?;
+    fn evaluate(
+        &self,
+        values: &Values,
+        jacobians: Option<&mut Vec<DMatrix<f64>>>,
+    ) -> Result<DVector<f64>, FactorError> {
+        let CameraPoint { pc, d_w: dpc_dw, d_v: dpc_dv, d_x: dpc_dx } = camera_point(values, &self.keys)?;
         let (uv, j2) = project_rows(&self.k, &pc);
         let z = pc.z;
         let ur = self.k.fx * (pc.x - self.baseline) / z + self.k.skew * pc.y / z + self.k.cx;

@@ -32,7 +32,11 @@ impl Factor for Between {
         6
     }
 
-    fn evaluate(&self, values: &Values, jacobians: Option<&mut Vec<DMatrix<f64>>>) -> Result<DVector<f64>, FactorError> {
+    fn evaluate(
+        &self,
+        values: &Values,
+        jacobians: Option<&mut Vec<DMatrix<f64>>>,
+    ) -> Result<DVector<f64>, FactorError> {
         let xi = values.pose(self.keys[0]).ok_or(FactorError::WrongVariable(self.keys[0]))?;
         let xj = values.pose(self.keys[1]).ok_or(FactorError::WrongVariable(self.keys[1]))?;
         let e = se3_log(&(self.z_inv * xi.inverse() * xj));
@@ -71,7 +75,11 @@ impl Factor for PosePrior {
         6
     }
 
-    fn evaluate(&self, values: &Values, jacobians: Option<&mut Vec<DMatrix<f64>>>) -> Result<DVector<f64>, FactorError> {
+    fn evaluate(
+        &self,
+        values: &Values,
+        jacobians: Option<&mut Vec<DMatrix<f64>>>,
+    ) -> Result<DVector<f64>, FactorError> {
         let x = values.pose(self.keys[0]).ok_or(FactorError::WrongVariable(self.keys[0]))?;
         let e = se3_log(&(self.z_inv * x));
         if let Some(jac) = jacobians {
@@ -105,7 +113,11 @@ impl Factor for PointPrior {
         3
     }
 
-    fn evaluate(&self, values: &Values, jacobians: Option<&mut Vec<DMatrix<f64>>>) -> Result<DVector<f64>, FactorError> {
+    fn evaluate(
+        &self,
+        values: &Values,
+        jacobians: Option<&mut Vec<DMatrix<f64>>>,
+    ) -> Result<DVector<f64>, FactorError> {
         let x = values.point(self.keys[0]).ok_or(FactorError::WrongVariable(self.keys[0]))?;
         if let Some(jac) = jacobians {
             jac.clear();
