@@ -2,6 +2,8 @@
 
 mod assoc_cmd;
 mod optim_cmd;
+mod plot;
+mod sim_cmd;
 
 use std::{io::IsTerminal, path::PathBuf};
 
@@ -23,6 +25,9 @@ enum Command {
     Assoc(assoc_cmd::AssocCommand),
     /// Benchmark the optimiser on real BA and pose-graph problems against Ceres / GTSAM anchors.
     OptimBench(optim_cmd::OptimBenchArgs),
+    /// The paper's simulation study: Q-SLAM, Conic, Tri, Tri+Yaw (+cc, +refine) under pose and box noise,
+    /// on the 18° arc and on a drive-by; tables, CSV and plots.
+    Sim(sim_cmd::SimArgs),
 }
 
 /// A path inside the repository's `fixtures/`: relative to the working directory if it exists there,
@@ -48,5 +53,6 @@ fn main() -> anyhow::Result<()> {
     match cli.command {
         Command::Assoc(cmd) => assoc_cmd::run(cmd),
         Command::OptimBench(a) => optim_cmd::run(&a),
+        Command::Sim(a) => sim_cmd::run(&a),
     }
 }

@@ -13,45 +13,8 @@ use slam_core::{geometry::BBox, ClassId, Detection, Mask, PointPair, TrackId};
 
 use crate::tracker::{ObjectTracker, TrackerInput};
 
-/// Small deterministic generator (64-bit LCG + Box–Muller), so results repeat for a seed everywhere.
-#[derive(Debug, Clone)]
-pub struct Lcg(u64);
-
-impl Lcg {
-    /// A generator from a seed.
-    pub fn new(seed: u64) -> Self {
-        let mut g = Self(seed ^ 0x9E37_79B9_7F4A_7C15);
-        g.unit();
-        g
-    }
-    /// Uniform in `[0, 1)`.
-    pub fn unit(&mut self) -> f64 {
-        self.0 = self.0.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    /// Uniform in `[lo, hi)`.
-    pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-    /// Uniform integer in `0..n` (0 when `n == 0`).
-    pub fn below(&mut self, n: usize) -> usize {
-        ((self.unit() * n as f64) as usize).min(n.saturating_sub(1))
-    }
-    /// Standard normal.
-    pub fn normal(&mut self) -> f64 {
-        let u = self.unit().max(1e-300);
-        let v = self.unit();
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    }
-    /// A random permutation of `0..n`.
-    pub fn permutation(&mut self, n: usize) -> Vec<usize> {
-        let mut p: Vec<usize> = (0..n).collect();
-        for i in (1..n).rev() {
-            p.swap(i, self.below(i + 1));
-        }
-        p
-    }
-}
+/// The seeded generator used by the simulations (from `slam-core`).
+pub use slam_core::rng::SimRng as Lcg;
 
 /// Settings of [`simulate`].
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -9,6 +9,7 @@
 
 pub mod assoc;
 pub mod detection;
+pub mod rng;
 
 /// The geometry crate, re-exported so that users of the seams need one dependency.
 pub use slam_quadric as geometry;

@@ -165,3 +165,51 @@ impl Factor for TexturePlane {
         Ok(DVector::from_element(1, res))
     }
 }
+
+/// Keeps one of an ellipsoid's axes along a direction: residual `d × (R e_k)` (3; its norm is the sine
+/// of the angle between them), e.g. a car's height axis along gravity, the paper's yaw-only assumption
+/// as a soft constraint. Without it, a straight drive cannot observe the object's tilt and the
+/// optimisation drifts along that unobservable direction.
+#[derive(Debug, Clone)]
+pub struct AxisDirection {
+    keys: [Key; 1],
+    axis: usize,
+    direction: Vector3<f64>,
+}
+
+impl AxisDirection {
+    /// Axis `axis` (0, 1, 2 = own x, y, z) of `object` along `direction` (normalised; `None` for a zero
+    /// direction or an axis index above 2).
+    pub fn new(object: Key, axis: usize, direction: Vector3<f64>) -> Option<Self> {
+        let n = direction.norm();
+        (axis < 3 && n > 0.0 && n.is_finite()).then(|| Self { keys: [object], axis, direction: direction / n })
+    }
+}
+
+impl Factor for AxisDirection {
+    fn keys(&self) -> &[Key] {
+        &self.keys
+    }
+
+    fn dim(&self) -> usize {
+        3
+    }
+
+    fn evaluate(&self, values: &Values, jacobians: Option<&mut Vec<DMatrix<f64>>>) -> Result<DVector<f64>, FactorError> {
+        let e = values.ellipsoid(self.keys[0]).ok_or(FactorError::WrongVariable(self.keys[0]))?;
+        let r = e.rotation();
+        let mut ek = Vector3::zeros();
+        ek[self.axis] = 1.0;
+        let a = r * ek;
+        let res = self.direction.cross(&a);
+        if let Some(jac) = jacobians {
+            // R Exp(ω): d(R e_k) = −R [e_k]× ω
+            let d = -crate::lie::hat(&self.direction) * r * crate::lie::hat(&ek);
+            let mut j = DMatrix::zeros(3, 9);
+            j.view_mut((0, 0), (3, 3)).copy_from(&d);
+            jac.clear();
+            jac.push(j);
+        }
+        Ok(DVector::from_column_slice(res.as_slice()))
+    }
+}

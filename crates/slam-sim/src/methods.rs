@@ -1,0 +1,237 @@
+//! The compared methods, and the refinement by object optimisation.
+
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use slam_optim::{
+    factors::{AxisDirection, AxisPrior, BoxFactor},
+    Graph, Huber, LevenbergMarquardt, LmParams, NoiseModel, Values, Var, L2,
+};
+use slam_quadric::{
+    init::{triangulate_box_centres, BoxView, Conic, Dqp, InitError, Initializer, QSlamSvd, Tri, TriangulationConfig},
+    se3, BoundsModel, Ellipsoid, ImageSize,
+};
+
+/// A compared method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Method {
+    /// QuadricSLAM's SVD.
+    QSlam,
+    /// Rubino et al.'s conic method (inscribed ellipses).
+    Conic,
+    /// Triangulated centre, then the full 3×3 block.
+    Tri,
+    /// DQP as printed (Tri+Yaw).
+    TriYaw,
+    /// DQP with our box-centre correction.
+    TriYawCc,
+    /// DQP followed by object optimisation (box error with Huber, prior axis lengths).
+    TriYawRefine,
+}
+
+impl Method {
+    /// All methods, in table order.
+    pub const ALL: [Method; 6] = [Method::QSlam, Method::Conic, Method::Tri, Method::TriYaw, Method::TriYawCc, Method::TriYawRefine];
+
+    /// Short name for tables.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Method::QSlam => "Q-SLAM",
+            Method::Conic => "Conic",
+            Method::Tri => "Tri",
+            Method::TriYaw => "Tri+Yaw",
+            Method::TriYawCc => "Tri+Yaw+cc",
+            Method::TriYawRefine => "Tri+Yaw+refine",
+        }
+    }
+
+    /// Run the method on noisy views.
+    pub fn run(&self, views: &[BoxView], image: &ImageSize, prior: &ObjectPrior) -> Result<Ellipsoid, InitError> {
+        match self {
+            Method::QSlam => QSlamSvd.initialize(views),
+            Method::Conic => Conic::default().initialize(views),
+            Method::Tri => Tri::default().initialize(views),
+            Method::TriYaw => Dqp::default().initialize(views),
+            Method::TriYawCc => Dqp::with_centre_correction().initialize(views),
+            Method::TriYawRefine => refine(views, image, prior, &RefineConfig::default()),
+        }
+    }
+}
+
+/// Class prior of an object's semi-axes (own x = length, y = height, z = width) with standard deviations.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ObjectPrior {
+    /// Mean semi-axes, metres.
+    pub axes: Vector3<f64>,
+    /// Standard deviation of each, metres.
+    pub sigma: Vector3<f64>,
+}
+
+impl ObjectPrior {
+    /// The car prior of the study: the middle of the sampled ranges, σ = the uniform ranges' widths / 2.
+    pub fn car() -> Self {
+        Self { axes: Vector3::new(2.1, 0.8, 0.85), sigma: Vector3::new(0.3, 0.1, 0.1) }
+    }
+}
+
+/// Settings of [`refine`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RefineConfig {
+    /// Box noise σ of the first pass, pixels (whitening of the box error).
+    pub box_sigma_px: f64,
+    /// Huber threshold in pixels (converted to σ units for each pass, so re-estimating σ does not
+    /// change which residuals count as outliers).
+    pub huber_px: f64,
+    /// Passes; after each, every view's σ is re-estimated as its RMS box residual (at least half the
+    /// overall RMS, clamped to `[min_sigma_px, max_sigma_px]`), so the axis prior weighs as much as the
+    /// boxes' actual misfit warrants (little when they fit: no bias at zero noise) and views whose pose or
+    /// box is off count less.
+    pub passes: usize,
+    /// Lower clamp of the re-estimated σ, pixels.
+    pub min_sigma_px: f64,
+    /// Upper clamp of the re-estimated σ, pixels.
+    pub max_sigma_px: f64,
+}
+
+impl Default for RefineConfig {
+    fn default() -> Self {
+        Self { box_sigma_px: 1.0, huber_px: 3.0, passes: 8, min_sigma_px: 1e-4, max_sigma_px: 20.0 }
+    }
+}
+
+/// RMS box error (pixels) of an ellipsoid in each view (clipped model); `None` when it does not project
+/// into a view.
+fn box_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid) -> Option<Vec<f64>> {
+    views
+        .iter()
+        .map(|v| {
+            let r = slam_quadric::box_error(e, &v.camera, &v.bbox, &BoundsModel::Clipped(*image)).ok()?;
+            Some((r.error.norm_squared() / 4.0).sqrt())
+        })
+        .collect()
+}
+
+/// Re-order an ellipsoid's axes (permuting rotation columns, keeping a proper rotation) to match the
+/// prior's order best; the ellipsoid is unchanged as a set.
+fn align_to_prior(e: &Ellipsoid, prior: &Vector3<f64>) -> Ellipsoid {
+    const PERMS: [[usize; 3]; 6] = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
+    let r = e.rotation();
+    let best = PERMS
+        .iter()
+        .min_by(|p, q| {
+            let err = |p: &[usize; 3]| (Vector3::new(e.semi_axes[p[0]], e.semi_axes[p[1]], e.semi_axes[p[2]]) - prior).norm();
+            err(p).total_cmp(&err(q))
+        })
+        .copied()
+        .unwrap_or([0, 1, 2]);
+    let mut cols = [r.column(best[0]).into_owned(), r.column(best[1]).into_owned(), r.column(best[2]).into_owned()];
+    if cols[0].cross(&cols[1]).dot(&cols[2]) < 0.0 {
+        cols[2] = -cols[2];
+    }
+    let rot = Matrix3::from_columns(&cols);
+    Ellipsoid::new(
+        se3::isometry_from_parts(&rot, &e.centre()),
+        Vector3::new(e.semi_axes[best[0]], e.semi_axes[best[1]], e.semi_axes[best[2]]),
+    )
+}
+
+/// Object optimisation of one ellipsoid over fixed (noisy) cameras: box error on the exact clipped
+/// bounds (Huber), plus the class prior on the semi-axes; returns the optimised ellipsoid and its cost.
+pub fn optimise_object(
+    views: &[BoxView],
+    image: &ImageSize,
+    prior: &ObjectPrior,
+    config: &RefineConfig,
+    start: Ellipsoid,
+) -> Option<(Ellipsoid, f64)> {
+    let sigmas = vec![config.box_sigma_px; views.len()];
+    optimise_object_weighted(views, image, prior, config, &sigmas, start)
+}
+
+/// [`optimise_object`] with one box σ per view (pixels).
+fn optimise_object_weighted(
+    views: &[BoxView],
+    image: &ImageSize,
+    prior: &ObjectPrior,
+    config: &RefineConfig,
+    sigmas: &[f64],
+    start: Ellipsoid,
+) -> Option<(Ellipsoid, f64)> {
+    let mut values = Values::new();
+    let mut graph = Graph::new();
+    let ko = values.add(Var::Ellipsoid(start));
+    let mut lm = LevenbergMarquardt::new(LmParams { function_tolerance: 1e-12, parameter_tolerance: 1e-12, max_iterations: 200, ..LmParams::default() });
+    for (v, &sigma) in views.iter().zip(sigmas) {
+        let kp = values.add(Var::Pose(v.camera.world_from_camera));
+        lm.fix(kp);
+        graph
+            .add(
+                BoxFactor::new(kp, ko, v.camera.intrinsics, v.bbox, BoundsModel::Clipped(*image)),
+                NoiseModel::Isotropic(sigma),
+                Huber(config.huber_px / sigma),
+            )
+            .ok()?;
+    }
+    graph.add(AxisPrior::new(ko, prior.axes), NoiseModel::Diagonal(prior.sigma.as_slice().to_vec()), L2).ok()?;
+    // The paper's assumption: the object only yaws; its height axis (own y) stays along the reference
+    // camera's y axis (gravity for a level camera), 0.5° σ.
+    if let Some(first) = views.first() {
+        let up = first.camera.world_from_camera.rotation * Vector3::y();
+        graph.add(AxisDirection::new(ko, 1, up)?, NoiseModel::Isotropic(0.5f64.to_radians()), L2).ok()?;
+    }
+    let summary = lm.solve(&graph, &mut values, None).ok()?;
+    let e = *values.ellipsoid(ko)?;
+    (e.is_valid()).then_some((e, summary.final_cost))
+}
+
+/// Tri+Yaw followed by object optimisation. Starts: the DQP ellipsoid (axes re-ordered to the prior),
+/// and, always, the triangulated box-centre point with the prior's axes at the reference camera's heading
+/// and at that heading turned by 90° (a car seen side-on or along the road). The lowest-cost result that
+/// is in front of every camera wins.
+pub fn refine(views: &[BoxView], image: &ImageSize, prior: &ObjectPrior, config: &RefineConfig) -> Result<Ellipsoid, InitError> {
+    let mut starts = Vec::new();
+    if let Ok(e) = Dqp::default().initialize(views) {
+        starts.push(align_to_prior(&e, &prior.axes));
+    }
+    if let Ok(e) = Dqp::with_centre_correction().initialize(views) {
+        starts.push(align_to_prior(&e, &prior.axes));
+    }
+    let centre = triangulate_box_centres(views, &TriangulationConfig::default());
+    if let (Ok(c), Some(first)) = (centre, views.first()) {
+        let heading = first.camera.world_from_camera.rotation;
+        for turn in [0.0, std::f64::consts::FRAC_PI_2] {
+            let rot = heading * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), turn);
+            starts.push(Ellipsoid::new(nalgebra::Isometry3::from_parts(nalgebra::Translation3::from(c), rot), prior.axes));
+        }
+    }
+    // Pass 1 from every start at the configured σ; the best result goes on to the re-weighted passes.
+    let mut best: Option<(Ellipsoid, f64)> = None;
+    for s in starts {
+        if let Some((e, cost)) = optimise_object(views, image, prior, config, s) {
+            let in_front = views.iter().all(|v| slam_quadric::classify(&e, &v.camera) == slam_quadric::Visibility::InFront);
+            if in_front && best.as_ref().is_none_or(|b| cost < b.1) {
+                best = Some((e, cost));
+            }
+        }
+    }
+    if let Some((mut e, _)) = best {
+        for _ in 1..config.passes {
+            let Some(rms) = box_rms(views, image, &e) else { break };
+            // per view: its own misfit, but never below the overall RMS / 2 (one view cannot claim to be
+            // much better than the data as a whole)
+            let all = (rms.iter().map(|r| r * r).sum::<f64>() / rms.len().max(1) as f64).sqrt();
+            let sigmas: Vec<f64> =
+                rms.iter().map(|r| r.max(0.5 * all).clamp(config.min_sigma_px, config.max_sigma_px)).collect();
+            match optimise_object_weighted(views, image, prior, config, &sigmas, e) {
+                Some((next, _)) if views.iter().all(|v| slam_quadric::classify(&next, &v.camera) == slam_quadric::Visibility::InFront) => {
+                    e = next
+                }
+                _ => break,
+            }
+        }
+        best = Some((e, 0.0));
+    }
+    match (best, centre) {
+        (Some((e, _)), _) => Ok(e),
+        (None, Err(err)) => Err(err),
+        (None, Ok(_)) => Err(InitError::Degenerate(slam_quadric::init::Degeneracy::RankDeficient)),
+    }
+}
