@@ -65,13 +65,19 @@ where
             .y_label_area_size(40)
             .build_cartesian_2d(0f64..xmax, 0f64..ymax)
             .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-        chart.configure_mesh().x_desc("noise %").light_line_style(WHITE).draw().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+        chart
+            .configure_mesh()
+            .x_desc("noise %")
+            .light_line_style(WHITE)
+            .draw()
+            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
         for (mi, &m) in methods.iter().enumerate() {
             let color = COLORS[mi % COLORS.len()];
             let pts: Vec<(f64, f64)> = levels
                 .iter()
                 .filter_map(|&l| {
-                    let c = cells.iter().find(|c| c.geometry == g && c.noise == kind && c.level == l && c.method == m)?;
+                    let c =
+                        cells.iter().find(|c| c.geometry == g && c.noise == kind && c.level == l && c.method == m)?;
                     let v = metric(c);
                     v.is_finite().then_some((l, v.min(ymax)))
                 })
@@ -80,9 +86,13 @@ where
                 .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
                 .map_err(|e| anyhow::anyhow!("{e:?}"))?;
             if pi == 0 {
-                series.label(m.name()).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
+                series
+                    .label(m.name())
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
             }
-            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled()))).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            chart
+                .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
+                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
         }
         if pi == 0 {
             chart
@@ -99,13 +109,21 @@ where
 }
 
 /// Write `sim_<geometry>.svg` and `.png` (a panel per noise kind and metric, a curve per method).
-pub fn simulation_figure(cells: &[CellStats], g: Geometry, kinds: &[NoiseKind], methods: &[Method], out: &Path) -> anyhow::Result<Vec<PathBuf>> {
+pub fn simulation_figure(
+    cells: &[CellStats],
+    g: Geometry,
+    kinds: &[NoiseKind],
+    methods: &[Method],
+    out: &Path,
+) -> anyhow::Result<Vec<PathBuf>> {
     register_font();
     let size = (1600, 300 * kinds.len() as u32 + 60);
     let stem = format!("sim_{}", g.name());
     let svg = out.join(format!("{stem}.svg"));
     let png = out.join(format!("{stem}.png"));
-    draw(SVGBackend::new(&svg, size).into_drawing_area(), cells, g, kinds, methods).with_context(|| format!("drawing {}", svg.display()))?;
-    draw(BitMapBackend::new(&png, size).into_drawing_area(), cells, g, kinds, methods).with_context(|| format!("drawing {}", png.display()))?;
+    draw(SVGBackend::new(&svg, size).into_drawing_area(), cells, g, kinds, methods)
+        .with_context(|| format!("drawing {}", svg.display()))?;
+    draw(BitMapBackend::new(&png, size).into_drawing_area(), cells, g, kinds, methods)
+        .with_context(|| format!("drawing {}", png.display()))?;
     Ok(vec![svg, png])
 }

@@ -60,13 +60,20 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
         }
     }
     println!("\nBreakdown level (smallest noise level with success < 50 %; '-' = never within the sweep):");
-    println!("{:<9} {:<12} {}", "geometry", "noise", config.methods.iter().map(|m| format!("{:>15}", m.name())).collect::<String>());
+    println!(
+        "{:<9} {:<12} {}",
+        "geometry",
+        "noise",
+        config.methods.iter().map(|m| format!("{:>15}", m.name())).collect::<String>()
+    );
     for &g in &config.geometries {
         for &k in &config.noise {
             let row: String = config
                 .methods
                 .iter()
-                .map(|&m| format!("{:>15}", breakdown_level(&cells, g, k, m).map(|l| format!("{l}%")).unwrap_or("-".into())))
+                .map(|&m| {
+                    format!("{:>15}", breakdown_level(&cells, g, k, m).map(|l| format!("{l}%")).unwrap_or("-".into()))
+                })
                 .collect();
             println!("{:<9} {:<12} {row}", g.name(), k.name());
         }
@@ -87,7 +94,11 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
 }
 
 fn print_table(cells: &[CellStats], g: Geometry, k: NoiseKind, methods: &[Method]) {
-    println!("\n== {} geometry, {} noise (per method: success %, median e_trans m, median e_axe m, mean IoU2D) ==", g.name(), k.name());
+    println!(
+        "\n== {} geometry, {} noise (per method: success %, median e_trans m, median e_axe m, mean IoU2D) ==",
+        g.name(),
+        k.name()
+    );
     let mut header = format!("{:>6}", "p%");
     for m in methods {
         header.push_str(&format!(" | {:^26}", m.name()));
@@ -96,7 +107,8 @@ fn print_table(cells: &[CellStats], g: Geometry, k: NoiseKind, methods: &[Method
     for &level in k.levels() {
         let mut row = format!("{:>6}", level);
         for &m in methods {
-            if let Some(c) = cells.iter().find(|c| c.geometry == g && c.noise == k && c.level == level && c.method == m) {
+            if let Some(c) = cells.iter().find(|c| c.geometry == g && c.noise == k && c.level == level && c.method == m)
+            {
                 row.push_str(&format!(
                     " | {:>4.0} {:>6} {:>6} {:>6}",
                     100.0 * c.success,

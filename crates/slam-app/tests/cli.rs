@@ -35,3 +35,28 @@ fn help_lists_commands() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success() && text.contains("assoc"), "{text}");
 }
+
+#[test]
+fn sim_small_sweep_writes_csv_and_plots() {
+    let out = std::env::temp_dir().join(format!("slam-app-sim-{}", std::process::id()));
+    let o = app().args(["sim", "--objects", "2", "--noise-seeds", "1", "--out"]).arg(&out).output().expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("master seed 20220601") && text.contains("Breakdown level"), "{text}");
+    let csv = std::fs::read_to_string(out.join("simulation.csv")).expect("csv");
+    assert_eq!(csv.lines().count(), 1 + 2 * (9 + 9 + 8) * 6);
+    for f in ["sim_arc.svg", "sim_arc.png", "sim_drive-by.svg", "sim_drive-by.png"] {
+        assert!(std::fs::metadata(out.join(f)).map(|m| m.len() > 1000).unwrap_or(false), "{f}");
+    }
+}
+
+#[test]
+fn optim_bench_one_problem() {
+    let o = app().args(["optim-bench", "--reps", "1", "--only", "parking"]).output().expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let row = text.lines().find(|l| l.starts_with("parking-garage")).expect("row");
+    let fields: Vec<&str> = row.split_whitespace().collect();
+    let final_cost: f64 = fields[2].parse().expect("number");
+    assert!((final_cost - 0.6341924).abs() < 1e-4, "{row}");
+}

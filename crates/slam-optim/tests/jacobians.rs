@@ -3,8 +3,9 @@
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3, Vector4};
 use slam_optim::{
     factor::numeric_jacobians,
-    factors::{AxisDirection, AxisPrior, BalReprojection, Between, BoxFactor, MonoReprojection, PointPrior, PosePrior, StereoReprojection,
-        TexturePlane,
+    factors::{
+        AxisDirection, AxisPrior, BalReprojection, Between, BoxFactor, MonoReprojection, PointPrior, PosePrior,
+        StereoReprojection, TexturePlane,
     },
     BalCamera, Factor, Values, Var,
 };
@@ -122,7 +123,8 @@ fn object_factors() {
         }
         check(&AxisPrior::new(ke, Vector3::new(2.0, 0.8, 0.9)), &v, "axis prior");
         for axis in 0..3 {
-            let ad = AxisDirection::new(ke, axis, Vector3::new(rng.u(-1.0, 1.0), 1.0, rng.u(-1.0, 1.0))).expect("direction");
+            let ad =
+                AxisDirection::new(ke, axis, Vector3::new(rng.u(-1.0, 1.0), 1.0, rng.u(-1.0, 1.0))).expect("direction");
             check(&ad, &v, "axis direction");
         }
         let n = Vector3::new(rng.u(-1.0, 1.0), rng.u(-1.0, 1.0), rng.u(-1.0, 1.0));

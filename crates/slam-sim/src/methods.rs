@@ -29,7 +29,8 @@ pub enum Method {
 
 impl Method {
     /// All methods, in table order.
-    pub const ALL: [Method; 6] = [Method::QSlam, Method::Conic, Method::Tri, Method::TriYaw, Method::TriYawCc, Method::TriYawRefine];
+    pub const ALL: [Method; 6] =
+        [Method::QSlam, Method::Conic, Method::Tri, Method::TriYaw, Method::TriYawCc, Method::TriYawRefine];
 
     /// Short name for tables.
     pub fn name(&self) -> &'static str {
@@ -117,7 +118,8 @@ fn align_to_prior(e: &Ellipsoid, prior: &Vector3<f64>) -> Ellipsoid {
     let best = PERMS
         .iter()
         .min_by(|p, q| {
-            let err = |p: &[usize; 3]| (Vector3::new(e.semi_axes[p[0]], e.semi_axes[p[1]], e.semi_axes[p[2]]) - prior).norm();
+            let err =
+                |p: &[usize; 3]| (Vector3::new(e.semi_axes[p[0]], e.semi_axes[p[1]], e.semi_axes[p[2]]) - prior).norm();
             err(p).total_cmp(&err(q))
         })
         .copied()
@@ -158,7 +160,12 @@ fn optimise_object_weighted(
     let mut values = Values::new();
     let mut graph = Graph::new();
     let ko = values.add(Var::Ellipsoid(start));
-    let mut lm = LevenbergMarquardt::new(LmParams { function_tolerance: 1e-12, parameter_tolerance: 1e-12, max_iterations: 200, ..LmParams::default() });
+    let mut lm = LevenbergMarquardt::new(LmParams {
+        function_tolerance: 1e-12,
+        parameter_tolerance: 1e-12,
+        max_iterations: 200,
+        ..LmParams::default()
+    });
     for (v, &sigma) in views.iter().zip(sigmas) {
         let kp = values.add(Var::Pose(v.camera.world_from_camera));
         lm.fix(kp);
@@ -186,7 +193,12 @@ fn optimise_object_weighted(
 /// and, always, the triangulated box-centre point with the prior's axes at the reference camera's heading
 /// and at that heading turned by 90° (a car seen side-on or along the road). The lowest-cost result that
 /// is in front of every camera wins.
-pub fn refine(views: &[BoxView], image: &ImageSize, prior: &ObjectPrior, config: &RefineConfig) -> Result<Ellipsoid, InitError> {
+pub fn refine(
+    views: &[BoxView],
+    image: &ImageSize,
+    prior: &ObjectPrior,
+    config: &RefineConfig,
+) -> Result<Ellipsoid, InitError> {
     let mut starts = Vec::new();
     if let Ok(e) = Dqp::default().initialize(views) {
         starts.push(align_to_prior(&e, &prior.axes));
@@ -199,14 +211,18 @@ pub fn refine(views: &[BoxView], image: &ImageSize, prior: &ObjectPrior, config:
         let heading = first.camera.world_from_camera.rotation;
         for turn in [0.0, std::f64::consts::FRAC_PI_2] {
             let rot = heading * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), turn);
-            starts.push(Ellipsoid::new(nalgebra::Isometry3::from_parts(nalgebra::Translation3::from(c), rot), prior.axes));
+            starts.push(Ellipsoid::new(
+                nalgebra::Isometry3::from_parts(nalgebra::Translation3::from(c), rot),
+                prior.axes,
+            ));
         }
     }
     // Pass 1 from every start at the configured σ; the best result goes on to the re-weighted passes.
     let mut best: Option<(Ellipsoid, f64)> = None;
     for s in starts {
         if let Some((e, cost)) = optimise_object(views, image, prior, config, s) {
-            let in_front = views.iter().all(|v| slam_quadric::classify(&e, &v.camera) == slam_quadric::Visibility::InFront);
+            let in_front =
+                views.iter().all(|v| slam_quadric::classify(&e, &v.camera) == slam_quadric::Visibility::InFront);
             if in_front && best.as_ref().is_none_or(|b| cost < b.1) {
                 best = Some((e, cost));
             }
@@ -221,7 +237,11 @@ pub fn refine(views: &[BoxView], image: &ImageSize, prior: &ObjectPrior, config:
             let sigmas: Vec<f64> =
                 rms.iter().map(|r| r.max(0.5 * all).clamp(config.min_sigma_px, config.max_sigma_px)).collect();
             match optimise_object_weighted(views, image, prior, config, &sigmas, e) {
-                Some((next, _)) if views.iter().all(|v| slam_quadric::classify(&next, &v.camera) == slam_quadric::Visibility::InFront) => {
+                Some((next, _))
+                    if views
+                        .iter()
+                        .all(|v| slam_quadric::classify(&next, &v.camera) == slam_quadric::Visibility::InFront) =>
+                {
                     e = next
                 }
                 _ => break,

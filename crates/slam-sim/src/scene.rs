@@ -97,8 +97,10 @@ impl Scene {
             Geometry::DriveBy => {
                 // parked parallel to the road: its length (own x) along +z
                 let centre = Vector3::new(6.0, 0.9, 25.0);
-                let truth =
-                    Ellipsoid::new(Isometry3::from_parts(Translation3::from(centre), yaw(-std::f64::consts::FRAC_PI_2 + dyaw)), axes);
+                let truth = Ellipsoid::new(
+                    Isometry3::from_parts(Translation3::from(centre), yaw(-std::f64::consts::FRAC_PI_2 + dyaw)),
+                    axes,
+                );
                 let mut poses = Vec::new();
                 let mut k = 0;
                 loop {

@@ -22,7 +22,15 @@ pub struct TrialResult {
 }
 
 /// Run one trial.
-pub fn run_trial(scene: &Scene, method: Method, kind: NoiseKind, level: f64, master_seed: u64, object: u64, seed: u64) -> TrialResult {
+pub fn run_trial(
+    scene: &Scene,
+    method: Method,
+    kind: NoiseKind,
+    level: f64,
+    master_seed: u64,
+    object: u64,
+    seed: u64,
+) -> TrialResult {
     let views = perturb(scene, kind, level, master_seed, object, seed);
     let failed = TrialResult { success: false, e_trans: f64::NAN, e_axe: f64::NAN, iou: f64::NAN };
     let Ok(e) = method.run(&views, &IMAGE, &ObjectPrior::car()) else { return failed };
@@ -37,7 +45,12 @@ fn evaluate(scene: &Scene, e: &Ellipsoid) -> Option<TrialResult> {
     }
     let iou = scene.cameras.iter().zip(&scene.boxes).map(|(c, b)| metrics::projected_iou(e, c, &IMAGE, b)).sum::<f64>()
         / scene.cameras.len() as f64;
-    Some(TrialResult { success: true, e_trans: metrics::e_trans(e, &scene.truth), e_axe: metrics::e_axe(e, &scene.truth), iou })
+    Some(TrialResult {
+        success: true,
+        e_trans: metrics::e_trans(e, &scene.truth),
+        e_axe: metrics::e_axe(e, &scene.truth),
+        iou,
+    })
 }
 
 /// Statistics of one cell (geometry, noise kind, level, method).
@@ -151,8 +164,11 @@ pub fn sweep(config: &SweepConfig, mut progress: impl FnMut(usize, usize)) -> Ve
         atomic::{AtomicUsize, Ordering},
         mpsc,
     };
-    let scenes: Vec<(Geometry, Vec<Scene>)> =
-        config.geometries.iter().map(|&g| (g, (0..config.objects).map(|o| Scene::new(g, config.seed, o)).collect())).collect();
+    let scenes: Vec<(Geometry, Vec<Scene>)> = config
+        .geometries
+        .iter()
+        .map(|&g| (g, (0..config.objects).map(|o| Scene::new(g, config.seed, o)).collect()))
+        .collect();
     let mut jobs = Vec::new();
     for (gi, &(g, _)) in scenes.iter().enumerate() {
         for &kind in &config.noise {

@@ -46,7 +46,14 @@ fn zero_noise_behaviour() {
 
 #[test]
 fn sweep_is_deterministic() {
-    let cfg = SweepConfig { objects: 2, noise_seeds: 2, geometries: vec![Geometry::Arc], noise: vec![NoiseKind::Box], methods: vec![Method::TriYaw, Method::Conic], ..SweepConfig::default() };
+    let cfg = SweepConfig {
+        objects: 2,
+        noise_seeds: 2,
+        geometries: vec![Geometry::Arc],
+        noise: vec![NoiseKind::Box],
+        methods: vec![Method::TriYaw, Method::Conic],
+        ..SweepConfig::default()
+    };
     let a = sweep(&cfg, |_, _| {});
     let b = sweep(&cfg, |_, _| {});
     assert_eq!(a.len(), 16);
@@ -54,4 +61,3 @@ fn sweep_is_deterministic() {
         assert_eq!(format!("{x:?}"), format!("{y:?}"));
     }
 }
-

@@ -195,7 +195,11 @@ impl Factor for AxisDirection {
         3
     }
 
-    fn evaluate(&self, values: &Values, jacobians: Option<&mut Vec<DMatrix<f64>>>) -> Result<DVector<f64>, FactorError> {
+    fn evaluate(
+        &self,
+        values: &Values,
+        jacobians: Option<&mut Vec<DMatrix<f64>>>,
+    ) -> Result<DVector<f64>, FactorError> {
         let e = values.ellipsoid(self.keys[0]).ok_or(FactorError::WrongVariable(self.keys[0]))?;
         let r = e.rotation();
         let mut ek = Vector3::zeros();
