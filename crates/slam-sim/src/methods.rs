@@ -2,7 +2,7 @@
 
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use slam_optim::{
-    factors::{AxisDirection, AxisPrior, BoxFactor},
+    factors::{AxisDirection, AxisPrior, BoxFactor, PosePrior},
     Graph, Huber, LevenbergMarquardt, LmParams, NoiseModel, Values, Var, L2,
 };
 use slam_quadric::{
@@ -90,11 +90,34 @@ pub struct RefineConfig {
     pub min_sigma_px: f64,
     /// Upper clamp of the re-estimated σ, pixels.
     pub max_sigma_px: f64,
+    /// Final joint stage: camera poses become variables (the first view stays fixed) with a prior at
+    /// their given values whose translation σ grows with the distance from the first camera,
+    /// `σ_t = pose_drift · distance` (odometry drift per metre), and rotation σ `pose_rot_sigma_deg`.
+    /// `None` keeps the poses fixed.
+    pub pose_drift: Option<f64>,
+    /// Rotation σ of the pose prior in the joint stage, degrees.
+    pub pose_rot_sigma_deg: f64,
+    /// Below this RMS box misfit (pixels) after the fixed-pose passes, the data count as consistent
+    /// and the joint stage is skipped.
+    pub consistent_rms_px: f64,
+    /// The joint stage runs only when the shift part of the misfit exceeds this multiple of its size
+    /// part (see [`refine`]).
+    pub shift_ratio: f64,
 }
 
 impl Default for RefineConfig {
     fn default() -> Self {
-        Self { box_sigma_px: 1.0, huber_px: 3.0, passes: 8, min_sigma_px: 1e-4, max_sigma_px: 20.0 }
+        Self {
+            box_sigma_px: 1.0,
+            huber_px: 3.0,
+            passes: 8,
+            min_sigma_px: 1e-4,
+            max_sigma_px: 20.0,
+            pose_drift: Some(0.03),
+            pose_rot_sigma_deg: 0.2,
+            consistent_rms_px: 0.2,
+            shift_ratio: 2.0,
+        }
     }
 }
 
@@ -189,7 +212,77 @@ fn optimise_object_weighted(
     (e.is_valid()).then_some((e, summary.final_cost))
 }
 
-/// Tri+Yaw followed by object optimisation. Starts: the DQP ellipsoid (axes re-ordered to the prior),
+/// RMS over views of the box misfit's shift part (`(e_min + e_max)/2` per axis) and size part
+/// (`(e_max − e_min)/2`), pixels.
+fn shift_and_size_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid) -> Option<(f64, f64)> {
+    let (mut shift, mut size) = (0.0, 0.0);
+    for v in views {
+        let r = slam_quadric::box_error(e, &v.camera, &v.bbox, &BoundsModel::Clipped(*image)).ok()?.error;
+        for (lo, hi) in [(r[0], r[2]), (r[1], r[3])] {
+            shift += (0.5 * (lo + hi)).powi(2);
+            size += (0.5 * (hi - lo)).powi(2);
+        }
+    }
+    let n = (2 * views.len().max(1)) as f64;
+    Some(((shift / n).sqrt(), (size / n).sqrt()))
+}
+
+/// Joint stage: the object and the camera poses (all but the first, which fixes the gauge), with a
+/// drift prior on the poses; returns the object.
+fn joint_refine(
+    views: &[BoxView],
+    image: &ImageSize,
+    prior: &ObjectPrior,
+    config: &RefineConfig,
+    sigmas: &[f64],
+    drift: f64,
+    start: Ellipsoid,
+) -> Option<Ellipsoid> {
+    let mut values = Values::new();
+    let mut graph = Graph::new();
+    let ko = values.add(Var::Ellipsoid(start));
+    let mut lm = LevenbergMarquardt::new(LmParams {
+        function_tolerance: 1e-12,
+        parameter_tolerance: 1e-12,
+        max_iterations: 200,
+        ..LmParams::default()
+    });
+    let first = views.first()?.camera.world_from_camera;
+    let rot_sigma = config.pose_rot_sigma_deg.to_radians();
+    for (i, (v, &sigma)) in views.iter().zip(sigmas).enumerate() {
+        let pose = v.camera.world_from_camera;
+        let kp = values.add(Var::Pose(pose));
+        if i == 0 {
+            lm.fix(kp);
+        } else {
+            let st = (drift * (pose.translation.vector - first.translation.vector).norm()).max(1e-4);
+            graph
+                .add(
+                    PosePrior::new(kp, pose),
+                    NoiseModel::Diagonal(vec![rot_sigma, rot_sigma, rot_sigma, st, st, st]),
+                    L2,
+                )
+                .ok()?;
+        }
+        graph
+            .add(
+                BoxFactor::new(kp, ko, v.camera.intrinsics, v.bbox, BoundsModel::Clipped(*image)),
+                NoiseModel::Isotropic(sigma),
+                Huber(config.huber_px / sigma),
+            )
+            .ok()?;
+    }
+    graph.add(AxisPrior::new(ko, prior.axes), NoiseModel::Diagonal(prior.sigma.as_slice().to_vec()), L2).ok()?;
+    let up = first.rotation * Vector3::y();
+    graph.add(AxisDirection::new(ko, 1, up)?, NoiseModel::Isotropic(0.5f64.to_radians()), L2).ok()?;
+    lm.solve(&graph, &mut values, None).ok()?;
+    let e = *values.ellipsoid(ko)?;
+    let in_front = views.iter().all(|v| slam_quadric::classify(&e, &v.camera) == slam_quadric::Visibility::InFront);
+    (e.is_valid() && in_front).then_some(e)
+}
+
+/// Tri+Yaw followed by object optimisation, then (with `pose_drift`) a joint stage that lets the
+/// cameras move under a drift prior. Starts: the DQP ellipsoid (axes re-ordered to the prior),
 /// and, always, the triangulated box-centre point with the prior's axes at the reference camera's heading
 /// and at that heading turned by 90° (a car seen side-on or along the road). The lowest-cost result that
 /// is in front of every camera wins.
@@ -245,6 +338,22 @@ pub fn refine(
                     e = next
                 }
                 _ => break,
+            }
+        }
+        if let (Some(drift), Some(rms)) = (config.pose_drift, box_rms(views, image, &e)) {
+            let all = (rms.iter().map(|r| r * r).sum::<f64>() / rms.len().max(1) as f64).sqrt();
+            // Free the cameras only when the boxes disagree with the given poses. With the cameras free,
+            // boxes no longer fix the scene's scale about the first camera; the pose and axis priors
+            // share it, which would bias data that are already consistent.
+            // Pose errors move a whole box (its two x edges, or its two y edges, together); box noise moves
+            // the edges independently. Free the cameras only when the misfit is mostly such shifts.
+            let (shift, size) = shift_and_size_rms(views, image, &e).unwrap_or((0.0, 0.0));
+            if all > config.consistent_rms_px && shift > config.shift_ratio * size {
+                let sigmas: Vec<f64> =
+                    rms.iter().map(|r| r.max(0.5 * all).clamp(config.min_sigma_px, config.max_sigma_px)).collect();
+                if let Some(j) = joint_refine(views, image, prior, config, &sigmas, drift, e) {
+                    e = j;
+                }
             }
         }
         best = Some((e, 0.0));
