@@ -168,10 +168,12 @@ pub fn optimise_object(
     start: Ellipsoid,
 ) -> Option<(Ellipsoid, f64)> {
     let sigmas = vec![config.box_sigma_px; views.len()];
-    optimise_object_weighted(views, image, prior, config, &sigmas, start)
+    optimise_object_weighted(views, image, prior, config, &sigmas, start, None)
 }
 
-/// [`optimise_object`] with one box σ per view (pixels).
+/// [`optimise_object`] with one box σ per view (pixels); with `drift`, the cameras other than the
+/// first become variables with a prior at their given poses (translation σ = `drift` × distance to the
+/// first camera, rotation σ = `pose_rot_sigma_deg`), else they are fixed.
 fn optimise_object_weighted(
     views: &[BoxView],
     image: &ImageSize,
@@ -179,6 +181,7 @@ fn optimise_object_weighted(
     config: &RefineConfig,
     sigmas: &[f64],
     start: Ellipsoid,
+    drift: Option<f64>,
 ) -> Option<(Ellipsoid, f64)> {
     let mut values = Values::new();
     let mut graph = Graph::new();
@@ -189,9 +192,21 @@ fn optimise_object_weighted(
         max_iterations: 200,
         ..LmParams::default()
     });
-    for (v, &sigma) in views.iter().zip(sigmas) {
-        let kp = values.add(Var::Pose(v.camera.world_from_camera));
-        lm.fix(kp);
+    let first = views.first()?.camera.world_from_camera;
+    let rot_sigma = config.pose_rot_sigma_deg.to_radians();
+    for (i, (v, &sigma)) in views.iter().zip(sigmas).enumerate() {
+        let pose = v.camera.world_from_camera;
+        let kp = values.add(Var::Pose(pose));
+        match drift {
+            Some(k) if i > 0 => {
+                let st = (k * (pose.translation.vector - first.translation.vector).norm()).max(1e-4);
+                let noise = NoiseModel::Diagonal(vec![rot_sigma, rot_sigma, rot_sigma, st, st, st]);
+                graph.add(PosePrior::new(kp, pose), noise, L2).ok()?;
+            }
+            _ => {
+                lm.fix(kp);
+            }
+        }
         graph
             .add(
                 BoxFactor::new(kp, ko, v.camera.intrinsics, v.bbox, BoundsModel::Clipped(*image)),
@@ -203,13 +218,12 @@ fn optimise_object_weighted(
     graph.add(AxisPrior::new(ko, prior.axes), NoiseModel::Diagonal(prior.sigma.as_slice().to_vec()), L2).ok()?;
     // The paper's assumption: the object only yaws; its height axis (own y) stays along the reference
     // camera's y axis (gravity for a level camera), 0.5° σ.
-    if let Some(first) = views.first() {
-        let up = first.camera.world_from_camera.rotation * Vector3::y();
-        graph.add(AxisDirection::new(ko, 1, up)?, NoiseModel::Isotropic(0.5f64.to_radians()), L2).ok()?;
-    }
+    let up = first.rotation * Vector3::y();
+    graph.add(AxisDirection::new(ko, 1, up)?, NoiseModel::Isotropic(0.5f64.to_radians()), L2).ok()?;
     let summary = lm.solve(&graph, &mut values, None).ok()?;
     let e = *values.ellipsoid(ko)?;
-    (e.is_valid()).then_some((e, summary.final_cost))
+    let in_front = views.iter().all(|v| slam_quadric::classify(&e, &v.camera) == slam_quadric::Visibility::InFront);
+    (e.is_valid() && in_front).then_some((e, summary.final_cost))
 }
 
 /// RMS over views of the box misfit's shift part (`(e_min + e_max)/2` per axis) and size part
@@ -225,60 +239,6 @@ fn shift_and_size_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid) -> Op
     }
     let n = (2 * views.len().max(1)) as f64;
     Some(((shift / n).sqrt(), (size / n).sqrt()))
-}
-
-/// Joint stage: the object and the camera poses (all but the first, which fixes the gauge), with a
-/// drift prior on the poses; returns the object.
-fn joint_refine(
-    views: &[BoxView],
-    image: &ImageSize,
-    prior: &ObjectPrior,
-    config: &RefineConfig,
-    sigmas: &[f64],
-    drift: f64,
-    start: Ellipsoid,
-) -> Option<Ellipsoid> {
-    let mut values = Values::new();
-    let mut graph = Graph::new();
-    let ko = values.add(Var::Ellipsoid(start));
-    let mut lm = LevenbergMarquardt::new(LmParams {
-        function_tolerance: 1e-12,
-        parameter_tolerance: 1e-12,
-        max_iterations: 200,
-        ..LmParams::default()
-    });
-    let first = views.first()?.camera.world_from_camera;
-    let rot_sigma = config.pose_rot_sigma_deg.to_radians();
-    for (i, (v, &sigma)) in views.iter().zip(sigmas).enumerate() {
-        let pose = v.camera.world_from_camera;
-        let kp = values.add(Var::Pose(pose));
-        if i == 0 {
-            lm.fix(kp);
-        } else {
-            let st = (drift * (pose.translation.vector - first.translation.vector).norm()).max(1e-4);
-            graph
-                .add(
-                    PosePrior::new(kp, pose),
-                    NoiseModel::Diagonal(vec![rot_sigma, rot_sigma, rot_sigma, st, st, st]),
-                    L2,
-                )
-                .ok()?;
-        }
-        graph
-            .add(
-                BoxFactor::new(kp, ko, v.camera.intrinsics, v.bbox, BoundsModel::Clipped(*image)),
-                NoiseModel::Isotropic(sigma),
-                Huber(config.huber_px / sigma),
-            )
-            .ok()?;
-    }
-    graph.add(AxisPrior::new(ko, prior.axes), NoiseModel::Diagonal(prior.sigma.as_slice().to_vec()), L2).ok()?;
-    let up = first.rotation * Vector3::y();
-    graph.add(AxisDirection::new(ko, 1, up)?, NoiseModel::Isotropic(0.5f64.to_radians()), L2).ok()?;
-    lm.solve(&graph, &mut values, None).ok()?;
-    let e = *values.ellipsoid(ko)?;
-    let in_front = views.iter().all(|v| slam_quadric::classify(&e, &v.camera) == slam_quadric::Visibility::InFront);
-    (e.is_valid() && in_front).then_some(e)
 }
 
 /// Tri+Yaw followed by object optimisation, then (with `pose_drift`) a joint stage that lets the
@@ -329,7 +289,7 @@ pub fn refine(
             let all = (rms.iter().map(|r| r * r).sum::<f64>() / rms.len().max(1) as f64).sqrt();
             let sigmas: Vec<f64> =
                 rms.iter().map(|r| r.max(0.5 * all).clamp(config.min_sigma_px, config.max_sigma_px)).collect();
-            match optimise_object_weighted(views, image, prior, config, &sigmas, e) {
+            match optimise_object_weighted(views, image, prior, config, &sigmas, e, None) {
                 Some((next, _))
                     if views
                         .iter()
@@ -351,8 +311,8 @@ pub fn refine(
             if all > config.consistent_rms_px && shift > config.shift_ratio * size {
                 let sigmas: Vec<f64> =
                     rms.iter().map(|r| r.max(0.5 * all).clamp(config.min_sigma_px, config.max_sigma_px)).collect();
-                if let Some(j) = joint_refine(views, image, prior, config, &sigmas, drift, e) {
-                    e = j;
+                if let Some(j) = optimise_object_weighted(views, image, prior, config, &sigmas, e, Some(drift)) {
+                    e = j.0;
                 }
             }
         }

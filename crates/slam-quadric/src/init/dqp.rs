@@ -52,6 +52,18 @@ impl Reference {
             Reference::Frame(f) => *f,
         }
     }
+
+    /// The reference frame, the centre in it, and all box planes in it (unit normals).
+    fn setup(
+        &self,
+        views: &[BoxView],
+        centre_world: &Vector3<f64>,
+    ) -> (Isometry3<f64>, Vector3<f64>, Vec<Vector4<f64>>) {
+        let world_from_ref = self.world_from_reference(views);
+        let t = world_from_ref.inverse_transform_point(&nalgebra::Point3::from(*centre_world)).coords;
+        let planes = reference_planes(views, &world_from_ref);
+        (world_from_ref, t, planes)
+    }
 }
 
 /// Smallest `|q₄₄|` (relative to the largest entry of the unit solution) accepted as a finite scale.
@@ -97,9 +109,7 @@ impl Dqp {
     /// that an intermediate estimate exists for the centre correction; the final answer is never lenient.
     fn solve(&self, views: &[BoxView], centre_world: &Vector3<f64>, lenient: bool) -> Result<Ellipsoid, InitError> {
         validate_views(views, self.min_views())?;
-        let world_from_ref = self.reference.world_from_reference(views);
-        let t = world_from_ref.inverse_transform_point(&nalgebra::Point3::from(*centre_world)).coords;
-        let planes = reference_planes(views, &world_from_ref);
+        let (world_from_ref, t, planes) = self.reference.setup(views, centre_world);
         let mut a = DMatrix::zeros(planes.len(), 5);
         for (r, p) in planes.iter().enumerate() {
             let (n, d) = (Vector3::new(p[0], p[1], p[2]), p[3]);
@@ -294,9 +304,7 @@ impl Tri {
 
     fn solve(&self, views: &[BoxView], centre_world: &Vector3<f64>, lenient: bool) -> Result<Ellipsoid, InitError> {
         validate_views(views, self.min_views())?;
-        let world_from_ref = self.reference.world_from_reference(views);
-        let t = world_from_ref.inverse_transform_point(&nalgebra::Point3::from(*centre_world)).coords;
-        let planes = reference_planes(views, &world_from_ref);
+        let (world_from_ref, t, planes) = self.reference.setup(views, centre_world);
         let mut a = DMatrix::zeros(planes.len(), 7);
         for (r, p) in planes.iter().enumerate() {
             let (n, d) = (Vector3::new(p[0], p[1], p[2]), p[3]);
