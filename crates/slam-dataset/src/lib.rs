@@ -5,6 +5,7 @@
 
 pub mod classes;
 pub mod kitti;
+pub mod trajectory;
 
 use std::path::{Path, PathBuf};
 

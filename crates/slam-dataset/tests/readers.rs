@@ -30,6 +30,7 @@ fn sequence_0000() {
     let p2 = calib.matrix3x4("P2").expect("P2");
     assert!((p2[(0, 0)] - 721.5377).abs() < 1e-9 && (p2[(0, 3)] - 44.85728).abs() < 1e-9);
     assert!(calib.matrix3x4("P9").is_err());
+    assert!(calib.has("R0_rect") && calib.matrix3("R0_rect").is_ok());
 }
 
 fn write_tmp(name: &str, bytes: &[u8]) -> PathBuf {
@@ -85,7 +86,9 @@ fn malformed_poses_and_calib() {
     assert!(matches!(read_kitti_poses(&p), Err(DatasetError::Invalid { .. })));
     let p = write_tmp("calib.txt", b"P0: 1 2 3\nP1:\n");
     assert_eq!(parse_line(Calib::read(&p).expect_err("no values")), 2);
-    let p = write_tmp("calib2.txt", b"P0: 1 2 3\n");
+    let p = write_tmp("calib2.txt", b"P0: 1 2 3\ncalib_time: 09-Jan-2012 13:57:47\nP2: 1 2 x 4 5 6 7 8 9 10 11 12\n");
     let c = Calib::read(&p).expect("parses");
     assert_eq!(parse_line(c.matrix3x4("P0").expect_err("short")), 1);
+    assert_eq!(parse_line(c.matrix3x4("P2").expect_err("not a number")), 3);
+    assert!(matches!(c.matrix3x4("P3"), Err(DatasetError::Invalid { .. })));
 }

@@ -1,5 +1,8 @@
 //! KITTI readers.
 
 pub mod calib;
+pub mod odometry;
 pub mod poses;
+pub mod raw;
 pub mod tracking;
+pub mod tracklets;

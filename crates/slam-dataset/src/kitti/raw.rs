@@ -1,0 +1,151 @@
+//! KITTI raw drives: OXTS packets (GPS/IMU) turned into poses, timestamps, and the per-date
+//! calibration (`calib_cam_to_cam.txt`, `calib_velo_to_cam.txt`, `calib_imu_to_velo.txt`).
+
+use std::path::Path;
+
+use nalgebra::{Isometry3, Matrix3, Matrix3x4, Rotation3, Translation3, UnitQuaternion, Vector3};
+
+use crate::{kitti::calib::Calib, parse_numbers, read_text, DatasetError};
+
+/// Earth radius used by the KITTI devkit for the Mercator projection, metres.
+const EARTH_RADIUS: f64 = 6_378_137.0;
+
+/// One OXTS packet (the first 6 of its 30 values are used for poses).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OxtsPacket {
+    /// Latitude, degrees.
+    pub lat: f64,
+    /// Longitude, degrees.
+    pub lon: f64,
+    /// Altitude, metres.
+    pub alt: f64,
+    /// Roll, radians (about the IMU x axis, forward).
+    pub roll: f64,
+    /// Pitch, radians (about y, left).
+    pub pitch: f64,
+    /// Yaw, radians (about z, up; 0 = east).
+    pub yaw: f64,
+    /// All 30 values, in the order of `oxts/dataformat.txt`.
+    pub values: [f64; 30],
+}
+
+/// Read one packet file (one line of 30 numbers).
+pub fn read_oxts_packet(path: impl AsRef<Path>) -> Result<OxtsPacket, DatasetError> {
+    let path = path.as_ref();
+    let text = read_text(path)?;
+    let Some((i, line)) = text.lines().enumerate().find(|(_, l)| !l.trim().is_empty()) else {
+        return Err(DatasetError::Invalid { path: path.to_path_buf(), message: "empty OXTS packet".into() });
+    };
+    let fields: Vec<&str> = line.split_whitespace().collect();
+    if fields.len() != 30 {
+        return Err(DatasetError::Parse {
+            path: path.to_path_buf(),
+            line: i + 1,
+            message: format!("expected 30 values, found {}", fields.len()),
+        });
+    }
+    let v = parse_numbers(path, i + 1, &fields)?;
+    let mut values = [0.0; 30];
+    values.copy_from_slice(&v);
+    Ok(OxtsPacket { lat: v[0], lon: v[1], alt: v[2], roll: v[3], pitch: v[4], yaw: v[5], values })
+}
+
+/// IMU poses in a local metric frame, as the KITTI devkit's `convertOxtsToPose`: a Mercator projection
+/// with the scale `cos(lat₀)` of the first packet, `x = s·R·lon·π/180`, `y = s·R·ln(tan(π(90 + lat)/360))`,
+/// `z = alt`, orientation `Rz(yaw)·Ry(pitch)·Rx(roll)`; every pose is expressed relative to the first, so
+/// the first is the identity. The IMU frame is x forward, y left, z up.
+pub fn oxts_poses(packets: &[OxtsPacket]) -> Vec<Isometry3<f64>> {
+    let Some(first) = packets.first() else { return Vec::new() };
+    let scale = (first.lat.to_radians()).cos();
+    let absolute = |p: &OxtsPacket| {
+        let mx = scale * EARTH_RADIUS * p.lon.to_radians();
+        let my = scale * EARTH_RADIUS * ((90.0 + p.lat).to_radians() / 2.0).tan().ln();
+        let rot = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), p.yaw)
+            * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), p.pitch)
+            * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), p.roll);
+        Isometry3::from_parts(Translation3::new(mx, my, p.alt), rot)
+    };
+    let origin_inv = absolute(first).inverse();
+    packets.iter().map(|p| origin_inv * absolute(p)).collect()
+}
+
+/// Read a KITTI `timestamps.txt` (`YYYY-MM-DD HH:MM:SS.fffffffff` per line) as seconds since the first
+/// line (midnight crossings are handled; dates are otherwise ignored).
+pub fn read_timestamps(path: impl AsRef<Path>) -> Result<Vec<f64>, DatasetError> {
+    let path = path.as_ref();
+    let text = read_text(path)?;
+    let mut out = Vec::new();
+    let mut day_offset = 0.0;
+    let mut last = f64::NEG_INFINITY;
+    for (i, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let err = |m: &str| DatasetError::Parse { path: path.to_path_buf(), line: i + 1, message: m.into() };
+        let time = line.split_whitespace().nth(1).ok_or_else(|| err("expected 'date time'"))?;
+        let parts: Vec<&str> = time.split(':').collect();
+        if parts.len() != 3 {
+            return Err(err("time must be HH:MM:SS.fraction"));
+        }
+        let h: f64 = parts[0].parse().map_err(|_| err("bad hour"))?;
+        let m: f64 = parts[1].parse().map_err(|_| err("bad minute"))?;
+        let s: f64 = parts[2].parse().map_err(|_| err("bad second"))?;
+        if !(h.is_finite() && m.is_finite() && s.is_finite()) {
+            return Err(err("non-finite time"));
+        }
+        let mut t = h * 3600.0 + m * 60.0 + s + day_offset;
+        if t < last - 43_200.0 {
+            day_offset += 86_400.0;
+            t += 86_400.0;
+        }
+        last = t;
+        out.push(t);
+    }
+    if let Some(&t0) = out.first() {
+        for t in &mut out {
+            *t -= t0;
+        }
+    }
+    Ok(out)
+}
+
+/// The calibration of a raw-data date folder.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawCalib {
+    /// Rectified projection matrices `P_rect_00..03` (rectified cam 0 frame to image).
+    pub p_rect: [Matrix3x4<f64>; 4],
+    /// Rectifying rotation of camera 0, `R_rect_00`.
+    pub r_rect_00: Matrix3<f64>,
+    /// Velodyne to (unrectified) camera 0.
+    pub cam0_from_velo: Isometry3<f64>,
+    /// IMU to Velodyne.
+    pub velo_from_imu: Isometry3<f64>,
+    /// Rectified image size `S_rect_02` (width, height).
+    pub image_size: [f64; 2],
+}
+
+impl RawCalib {
+    /// Read `calib_cam_to_cam.txt`, `calib_velo_to_cam.txt` and `calib_imu_to_velo.txt` from a date
+    /// folder (e.g. `2011_09_26/`).
+    pub fn read(date_dir: impl AsRef<Path>) -> Result<Self, DatasetError> {
+        let d = date_dir.as_ref();
+        let c2c = Calib::read(d.join("calib_cam_to_cam.txt"))?;
+        let v2c = Calib::read(d.join("calib_velo_to_cam.txt"))?;
+        let i2v = Calib::read(d.join("calib_imu_to_velo.txt"))?;
+        let p = |k: &str| c2c.matrix3x4(k);
+        let size = c2c.numbers("S_rect_02", Some(2))?;
+        Ok(Self {
+            p_rect: [p("P_rect_00")?, p("P_rect_01")?, p("P_rect_02")?, p("P_rect_03")?],
+            r_rect_00: c2c.matrix3("R_rect_00")?,
+            cam0_from_velo: v2c.rigid("R", "T")?,
+            velo_from_imu: i2v.rigid("R", "T")?,
+            image_size: [size[0], size[1]],
+        })
+    }
+
+    /// The rectified camera-0 frame from the Velodyne frame: `R_rect_00 · T_cam0←velo`.
+    pub fn rect_from_velo(&self) -> Isometry3<f64> {
+        let r = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&self.r_rect_00));
+        Isometry3::from_parts(Translation3::identity(), r) * self.cam0_from_velo
+    }
+}

@@ -1,0 +1,178 @@
+//! KITTI raw `tracklet_labels.xml` (boost-serialisation XML) turned into per-frame 3-D boxes.
+//!
+//! A small reader for the subset of XML this file uses (nested elements with text, attributes
+//! ignored, `<?xml …?>` and `<!DOCTYPE …>` skipped); errors give the file and line.
+
+use std::path::Path;
+
+use crate::{read_text, DatasetError};
+
+/// One pose of a tracklet (Velodyne frame): the box's bottom centre and its rotation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackletPose {
+    /// Bottom-centre position, metres (Velodyne frame: x forward, y left, z up).
+    pub t: [f64; 3],
+    /// Rotation angles, radians (`rz` is the yaw).
+    pub r: [f64; 3],
+    /// Annotation state (0 unknown, 1 interpolated, 2 labelled).
+    pub state: i32,
+    /// Occlusion level.
+    pub occlusion: i32,
+    /// Truncation level.
+    pub truncation: i32,
+}
+
+/// One tracked object.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tracklet {
+    /// KITTI type ("Car", "Cyclist", "Tram", …).
+    pub object_type: String,
+    /// Box height, width, length, metres.
+    pub hwl: [f64; 3],
+    /// Frame of the first pose.
+    pub first_frame: usize,
+    /// One pose per frame from `first_frame`.
+    pub poses: Vec<TrackletPose>,
+}
+
+impl Tracklet {
+    /// Frames covered.
+    pub fn frames(&self) -> std::ops::Range<usize> {
+        self.first_frame..self.first_frame + self.poses.len()
+    }
+
+    /// The pose at a frame, if the tracklet covers it.
+    pub fn pose_at(&self, frame: usize) -> Option<&TrackletPose> {
+        frame.checked_sub(self.first_frame).and_then(|i| self.poses.get(i))
+    }
+}
+
+#[derive(Debug)]
+struct Element {
+    name: String,
+    line: usize,
+    text: String,
+    children: Vec<Element>,
+}
+
+impl Element {
+    fn child(&self, name: &str) -> Option<&Element> {
+        self.children.iter().find(|c| c.name == name)
+    }
+}
+
+fn parse_xml(path: &Path, text: &str) -> Result<Element, DatasetError> {
+    let err = |line: usize, m: String| DatasetError::Parse { path: path.to_path_buf(), line, message: m };
+    // line numbers are tracked incrementally (the files have tens of thousands of tags)
+    let mut line = 1usize;
+    let mut counted = 0usize;
+    let mut line_of = |pos: usize| {
+        line += text.as_bytes()[counted..pos].iter().filter(|&&b| b == b'\n').count();
+        counted = pos;
+        line
+    };
+    let mut stack: Vec<Element> =
+        vec![Element { name: String::new(), line: 0, text: String::new(), children: Vec::new() }];
+    let mut pos = 0;
+    while let Some(off) = text[pos..].find('<') {
+        let start = pos + off;
+        if let Some(top) = stack.last_mut() {
+            top.text.push_str(text[pos..start].trim());
+        }
+        let Some(end_off) = text[start..].find('>') else {
+            return Err(err(line_of(start), "unterminated tag".into()));
+        };
+        let end = start + end_off;
+        let tag = &text[start + 1..end];
+        pos = end + 1;
+        if tag.starts_with('?') || tag.starts_with('!') {
+            continue;
+        }
+        if let Some(name) = tag.strip_prefix('/') {
+            let name = name.trim();
+            let Some(done) = stack.pop() else { return Err(err(line_of(start), "unbalanced close tag".into())) };
+            if done.name != name {
+                return Err(err(line_of(start), format!("</{name}> closes <{}>", done.name)));
+            }
+            match stack.last_mut() {
+                Some(parent) => parent.children.push(done),
+                None => return Err(err(line_of(start), "unbalanced close tag".into())),
+            }
+        } else {
+            let self_closing = tag.ends_with('/');
+            let name = tag.trim_end_matches('/').split_whitespace().next().unwrap_or_default().to_string();
+            if name.is_empty() {
+                return Err(err(line_of(start), "empty tag name".into()));
+            }
+            let el = Element { name, line: line_of(start), text: String::new(), children: Vec::new() };
+            if self_closing {
+                if let Some(parent) = stack.last_mut() {
+                    parent.children.push(el);
+                }
+            } else {
+                stack.push(el);
+            }
+        }
+    }
+    if stack.len() != 1 {
+        let open = stack.last().map(|e| (e.line, e.name.clone())).unwrap_or_default();
+        return Err(err(open.0, format!("<{}> is never closed", open.1)));
+    }
+    stack.pop().ok_or_else(|| err(0, "empty document".into()))
+}
+
+/// Read a tracklet file. Checks the declared counts against the items found.
+pub fn read_tracklets(path: impl AsRef<Path>) -> Result<Vec<Tracklet>, DatasetError> {
+    let path = path.as_ref();
+    let text = read_text(path)?;
+    let root = parse_xml(path, &text)?;
+    let err = |line: usize, m: String| DatasetError::Parse { path: path.to_path_buf(), line, message: m };
+    let boost = root.child("boost_serialization").ok_or_else(|| err(1, "no <boost_serialization> element".into()))?;
+    let tracklets = boost.child("tracklets").ok_or_else(|| err(boost.line, "no <tracklets> element".into()))?;
+    let num = |e: &Element, name: &str| -> Result<f64, DatasetError> {
+        let c = e.child(name).ok_or_else(|| err(e.line, format!("<{}> lacks <{name}>", e.name)))?;
+        match c.text.parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            _ => Err(err(c.line, format!("<{name}> is not a finite number: '{}'", c.text))),
+        }
+    };
+    let int = |e: &Element, name: &str| -> Result<i64, DatasetError> {
+        let c = e.child(name).ok_or_else(|| err(e.line, format!("<{}> lacks <{name}>", e.name)))?;
+        c.text.parse::<i64>().map_err(|_| err(c.line, format!("<{name}> is not an integer: '{}'", c.text)))
+    };
+    let count = int(tracklets, "count")?;
+    let mut out = Vec::new();
+    for item in tracklets.children.iter().filter(|c| c.name == "item") {
+        let object_type =
+            item.child("objectType").ok_or_else(|| err(item.line, "tracklet lacks <objectType>".into()))?.text.clone();
+        let first = int(item, "first_frame")?;
+        if first < 0 {
+            return Err(err(item.line, format!("negative first_frame {first}")));
+        }
+        let poses_el = item.child("poses").ok_or_else(|| err(item.line, "tracklet lacks <poses>".into()))?;
+        let n_poses = int(poses_el, "count")?;
+        let mut poses = Vec::new();
+        for p in poses_el.children.iter().filter(|c| c.name == "item") {
+            poses.push(TrackletPose {
+                t: [num(p, "tx")?, num(p, "ty")?, num(p, "tz")?],
+                r: [num(p, "rx")?, num(p, "ry")?, num(p, "rz")?],
+                state: int(p, "state")? as i32,
+                occlusion: int(p, "occlusion")? as i32,
+                truncation: int(p, "truncation")? as i32,
+            });
+        }
+        if poses.len() as i64 != n_poses {
+            return Err(err(poses_el.line, format!("declares {n_poses} poses, has {}", poses.len())));
+        }
+        out.push(Tracklet {
+            object_type,
+            hwl: [num(item, "h")?, num(item, "w")?, num(item, "l")?],
+            first_frame: first as usize,
+            poses,
+        });
+    }
+    if out.len() as i64 != count {
+        return Err(err(tracklets.line, format!("declares {count} tracklets, has {}", out.len())));
+    }
+    Ok(out)
+}

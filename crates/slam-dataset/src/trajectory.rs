@@ -1,0 +1,64 @@
+//! Trajectory files: KITTI (row-major 3×4 per line, see [`crate::kitti::poses`]) and TUM
+//! (`timestamp tx ty tz qx qy qz qw` per line, the format `evo` reads with `evo_ape tum`). Poses are
+//! camera-to-world. Writers are atomic (temporary file, then rename).
+
+use std::path::Path;
+
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+
+use crate::{parse_numbers, read_text, DatasetError};
+
+pub use crate::kitti::poses::{read_kitti_poses, write_kitti_poses};
+
+/// Write a TUM trajectory: `timestamps[i] tx ty tz qx qy qz qw` (seconds, metres, unit quaternion).
+pub fn write_tum(path: impl AsRef<Path>, timestamps: &[f64], poses: &[Isometry3<f64>]) -> Result<(), DatasetError> {
+    let path = path.as_ref();
+    if timestamps.len() != poses.len() {
+        return Err(DatasetError::Invalid {
+            path: path.to_path_buf(),
+            message: format!("{} timestamps for {} poses", timestamps.len(), poses.len()),
+        });
+    }
+    let mut out = String::new();
+    for (t, p) in timestamps.iter().zip(poses) {
+        let q = p.rotation.quaternion();
+        let v = p.translation.vector;
+        out.push_str(&format!("{t:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9}\n", v.x, v.y, v.z, q.i, q.j, q.k, q.w));
+    }
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, out).map_err(|source| DatasetError::Io { path: tmp.clone(), source })?;
+    std::fs::rename(&tmp, path).map_err(|source| DatasetError::Io { path: path.to_path_buf(), source })
+}
+
+/// Read a TUM trajectory; lines starting with `#` are comments.
+pub fn read_tum(path: impl AsRef<Path>) -> Result<(Vec<f64>, Vec<Isometry3<f64>>), DatasetError> {
+    let path = path.as_ref();
+    let text = read_text(path)?;
+    let (mut ts, mut poses) = (Vec::new(), Vec::new());
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let f: Vec<&str> = line.split_whitespace().collect();
+        if f.len() != 8 {
+            return Err(DatasetError::Parse {
+                path: path.to_path_buf(),
+                line: i + 1,
+                message: format!("expected 8 numbers, found {}", f.len()),
+            });
+        }
+        let v = parse_numbers(path, i + 1, &f)?;
+        let q = Quaternion::new(v[7], v[4], v[5], v[6]);
+        if (q.norm() - 1.0).abs() > 1e-3 {
+            return Err(DatasetError::Parse {
+                path: path.to_path_buf(),
+                line: i + 1,
+                message: "quaternion is not unit".into(),
+            });
+        }
+        ts.push(v[0]);
+        poses.push(Isometry3::from_parts(Translation3::new(v[1], v[2], v[3]), UnitQuaternion::from_quaternion(q)));
+    }
+    Ok((ts, poses))
+}
