@@ -10,12 +10,14 @@
 pub mod assoc;
 pub mod detection;
 pub mod rng;
+pub mod source;
 
 /// The geometry crate, re-exported so that users of the seams need one dependency.
 pub use slam_quadric as geometry;
 
 pub use assoc::{Assignment, AssociationInput, Associator, PointPair, TrackView};
 pub use detection::{ClassId, Detection, Mask, Region, TrackId};
+pub use source::{DetectError, DetectionSource, Image};
 
 /// Common types, meant to be glob-imported: `use slam_core::prelude::*;`.
 pub mod prelude {

@@ -1,0 +1,369 @@
+//! Detection files and ground-truth detection sources.
+//!
+//! ## The JSON schema (version 1)
+//!
+//! ```json
+//! {
+//!   "version": 1,
+//!   "image_size": [1242, 375],
+//!   "frames": [
+//!     { "frame": 0,
+//!       "detections": [
+//!         { "class": 2, "class_name": "car", "score": 0.91, "box": [296.7, 161.8, 455.2, 292.4],
+//!           "mask": { "rle": { "size": [375, 1242], "counts": [12345, 20, 355, 21] } } },
+//!         { "class": 0, "score": 0.55, "box": [10, 20, 60, 140],
+//!           "mask": { "polygon": [[12, 22], [58, 22], [58, 138], [12, 138]] } }
+//!       ] } ] }
+//! ```
+//!
+//! * `class`: COCO-80 index (see [`crate::classes`]); `class_name` is informative only.
+//! * `box`: `[xmin, ymin, xmax, ymax]` in pixels of the left image; `score` in `[0, 1]`.
+//! * `mask` (optional): COCO-style uncompressed RLE over the whole image (`size` = `[height, width]`,
+//!   run lengths in column-major order starting with a run of 0s), or a polygon of pixel coordinates.
+//! * Frames missing from the file have no detections. Invalid detections (NaN or empty box, score
+//!   outside `[0, 1]`, a mask whose RLE does not sum to `height · width`) are errors naming the frame
+//!   and detection, never silently dropped.
+
+use std::{collections::BTreeMap, path::Path};
+
+use serde::{Deserialize, Serialize};
+use slam_core::{geometry::BBox, rng::SimRng, ClassId, DetectError, Detection, DetectionSource, Image, Mask};
+
+use crate::{classes, read_text, DatasetError};
+
+/// Current schema version.
+pub const SCHEMA_VERSION: u32 = 1;
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileJson {
+    version: u32,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    image_size: Option<[u32; 2]>,
+    frames: Vec<FrameJson>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FrameJson {
+    frame: usize,
+    detections: Vec<DetJson>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DetJson {
+    class: u16,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    class_name: Option<String>,
+    score: f64,
+    #[serde(rename = "box")]
+    bbox: [f64; 4],
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    mask: Option<MaskJson>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+enum MaskJson {
+    Rle { size: [u32; 2], counts: Vec<u32> },
+    Polygon(Vec<[f64; 2]>),
+}
+
+/// Decode an uncompressed column-major RLE over an image of `height × width` into a mask cropped to
+/// its set pixels.
+fn mask_from_rle(height: u32, width: u32, counts: &[u32]) -> Result<Mask, String> {
+    let total: u64 = counts.iter().map(|&c| c as u64).sum();
+    if total != height as u64 * width as u64 {
+        return Err(format!("RLE counts sum to {total}, image has {} pixels", height as u64 * width as u64));
+    }
+    let mut set = Vec::new();
+    let mut pos = 0u64;
+    for (i, &c) in counts.iter().enumerate() {
+        if i % 2 == 1 {
+            for p in pos..pos + c as u64 {
+                let (x, y) = ((p / height as u64) as i32, (p % height as u64) as i32);
+                set.push((x, y));
+            }
+        }
+        pos += c as u64;
+    }
+    Ok(mask_from_pixels(&set))
+}
+
+fn mask_from_pixels(set: &[(i32, i32)]) -> Mask {
+    if set.is_empty() {
+        return Mask { x0: 0, y0: 0, width: 0, height: 0, bits: Vec::new() };
+    }
+    let x0 = set.iter().map(|p| p.0).min().unwrap_or(0);
+    let y0 = set.iter().map(|p| p.1).min().unwrap_or(0);
+    let x1 = set.iter().map(|p| p.0).max().unwrap_or(0);
+    let y1 = set.iter().map(|p| p.1).max().unwrap_or(0);
+    let (w, h) = ((x1 - x0 + 1) as u32, (y1 - y0 + 1) as u32);
+    let mut bits = vec![false; w as usize * h as usize];
+    for &(x, y) in set {
+        bits[(y - y0) as usize * w as usize + (x - x0) as usize] = true;
+    }
+    Mask { x0, y0, width: w, height: h, bits }
+}
+
+/// Rasterise a polygon (even-odd rule, pixel centres).
+fn mask_from_polygon(poly: &[[f64; 2]]) -> Result<Mask, String> {
+    if poly.len() < 3 || !poly.iter().flatten().all(|v| v.is_finite()) {
+        return Err("polygon needs at least 3 finite points".into());
+    }
+    let (xmin, xmax) = poly.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p[0]), b.max(p[0])));
+    let (ymin, ymax) = poly.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p[1]), b.max(p[1])));
+    if (xmax - xmin) * (ymax - ymin) > 4.0e7 {
+        return Err("polygon too large".into());
+    }
+    let mut set = Vec::new();
+    for y in (ymin.floor() as i32)..=(ymax.ceil() as i32) {
+        for x in (xmin.floor() as i32)..=(xmax.ceil() as i32) {
+            let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+            let mut inside = false;
+            let n = poly.len();
+            for i in 0..n {
+                let (a, b) = (poly[i], poly[(i + n - 1) % n]);
+                if (a[1] > py) != (b[1] > py) && px < (b[0] - a[0]) * (py - a[1]) / (b[1] - a[1]) + a[0] {
+                    inside = !inside;
+                }
+            }
+            if inside {
+                set.push((x, y));
+            }
+        }
+    }
+    Ok(mask_from_pixels(&set))
+}
+
+fn rle_of(mask: &Mask, height: u32, width: u32) -> Vec<u32> {
+    let mut counts = Vec::new();
+    let (mut current, mut run) = (false, 0u32);
+    for x in 0..width as i32 {
+        for y in 0..height as i32 {
+            let v = mask.contains(x as f64 + 0.5, y as f64 + 0.5);
+            if v != current {
+                counts.push(run);
+                run = 0;
+                current = v;
+            }
+            run += 1;
+        }
+    }
+    counts.push(run);
+    counts
+}
+
+/// Detections of a whole sequence, by frame.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DetectionFile {
+    /// Image size `[width, height]`, needed to write masks as RLE.
+    pub image_size: Option<[u32; 2]>,
+    /// Detections per frame (frames without detections may be absent).
+    pub frames: BTreeMap<usize, Vec<Detection>>,
+}
+
+impl DetectionFile {
+    /// Read and validate a detection file.
+    pub fn read(path: impl AsRef<Path>) -> Result<Self, DatasetError> {
+        let path = path.as_ref();
+        let text = read_text(path)?;
+        let parsed: FileJson = serde_json::from_str(&text).map_err(|e| DatasetError::Parse {
+            path: path.to_path_buf(),
+            line: e.line(),
+            message: e.to_string(),
+        })?;
+        let invalid = |m: String| DatasetError::Invalid { path: path.to_path_buf(), message: m };
+        if parsed.version != SCHEMA_VERSION {
+            return Err(invalid(format!("schema version {} (this reader knows {SCHEMA_VERSION})", parsed.version)));
+        }
+        let mut frames = BTreeMap::new();
+        for f in parsed.frames {
+            let mut dets = Vec::with_capacity(f.detections.len());
+            for (k, d) in f.detections.into_iter().enumerate() {
+                let where_ = format!("frame {} detection {k}", f.frame);
+                let bbox = BBox::from_array(d.bbox).validated().map_err(|e| invalid(format!("{where_}: {e}")))?;
+                if !(0.0..=1.0).contains(&d.score) {
+                    return Err(invalid(format!("{where_}: score {} outside [0, 1]", d.score)));
+                }
+                let mask = match d.mask {
+                    None => None,
+                    Some(MaskJson::Rle { size, counts }) => {
+                        Some(mask_from_rle(size[0], size[1], &counts).map_err(|e| invalid(format!("{where_}: {e}")))?)
+                    }
+                    Some(MaskJson::Polygon(p)) => {
+                        Some(mask_from_polygon(&p).map_err(|e| invalid(format!("{where_}: {e}")))?)
+                    }
+                };
+                dets.push(Detection { class: ClassId(d.class), score: d.score, bbox, mask });
+            }
+            if frames.insert(f.frame, dets).is_some() {
+                return Err(invalid(format!("frame {} appears twice", f.frame)));
+            }
+        }
+        Ok(Self { image_size: parsed.image_size, frames })
+    }
+
+    /// Write the file atomically. Masks are written as RLE when the image size is known, else dropped
+    /// with a warning.
+    pub fn write(&self, path: impl AsRef<Path>) -> Result<(), DatasetError> {
+        let path = path.as_ref();
+        let mut dropped = 0usize;
+        let frames = self
+            .frames
+            .iter()
+            .map(|(&frame, dets)| FrameJson {
+                frame,
+                detections: dets
+                    .iter()
+                    .map(|d| DetJson {
+                        class: d.class.0,
+                        class_name: Some(classes::name(d.class).to_string()),
+                        score: d.score,
+                        bbox: d.bbox.to_array(),
+                        mask: d.mask.as_ref().and_then(|m| match self.image_size {
+                            Some([w, h]) => Some(MaskJson::Rle { size: [h, w], counts: rle_of(m, h, w) }),
+                            None => {
+                                dropped += 1;
+                                None
+                            }
+                        }),
+                    })
+                    .collect(),
+            })
+            .collect();
+        if dropped > 0 {
+            tracing::warn!(dropped, path = %path.display(), "masks not written: image size unknown");
+        }
+        let json = FileJson { version: SCHEMA_VERSION, image_size: self.image_size, frames };
+        let text = serde_json::to_string(&json)
+            .map_err(|e| DatasetError::Invalid { path: path.to_path_buf(), message: e.to_string() })?;
+        let tmp = path.with_extension("json.tmp");
+        std::fs::write(&tmp, text).map_err(|source| DatasetError::Io { path: tmp.clone(), source })?;
+        std::fs::rename(&tmp, path).map_err(|source| DatasetError::Io { path: path.to_path_buf(), source })
+    }
+}
+
+impl DetectionSource for DetectionFile {
+    fn name(&self) -> &str {
+        "file"
+    }
+
+    fn needs_image(&self) -> bool {
+        false
+    }
+
+    fn detect(&mut self, frame: usize, _image: Option<&Image>) -> Result<Vec<Detection>, DetectError> {
+        Ok(self.frames.get(&frame).cloned().unwrap_or_default())
+    }
+}
+
+/// Noise applied to ground-truth boxes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GroundTruthNoise {
+    /// σ of each box coordinate as a fraction of the box width (x) or height (y).
+    pub box_sigma: f64,
+    /// Probability that a true detection is dropped.
+    pub dropout: f64,
+    /// Expected number of false boxes per frame (Poisson-like: rounded uniform).
+    pub false_positives: f64,
+    /// Seed.
+    pub seed: u64,
+}
+
+impl Default for GroundTruthNoise {
+    fn default() -> Self {
+        Self { box_sigma: 0.0, dropout: 0.0, false_positives: 0.0, seed: 1 }
+    }
+}
+
+/// Ground-truth boxes (e.g. KITTI labels) as a detection source, with seeded noise, dropout and false
+/// positives. The noise of frame `f` depends only on the seed and `f`, not on the order of calls.
+#[derive(Debug, Clone)]
+pub struct GroundTruthDetections {
+    truth: BTreeMap<usize, Vec<Detection>>,
+    noise: GroundTruthNoise,
+    image: [f64; 2],
+}
+
+impl GroundTruthDetections {
+    /// From per-frame true detections, for an image of `image = [width, height]`.
+    pub fn new(truth: BTreeMap<usize, Vec<Detection>>, noise: GroundTruthNoise, image: [f64; 2]) -> Self {
+        Self { truth, noise, image }
+    }
+
+    /// From KITTI tracking labels (DontCare and Misc dropped).
+    pub fn from_tracking_labels(
+        labels: &[crate::kitti::tracking::TrackingLabel],
+        noise: GroundTruthNoise,
+        image: [f64; 2],
+    ) -> Self {
+        let mut truth: BTreeMap<usize, Vec<Detection>> = BTreeMap::new();
+        for l in labels {
+            if let Some(class) = l.class {
+                truth.entry(l.frame).or_default().push(Detection::new(class, 1.0, l.bbox));
+            }
+        }
+        Self::new(truth, noise, image)
+    }
+}
+
+impl DetectionSource for GroundTruthDetections {
+    fn name(&self) -> &str {
+        "ground-truth"
+    }
+
+    fn needs_image(&self) -> bool {
+        false
+    }
+
+    fn detect(&mut self, frame: usize, _image: Option<&Image>) -> Result<Vec<Detection>, DetectError> {
+        let n = &self.noise;
+        let mut rng = SimRng::derive(n.seed, &[frame as u64]);
+        let [w, h] = self.image;
+        let mut out = Vec::new();
+        for d in self.truth.get(&frame).map(|v| v.as_slice()).unwrap_or(&[]) {
+            let (dw, dh) = (d.bbox.width(), d.bbox.height());
+            let draws = [rng.normal(), rng.normal(), rng.normal(), rng.normal()];
+            if rng.unit() < n.dropout {
+                continue;
+            }
+            let b = BBox::new(
+                (d.bbox.xmin + n.box_sigma * dw * draws[0]).clamp(0.0, w),
+                (d.bbox.ymin + n.box_sigma * dh * draws[1]).clamp(0.0, h),
+                (d.bbox.xmax + n.box_sigma * dw * draws[2]).clamp(0.0, w),
+                (d.bbox.ymax + n.box_sigma * dh * draws[3]).clamp(0.0, h),
+            );
+            if b.validated().is_ok() {
+                out.push(Detection { bbox: b, ..d.clone() });
+            }
+        }
+        let fp = (n.false_positives + rng.uniform(-0.5, 0.5)).round().max(0.0) as usize;
+        for _ in 0..fp {
+            let bw = rng.uniform(20.0, 150.0).min(w);
+            let bh = bw * rng.uniform(0.5, 1.2);
+            let x = rng.uniform(0.0, (w - bw).max(0.0));
+            let y = rng.uniform(0.0, (h - bh).max(0.0));
+            out.push(Detection::new(classes::CAR, rng.uniform(0.3, 0.7), BBox::new(x, y, x + bw, (y + bh).min(h))));
+        }
+        Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rle_and_polygon() {
+        // 4×3 image, pixels (1,0),(1,1) set → column-major: col 0 = 3 zeros, col 1 = [1,1,0]
+        let m = mask_from_rle(3, 4, &[3, 2, 7]).expect("valid");
+        assert!(m.contains(1.5, 0.5) && m.contains(1.5, 1.5) && !m.contains(1.5, 2.5) && !m.contains(0.5, 0.5));
+        assert_eq!(rle_of(&m, 3, 4), vec![3, 2, 7]);
+        assert!(mask_from_rle(3, 4, &[3, 2]).is_err());
+        let p = mask_from_polygon(&[[10.0, 10.0], [20.0, 10.0], [20.0, 20.0], [10.0, 20.0]]).expect("square");
+        assert_eq!(p.area(), 100);
+        assert!(mask_from_polygon(&[[0.0, 0.0], [1.0, f64::NAN], [2.0, 2.0]]).is_err());
+    }
+}
