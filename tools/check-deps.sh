@@ -16,3 +16,12 @@ if [ "$with_serde" != "nalgebra serde " ]; then
   exit 1
 fi
 echo "check-deps: slam-quadric depends on [ ${plain}] (+ serde with the serde feature): ok"
+
+# Nothing below the front end links OpenCV.
+for crate in slam-quadric slam-core slam-assoc slam-optim slam-dataset slam-sim; do
+  if cargo tree -q -p "$crate" --all-features -e normal --prefix none | grep -q '^opencv '; then
+    echo "check-deps: $crate must not depend on opencv" >&2
+    exit 1
+  fi
+done
+echo "check-deps: no OpenCV below slam-frontend: ok"

@@ -1,6 +1,7 @@
 //! `slam-app`: the command-line front of the quadric-SLAM workspace.
 
 mod assoc_cmd;
+mod detect_cmd;
 mod optim_cmd;
 mod plot;
 mod sim_cmd;
@@ -28,6 +29,11 @@ enum Command {
     /// The paper's simulation study: Q-SLAM, Conic, Tri, Tri+Yaw (+cc, +refine) under pose and box noise,
     /// on the 18° arc and on a drive-by; tables, CSV and plots.
     Sim(sim_cmd::SimArgs),
+    /// Run a detector over a folder of images (or a KITTI sequence) and write the detection JSON
+    /// (docs/detections.md) and, on request, overlay images.
+    Detect(detect_cmd::DetectArgs),
+    /// Recall of the shipped detector on the labelled KITTI frames of drive 0052, per input mode.
+    DetectRecall(detect_cmd::RecallArgs),
 }
 
 /// A path inside the repository's `fixtures/`: relative to the working directory if it exists there,
@@ -40,7 +46,18 @@ pub(crate) fn fixture(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures").join(rel)
 }
 
-fn main() -> anyhow::Result<()> {
+fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            // the whole chain, without a backtrace: errors here are about the user's input
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run() -> anyhow::Result<()> {
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
@@ -54,5 +71,7 @@ fn main() -> anyhow::Result<()> {
         Command::Assoc(cmd) => assoc_cmd::run(cmd),
         Command::OptimBench(a) => optim_cmd::run(&a),
         Command::Sim(a) => sim_cmd::run(&a),
+        Command::Detect(a) => detect_cmd::detect(&a),
+        Command::DetectRecall(a) => detect_cmd::recall(&a),
     }
 }

@@ -60,3 +60,35 @@ fn optim_bench_one_problem() {
     let final_cost: f64 = fields[2].parse().expect("number");
     assert!((final_cost - 0.6341924).abs() < 1e-4, "{row}");
 }
+
+#[test]
+fn detect_recall_reaches_the_target_with_tiles() {
+    let o = app().arg("detect-recall").output().expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let found = |mode: &str| -> usize {
+        let row = text.lines().find(|l| l.starts_with(mode)).expect("row");
+        row.split_whitespace().nth(1).and_then(|f| f.split('/').next()).and_then(|n| n.parse().ok()).expect("count")
+    };
+    assert_eq!(found("squash"), 14, "{text}"); // the figure measured with squashed input outside the project
+    assert!(found("tiles") >= 21, "{text}");
+}
+
+#[test]
+fn detect_writes_json_and_overlays() {
+    let out = std::env::temp_dir().join(format!("slam-app-detect-{}", std::process::id()));
+    let o = app()
+        .args(["detect", "fixtures/kitti_raw_0052/2011_09_26/2011_09_26_drive_0052_sync", "--out"])
+        .arg(out.join("d.json"))
+        .arg("--overlays")
+        .arg(out.join("ov"))
+        .output()
+        .expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let file = slam_dataset::detections::DetectionFile::read(out.join("d.json")).expect("valid detection file");
+    assert_eq!(file.frames.len(), 4);
+    assert_eq!(std::fs::read_dir(out.join("ov")).expect("overlays").count(), 4);
+    let bad = app().args(["detect", "/no/such/folder"]).output().expect("runs");
+    assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("/no/such/folder"));
+    assert!(!String::from_utf8_lossy(&bad.stderr).contains("backtrace"));
+}

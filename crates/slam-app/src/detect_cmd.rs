@@ -1,0 +1,248 @@
+//! `slam-app detect` and `slam-app detect-recall`.
+
+use std::{
+    collections::BTreeMap,
+    path::{Path, PathBuf},
+    time::Instant,
+};
+
+use anyhow::{bail, Context};
+use clap::{Args, ValueEnum};
+use slam_core::{geometry::BBox, DetectionSource};
+use slam_dataset::{classes, detections::DetectionFile};
+use slam_frontend::{draw_detections, read_image, write_image, DetectorConfig, DnnDetector, InputMode};
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum Mode {
+    /// Resize to the square input, ignoring the aspect ratio.
+    Squash,
+    /// Keep the aspect ratio, pad.
+    Letterbox,
+    /// Overlapping tiles across the width plus the whole frame.
+    Tiles,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct ModelArgs {
+    /// Darknet .cfg (default: the shipped Yolo-Fastest 1.1)
+    #[arg(long)]
+    cfg: Option<PathBuf>,
+    /// Darknet .weights (default: the shipped Yolo-Fastest 1.1)
+    #[arg(long)]
+    weights: Option<PathBuf>,
+    /// ONNX model instead of Darknet
+    #[arg(long, conflicts_with_all = ["cfg", "weights"])]
+    onnx: Option<PathBuf>,
+    /// Input mode
+    #[arg(long, value_enum, default_value_t = Mode::Tiles)]
+    mode: Mode,
+    /// Number of tiles across the width (tiles mode)
+    #[arg(long, default_value_t = 3)]
+    tiles: u32,
+    /// Network input size (multiple of 32)
+    #[arg(long, default_value_t = 320)]
+    input_size: i32,
+    /// Smallest score kept
+    #[arg(long, default_value_t = 0.2)]
+    score: f32,
+}
+
+impl ModelArgs {
+    fn load(&self) -> anyhow::Result<DnnDetector> {
+        let config = DetectorConfig {
+            input_size: self.input_size,
+            mode: match self.mode {
+                Mode::Squash => InputMode::Squash,
+                Mode::Letterbox => InputMode::Letterbox,
+                Mode::Tiles => InputMode::Tiles(self.tiles),
+            },
+            score_threshold: self.score,
+            ..DetectorConfig::default()
+        };
+        Ok(match &self.onnx {
+            Some(m) => DnnDetector::from_onnx(m, config)?,
+            None => {
+                let cfg = self.cfg.clone().unwrap_or_else(|| crate::fixture("detector/yolo-fastest-1.1.cfg"));
+                let weights =
+                    self.weights.clone().unwrap_or_else(|| crate::fixture("detector/yolo-fastest-1.1.weights"));
+                DnnDetector::from_darknet(cfg, weights, config)?
+            }
+        })
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct DetectArgs {
+    /// Folder of images (sorted by name), or a KITTI sequence/drive folder containing image_2,
+    /// image_02/data or image_0
+    input: PathBuf,
+    /// Output detection JSON
+    #[arg(long, default_value = "out/detections.json")]
+    out: PathBuf,
+    /// Also write overlay PNGs into this folder
+    #[arg(long)]
+    overlays: Option<PathBuf>,
+    #[command(flatten)]
+    model: ModelArgs,
+}
+
+fn list_images(input: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let candidates = [input.to_path_buf(), input.join("image_2"), input.join("image_02/data"), input.join("image_0")];
+    for dir in candidates {
+        let Ok(rd) = std::fs::read_dir(&dir) else { continue };
+        let mut v: Vec<PathBuf> = rd
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("png") || x.eq_ignore_ascii_case("jpg")))
+            .collect();
+        if !v.is_empty() {
+            v.sort();
+            return Ok(v);
+        }
+    }
+    bail!("no PNG/JPG images in {} (nor in its image_2, image_02/data or image_0)", input.display())
+}
+
+pub fn detect(a: &DetectArgs) -> anyhow::Result<()> {
+    let images = list_images(&a.input)?;
+    let mut det = a.model.load()?;
+    if let Some(o) = &a.overlays {
+        std::fs::create_dir_all(o).with_context(|| format!("cannot create {}", o.display()))?;
+    }
+    let bar = indicatif::ProgressBar::new(images.len() as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames {per_sec} eta {eta}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let mut file = DetectionFile::default();
+    let (mut skipped, mut total) = (0usize, 0usize);
+    for (i, path) in images.iter().enumerate() {
+        let img = match read_image(path, true) {
+            Ok(img) => img,
+            Err(e) => {
+                tracing::warn!("frame {i} skipped: {e}");
+                skipped += 1;
+                bar.inc(1);
+                continue;
+            }
+        };
+        file.image_size.get_or_insert([img.width, img.height]);
+        let d = det.detect(i, Some(&img)).with_context(|| format!("detecting in {}", path.display()))?;
+        total += d.len();
+        if let Some(o) = &a.overlays {
+            let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| format!("{i:06}"));
+            write_image(o.join(format!("{name}.png")), &draw_detections(&img, &d, |c| classes::name(c).to_string())?)?;
+        }
+        file.frames.insert(i, d);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    if let Some(p) = a.out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(p).with_context(|| format!("cannot create {}", p.display()))?;
+    }
+    file.write(&a.out)?;
+    println!(
+        "{} frames, {total} detections, {skipped} unreadable frames skipped; wrote {}",
+        images.len(),
+        a.out.display()
+    );
+    Ok(())
+}
+
+#[derive(Args, Debug)]
+pub struct RecallArgs {
+    /// The drive-0052 fixture folder (default: fixtures/kitti_raw_0052)
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Only this mode (default: compare squash, letterbox and tiles)
+    #[arg(long, value_enum)]
+    mode: Option<Mode>,
+}
+
+/// Greedy one-to-one matching of labelled boxes to detections at IoU > 0.5; returns the matched count.
+fn matched(labels: &[BBox], dets: &[BBox]) -> usize {
+    let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
+    for (i, l) in labels.iter().enumerate() {
+        for (j, d) in dets.iter().enumerate() {
+            let iou = l.iou(d);
+            if iou > 0.5 {
+                pairs.push((iou, i, j));
+            }
+        }
+    }
+    pairs.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+    let (mut used_l, mut used_d) = (vec![false; labels.len()], vec![false; dets.len()]);
+    let mut n = 0;
+    for (_, i, j) in pairs {
+        if !used_l[i] && !used_d[j] {
+            used_l[i] = true;
+            used_d[j] = true;
+            n += 1;
+        }
+    }
+    n
+}
+
+pub fn recall(a: &RecallArgs) -> anyhow::Result<()> {
+    let data = a.data.clone().unwrap_or_else(|| crate::fixture("kitti_raw_0052"));
+    let map = std::fs::read_to_string(data.join("object/drive_0052_frame_to_object_id.txt"))
+        .with_context(|| format!("cannot read the frame map in {}", data.display()))?;
+    let mut frames = Vec::new();
+    for line in map.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()) {
+        let f: Vec<&str> = line.split_whitespace().collect();
+        if f.len() != 2 {
+            bail!("malformed line in drive_0052_frame_to_object_id.txt: '{line}'");
+        }
+        let img = data.join(format!("2011_09_26/2011_09_26_drive_0052_sync/image_02/data/{}.png", f[0]));
+        let label = data.join(format!("object/training/label_2/{}.txt", f[1]));
+        frames.push((img, label));
+    }
+    let mut labelled: BTreeMap<usize, Vec<BBox>> = BTreeMap::new();
+    for (i, (_, label)) in frames.iter().enumerate() {
+        let text = std::fs::read_to_string(label).with_context(|| format!("cannot read {}", label.display()))?;
+        for (ln, line) in text.lines().enumerate() {
+            let f: Vec<&str> = line.split_whitespace().collect();
+            if f.len() < 8 {
+                bail!("{}:{}: expected a KITTI object label", label.display(), ln + 1);
+            }
+            if f[0] == "Car" || f[0] == "Van" {
+                let v: Result<Vec<f64>, _> = f[4..8].iter().map(|s| s.parse::<f64>()).collect();
+                let v = v.with_context(|| format!("{}:{}: bad box", label.display(), ln + 1))?;
+                labelled.entry(i).or_default().push(BBox::new(v[0], v[1], v[2], v[3]));
+            }
+        }
+    }
+    let n_labels: usize = labelled.values().map(|v| v.len()).sum();
+    let images: Vec<_> = frames.iter().map(|(p, _)| read_image(p, true)).collect::<Result<_, _>>()?;
+    println!("Detector recall on KITTI raw 2011_09_26_drive_0052, frames 7/14/21/31: {n_labels} labelled vehicles (Car, Van)");
+    println!("A label counts as found when a car/truck/bus detection overlaps it with IoU > 0.5 (one-to-one).");
+    println!("{:<12} {:>7} {:>10} {:>12}", "mode", "found", "recall", "ms / frame");
+    let modes: Vec<Mode> = match a.mode {
+        Some(m) => vec![m],
+        None => vec![Mode::Squash, Mode::Letterbox, Mode::Tiles],
+    };
+    for m in modes {
+        let args = ModelArgs { cfg: None, weights: None, onnx: None, mode: m, tiles: 3, input_size: 320, score: 0.2 };
+        let mut det = args.load()?;
+        let mut found = 0;
+        let start = Instant::now();
+        for (i, img) in images.iter().enumerate() {
+            let d = det.detect(i, Some(img))?;
+            let vehicles: Vec<BBox> = d
+                .iter()
+                .filter(|d| [classes::CAR, classes::TRUCK, classes::BUS].contains(&d.class))
+                .map(|d| d.bbox)
+                .collect();
+            found += matched(labelled.get(&i).map(|v| v.as_slice()).unwrap_or(&[]), &vehicles);
+        }
+        let ms = start.elapsed().as_secs_f64() * 1000.0 / images.len() as f64;
+        println!(
+            "{:<12} {:>4}/{:<2} {:>10.2} {:>12.0}",
+            format!("{m:?}").to_lowercase(),
+            found,
+            n_labels,
+            found as f64 / n_labels as f64,
+            ms
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,13 @@
+//! The OpenCV side of quadric SLAM: image I/O and an object detector on OpenCV's dnn module.
+//!
+//! This is the only crate (with `slam-app`) that links OpenCV; OpenCV types never cross its public
+//! API: images are `slam_core::Image`, detections `slam_core::Detection`.
+
+#![warn(missing_docs)]
+
+pub mod detector;
+pub use detector::nms;
+pub mod image_io;
+
+pub use detector::{DetectorConfig, DnnDetector, InputMode};
+pub use image_io::{draw_detections, read_image, write_image, FrontendError};

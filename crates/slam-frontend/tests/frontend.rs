@@ -1,0 +1,77 @@
+//! Image I/O and the detector on the shipped fixtures; bad input gives errors naming the file.
+
+use std::path::PathBuf;
+
+use slam_core::{geometry::BBox, ClassId, Detection, DetectionSource, Image};
+use slam_frontend::{detector::nms, read_image, write_image, DetectorConfig, DnnDetector, FrontendError, InputMode};
+
+fn fixture(rel: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures").join(rel)
+}
+
+fn frame7() -> PathBuf {
+    fixture("kitti_raw_0052/2011_09_26/2011_09_26_drive_0052_sync/image_02/data/0000000007.png")
+}
+
+#[test]
+fn image_round_trip_and_errors() {
+    let img = read_image(frame7(), true).expect("reads");
+    assert_eq!((img.width, img.height, img.channels), (1242, 375, 3));
+    let grey = read_image(frame7(), false).expect("reads");
+    assert_eq!(grey.channels, 1);
+    let out = std::env::temp_dir().join(format!("frontend-{}.png", std::process::id()));
+    write_image(&out, &img).expect("writes");
+    assert_eq!(read_image(&out, true).expect("reads back"), img);
+    let missing = read_image("/no/such/image.png", true).expect_err("missing");
+    assert!(missing.to_string().contains("/no/such/image.png"));
+    let corrupt = std::env::temp_dir().join(format!("frontend-corrupt-{}.png", std::process::id()));
+    std::fs::write(&corrupt, b"\x89PNG\r\n\x1a\nnot really").expect("write");
+    assert!(matches!(read_image(&corrupt, true), Err(FrontendError::ImageRead { .. })));
+}
+
+fn detector(mode: InputMode) -> DnnDetector {
+    DnnDetector::from_darknet(
+        fixture("detector/yolo-fastest-1.1.cfg"),
+        fixture("detector/yolo-fastest-1.1.weights"),
+        DetectorConfig { mode, ..DetectorConfig::default() },
+    )
+    .expect("model loads")
+}
+
+#[test]
+fn detector_finds_the_car_ahead() {
+    let img = read_image(frame7(), true).expect("reads");
+    let mut det = detector(InputMode::Tiles(3));
+    let d = det.detect(7, Some(&img)).expect("runs");
+    // the labelled car ahead at frame 7: [556, 185, 714, 335]
+    let ahead = BBox::new(556.06, 185.21, 714.24, 334.53);
+    assert!(d.iter().any(|x| x.class == ClassId(2) && x.bbox.iou(&ahead) > 0.7), "{d:?}");
+    assert!(d.iter().all(|x| x.bbox.validated().is_ok() && x.bbox.xmax <= 1242.0 && (0.0..=1.0).contains(&x.score)));
+    // deterministic
+    assert_eq!(d, det.detect(7, Some(&img)).expect("runs"));
+    // needs the image; a black frame gives no car
+    assert!(det.detect(0, None).is_err());
+    let black = Image::new(1242, 375, 3, vec![0; 1242 * 375 * 3]).expect("image");
+    assert!(det.detect(1, Some(&black)).expect("runs").iter().all(|x| x.score < 0.5));
+}
+
+#[test]
+fn missing_models_are_errors() {
+    let e = DnnDetector::from_darknet("/no/model.cfg", "/no/model.weights", DetectorConfig::default())
+        .err()
+        .expect("missing");
+    assert!(e.to_string().contains("/no/model.cfg"));
+    assert!(DnnDetector::from_onnx("/no/model.onnx", DetectorConfig::default()).is_err());
+    let junk = std::env::temp_dir().join(format!("junk-{}.onnx", std::process::id()));
+    std::fs::write(&junk, b"not a model").expect("write");
+    assert!(matches!(DnnDetector::from_onnx(&junk, DetectorConfig::default()), Err(FrontendError::Model { .. })));
+}
+
+#[test]
+fn nms_is_classwise_and_deterministic() {
+    let a = Detection::new(ClassId(2), 0.9, BBox::new(0.0, 0.0, 10.0, 10.0));
+    let b = Detection::new(ClassId(2), 0.8, BBox::new(1.0, 0.0, 11.0, 10.0));
+    let c = Detection::new(ClassId(7), 0.7, BBox::new(1.0, 0.0, 11.0, 10.0));
+    let kept = nms(vec![b.clone(), c.clone(), a.clone()], 0.45);
+    assert_eq!(kept, vec![a, c]);
+}
