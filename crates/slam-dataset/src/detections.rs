@@ -169,7 +169,12 @@ impl DetectionFile {
     pub fn read(path: impl AsRef<Path>) -> Result<Self, DatasetError> {
         let path = path.as_ref();
         let text = read_text(path)?;
-        let parsed: FileJson = serde_json::from_str(&text).map_err(|e| DatasetError::Parse {
+        Self::parse(path, &text)
+    }
+
+    /// Parse the contents of such a file; `path` only names it in error messages.
+    pub fn parse(path: &Path, text: &str) -> Result<Self, DatasetError> {
+        let parsed: FileJson = serde_json::from_str(text).map_err(|e| DatasetError::Parse {
             path: path.to_path_buf(),
             line: e.line(),
             message: e.to_string(),

@@ -34,6 +34,11 @@ pub fn write_tum(path: impl AsRef<Path>, timestamps: &[f64], poses: &[Isometry3<
 pub fn read_tum(path: impl AsRef<Path>) -> Result<(Vec<f64>, Vec<Isometry3<f64>>), DatasetError> {
     let path = path.as_ref();
     let text = read_text(path)?;
+    parse_tum(path, &text)
+}
+
+/// Parse the contents of such a file; `path` only names it in error messages.
+pub fn parse_tum(path: &Path, text: &str) -> Result<(Vec<f64>, Vec<Isometry3<f64>>), DatasetError> {
     let (mut ts, mut poses) = (Vec::new(), Vec::new());
     for (i, line) in text.lines().enumerate() {
         let line = line.trim();

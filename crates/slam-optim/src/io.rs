@@ -89,7 +89,12 @@ fn read(path: &Path) -> Result<String, ProblemError> {
 pub fn read_bal(path: impl AsRef<Path>, huber: Option<f64>) -> Result<Problem, ProblemError> {
     let path = path.as_ref();
     let text = read(path)?;
-    let mut t = Tokens::new(path, &text);
+    parse_bal(path, &text, huber)
+}
+
+/// Parse a BAL problem's text; `path` only names it in error messages.
+pub fn parse_bal(path: &Path, text: &str, huber: Option<f64>) -> Result<Problem, ProblemError> {
+    let mut t = Tokens::new(path, text);
     let n_cam: usize = t.next("camera count")?;
     let n_pt: usize = t.next("point count")?;
     let n_obs: usize = t.next("observation count")?;
@@ -143,6 +148,11 @@ pub fn read_bal(path: impl AsRef<Path>, huber: Option<f64>) -> Result<Problem, P
 pub fn read_g2o(path: impl AsRef<Path>) -> Result<Problem, ProblemError> {
     let path = path.as_ref();
     let text = read(path)?;
+    parse_g2o(path, &text)
+}
+
+/// Parse a g2o 3-D pose graph's text; `path` only names it in error messages.
+pub fn parse_g2o(path: &Path, text: &str) -> Result<Problem, ProblemError> {
     let mut values = Values::new();
     let mut ids = std::collections::HashMap::new();
     let mut cameras = Vec::new();

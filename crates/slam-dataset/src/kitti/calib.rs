@@ -21,6 +21,11 @@ impl Calib {
     pub fn read(path: impl AsRef<Path>) -> Result<Self, DatasetError> {
         let path = path.as_ref();
         let text = read_text(path)?;
+        Self::parse(path, &text)
+    }
+
+    /// Parse the contents of such a file; `path` only names it in error messages.
+    pub fn parse(path: &Path, text: &str) -> Result<Self, DatasetError> {
         let mut entries = BTreeMap::new();
         for (i, line) in text.lines().enumerate() {
             if line.trim().is_empty() {

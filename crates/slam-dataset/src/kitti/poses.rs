@@ -11,6 +11,11 @@ use crate::{parse_numbers, read_text, DatasetError};
 pub fn read_kitti_poses(path: impl AsRef<Path>) -> Result<Vec<Isometry3<f64>>, DatasetError> {
     let path = path.as_ref();
     let text = read_text(path)?;
+    parse_kitti_poses(path, &text)
+}
+
+/// Parse the contents of such a file; `path` only names it in error messages.
+pub fn parse_kitti_poses(path: &Path, text: &str) -> Result<Vec<Isometry3<f64>>, DatasetError> {
     let mut poses = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let fields: Vec<&str> = line.split_whitespace().collect();

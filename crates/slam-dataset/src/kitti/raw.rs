@@ -33,6 +33,11 @@ pub struct OxtsPacket {
 pub fn read_oxts_packet(path: impl AsRef<Path>) -> Result<OxtsPacket, DatasetError> {
     let path = path.as_ref();
     let text = read_text(path)?;
+    parse_oxts_packet(path, &text)
+}
+
+/// Parse the contents of such a file; `path` only names it in error messages.
+pub fn parse_oxts_packet(path: &Path, text: &str) -> Result<OxtsPacket, DatasetError> {
     let Some((i, line)) = text.lines().enumerate().find(|(_, l)| !l.trim().is_empty()) else {
         return Err(DatasetError::Invalid { path: path.to_path_buf(), message: "empty OXTS packet".into() });
     };
@@ -74,6 +79,11 @@ pub fn oxts_poses(packets: &[OxtsPacket]) -> Vec<Isometry3<f64>> {
 pub fn read_timestamps(path: impl AsRef<Path>) -> Result<Vec<f64>, DatasetError> {
     let path = path.as_ref();
     let text = read_text(path)?;
+    parse_timestamps(path, &text)
+}
+
+/// Parse the contents of such a file; `path` only names it in error messages.
+pub fn parse_timestamps(path: &Path, text: &str) -> Result<Vec<f64>, DatasetError> {
     let mut out = Vec::new();
     let mut day_offset = 0.0;
     let mut last = f64::NEG_INFINITY;

@@ -46,6 +46,11 @@ impl TrackingLabel {
 pub fn read_tracking_labels(path: impl AsRef<Path>) -> Result<Vec<TrackingLabel>, DatasetError> {
     let path = path.as_ref();
     let text = read_text(path)?;
+    parse_tracking_labels(path, &text)
+}
+
+/// Parse the contents of such a file; `path` only names it in error messages.
+pub fn parse_tracking_labels(path: &Path, text: &str) -> Result<Vec<TrackingLabel>, DatasetError> {
     let mut out = Vec::new();
     for (i, line) in text.lines().enumerate() {
         if line.trim().is_empty() {

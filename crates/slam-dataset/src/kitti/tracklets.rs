@@ -125,7 +125,12 @@ fn parse_xml(path: &Path, text: &str) -> Result<Element, DatasetError> {
 pub fn read_tracklets(path: impl AsRef<Path>) -> Result<Vec<Tracklet>, DatasetError> {
     let path = path.as_ref();
     let text = read_text(path)?;
-    let root = parse_xml(path, &text)?;
+    parse_tracklets(path, &text)
+}
+
+/// Parse the contents of such a file; `path` only names it in error messages.
+pub fn parse_tracklets(path: &Path, text: &str) -> Result<Vec<Tracklet>, DatasetError> {
+    let root = parse_xml(path, text)?;
     let err = |line: usize, m: String| DatasetError::Parse { path: path.to_path_buf(), line, message: m };
     let boost = root.child("boost_serialization").ok_or_else(|| err(1, "no <boost_serialization> element".into()))?;
     let tracklets = boost.child("tracklets").ok_or_else(|| err(boost.line, "no <tracklets> element".into()))?;
