@@ -25,3 +25,7 @@ deps-check:
 # Micro-benchmarks of the geometry crate (criterion).
 bench:
     cargo bench -p slam-quadric --bench quadric
+
+# Fuzz every parser for 20 s each (cargo-fuzz on the stable toolchain via RUSTC_BOOTSTRAP).
+fuzz:
+    cd crates/slam-dataset && for t in tracking_labels calib kitti_poses tum tracklets oxts timestamps detections bal g2o; do RUSTC_BOOTSTRAP=1 cargo fuzz run $t -- -max_total_time=20; done

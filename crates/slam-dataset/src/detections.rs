@@ -73,6 +73,9 @@ enum MaskJson {
 /// Decode an uncompressed column-major RLE over an image of `height × width` into a mask cropped to
 /// its set pixels.
 fn mask_from_rle(height: u32, width: u32, counts: &[u32]) -> Result<Mask, String> {
+    if height as u64 * width as u64 > 100_000_000 {
+        return Err(format!("mask size {height}×{width} is larger than 100 megapixels"));
+    }
     let total: u64 = counts.iter().map(|&c| c as u64).sum();
     if total != height as u64 * width as u64 {
         return Err(format!("RLE counts sum to {total}, image has {} pixels", height as u64 * width as u64));
@@ -296,6 +299,43 @@ impl GroundTruthDetections {
     /// From per-frame true detections, for an image of `image = [width, height]`.
     pub fn new(truth: BTreeMap<usize, Vec<Detection>>, noise: GroundTruthNoise, image: [f64; 2]) -> Self {
         Self { truth, noise, image }
+    }
+
+    /// From raw-data tracklets, projected into the left colour camera (`P_rect_02`) with the drive's
+    /// calibration: each box's 8 corners, clipped to the image; boxes with a corner behind the camera or
+    /// nothing inside the image are left out.
+    pub fn from_tracklets(
+        tracklets: &[crate::kitti::tracklets::Tracklet],
+        calib: &crate::kitti::raw::RawCalib,
+        noise: GroundTruthNoise,
+    ) -> Self {
+        let [w, h] = calib.image_size;
+        let rect_from_velo = calib.rect_from_velo();
+        let p2 = calib.p_rect[2];
+        let mut truth: BTreeMap<usize, Vec<Detection>> = BTreeMap::new();
+        for t in tracklets {
+            let Some(class) = classes::kitti_class(&t.object_type) else { continue };
+            for frame in t.frames() {
+                let Some(pose) = t.pose_at(frame) else { continue };
+                let mut b = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
+                let mut behind = false;
+                for c in crate::kitti::tracklets::box_corners(t.hwl, pose) {
+                    let pc = rect_from_velo * nalgebra::Point3::from(c);
+                    let x = p2 * pc.to_homogeneous();
+                    if x.z <= 0.1 {
+                        behind = true;
+                        break;
+                    }
+                    let (u, v) = (x.x / x.z, x.y / x.z);
+                    b = [b[0].min(u), b[1].min(v), b[2].max(u), b[3].max(v)];
+                }
+                let bbox = BBox::new(b[0].max(0.0), b[1].max(0.0), b[2].min(w), b[3].min(h));
+                if !behind && bbox.validated().is_ok() {
+                    truth.entry(frame).or_default().push(Detection::new(class, 1.0, bbox));
+                }
+            }
+        }
+        Self::new(truth, noise, [w, h])
     }
 
     /// From KITTI tracking labels (DontCare and Misc dropped).

@@ -88,3 +88,17 @@ fn ground_truth_source_is_seeded_and_noisy() {
     // 30 % dropout, about one false box per frame
     assert!(kept > total / 2 && kept < total + 200, "kept {kept} of {total}");
 }
+
+#[test]
+fn tracklets_as_detections() {
+    use slam_dataset::kitti::{raw::RawCalib, tracklets::read_tracklets};
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/kitti_raw_0001/2011_09_26");
+    let t = read_tracklets(root.join("2011_09_26_drive_0001_sync/tracklet_labels.xml")).expect("tracklets");
+    let calib = RawCalib::read(&root).expect("calib");
+    let mut s = GroundTruthDetections::from_tracklets(&t, &calib, GroundTruthNoise::default());
+    // frame 0: the first car is 25 m ahead and 8.6 m to the left: a box left of the image centre
+    let d = s.detect(0, None).expect("frame 0");
+    assert!(!d.is_empty());
+    assert!(d.iter().all(|x| x.bbox.validated().is_ok() && x.bbox.xmax <= 1242.0 && x.bbox.ymax <= 375.0));
+    assert!(d.iter().any(|x| x.bbox.xmax < 609.0), "{d:?}");
+}

@@ -98,7 +98,9 @@ pub fn parse_bal(path: &Path, text: &str, huber: Option<f64>) -> Result<Problem,
     let n_cam: usize = t.next("camera count")?;
     let n_pt: usize = t.next("point count")?;
     let n_obs: usize = t.next("observation count")?;
-    let mut obs = Vec::with_capacity(n_obs);
+    // counts come from the file: never allocate more than the text could hold (found by fuzzing)
+    let cap = |n: usize| n.min(text.len() / 2);
+    let mut obs = Vec::with_capacity(cap(n_obs));
     for _ in 0..n_obs {
         let c: usize = t.next("camera index")?;
         let p: usize = t.next("point index")?;
@@ -114,7 +116,7 @@ pub fn parse_bal(path: &Path, text: &str, huber: Option<f64>) -> Result<Problem,
         obs.push((c, p, [u, v]));
     }
     let mut values = Values::new();
-    let mut cameras = Vec::with_capacity(n_cam);
+    let mut cameras = Vec::with_capacity(cap(n_cam));
     for _ in 0..n_cam {
         let mut c = [0.0; 9];
         for x in c.iter_mut() {
@@ -122,7 +124,7 @@ pub fn parse_bal(path: &Path, text: &str, huber: Option<f64>) -> Result<Problem,
         }
         cameras.push(values.add(Var::Bal(BalCamera(c))));
     }
-    let mut points = Vec::with_capacity(n_pt);
+    let mut points = Vec::with_capacity(cap(n_pt));
     for _ in 0..n_pt {
         let x = t.finite("point x")?;
         let y = t.finite("point y")?;

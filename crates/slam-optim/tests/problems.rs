@@ -81,3 +81,27 @@ fn pose_graph_initial_costs_and_minima() {
         assert!(rel(s.final_cost, minimum) < 1e-3, "{file} defaults: {s:?}");
     }
 }
+
+#[test]
+fn malformed_problems_are_errors() {
+    let dir = std::env::temp_dir().join(format!("optim-io-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    // huge declared counts with no data: an error, not an allocation of gigabytes (found by fuzzing)
+    std::fs::write(dir.join("huge.txt"), "3 99999999999 99999999999\n0 0 1 2\n").expect("write");
+    assert!(read_bal(dir.join("huge.txt"), None).is_err());
+    std::fs::write(dir.join("bad.txt"), "1 1 1\n0 5 1.0 2.0\n").expect("write");
+    let e = read_bal(dir.join("bad.txt"), None).err().expect("index out of range");
+    assert!(e.to_string().contains("bad.txt"), "{e}");
+    std::fs::write(dir.join("nan.txt"), "1 1 1\n0 0 nan 2.0\n").expect("write");
+    assert!(read_bal(dir.join("nan.txt"), None).is_err());
+    std::fs::write(
+        dir.join("g.g2o"),
+        "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nEDGE_SE3:QUAT 0 1 0 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n",
+    )
+    .expect("write");
+    let e = read_g2o(dir.join("g.g2o")).err().expect("unknown vertex");
+    assert!(e.to_string().contains("g.g2o:2"), "{e}");
+    std::fs::write(dir.join("q.g2o"), "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 0\n").expect("write");
+    assert!(read_g2o(dir.join("q.g2o")).is_err());
+    assert!(read_bal("/no/such/problem.txt", None).is_err());
+}

@@ -85,3 +85,82 @@ pub fn parse_tracking_labels(path: &Path, text: &str) -> Result<Vec<TrackingLabe
     }
     Ok(out)
 }
+
+/// A KITTI tracking sequence in either layout:
+///
+/// * **official**: `training/{image_02/NNNN/*.png, label_02/NNNN.txt, calib/NNNN.txt, oxts/NNNN.txt}`;
+/// * **image-free** (this repository's `fixtures/kitti_tracking/NNNN/`): `label_02.txt`, `calib.txt` and
+///   `poses_orbslam3.txt` (camera-to-world poses of the left colour camera, one per frame).
+#[derive(Debug, Clone)]
+pub struct TrackingSequence {
+    /// Labels, all frames.
+    pub labels: Vec<TrackingLabel>,
+    /// Calibration (`P0..P3`, `R0_rect` / `R_rect`, `Tr_velo_to_cam` / `Tr_velo_cam`, …).
+    pub calib: crate::kitti::calib::Calib,
+    /// Left colour images, sorted (empty in the image-free layout).
+    pub images: Vec<std::path::PathBuf>,
+    /// Camera-to-world poses when known (image-free: `poses_orbslam3.txt`).
+    pub poses: Option<Vec<nalgebra::Isometry3<f64>>>,
+    /// IMU poses from the OXTS file (official layout), relative to the first frame.
+    pub imu_poses: Option<Vec<nalgebra::Isometry3<f64>>>,
+}
+
+impl TrackingSequence {
+    /// Open sequence `seq` (e.g. `"0000"`) under an official `training/` folder.
+    pub fn open_official(training: impl AsRef<Path>, seq: &str) -> Result<Self, DatasetError> {
+        let t = training.as_ref();
+        let labels = read_tracking_labels(t.join("label_02").join(format!("{seq}.txt")))?;
+        let calib = crate::kitti::calib::Calib::read(t.join("calib").join(format!("{seq}.txt")))?;
+        let img_dir = t.join("image_02").join(seq);
+        let mut images: Vec<std::path::PathBuf> = std::fs::read_dir(&img_dir)
+            .map_err(|source| DatasetError::Io { path: img_dir.clone(), source })?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("png")))
+            .collect();
+        images.sort();
+        let oxts_path = t.join("oxts").join(format!("{seq}.txt"));
+        let imu_poses = if oxts_path.exists() {
+            let text = read_text(&oxts_path)?;
+            let mut packets = Vec::new();
+            for (i, line) in text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty()) {
+                let p = crate::kitti::raw::parse_oxts_packet(&oxts_path, line).map_err(|e| match e {
+                    DatasetError::Parse { path, message, .. } => DatasetError::Parse { path, line: i + 1, message },
+                    other => other,
+                })?;
+                packets.push(p);
+            }
+            Some(crate::kitti::raw::oxts_poses(&packets))
+        } else {
+            None
+        };
+        Ok(Self { labels, calib, images, poses: None, imu_poses })
+    }
+
+    /// Open an image-free sequence folder (`label_02.txt`, `calib.txt`, `poses_orbslam3.txt`).
+    pub fn open_image_free(dir: impl AsRef<Path>) -> Result<Self, DatasetError> {
+        let d = dir.as_ref();
+        let labels = read_tracking_labels(d.join("label_02.txt"))?;
+        let calib = crate::kitti::calib::Calib::read(d.join("calib.txt"))?;
+        let poses = crate::kitti::poses::read_kitti_poses(d.join("poses_orbslam3.txt"))?;
+        let frames = labels.iter().map(|l| l.frame + 1).max().unwrap_or(0);
+        if poses.len() < frames {
+            return Err(DatasetError::Invalid {
+                path: d.join("poses_orbslam3.txt"),
+                message: format!("{} poses for {frames} labelled frames", poses.len()),
+            });
+        }
+        Ok(Self { labels, calib, images: Vec::new(), poses: Some(poses), imu_poses: None })
+    }
+
+    /// Translation from the rectified camera-0 frame (labels) to the left colour camera (cam2):
+    /// `t2 = K⁻¹ · P2[:, 3]` (about +0.06 m in x on KITTI).
+    pub fn cam2_offset(&self) -> Result<nalgebra::Vector3<f64>, DatasetError> {
+        let p2 = self.calib.matrix3x4("P2")?;
+        let k = p2.fixed_view::<3, 3>(0, 0).into_owned();
+        let col: nalgebra::Vector3<f64> = p2.column(3).into_owned();
+        k.try_inverse().map(|ki| ki * col).ok_or_else(|| DatasetError::Invalid {
+            path: std::path::PathBuf::from("calib"),
+            message: "P2 has a singular K".into(),
+        })
+    }
+}

@@ -181,3 +181,27 @@ pub fn parse_tracklets(path: &Path, text: &str) -> Result<Vec<Tracklet>, Dataset
     }
     Ok(out)
 }
+
+/// The eight corners of a tracklet box at a pose, in the Velodyne frame (bottom face first).
+pub fn box_corners(hwl: [f64; 3], pose: &TrackletPose) -> [nalgebra::Vector3<f64>; 8] {
+    let [h, w, l] = hwl;
+    let (s, c) = pose.r[2].sin_cos();
+    let mut out = [nalgebra::Vector3::zeros(); 8];
+    for (k, (dx, dy, dz)) in [
+        (0.5, 0.5, 0.0),
+        (0.5, -0.5, 0.0),
+        (-0.5, -0.5, 0.0),
+        (-0.5, 0.5, 0.0),
+        (0.5, 0.5, 1.0),
+        (0.5, -0.5, 1.0),
+        (-0.5, -0.5, 1.0),
+        (-0.5, 0.5, 1.0),
+    ]
+    .iter()
+    .enumerate()
+    {
+        let (x, y, z) = (dx * l, dy * w, dz * h);
+        out[k] = nalgebra::Vector3::new(c * x - s * y + pose.t[0], s * x + c * y + pose.t[1], z + pose.t[2]);
+    }
+    out
+}
