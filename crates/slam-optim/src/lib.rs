@@ -23,6 +23,7 @@ pub mod factors;
 pub mod io;
 pub mod lie;
 pub mod noise;
+pub mod object;
 pub mod robust;
 pub mod solver;
 pub mod values;

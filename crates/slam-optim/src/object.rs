@@ -1,0 +1,283 @@
+//! Object optimisation of one ellipsoid from its box observations (Tian et al. §V), robust enough to
+//! start from any of the initialisers: used by the simulation study and by the object mapper.
+//!
+//! See [`refine`] for the stages (starts, re-weighted passes, joint camera-object stage).
+
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use slam_quadric::{
+    init::{triangulate_box_centres, BoxView, Dqp, InitError, Initializer, TriangulationConfig},
+    se3, BoundsModel, Ellipsoid, ImageSize,
+};
+
+use crate::{
+    factors::{AxisDirection, AxisPrior, BoxFactor, PosePrior},
+    Graph, Huber, LevenbergMarquardt, LmParams, NoiseModel, Values, Var, L2,
+};
+
+/// Class prior of an object's semi-axes (own x = length, y = height, z = width) with standard deviations.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ObjectPrior {
+    /// Mean semi-axes, metres.
+    pub axes: Vector3<f64>,
+    /// Standard deviation of each, metres.
+    pub sigma: Vector3<f64>,
+}
+
+impl ObjectPrior {
+    /// The car prior of the study: the middle of the sampled ranges, σ = the uniform ranges' widths / 2.
+    pub fn car() -> Self {
+        Self { axes: Vector3::new(2.1, 0.8, 0.85), sigma: Vector3::new(0.3, 0.1, 0.1) }
+    }
+}
+
+/// Settings of [`refine`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RefineConfig {
+    /// Box noise σ of the first pass, pixels (whitening of the box error).
+    pub box_sigma_px: f64,
+    /// Huber threshold in pixels (converted to σ units for each pass, so re-estimating σ does not
+    /// change which residuals count as outliers).
+    pub huber_px: f64,
+    /// Passes; after each, every view's σ is re-estimated as its RMS box residual (at least half the
+    /// overall RMS, clamped to `[min_sigma_px, max_sigma_px]`), so the axis prior weighs as much as the
+    /// boxes' actual misfit warrants (little when they fit: no bias at zero noise) and views whose pose or
+    /// box is off count less.
+    pub passes: usize,
+    /// Lower clamp of the re-estimated σ, pixels.
+    pub min_sigma_px: f64,
+    /// Upper clamp of the re-estimated σ, pixels.
+    pub max_sigma_px: f64,
+    /// Final joint stage: camera poses become variables (the first view stays fixed) with a prior at
+    /// their given values whose translation σ grows with the distance from the first camera,
+    /// `σ_t = pose_drift · distance` (odometry drift per metre), and rotation σ `pose_rot_sigma_deg`.
+    /// `None` keeps the poses fixed.
+    pub pose_drift: Option<f64>,
+    /// Rotation σ of the pose prior in the joint stage, degrees.
+    pub pose_rot_sigma_deg: f64,
+    /// Below this RMS box misfit (pixels) after the fixed-pose passes, the data count as consistent
+    /// and the joint stage is skipped.
+    pub consistent_rms_px: f64,
+    /// The joint stage runs only when the shift part of the misfit exceeds this multiple of its size
+    /// part (see [`refine`]).
+    pub shift_ratio: f64,
+}
+
+impl Default for RefineConfig {
+    fn default() -> Self {
+        Self {
+            box_sigma_px: 1.0,
+            huber_px: 3.0,
+            passes: 8,
+            min_sigma_px: 1e-4,
+            max_sigma_px: 20.0,
+            pose_drift: Some(0.03),
+            pose_rot_sigma_deg: 0.2,
+            consistent_rms_px: 0.2,
+            shift_ratio: 2.0,
+        }
+    }
+}
+
+/// RMS box error (pixels) of an ellipsoid in each view (clipped model); `None` when it does not project
+/// into a view.
+fn box_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid) -> Option<Vec<f64>> {
+    views
+        .iter()
+        .map(|v| {
+            let r = slam_quadric::box_error(e, &v.camera, &v.bbox, &BoundsModel::Clipped(*image)).ok()?;
+            Some((r.error.norm_squared() / 4.0).sqrt())
+        })
+        .collect()
+}
+
+/// Re-order an ellipsoid's axes (permuting rotation columns, keeping a proper rotation) to match the
+/// prior's order best; the ellipsoid is unchanged as a set.
+fn align_to_prior(e: &Ellipsoid, prior: &Vector3<f64>) -> Ellipsoid {
+    const PERMS: [[usize; 3]; 6] = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
+    let r = e.rotation();
+    let best = PERMS
+        .iter()
+        .min_by(|p, q| {
+            let err =
+                |p: &[usize; 3]| (Vector3::new(e.semi_axes[p[0]], e.semi_axes[p[1]], e.semi_axes[p[2]]) - prior).norm();
+            err(p).total_cmp(&err(q))
+        })
+        .copied()
+        .unwrap_or([0, 1, 2]);
+    let mut cols = [r.column(best[0]).into_owned(), r.column(best[1]).into_owned(), r.column(best[2]).into_owned()];
+    if cols[0].cross(&cols[1]).dot(&cols[2]) < 0.0 {
+        cols[2] = -cols[2];
+    }
+    let rot = Matrix3::from_columns(&cols);
+    Ellipsoid::new(
+        se3::isometry_from_parts(&rot, &e.centre()),
+        Vector3::new(e.semi_axes[best[0]], e.semi_axes[best[1]], e.semi_axes[best[2]]),
+    )
+}
+
+/// Object optimisation of one ellipsoid over fixed (noisy) cameras: box error on the exact clipped
+/// bounds (Huber), plus the class prior on the semi-axes; returns the optimised ellipsoid and its cost.
+pub fn optimise_object(
+    views: &[BoxView],
+    image: &ImageSize,
+    prior: &ObjectPrior,
+    config: &RefineConfig,
+    start: Ellipsoid,
+) -> Option<(Ellipsoid, f64)> {
+    let sigmas = vec![config.box_sigma_px; views.len()];
+    optimise_object_weighted(views, image, prior, config, &sigmas, start, None)
+}
+
+/// [`optimise_object`] with one box σ per view (pixels); with `drift`, the cameras other than the
+/// first become variables with a prior at their given poses (translation σ = `drift` × distance to the
+/// first camera, rotation σ = `pose_rot_sigma_deg`), else they are fixed.
+fn optimise_object_weighted(
+    views: &[BoxView],
+    image: &ImageSize,
+    prior: &ObjectPrior,
+    config: &RefineConfig,
+    sigmas: &[f64],
+    start: Ellipsoid,
+    drift: Option<f64>,
+) -> Option<(Ellipsoid, f64)> {
+    let mut values = Values::new();
+    let mut graph = Graph::new();
+    let ko = values.add(Var::Ellipsoid(start));
+    let mut lm = LevenbergMarquardt::new(LmParams {
+        function_tolerance: 1e-12,
+        parameter_tolerance: 1e-12,
+        max_iterations: 200,
+        ..LmParams::default()
+    });
+    let first = views.first()?.camera.world_from_camera;
+    let rot_sigma = config.pose_rot_sigma_deg.to_radians();
+    for (i, (v, &sigma)) in views.iter().zip(sigmas).enumerate() {
+        let pose = v.camera.world_from_camera;
+        let kp = values.add(Var::Pose(pose));
+        match drift {
+            Some(k) if i > 0 => {
+                let st = (k * (pose.translation.vector - first.translation.vector).norm()).max(1e-4);
+                let noise = NoiseModel::Diagonal(vec![rot_sigma, rot_sigma, rot_sigma, st, st, st]);
+                graph.add(PosePrior::new(kp, pose), noise, L2).ok()?;
+            }
+            _ => {
+                lm.fix(kp);
+            }
+        }
+        graph
+            .add(
+                BoxFactor::new(kp, ko, v.camera.intrinsics, v.bbox, BoundsModel::Clipped(*image)),
+                NoiseModel::Isotropic(sigma),
+                Huber(config.huber_px / sigma),
+            )
+            .ok()?;
+    }
+    graph.add(AxisPrior::new(ko, prior.axes), NoiseModel::Diagonal(prior.sigma.as_slice().to_vec()), L2).ok()?;
+    // The paper's assumption: the object only yaws; its height axis (own y) stays along the reference
+    // camera's y axis (gravity for a level camera), 0.5° σ.
+    let up = first.rotation * Vector3::y();
+    graph.add(AxisDirection::new(ko, 1, up)?, NoiseModel::Isotropic(0.5f64.to_radians()), L2).ok()?;
+    let summary = lm.solve(&graph, &mut values, None).ok()?;
+    let e = *values.ellipsoid(ko)?;
+    let in_front = views.iter().all(|v| slam_quadric::classify(&e, &v.camera) == slam_quadric::Visibility::InFront);
+    (e.is_valid() && in_front).then_some((e, summary.final_cost))
+}
+
+/// RMS over views of the box misfit's shift part (`(e_min + e_max)/2` per axis) and size part
+/// (`(e_max − e_min)/2`), pixels.
+fn shift_and_size_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid) -> Option<(f64, f64)> {
+    let (mut shift, mut size) = (0.0, 0.0);
+    for v in views {
+        let r = slam_quadric::box_error(e, &v.camera, &v.bbox, &BoundsModel::Clipped(*image)).ok()?.error;
+        for (lo, hi) in [(r[0], r[2]), (r[1], r[3])] {
+            shift += (0.5 * (lo + hi)).powi(2);
+            size += (0.5 * (hi - lo)).powi(2);
+        }
+    }
+    let n = (2 * views.len().max(1)) as f64;
+    Some(((shift / n).sqrt(), (size / n).sqrt()))
+}
+
+/// Tri+Yaw followed by object optimisation, then (with `pose_drift`) a joint stage that lets the
+/// cameras move under a drift prior. Starts: the DQP ellipsoid (axes re-ordered to the prior),
+/// and, always, the triangulated box-centre point with the prior's axes at the reference camera's heading
+/// and at that heading turned by 90° (a car seen side-on or along the road). The lowest-cost result that
+/// is in front of every camera wins.
+pub fn refine(
+    views: &[BoxView],
+    image: &ImageSize,
+    prior: &ObjectPrior,
+    config: &RefineConfig,
+) -> Result<Ellipsoid, InitError> {
+    let mut starts = Vec::new();
+    if let Ok(e) = Dqp::default().initialize(views) {
+        starts.push(align_to_prior(&e, &prior.axes));
+    }
+    if let Ok(e) = Dqp::with_centre_correction().initialize(views) {
+        starts.push(align_to_prior(&e, &prior.axes));
+    }
+    let centre = triangulate_box_centres(views, &TriangulationConfig::default());
+    if let (Ok(c), Some(first)) = (centre, views.first()) {
+        let heading = first.camera.world_from_camera.rotation;
+        for turn in [0.0, std::f64::consts::FRAC_PI_2] {
+            let rot = heading * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), turn);
+            starts.push(Ellipsoid::new(
+                nalgebra::Isometry3::from_parts(nalgebra::Translation3::from(c), rot),
+                prior.axes,
+            ));
+        }
+    }
+    // Pass 1 from every start at the configured σ; the best result goes on to the re-weighted passes.
+    let mut best: Option<(Ellipsoid, f64)> = None;
+    for s in starts {
+        if let Some((e, cost)) = optimise_object(views, image, prior, config, s) {
+            let in_front =
+                views.iter().all(|v| slam_quadric::classify(&e, &v.camera) == slam_quadric::Visibility::InFront);
+            if in_front && best.as_ref().is_none_or(|b| cost < b.1) {
+                best = Some((e, cost));
+            }
+        }
+    }
+    if let Some((mut e, _)) = best {
+        for _ in 1..config.passes {
+            let Some(rms) = box_rms(views, image, &e) else { break };
+            // per view: its own misfit, but never below the overall RMS / 2 (one view cannot claim to be
+            // much better than the data as a whole)
+            let all = (rms.iter().map(|r| r * r).sum::<f64>() / rms.len().max(1) as f64).sqrt();
+            let sigmas: Vec<f64> =
+                rms.iter().map(|r| r.max(0.5 * all).clamp(config.min_sigma_px, config.max_sigma_px)).collect();
+            match optimise_object_weighted(views, image, prior, config, &sigmas, e, None) {
+                Some((next, _))
+                    if views
+                        .iter()
+                        .all(|v| slam_quadric::classify(&next, &v.camera) == slam_quadric::Visibility::InFront) =>
+                {
+                    e = next
+                }
+                _ => break,
+            }
+        }
+        if let (Some(drift), Some(rms)) = (config.pose_drift, box_rms(views, image, &e)) {
+            let all = (rms.iter().map(|r| r * r).sum::<f64>() / rms.len().max(1) as f64).sqrt();
+            // Free the cameras only when the boxes disagree with the given poses. With the cameras free,
+            // boxes no longer fix the scene's scale about the first camera; the pose and axis priors
+            // share it, which would bias data that are already consistent.
+            // Pose errors move a whole box (its two x edges, or its two y edges, together); box noise moves
+            // the edges independently. Free the cameras only when the misfit is mostly such shifts.
+            let (shift, size) = shift_and_size_rms(views, image, &e).unwrap_or((0.0, 0.0));
+            if all > config.consistent_rms_px && shift > config.shift_ratio * size {
+                let sigmas: Vec<f64> =
+                    rms.iter().map(|r| r.max(0.5 * all).clamp(config.min_sigma_px, config.max_sigma_px)).collect();
+                if let Some(j) = optimise_object_weighted(views, image, prior, config, &sigmas, e, Some(drift)) {
+                    e = j.0;
+                }
+            }
+        }
+        best = Some((e, 0.0));
+    }
+    match (best, centre) {
+        (Some((e, _)), _) => Ok(e),
+        (None, Err(err)) => Err(err),
+        (None, Ok(_)) => Err(InitError::Degenerate(slam_quadric::init::Degeneracy::RankDeficient)),
+    }
+}
