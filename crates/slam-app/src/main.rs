@@ -2,6 +2,7 @@
 
 mod assoc_cmd;
 mod detect_cmd;
+mod objects_cmd;
 mod optim_cmd;
 mod plot;
 mod sim_cmd;
@@ -34,6 +35,11 @@ enum Command {
     Detect(detect_cmd::DetectArgs),
     /// Recall of the shipped detector on the labelled KITTI frames of drive 0052, per input mode.
     DetectRecall(detect_cmd::RecallArgs),
+    /// Image-free object mapping on a KITTI tracking folder (label_02.txt, poses_orbslam3.txt,
+    /// calib.txt): association (track ids not used), DQP initialisation and object optimisation.
+    Objects(objects_cmd::ObjectsArgs),
+    /// The paper's object metrics (success, IoU2D, e_trans, e_axe) over KITTI tracking sequences.
+    Eval(objects_cmd::EvalArgs),
 }
 
 /// A path inside the repository's `fixtures/`: relative to the working directory if it exists there,
@@ -73,5 +79,7 @@ fn run() -> anyhow::Result<()> {
         Command::Sim(a) => sim_cmd::run(&a),
         Command::Detect(a) => detect_cmd::detect(&a),
         Command::DetectRecall(a) => detect_cmd::recall(&a),
+        Command::Objects(a) => objects_cmd::objects(&a),
+        Command::Eval(a) => objects_cmd::eval(&a),
     }
 }

@@ -92,3 +92,25 @@ fn detect_writes_json_and_overlays() {
     assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("/no/such/folder"));
     assert!(!String::from_utf8_lossy(&bad.stderr).contains("backtrace"));
 }
+
+#[test]
+fn objects_writes_the_object_map() {
+    let out = std::env::temp_dir().join(format!("slam-app-objects-{}.json", std::process::id()));
+    let o = app().args(["objects", "fixtures/kitti_tracking/0003", "--out"]).arg(&out).output().expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&out).expect("json");
+    let v: serde_json::Value = serde_json::from_str(&text).expect("valid JSON");
+    assert_eq!(v["version"], 1);
+    let objects = v["objects"].as_array().expect("objects");
+    assert!(objects.len() >= 5, "{}", objects.len());
+    for ob in objects {
+        for key in ["id", "class", "center", "semi_axes", "rotation", "frames", "dynamic"] {
+            assert!(!ob[key].is_null(), "missing {key}");
+        }
+        assert_eq!(ob["rotation"].as_array().map(|r| r.len()), Some(9));
+        let axes: Vec<f64> = ob["semi_axes"].as_array().expect("axes").iter().map(|x| x.as_f64().expect("n")).collect();
+        assert!(axes.iter().all(|a| *a > 0.1 && *a < 10.0), "{axes:?}");
+    }
+    let bad = app().args(["objects", "/no/such/seq"]).output().expect("runs");
+    assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("/no/such/seq"));
+}
