@@ -12,7 +12,7 @@ use slam_dataset::{
     classes,
     kitti::{calib::Calib, poses::read_kitti_poses, tracking::read_tracking_labels, tracking::TrackingLabel},
 };
-use slam_pipeline::objects::{write_object_map, MapperConfig, ObjectMapper};
+use slam_pipeline::objects::{write_object_map, FitMethod, MapperConfig, ObjectMapper};
 use slam_quadric::{metrics, Camera, Ellipsoid, ImageSize, Intrinsics};
 
 #[derive(Args, Debug, Clone)]
@@ -26,6 +26,35 @@ pub struct InputArgs {
     /// Seed of the noise and dropout
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Ellipsoid method
+    #[arg(long, value_enum, default_value_t = Method::Refine)]
+    method: Method,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum Method {
+    /// DQP + object optimisation (ours)
+    Refine,
+    /// QuadricSLAM's SVD
+    Qslam,
+    /// Rubino et al.'s conic method
+    Conic,
+    /// Triangulated centre + full 3×3 block
+    Tri,
+    /// DQP as printed
+    TriYaw,
+}
+
+impl Method {
+    fn fit(self) -> FitMethod {
+        match self {
+            Method::Refine => FitMethod::Refine,
+            Method::Qslam => FitMethod::QSlam,
+            Method::Conic => FitMethod::Conic,
+            Method::Tri => FitMethod::Tri,
+            Method::TriYaw => FitMethod::TriYaw,
+        }
+    }
 }
 
 #[derive(Args, Debug)]
@@ -78,7 +107,7 @@ fn run(seq: &Sequence, input: &InputArgs) -> (ObjectMapper, BTreeMap<(usize, usi
             by_frame.entry(l.frame).or_default().push(l);
         }
     }
-    let config = MapperConfig::default();
+    let config = MapperConfig { method: input.method.fit(), ..MapperConfig::default() };
     let mut mapper = ObjectMapper::new(Box::new(Oda::default()), config);
     let mut truth = BTreeMap::new();
     for (frame, pose) in seq.poses.iter().enumerate() {
@@ -211,8 +240,10 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         bail!("no sequence folders with label_02.txt in {}", dir.display());
     }
     println!(
-        "Object metrics, label boxes as detections (noise {} of box size, dropout {}), ODA + DQP + object optimisation",
-        a.input.noise, a.input.dropout
+        "Object metrics, label boxes as detections (noise {} of box size, dropout {}), ODA + {}",
+        a.input.noise,
+        a.input.dropout,
+        a.input.method.fit().name()
     );
     println!(
         "GT: Car/Van tracks with >= {} frames whose world centre stays within {} m (static)",

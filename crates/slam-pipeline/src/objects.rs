@@ -19,9 +19,40 @@ use slam_core::{geometry::BBox, Associator, ClassId, Detection, TrackId};
 use slam_optim::object::{refine, ObjectPrior, RefineConfig};
 use slam_quadric::{init::BoxView, project, Camera, Ellipsoid, ImageSize};
 
+/// How an object's ellipsoid is computed from its views.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FitMethod {
+    /// DQP starts + object optimisation ([`slam_optim::object::refine`]).
+    #[default]
+    Refine,
+    /// QuadricSLAM's SVD (baseline).
+    QSlam,
+    /// Rubino et al.'s conic method (baseline).
+    Conic,
+    /// Triangulated centre + full 3×3 block (baseline).
+    Tri,
+    /// The paper's DQP as printed (baseline).
+    TriYaw,
+}
+
+impl FitMethod {
+    /// Short name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            FitMethod::Refine => "Tri+Yaw+refine",
+            FitMethod::QSlam => "Q-SLAM",
+            FitMethod::Conic => "Conic",
+            FitMethod::Tri => "Tri",
+            FitMethod::TriYaw => "Tri+Yaw",
+        }
+    }
+}
+
 /// Settings of the [`ObjectMapper`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MapperConfig {
+    /// Fitting method.
+    pub method: FitMethod,
     /// Image size (for clipped bounds and the border test).
     pub image: ImageSize,
     /// Fewest border-free boxes before an ellipsoid is fitted. Default 3.
@@ -43,6 +74,7 @@ pub struct MapperConfig {
 impl Default for MapperConfig {
     fn default() -> Self {
         Self {
+            method: FitMethod::Refine,
             image: ImageSize::new(1242.0, 375.0),
             min_views: 3,
             min_parallax_deg: 3.0,
@@ -182,7 +214,15 @@ impl ObjectMapper {
         let views: Vec<BoxView> = pick.iter().map(|&i| BoxView::new(usable[i].camera, usable[i].bbox)).collect();
         obj.fitted_at = n;
         self.fits += 1;
-        match refine(&views, &cfg.image, &class_prior(obj.class), &RefineConfig::default()) {
+        use slam_quadric::init::{Conic, Dqp, Initializer, QSlamSvd, Tri};
+        let fitted = match cfg.method {
+            FitMethod::Refine => refine(&views, &cfg.image, &class_prior(obj.class), &RefineConfig::default()),
+            FitMethod::QSlam => QSlamSvd.initialize(&views),
+            FitMethod::Conic => Conic::default().initialize(&views),
+            FitMethod::Tri => Tri::default().initialize(&views),
+            FitMethod::TriYaw => Dqp::default().initialize(&views),
+        };
+        match fitted {
             Ok(e) => {
                 let rms = box_rms(&views, &cfg.image, &e);
                 obj.dynamic = rms.is_none_or(|r| r > cfg.dynamic_rms_px);
