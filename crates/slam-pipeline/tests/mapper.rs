@@ -1,0 +1,50 @@
+//! The object mapper on a synthetic drive: a parked car gets an accurate ellipsoid, a car driving
+//! alongside is flagged dynamic or gets none, and the object map JSON is written.
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use slam_assoc::Oda;
+use slam_core::{ClassId, Detection};
+use slam_pipeline::objects::{write_object_map, MapperConfig, ObjectMapper};
+use slam_quadric::{metrics, project, Camera, Ellipsoid, ImageSize, Intrinsics};
+
+const K: Intrinsics = Intrinsics { fx: 721.5377, fy: 721.5377, skew: 0.0, cx: 609.5593, cy: 172.854 };
+const IMAGE: ImageSize = ImageSize::new(1242.0, 375.0);
+
+fn car(x: f64, z: f64) -> Ellipsoid {
+    Ellipsoid::new(
+        Isometry3::from_parts(
+            Translation3::new(x, 0.9, z),
+            UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -std::f64::consts::FRAC_PI_2 + 0.05),
+        ),
+        Vector3::new(2.0, 0.78, 0.85),
+    )
+}
+
+#[test]
+fn parked_car_is_mapped_and_moving_car_is_not() {
+    let parked = car(5.0, 30.0);
+    let mut mapper = ObjectMapper::new(Box::new(Oda::default()), MapperConfig::default());
+    for f in 0..22 {
+        let z = f as f64; // 1 m per frame
+        let cam = Camera::new(K, Isometry3::translation(0.0, 0.0, z));
+        let moving = car(-4.0, z + 12.0 + 0.8 * f as f64); // overtaking on the left
+        let mut dets = Vec::new();
+        for e in [&parked, &moving] {
+            if let Ok(b) = project(e, &cam).and_then(|c| c.clipped_bounds(&IMAGE)) {
+                dets.push(Detection::new(ClassId(2), 1.0, b));
+            }
+        }
+        let ids = mapper.step(f, &cam, &dets);
+        assert_eq!(ids.len(), dets.len());
+    }
+    let objs: Vec<_> = mapper.objects().collect();
+    let good: Vec<_> = objs.iter().filter(|o| o.ellipsoid.is_some() && !o.dynamic).collect();
+    assert_eq!(good.len(), 1, "{objs:?}");
+    let e = good[0].ellipsoid.as_ref().expect("ellipsoid");
+    assert!(metrics::e_trans(e, &parked) < 0.05, "{}", metrics::e_trans(e, &parked));
+    assert!(metrics::e_axe(e, &parked) < 0.05, "{}", metrics::e_axe(e, &parked));
+    let out = std::env::temp_dir().join(format!("mapper-{}.json", std::process::id()));
+    write_object_map(&out, &objs).expect("writes");
+    let text = std::fs::read_to_string(&out).expect("reads");
+    assert!(text.contains("\"semi_axes\"") && text.contains("\"dynamic\""));
+}
