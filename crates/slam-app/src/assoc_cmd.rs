@@ -2,7 +2,7 @@
 
 use std::{collections::BTreeMap, path::PathBuf};
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use clap::{Args, Subcommand};
 use slam_assoc::{
     eval::{run as run_sim, simulate, IdSwitchCounter, Lcg, MotCounts, SimConfig},
@@ -105,15 +105,7 @@ const CONDITIONS: [Condition; 3] = [
 
 fn kitti(a: &KittiArgs) -> anyhow::Result<()> {
     let dir = a.dir.clone().unwrap_or_else(|| crate::fixture("kitti_tracking"));
-    let mut seqs: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .with_context(|| format!("cannot list sequences in {}", dir.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.join("label_02.txt").is_file())
-        .collect();
-    seqs.sort();
-    if seqs.is_empty() {
-        bail!("no sequence folders with label_02.txt in {}", dir.display());
-    }
+    let seqs = crate::tracking_sequences(&dir)?;
     println!("KITTI tracking labels as detections ({} sequences in {}), seed {}", seqs.len(), dir.display(), a.seed);
     println!("DontCare and Misc dropped; noise: Gaussian, sigma = fraction of box width/height per coordinate.");
     println!("Cues available: Kalman prediction only (no images: no flow; no ellipsoids).");

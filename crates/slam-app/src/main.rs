@@ -52,6 +52,21 @@ pub(crate) fn fixture(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures").join(rel)
 }
 
+/// The sequence folders (those holding `label_02.txt`) of an image-free KITTI tracking folder, sorted.
+pub(crate) fn tracking_sequences(dir: &std::path::Path) -> anyhow::Result<Vec<PathBuf>> {
+    use anyhow::Context;
+    let mut seqs: Vec<PathBuf> = std::fs::read_dir(dir)
+        .with_context(|| format!("cannot list sequences in {}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.join("label_02.txt").is_file())
+        .collect();
+    seqs.sort();
+    if seqs.is_empty() {
+        anyhow::bail!("no sequence folders with label_02.txt in {}", dir.display());
+    }
+    Ok(seqs)
+}
+
 fn main() -> std::process::ExitCode {
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,

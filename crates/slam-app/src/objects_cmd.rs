@@ -230,15 +230,7 @@ struct Row {
 
 pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let dir = a.dir.clone().unwrap_or_else(|| crate::fixture("kitti_tracking"));
-    let mut seqs: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .with_context(|| format!("cannot list {}", dir.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.join("label_02.txt").is_file())
-        .collect();
-    seqs.sort();
-    if seqs.is_empty() {
-        bail!("no sequence folders with label_02.txt in {}", dir.display());
-    }
+    let seqs = crate::tracking_sequences(&dir)?;
     println!(
         "Object metrics, label boxes as detections (noise {} of box size, dropout {}), ODA + {}",
         a.input.noise,
