@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# The main job. Until the stereo front end lands this is the geometry example: project a car-sized
-# ellipsoid into a KITTI camera and print its box, clipped box and a Jacobian entry.
+# The main job: stereo odometry on the shipped KITTI odometry sequence 06 (frames 0-50), writing the
+# trajectory to out/run/ and printing ATE/RPE against the ground truth. Extra arguments go to
+# `slam-app run` (e.g. a path to another KITTI odometry sequence, --out DIR).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/setup.sh
-cargo run --release -q -p slam-quadric --example project_ellipsoid -- "$@"
+cargo run --release -q -p slam-app -- run "$@"

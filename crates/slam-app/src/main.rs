@@ -5,6 +5,7 @@ mod detect_cmd;
 mod objects_cmd;
 mod optim_cmd;
 mod plot;
+mod run_cmd;
 mod sim_cmd;
 
 use std::{io::IsTerminal, path::PathBuf};
@@ -21,6 +22,9 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// Run stereo visual odometry on a KITTI odometry sequence (default: the shipped sequence 06,
+    /// frames 0–50) and write the trajectory; prints ATE/RPE when ground truth exists.
+    Run(run_cmd::RunArgs),
     /// Compare object associators (ODA vs IoU-only): ID switches on simulated crossings and on real
     /// KITTI tracking annotations.
     #[command(subcommand)]
@@ -89,6 +93,7 @@ fn run() -> anyhow::Result<()> {
         .init();
     let cli = Cli::parse();
     match cli.command {
+        Command::Run(a) => run_cmd::run(&a),
         Command::Assoc(cmd) => assoc_cmd::run(cmd),
         Command::OptimBench(a) => optim_cmd::run(&a),
         Command::Sim(a) => sim_cmd::run(&a),

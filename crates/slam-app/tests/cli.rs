@@ -114,3 +114,53 @@ fn objects_writes_the_object_map() {
     let bad = app().args(["objects", "/no/such/seq"]).output().expect("runs");
     assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("/no/such/seq"));
 }
+
+#[test]
+fn run_on_the_shipped_sequence() {
+    let out = std::env::temp_dir().join(format!("slam-app-run-{}", std::process::id()));
+    let o = app().args(["run", "--out"]).arg(&out).output().expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let ate: f64 = text
+        .split("ATE (RMS, world = first frame) ")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.parse().ok())
+        .expect("ATE printed");
+    assert!(ate < 1.5, "{text}");
+    let kitti = std::fs::read_to_string(out.join("trajectory.kitti.txt")).expect("kitti");
+    assert_eq!(kitti.lines().count(), 51);
+    let tum = std::fs::read_to_string(out.join("trajectory.tum.txt")).expect("tum");
+    assert_eq!(tum.lines().count(), 51);
+    assert!(tum.lines().all(|l| l.split_whitespace().count() == 8));
+}
+
+#[test]
+fn run_survives_missing_corrupt_and_black_frames() {
+    // a copy of the sequence with frame 10 missing on the right, frame 20 corrupt, frame 30 black
+    let src = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06"));
+    let dst = std::env::temp_dir().join(format!("slam-app-broken-{}", std::process::id()));
+    let seq = dst.join("sequences/06");
+    for d in ["image_0", "image_1"] {
+        std::fs::create_dir_all(seq.join(d)).expect("dir");
+        for i in 0..40 {
+            let name = format!("{i:06}.png");
+            std::fs::copy(src.join("sequences/06").join(d).join(&name), seq.join(d).join(&name)).expect("copy");
+        }
+    }
+    std::fs::copy(src.join("sequences/06/calib.txt"), seq.join("calib.txt")).expect("calib");
+    std::fs::write(seq.join("image_1/000010.png"), b"").expect("empty");
+    std::fs::write(seq.join("image_0/000020.png"), b"\x89PNG\r\n\x1a\ngarbage").expect("corrupt");
+    // black frame: write a black PNG through the app's own image writer
+    let black = slam_core::Image::new(1226, 370, 1, vec![0; 1226 * 370]).expect("image");
+    slam_frontend::write_image(seq.join("image_0/000030.png"), &black).expect("black");
+    slam_frontend::write_image(seq.join("image_1/000030.png"), &black).expect("black");
+    let o = app().args(["run"]).arg(&seq).arg("--out").arg(dst.join("out")).output().expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("unreadable 2"), "{text}");
+    let kitti = std::fs::read_to_string(dst.join("out/trajectory.kitti.txt")).expect("kitti");
+    assert_eq!(kitti.lines().count(), 40, "one pose per input frame");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("frame 10") && err.contains("frame 20"), "{err}");
+}

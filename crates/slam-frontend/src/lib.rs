@@ -8,6 +8,8 @@
 pub mod detector;
 pub use detector::nms;
 pub mod image_io;
+pub mod stereo_vo;
 
 pub use detector::{DetectorConfig, DnnDetector, InputMode};
 pub use image_io::{draw_detections, read_image, write_image, FrontendError};
+pub use stereo_vo::{StereoRig, StereoVo, TrackStatus, VoConfig, VoFrame};
