@@ -20,6 +20,10 @@ pub struct RunArgs {
     /// Output folder (trajectory.kitti.txt, trajectory.tum.txt)
     #[arg(long, default_value = "out/run")]
     out: PathBuf,
+    /// Take a new keyframe after at most this many frames tracked against the current one
+    /// (1 = frame-to-frame odometry).
+    #[arg(long, default_value_t = VoConfig::default().keyframe_max_gap as u64, value_parser = clap::value_parser!(u64).range(1..))]
+    keyframe_gap: u64,
 }
 
 fn find_sequence(path: &Path) -> anyhow::Result<PathBuf> {
@@ -79,7 +83,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
         rig.k.fx,
         rig.baseline
     );
-    let mut vo = StereoVo::new(rig, VoConfig::default())?;
+    let mut vo = StereoVo::new(rig, VoConfig { keyframe_max_gap: a.keyframe_gap as usize, ..VoConfig::default() })?;
     let bar = indicatif::ProgressBar::new(seq.left.len() as u64);
     bar.set_style(
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames {per_sec} eta {eta}")
@@ -90,6 +94,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     let mut timings: Vec<[f64; 3]> = Vec::new();
     let start = std::time::Instant::now();
     let mut last = Isometry3::identity();
+    let mut keyframes = 0usize;
     for (i, (l, r)) in seq.left.iter().zip(&seq.right).enumerate() {
         let pair = read_image(l, false).and_then(|li| read_image(r, false).map(|ri| (li, ri)));
         let (li, ri) = match pair {
@@ -109,6 +114,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
             tracing::warn!("frame {i}: tracking lost; constant-velocity pose");
         }
         timings.push(f.timings_ms);
+        keyframes += usize::from(f.keyframe);
         last = f.world_from_camera;
         poses.push(last);
         bar.inc(1);
@@ -128,7 +134,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
         v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
     };
     println!(
-        "{} frames in {:.2} s ({:.1} frames/s incl. image decoding); lost {lost}, unreadable {unreadable}",
+        "{} frames in {:.2} s ({:.1} frames/s incl. image decoding); keyframes {keyframes}, lost {lost}, unreadable {unreadable}",
         poses.len(),
         elapsed,
         poses.len() as f64 / elapsed

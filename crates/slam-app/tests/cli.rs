@@ -128,6 +128,22 @@ fn run_on_the_shipped_sequence() {
         .and_then(|s| s.parse().ok())
         .expect("ATE printed");
     assert!(ate < 1.5, "{text}");
+    let keyframes = |text: &str| -> usize {
+        text.split("keyframes ")
+            .nth(1)
+            .and_then(|s| s.split(',').next())
+            .and_then(|s| s.parse().ok())
+            .expect("keyframe count printed")
+    };
+    // at most 4 frames per keyframe by default, and fewer keyframes than frames
+    let kf = keyframes(&text);
+    assert!((13..51).contains(&kf), "{text}");
+    // --keyframe-gap 1 is frame-to-frame odometry: every frame is a keyframe
+    let o1 = app().args(["run", "--keyframe-gap", "1", "--out"]).arg(out.join("f2f")).output().expect("runs");
+    assert!(o1.status.success(), "{}", String::from_utf8_lossy(&o1.stderr));
+    assert_eq!(keyframes(&String::from_utf8_lossy(&o1.stdout)), 51);
+    let bad = app().args(["run", "--keyframe-gap", "0"]).output().expect("runs");
+    assert!(!bad.status.success());
     let kitti = std::fs::read_to_string(out.join("trajectory.kitti.txt")).expect("kitti");
     assert_eq!(kitti.lines().count(), 51);
     let tum = std::fs::read_to_string(out.join("trajectory.tum.txt")).expect("tum");

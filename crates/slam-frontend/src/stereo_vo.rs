@@ -46,6 +46,11 @@ pub struct VoConfig {
     pub ransac_px: f32,
     /// Fewest PnP inliers for a tracked frame.
     pub min_inliers: usize,
+    /// A new keyframe is taken when the inliers against the current keyframe fall below this fraction of
+    /// the inliers of the first frame tracked against it.
+    pub keyframe_inlier_ratio: f64,
+    /// ... or when this many frames have been tracked against it.
+    pub keyframe_max_gap: usize,
 }
 
 impl Default for VoConfig {
@@ -59,6 +64,8 @@ impl Default for VoConfig {
             search_radius: 40.0,
             ransac_px: 2.0,
             min_inliers: 30,
+            keyframe_inlier_ratio: 0.5,
+            keyframe_max_gap: 4,
         }
     }
 }
@@ -68,7 +75,7 @@ impl Default for VoConfig {
 pub enum TrackStatus {
     /// The first frame (the world origin).
     Initialised,
-    /// Tracked against the previous frame.
+    /// Tracked against the current keyframe.
     Tracked {
         /// PnP inliers.
         inliers: usize,
@@ -86,6 +93,8 @@ pub struct VoFrame {
     pub status: TrackStatus,
     /// Stereo points of this frame.
     pub stereo_points: usize,
+    /// This frame became the keyframe that the next frames are tracked against.
+    pub keyframe: bool,
     /// Milliseconds spent in feature extraction, stereo matching, tracking (matching + PnP + refinement).
     pub timings_ms: [f64; 3],
 }
@@ -104,9 +113,16 @@ pub struct StereoVo {
     orb: core::Ptr<features2d::ORB>,
     rig: StereoRig,
     config: VoConfig,
+    /// The keyframe that frames are tracked against.
     prev: Option<Frame>,
     world_from_prev: Isometry3<f64>,
-    /// `T_prev←curr` of the last step (constant-velocity model).
+    /// Pose of the last processed frame in the keyframe.
+    kf_from_last: Isometry3<f64>,
+    /// Inliers of the first frame tracked against the keyframe.
+    kf_inliers: Option<usize>,
+    /// Frames tracked against the keyframe.
+    since_kf: usize,
+    /// `T_last←curr` of the last step (constant-velocity model).
     velocity: Isometry3<f64>,
 }
 
@@ -209,6 +225,9 @@ impl StereoVo {
             config,
             prev: None,
             world_from_prev: Isometry3::identity(),
+            kf_from_last: Isometry3::identity(),
+            kf_inliers: None,
+            since_kf: 0,
             velocity: Isometry3::identity(),
         })
     }
@@ -355,36 +374,53 @@ impl StereoVo {
                 world_from_camera: Isometry3::identity(),
                 status: TrackStatus::Initialised,
                 stereo_points,
+                keyframe: true,
                 timings_ms: [(t1 - t0).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3, 0.0],
             });
         };
-        let predicted = self.velocity.inverse(); // curr ← prev
+        let predicted = (self.kf_from_last * self.velocity).inverse(); // curr ← keyframe
         let mut matches = self.track(&prev, &predicted, &lp, &ld, self.config.search_radius);
         if matches.len() < self.config.min_inliers {
-            matches = self.track(&prev, &Isometry3::identity(), &lp, &ld, 4.0 * self.config.search_radius);
+            matches = self.track(&prev, &self.kf_from_last.inverse(), &lp, &ld, 4.0 * self.config.search_radius);
         }
         let solved = self.pnp(&prev, &frame, &lp, &matches, &predicted)?;
         let (curr_from_prev, status) = match solved {
             Some((pose, inliers)) => (pose, TrackStatus::Tracked { inliers }),
             None => (predicted, TrackStatus::Lost),
         };
-        let prev_from_curr = curr_from_prev.inverse();
-        if matches!(status, TrackStatus::Tracked { .. }) {
-            self.velocity = prev_from_curr;
+        let kf_from_curr = curr_from_prev.inverse();
+        let tracked = matches!(status, TrackStatus::Tracked { .. });
+        if tracked {
+            self.velocity = self.kf_from_last.inverse() * kf_from_curr;
         }
-        self.world_from_prev *= prev_from_curr;
-        // keep the previous points when this frame has too few of its own (black frame, blur)
-        self.prev =
-            Some(if frame.points.len() >= self.config.min_inliers || matches!(status, TrackStatus::Tracked { .. }) {
-                frame
-            } else {
-                prev
-            });
+        let world_from_curr = self.world_from_prev * kf_from_curr;
+        self.since_kf += 1;
+        let want_keyframe = match status {
+            TrackStatus::Tracked { inliers } => {
+                let base = *self.kf_inliers.get_or_insert(inliers);
+                (inliers as f64) < self.config.keyframe_inlier_ratio * base as f64
+                    || self.since_kf >= self.config.keyframe_max_gap
+            }
+            _ => true,
+        };
+        // keep the old keyframe when this frame has too few points of its own (black frame, blur)
+        let keyframe = want_keyframe && (frame.points.len() >= self.config.min_inliers || tracked);
+        if keyframe {
+            self.prev = Some(frame);
+            self.world_from_prev = world_from_curr;
+            self.kf_from_last = Isometry3::identity();
+            self.kf_inliers = None;
+            self.since_kf = 0;
+        } else {
+            self.prev = Some(prev);
+            self.kf_from_last = kf_from_curr;
+        }
         let t3 = Instant::now();
         Ok(VoFrame {
-            world_from_camera: self.world_from_prev,
+            world_from_camera: world_from_curr,
             status,
             stereo_points,
+            keyframe,
             timings_ms: [(t1 - t0).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3, (t3 - t2).as_secs_f64() * 1e3],
         })
     }
