@@ -52,6 +52,18 @@ pub(crate) fn read_text(path: &Path) -> Result<String, DatasetError> {
 }
 
 /// Parse whitespace-separated finite numbers of one line.
+/// [`parse_numbers`] on a line that must hold exactly `n` fields.
+pub(crate) fn parse_exact(path: &Path, line: usize, fields: &[&str], n: usize) -> Result<Vec<f64>, DatasetError> {
+    if fields.len() != n {
+        return Err(DatasetError::Parse {
+            path: path.to_path_buf(),
+            line,
+            message: format!("expected {n} numbers, found {}", fields.len()),
+        });
+    }
+    parse_numbers(path, line, fields)
+}
+
 pub(crate) fn parse_numbers(path: &Path, line: usize, fields: &[&str]) -> Result<Vec<f64>, DatasetError> {
     fields
         .iter()

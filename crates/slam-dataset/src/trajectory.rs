@@ -6,7 +6,7 @@ use std::path::Path;
 
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 
-use crate::{parse_numbers, read_text, DatasetError};
+use crate::{parse_exact, read_text, DatasetError};
 
 pub use crate::kitti::poses::{read_kitti_poses, write_kitti_poses};
 
@@ -46,14 +46,7 @@ pub fn parse_tum(path: &Path, text: &str) -> Result<(Vec<f64>, Vec<Isometry3<f64
             continue;
         }
         let f: Vec<&str> = line.split_whitespace().collect();
-        if f.len() != 8 {
-            return Err(DatasetError::Parse {
-                path: path.to_path_buf(),
-                line: i + 1,
-                message: format!("expected 8 numbers, found {}", f.len()),
-            });
-        }
-        let v = parse_numbers(path, i + 1, &f)?;
+        let v = parse_exact(path, i + 1, &f, 8)?;
         let q = Quaternion::new(v[7], v[4], v[5], v[6]);
         if (q.norm() - 1.0).abs() > 1e-3 {
             return Err(DatasetError::Parse {

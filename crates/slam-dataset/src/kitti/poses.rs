@@ -4,7 +4,7 @@ use std::path::Path;
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
-use crate::{parse_numbers, read_text, DatasetError};
+use crate::{parse_exact, read_text, DatasetError};
 
 /// Read a KITTI pose file. Each line is a camera-to-world pose `T_w←c` (as KITTI ground truth and
 /// ORB-SLAM3 write them). Blank lines are an error (they would shift frame indices).
@@ -19,14 +19,7 @@ pub fn parse_kitti_poses(path: &Path, text: &str) -> Result<Vec<Isometry3<f64>>,
     let mut poses = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let fields: Vec<&str> = line.split_whitespace().collect();
-        if fields.len() != 12 {
-            return Err(DatasetError::Parse {
-                path: path.to_path_buf(),
-                line: i + 1,
-                message: format!("expected 12 numbers, found {}", fields.len()),
-            });
-        }
-        let v = parse_numbers(path, i + 1, &fields)?;
+        let v = parse_exact(path, i + 1, &fields, 12)?;
         let r = Matrix3::new(v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10]);
         let err = (r.transpose() * r - Matrix3::identity()).norm();
         if err > 1e-3 || r.determinant() < 0.0 {

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use nalgebra::{Isometry3, Matrix3, Matrix3x4, Rotation3, Translation3, UnitQuaternion, Vector3};
 
-use crate::{kitti::calib::Calib, parse_numbers, read_text, DatasetError};
+use crate::{kitti::calib::Calib, parse_exact, read_text, DatasetError};
 
 /// Earth radius used by the KITTI devkit for the Mercator projection, metres.
 const EARTH_RADIUS: f64 = 6_378_137.0;
@@ -42,14 +42,7 @@ pub fn parse_oxts_packet(path: &Path, text: &str) -> Result<OxtsPacket, DatasetE
         return Err(DatasetError::Invalid { path: path.to_path_buf(), message: "empty OXTS packet".into() });
     };
     let fields: Vec<&str> = line.split_whitespace().collect();
-    if fields.len() != 30 {
-        return Err(DatasetError::Parse {
-            path: path.to_path_buf(),
-            line: i + 1,
-            message: format!("expected 30 values, found {}", fields.len()),
-        });
-    }
-    let v = parse_numbers(path, i + 1, &fields)?;
+    let v = parse_exact(path, i + 1, &fields, 30)?;
     let mut values = [0.0; 30];
     values.copy_from_slice(&v);
     Ok(OxtsPacket { lat: v[0], lon: v[1], alt: v[2], roll: v[3], pitch: v[4], yaw: v[5], values })
