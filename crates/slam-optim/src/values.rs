@@ -3,7 +3,7 @@
 use nalgebra::{DVector, Isometry3, Vector3, Vector6};
 use slam_quadric::{Ellipsoid, Tangent9};
 
-use crate::lie;
+use crate::{factor::FactorError, lie};
 
 /// Index of a variable in [`Values`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -156,5 +156,25 @@ impl Values {
             Some(Var::Bal(c)) => Some(c),
             _ => None,
         }
+    }
+
+    /// [`Self::pose`], or the error a factor returns when its key holds something else.
+    pub fn require_pose(&self, k: Key) -> Result<&Isometry3<f64>, FactorError> {
+        self.pose(k).ok_or(FactorError::WrongVariable(k))
+    }
+
+    /// [`Self::point`], or [`FactorError::WrongVariable`].
+    pub fn require_point(&self, k: Key) -> Result<&Vector3<f64>, FactorError> {
+        self.point(k).ok_or(FactorError::WrongVariable(k))
+    }
+
+    /// [`Self::ellipsoid`], or [`FactorError::WrongVariable`].
+    pub fn require_ellipsoid(&self, k: Key) -> Result<&Ellipsoid, FactorError> {
+        self.ellipsoid(k).ok_or(FactorError::WrongVariable(k))
+    }
+
+    /// [`Self::bal`], or [`FactorError::WrongVariable`].
+    pub fn require_bal(&self, k: Key) -> Result<&BalCamera, FactorError> {
+        self.bal(k).ok_or(FactorError::WrongVariable(k))
     }
 }

@@ -38,8 +38,8 @@ impl Factor for BalReprojection {
         values: &Values,
         jacobians: Option<&mut Vec<DMatrix<f64>>>,
     ) -> Result<DVector<f64>, FactorError> {
-        let c = values.bal(self.keys[0]).ok_or(FactorError::WrongVariable(self.keys[0]))?.0;
-        let x = values.point(self.keys[1]).ok_or(FactorError::WrongVariable(self.keys[1]))?;
+        let c = values.require_bal(self.keys[0])?.0;
+        let x = values.require_point(self.keys[1])?;
         let r = Vector3::new(c[0], c[1], c[2]);
         let rot = Rotation3::from_scaled_axis(r).into_inner();
         let p_cam = rot * x + Vector3::new(c[3], c[4], c[5]);

@@ -53,8 +53,8 @@ impl Factor for BoxFactor {
         values: &Values,
         jacobians: Option<&mut Vec<DMatrix<f64>>>,
     ) -> Result<DVector<f64>, FactorError> {
-        let pose = values.pose(self.keys[0]).ok_or(FactorError::WrongVariable(self.keys[0]))?;
-        let e = values.ellipsoid(self.keys[1]).ok_or(FactorError::WrongVariable(self.keys[1]))?;
+        let pose = values.require_pose(self.keys[0])?;
+        let e = values.require_ellipsoid(self.keys[1])?;
         let cam = Camera::new(self.k, *pose);
         let r =
             box_error(e, &cam, &self.measured, &self.model).map_err(|err| FactorError::Undefined(err.to_string()))?;
@@ -96,7 +96,7 @@ impl Factor for AxisPrior {
         values: &Values,
         jacobians: Option<&mut Vec<DMatrix<f64>>>,
     ) -> Result<DVector<f64>, FactorError> {
-        let e = values.ellipsoid(self.keys[0]).ok_or(FactorError::WrongVariable(self.keys[0]))?;
+        let e = values.require_ellipsoid(self.keys[0])?;
         if let Some(jac) = jacobians {
             let mut j = DMatrix::zeros(3, 9);
             j.view_mut((0, 6), (3, 3)).fill_with_identity();
@@ -139,7 +139,7 @@ impl Factor for TexturePlane {
         values: &Values,
         jacobians: Option<&mut Vec<DMatrix<f64>>>,
     ) -> Result<DVector<f64>, FactorError> {
-        let e = values.ellipsoid(self.keys[0]).ok_or(FactorError::WrongVariable(self.keys[0]))?;
+        let e = values.require_ellipsoid(self.keys[0])?;
         let n = Vector3::new(self.plane[0], self.plane[1], self.plane[2]);
         let r = e.rotation();
         let m = r.transpose() * n;
@@ -200,7 +200,7 @@ impl Factor for AxisDirection {
         values: &Values,
         jacobians: Option<&mut Vec<DMatrix<f64>>>,
     ) -> Result<DVector<f64>, FactorError> {
-        let e = values.ellipsoid(self.keys[0]).ok_or(FactorError::WrongVariable(self.keys[0]))?;
+        let e = values.require_ellipsoid(self.keys[0])?;
         let r = e.rotation();
         let mut ek = Vector3::zeros();
         ek[self.axis] = 1.0;

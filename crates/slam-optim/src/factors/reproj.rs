@@ -19,8 +19,8 @@ struct CameraPoint {
 }
 
 fn camera_point(values: &Values, keys: &[Key; 2]) -> Result<CameraPoint, FactorError> {
-    let t_wc = values.pose(keys[0]).ok_or(FactorError::WrongVariable(keys[0]))?;
-    let x = values.point(keys[1]).ok_or(FactorError::WrongVariable(keys[1]))?;
+    let t_wc = values.require_pose(keys[0])?;
+    let x = values.require_point(keys[1])?;
     let pc = t_wc.inverse_transform_point(&nalgebra::Point3::from(*x)).coords;
     if pc.z <= 0.0 {
         return Err(FactorError::Undefined("point behind the camera".into()));

@@ -37,8 +37,8 @@ impl Factor for Between {
         values: &Values,
         jacobians: Option<&mut Vec<DMatrix<f64>>>,
     ) -> Result<DVector<f64>, FactorError> {
-        let xi = values.pose(self.keys[0]).ok_or(FactorError::WrongVariable(self.keys[0]))?;
-        let xj = values.pose(self.keys[1]).ok_or(FactorError::WrongVariable(self.keys[1]))?;
+        let xi = values.require_pose(self.keys[0])?;
+        let xj = values.require_pose(self.keys[1])?;
         let e = se3_log(&(self.z_inv * xi.inverse() * xj));
         if let Some(jac) = jacobians {
             let jr_inv = se3_right_jacobian_inv(&e);
@@ -80,7 +80,7 @@ impl Factor for PosePrior {
         values: &Values,
         jacobians: Option<&mut Vec<DMatrix<f64>>>,
     ) -> Result<DVector<f64>, FactorError> {
-        let x = values.pose(self.keys[0]).ok_or(FactorError::WrongVariable(self.keys[0]))?;
+        let x = values.require_pose(self.keys[0])?;
         let e = se3_log(&(self.z_inv * x));
         if let Some(jac) = jacobians {
             jac.clear();
@@ -118,7 +118,7 @@ impl Factor for PointPrior {
         values: &Values,
         jacobians: Option<&mut Vec<DMatrix<f64>>>,
     ) -> Result<DVector<f64>, FactorError> {
-        let x = values.point(self.keys[0]).ok_or(FactorError::WrongVariable(self.keys[0]))?;
+        let x = values.require_point(self.keys[0])?;
         if let Some(jac) = jacobians {
             jac.clear();
             jac.push(DMatrix::identity(3, 3));
