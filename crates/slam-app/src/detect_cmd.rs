@@ -48,7 +48,7 @@ pub struct ModelArgs {
 }
 
 impl ModelArgs {
-    fn load(&self) -> anyhow::Result<DnnDetector> {
+    pub(crate) fn load(&self) -> anyhow::Result<DnnDetector> {
         let config = DetectorConfig {
             input_size: self.input_size,
             mode: match self.mode {

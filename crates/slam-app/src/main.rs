@@ -1,6 +1,7 @@
 //! `slam-app`: the command-line front of the quadric-SLAM workspace.
 
 mod assoc_cmd;
+mod config;
 mod detect_cmd;
 mod objects_cmd;
 mod optim_cmd;
@@ -22,9 +23,12 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Run stereo visual odometry on a KITTI odometry sequence (default: the shipped sequence 06,
-    /// frames 0–50) and write the trajectory; prints ATE/RPE when ground truth exists.
-    Run(run_cmd::RunArgs),
+    /// Run the whole system (stereo tracking, local mapping, detection, objects) on a KITTI stereo
+    /// sequence (default: the shipped odometry sequence 06, frames 0–50); writes the trajectory, the map,
+    /// the object map and pictures; prints ATE/RPE when ground truth exists.
+    Run(Box<run_cmd::RunArgs>),
+    /// Inspect a saved map (counts, objects) and export it (PLY points, trajectory, top-down picture).
+    Map(run_cmd::MapArgs),
     /// Compare object associators (ODA vs IoU-only): ID switches on simulated crossings and on real
     /// KITTI tracking annotations.
     #[command(subcommand)]
@@ -94,6 +98,7 @@ fn run() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Run(a) => run_cmd::run(&a),
+        Command::Map(a) => run_cmd::map(&a),
         Command::Assoc(cmd) => assoc_cmd::run(cmd),
         Command::OptimBench(a) => optim_cmd::run(&a),
         Command::Sim(a) => sim_cmd::run(&a),

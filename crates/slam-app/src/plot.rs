@@ -127,3 +127,122 @@ pub fn simulation_figure(
         .with_context(|| format!("drawing {}", png.display()))?;
     Ok(vec![svg, png])
 }
+
+/// What the top-down map shows (x right, z forward of the first camera; metres).
+pub struct TopDown<'a> {
+    pub estimate: &'a [[f64; 2]],
+    pub truth: Option<&'a [[f64; 2]]>,
+    pub points: &'a [[f64; 2]],
+    /// Ellipse outline (x, z) of each object, its id and whether it is dynamic.
+    pub objects: &'a [(Vec<[f64; 2]>, u64, bool)],
+}
+
+fn draw_topdown<DB: DrawingBackend>(
+    root: DrawingArea<DB, plotters::coord::Shift>,
+    m: &TopDown<'_>,
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow::anyhow!("{e:?}");
+    root.fill(&WHITE).map_err(err)?;
+    // frame: the trajectories and objects, plus a margin; points only inside it
+    let mut lo = [f64::INFINITY; 2];
+    let mut hi = [f64::NEG_INFINITY; 2];
+    let mut grow = |p: &[f64; 2]| {
+        for k in 0..2 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    };
+    m.estimate.iter().for_each(&mut grow);
+    m.truth.unwrap_or(&[]).iter().for_each(&mut grow);
+    m.objects.iter().flat_map(|o| o.0.iter()).for_each(&mut grow);
+    if !lo[0].is_finite() {
+        lo = [-10.0, -10.0];
+        hi = [10.0, 10.0];
+    }
+    let margin = 15.0;
+    let (mut x0, mut x1, mut z0, mut z1) = (lo[0] - margin, hi[0] + margin, lo[1] - margin, hi[1] + margin);
+    // equal scale on both axes
+    let (w, h) = (x1 - x0, z1 - z0);
+    if w < h {
+        let c = 0.5 * (x0 + x1);
+        (x0, x1) = (c - 0.5 * h, c + 0.5 * h);
+    } else {
+        let c = 0.5 * (z0 + z1);
+        (z0, z1) = (c - 0.5 * w, c + 0.5 * w);
+    }
+    let mut chart = ChartBuilder::on(&root)
+        .caption("Top-down map (x right, z forward; metres)", ("sans-serif", 20))
+        .margin(10)
+        .x_label_area_size(30)
+        .y_label_area_size(40)
+        .build_cartesian_2d(x0..x1, z0..z1)
+        .map_err(err)?;
+    chart.configure_mesh().light_line_style(WHITE).x_desc("x (m)").y_desc("z (m)").draw().map_err(err)?;
+    let grey = RGBColor(170, 170, 170);
+    chart
+        .draw_series(
+            m.points
+                .iter()
+                .filter(|p| p[0] > x0 && p[0] < x1 && p[1] > z0 && p[1] < z1)
+                .map(|p| Circle::new((p[0], p[1]), 1, grey.filled())),
+        )
+        .map_err(err)?
+        .label("map points")
+        .legend(move |(x, y)| Circle::new((x + 8, y), 2, grey.filled()));
+    if let Some(t) = m.truth {
+        let c = RGBColor(44, 160, 44);
+        chart
+            .draw_series(LineSeries::new(t.iter().map(|p| (p[0], p[1])), c.stroke_width(2)))
+            .map_err(err)?
+            .label("ground truth")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
+    }
+    let c = RGBColor(31, 119, 180);
+    chart
+        .draw_series(LineSeries::new(m.estimate.iter().map(|p| (p[0], p[1])), c.stroke_width(2)))
+        .map_err(err)?
+        .label("estimate")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
+    for (outline, id, dynamic) in m.objects {
+        let colour = if *dynamic { RGBColor(214, 39, 40) } else { RGBColor(255, 127, 14) };
+        let mut pts: Vec<(f64, f64)> = outline.iter().map(|p| (p[0], p[1])).collect();
+        if let Some(&f) = pts.first() {
+            pts.push(f);
+        }
+        chart.draw_series(std::iter::once(PathElement::new(pts.clone(), colour.stroke_width(2)))).map_err(err)?;
+        if let Some(&(x, z)) = pts.iter().max_by(|a, b| a.1.total_cmp(&b.1)) {
+            chart
+                .draw_series(std::iter::once(Text::new(
+                    format!("{id}"),
+                    (x, z + 1.0),
+                    ("sans-serif", 14).into_font().color(&colour),
+                )))
+                .map_err(err)?;
+        }
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperLeft)
+        .draw()
+        .map_err(err)?;
+    root.present().map_err(err)?;
+    Ok(())
+}
+
+/// Write the top-down map as `<stem>.svg` and `<stem>.png`.
+pub fn topdown_figure(m: &TopDown<'_>, out: &Path, stem: &str) -> anyhow::Result<Vec<PathBuf>> {
+    register_font();
+    let size = (900, 900);
+    let svg = out.join(format!("{stem}.svg"));
+    let png = out.join(format!("{stem}.png"));
+    draw_topdown(SVGBackend::new(&svg, size).into_drawing_area(), m)
+        .with_context(|| format!("drawing {}", svg.display()))?;
+    draw_topdown(BitMapBackend::new(&png, size).into_drawing_area(), m)
+        .with_context(|| format!("drawing {}", png.display()))?;
+    Ok(vec![svg, png])
+}

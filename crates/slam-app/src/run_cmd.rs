@@ -1,176 +1,491 @@
-//! `slam-app run`: stereo odometry on a KITTI odometry sequence, trajectory files and errors.
+//! `slam-app run`: the whole system on a KITTI stereo sequence; trajectory, map, objects, pictures and
+//! errors. `slam-app map`: inspect and export a saved map.
 
-use std::path::{Path, PathBuf};
+use std::{collections::BTreeMap, path::PathBuf};
 
 use anyhow::{bail, Context};
-use clap::Args;
-use nalgebra::Isometry3;
+use clap::{Args, ValueEnum};
+use nalgebra::{Matrix2, Point3, Vector2};
+use slam_core::{geometry::Ellipse2, DetectionSource, Image};
 use slam_dataset::{
-    kitti::odometry::OdometrySequence,
+    detections::{DetectionFile, GroundTruthDetections, GroundTruthNoise},
+    kitti::stereo::{open_stereo, Layout, StereoSequence},
     trajectory::{write_kitti_poses, write_tum},
 };
-use slam_frontend::{read_image, StereoRig, StereoVo, TrackStatus, VoConfig};
-use slam_quadric::Intrinsics;
+use slam_frontend::{draw_overlay, ellipse_outline, read_image, write_image, Overlay, StereoRig, StereoVo};
+use slam_pipeline::{
+    eval::trajectory_errors,
+    map::Map,
+    objects::MappedObject,
+    system::{self, FrameInput, FrameTimes, RunOutput},
+};
+use slam_quadric::{project, Camera, Ellipsoid, ImageSize, Intrinsics};
+
+use crate::{config::RunConfig, detect_cmd::ModelArgs};
+
+/// Where the boxes come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DetectorKind {
+    /// The shipped Yolo-Fastest detector (or the model given with --cfg/--weights/--onnx).
+    Dnn,
+    /// A detection JSON file (--detections; format in docs/detections.md).
+    File,
+    /// Ground-truth boxes from the sequence's labels (tracking layout), with --label-noise.
+    Labels,
+    /// No detector: odometry and map points only.
+    None,
+}
 
 #[derive(Args, Debug)]
 pub struct RunArgs {
-    /// A KITTI odometry sequence folder (`sequences/NN`, holding calib.txt, image_0, image_1) or a
-    /// dataset root holding `sequences/` (its first sequence is used). Default: the shipped sequence 06.
+    /// A KITTI stereo sequence: odometry (`sequences/NN` or a root with `sequences/`), raw drive
+    /// (`<date>/<drive>_sync`) or tracking (`training/image_02/NNNN`). Default: the shipped odometry
+    /// sequence 06, frames 0–50.
     path: Option<PathBuf>,
-    /// Output folder (trajectory.kitti.txt, trajectory.tum.txt)
+    /// Output folder
     #[arg(long, default_value = "out/run")]
     out: PathBuf,
-    /// Take a new keyframe after at most this many frames tracked against the current one
-    /// (1 = frame-to-frame odometry).
-    #[arg(long, default_value_t = VoConfig::default().keyframe_max_gap as u64, value_parser = clap::value_parser!(u64).range(1..))]
-    keyframe_gap: u64,
+    /// Settings file (TOML; see --print-config for every key and its default)
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Print the default settings as TOML and exit
+    #[arg(long)]
+    print_config: bool,
+    /// Take a new keyframe after at most this many frames (overrides tracking.keyframe_max_gap)
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    keyframe_gap: Option<u64>,
+    /// Turn local bundle adjustment off (overrides mapping.bundle_adjustment)
+    #[arg(long)]
+    no_ba: bool,
+    /// Detection source
+    #[arg(long, value_enum, default_value_t = DetectorKind::Dnn)]
+    detector: DetectorKind,
+    /// Detection JSON for --detector file
+    #[arg(long)]
+    detections: Option<PathBuf>,
+    /// Box noise (fraction of box size) for --detector labels
+    #[arg(long, default_value_t = 0.0)]
+    label_noise: f64,
+    /// Run the detector on every n-th frame only (overrides system.detect_every)
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    detect_every: Option<u64>,
+    /// Process at most this many frames
+    #[arg(long)]
+    max_frames: Option<usize>,
+    /// Write PNG overlays (detections, projected ellipsoids with ids, trails) into <out>/overlays
+    #[arg(long)]
+    overlays: bool,
+    /// With --overlays: every n-th frame
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    overlay_every: u64,
+    #[command(flatten)]
+    model: ModelArgs,
 }
 
-fn find_sequence(path: &Path) -> anyhow::Result<PathBuf> {
-    if path.join("calib.txt").is_file() && path.join("image_0").is_dir() {
-        return Ok(path.to_path_buf());
-    }
-    let seqs = path.join("sequences");
-    if seqs.is_dir() {
-        let mut v: Vec<PathBuf> = std::fs::read_dir(&seqs)
-            .with_context(|| format!("cannot list {}", seqs.display()))?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.join("calib.txt").is_file())
-            .collect();
-        v.sort();
-        if let Some(first) = v.into_iter().next() {
-            return Ok(first);
+/// COCO classes mapped as objects: person, bicycle, car, motorcycle, bus, truck.
+const OBJECT_CLASSES: [u16; 6] = [0, 1, 2, 3, 5, 7];
+
+fn detector(a: &RunArgs, seq: &StereoSequence) -> anyhow::Result<Option<Box<dyn DetectionSource>>> {
+    Ok(match a.detector {
+        DetectorKind::None => None,
+        DetectorKind::Dnn => {
+            let mut d = a.model.load().context("loading the detector")?;
+            d.set_classes(OBJECT_CLASSES.to_vec());
+            Some(Box::new(d))
         }
-    }
-    bail!("{} is not a KITTI odometry sequence (expected calib.txt and image_0/, or sequences/NN/)", path.display())
+        DetectorKind::File => {
+            let path = a.detections.as_ref().context("--detector file needs --detections <file.json>")?;
+            Some(Box::new(DetectionFile::read(path)?))
+        }
+        DetectorKind::Labels => {
+            let labels = seq.labels.as_ref().with_context(|| {
+                format!("--detector labels: {} has no labels (tracking layout with label_02/)", seq.dir.display())
+            })?;
+            let mut truth: BTreeMap<usize, Vec<slam_core::Detection>> = BTreeMap::new();
+            for l in labels.iter().filter(|l| !l.is_dont_care()) {
+                if let Some(c) = l.class {
+                    truth.entry(l.frame).or_default().push(slam_core::Detection::new(c, 1.0, l.bbox));
+                }
+            }
+            let noise = GroundTruthNoise { box_sigma: a.label_noise, ..GroundTruthNoise::default() };
+            Some(Box::new(GroundTruthDetections::new(truth, noise, [1242.0, 375.0])))
+        }
+    })
 }
 
-/// Translational and rotational error over all segments of about `length` metres: mean of
-/// `|t_err| / length` (%) and `angle_err / length` (deg/100 m), KITTI's relative-pose error.
-fn rpe(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], length: f64) -> Option<(f64, f64)> {
-    let n = est.len().min(gt.len());
-    let mut dist = vec![0.0; n];
-    for i in 1..n {
-        dist[i] = dist[i - 1] + (gt[i].translation.vector - gt[i - 1].translation.vector).norm();
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v[v.len() / 2]
     }
-    let (mut t_sum, mut r_sum, mut count) = (0.0, 0.0, 0usize);
-    for i in 0..n {
-        let Some(j) = (i..n).find(|&j| dist[j] - dist[i] >= length) else { break };
-        let d_gt = gt[i].inverse() * gt[j];
-        let d_est = est[i].inverse() * est[j];
-        let err = d_gt.inverse() * d_est;
-        t_sum += err.translation.vector.norm() / length;
-        r_sum += err.rotation.angle().to_degrees() / length;
-        count += 1;
-    }
-    (count > 0).then(|| (100.0 * t_sum / count as f64, 100.0 * r_sum / count as f64))
+}
+
+/// Median per stage, over the frames where the stage ran.
+fn stage_table(out: &RunOutput) -> Vec<(&'static str, f64, usize)> {
+    type Stage = (&'static str, fn(&FrameTimes) -> f64);
+    let stages: [Stage; 8] = [
+        ("detection (own thread)", |t| t.detection),
+        ("ORB extraction", |t| t.extraction),
+        ("stereo matching", |t| t.stereo),
+        ("tracking (match + PnP + BA2)", |t| t.tracking),
+        ("optical flow", |t| t.flow),
+        ("association", |t| t.association),
+        ("local BA (keyframes, mapping thread)", |t| t.bundle_adjustment),
+        ("object init + optimisation (keyframes)", |t| t.objects),
+    ];
+    stages
+        .iter()
+        .map(|(name, f)| {
+            let keyframe_only = name.contains("keyframes");
+            let mut v: Vec<f64> = out
+                .frames
+                .iter()
+                .filter(|r| r.state.is_some() && (!keyframe_only || r.keyframe))
+                .map(|r| f(&r.times))
+                .collect();
+            let n = v.len();
+            (*name, median(&mut v), n)
+        })
+        .collect()
 }
 
 pub fn run(a: &RunArgs) -> anyhow::Result<()> {
-    let path = a.path.clone().unwrap_or_else(|| crate::fixture("kitti_odom_06/sequences/06"));
-    let seq_dir = find_sequence(&path)?;
-    let seq = OdometrySequence::open(&seq_dir)?;
-    if seq.left.is_empty() {
-        bail!("no images in {}", seq_dir.join("image_0").display());
+    let mut cfg = match &a.config {
+        Some(p) => RunConfig::read(p)?,
+        None => RunConfig::default(),
+    };
+    if a.print_config {
+        print!("{}", cfg.to_toml());
+        return Ok(());
     }
-    let p0 = seq.p0;
-    let rig =
-        StereoRig { k: Intrinsics::new(p0[(0, 0)], p0[(1, 1)], p0[(0, 2)], p0[(1, 2)]), baseline: seq.baseline() };
+    if let Some(g) = a.keyframe_gap {
+        cfg.tracking.keyframe_max_gap = g as usize;
+    }
+    if a.no_ba {
+        cfg.mapping.bundle_adjustment = false;
+    }
+    if let Some(n) = a.detect_every {
+        cfg.system.detect_every = n as usize;
+    }
+    let path = a.path.clone().unwrap_or_else(|| crate::fixture("kitti_odom_06/sequences/06"));
+    let seq = open_stereo(&path)?;
+    let n = a.max_frames.unwrap_or(usize::MAX).min(seq.left.len());
+    let [fx, fy, cx, cy] = seq.intrinsics;
+    let k = Intrinsics::new(fx, fy, cx, cy);
+    let rig = StereoRig { k, baseline: seq.baseline };
     println!(
-        "Stereo odometry on {} ({} frames, fx {:.1}, baseline {:.4} m)",
-        seq_dir.display(),
+        "quadric SLAM on {} ({:?} layout, {n} of {} frames, fx {fx:.1}, baseline {:.4} m, detector {:?})",
+        seq.dir.display(),
+        seq.layout,
         seq.left.len(),
-        rig.k.fx,
-        rig.baseline
+        seq.baseline,
+        a.detector
     );
-    let mut vo = StereoVo::new(rig, VoConfig { keyframe_max_gap: a.keyframe_gap as usize, ..VoConfig::default() })?;
-    let bar = indicatif::ProgressBar::new(seq.left.len() as u64);
+    let colour = seq.layout != Layout::Odometry;
+    let first = read_image(&seq.left[0], colour).with_context(|| format!("first frame {}", seq.left[0].display()))?;
+    let image = ImageSize::new(first.width as f64, first.height as f64);
+    let tracker = Box::new(StereoVo::new(rig, cfg.tracking.vo())?);
+    let det = detector(a, &seq)?;
+    let pairs: Vec<(usize, PathBuf, PathBuf)> =
+        (0..n).map(|i| (i, seq.left[i].clone(), seq.right[i].clone())).collect();
+    let frames = Box::new(pairs.into_iter().map(move |(i, l, r)| {
+        let images = read_image(&l, colour)
+            .and_then(|li| read_image(&r, colour).map(|ri| (li, ri)))
+            .map_err(|e| e.to_string())
+            .and_then(|(li, ri)| {
+                if (li.width, li.height) != (ri.width, ri.height) {
+                    Err(format!("left {}×{} and right {}×{} differ", li.width, li.height, ri.width, ri.height))
+                } else {
+                    Ok((li, ri))
+                }
+            });
+        FrameInput { index: i, images }
+    }));
+    let bar = indicatif::ProgressBar::new(n as u64);
     bar.set_style(
-        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames {per_sec} eta {eta}")
+        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames {per_sec} eta {eta} {msg}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let mut poses = Vec::with_capacity(seq.left.len());
-    let (mut lost, mut unreadable) = (0usize, 0usize);
-    let mut timings: Vec<[f64; 3]> = Vec::new();
     let start = std::time::Instant::now();
-    let mut last = Isometry3::identity();
-    let mut keyframes = 0usize;
-    for (i, (l, r)) in seq.left.iter().zip(&seq.right).enumerate() {
-        let pair = read_image(l, false).and_then(|li| read_image(r, false).map(|ri| (li, ri)));
-        let (li, ri) = match pair {
-            Ok(p) => p,
-            Err(e) => {
-                // keep one pose per frame: repeat the last pose, and say so
-                tracing::warn!("frame {i}: {e}; pose held");
-                unreadable += 1;
-                poses.push(last);
-                bar.inc(1);
-                continue;
-            }
-        };
-        let f = vo.process(&li, &ri).with_context(|| format!("frame {i}"))?;
-        if f.status == TrackStatus::Lost {
-            lost += 1;
-            tracing::warn!("frame {i}: tracking lost; constant-velocity pose");
+    let mut on_frame = |r: &system::FrameRecord| {
+        if r.keyframe {
+            bar.set_message(format!("kf at {}", r.index));
         }
-        timings.push(f.timings_ms);
-        keyframes += usize::from(f.keyframe);
-        last = f.world_from_camera;
-        poses.push(last);
         bar.inc(1);
-    }
+    };
+    let out = system::run(frames, tracker, det, k, seq.baseline, &cfg.system(image), &mut on_frame)?;
     bar.finish_and_clear();
     let elapsed = start.elapsed().as_secs_f64();
     std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
-    write_kitti_poses(a.out.join("trajectory.kitti.txt"), &poses)?;
-    write_tum(
-        a.out.join("trajectory.tum.txt"),
-        &seq.times[..poses.len().min(seq.times.len())],
-        &poses[..poses.len().min(seq.times.len())],
-    )?;
-    let median = |k: usize| {
-        let mut v: Vec<f64> = timings.iter().map(|t| t[k]).collect();
-        v.sort_by(|a, b| a.total_cmp(b));
-        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
-    };
+    write_kitti_poses(a.out.join("trajectory.kitti.txt"), &out.poses)?;
+    let m = out.poses.len().min(seq.times.len());
+    write_tum(a.out.join("trajectory.tum.txt"), &seq.times[..m], &out.poses[..m])?;
+    out.map.save(&a.out.join("map.json"))?;
+    let objects: Vec<&MappedObject> = out.objects.iter().collect();
+    slam_pipeline::objects::write_object_map(&a.out.join("objects.json"), &objects)
+        .with_context(|| format!("writing {}", a.out.join("objects.json").display()))?;
+    let c = out.counts;
     println!(
-        "{} frames in {:.2} s ({:.1} frames/s incl. image decoding); keyframes {keyframes}, lost {lost}, unreadable {unreadable}",
-        poses.len(),
-        elapsed,
-        poses.len() as f64 / elapsed
+        "{} frames in {elapsed:.2} s: {:.1} frames/s (all threads, incl. image decoding)",
+        c.frames,
+        c.frames as f64 / elapsed
     );
     println!(
-        "median ms per frame: extraction {:.1}, stereo matching {:.1}, tracking {:.1}",
-        median(0),
-        median(1),
-        median(2)
+        "keyframes {}, lost {}, relocalised {}, new map segments {}, unreadable {}, detector errors {}, culled observations {}",
+        c.keyframes, c.lost, c.relocalised, c.new_segments, c.unreadable, c.detector_errors, c.culled_observations
     );
+    let st = out.map.stats();
+    let dets: usize = out.frames.iter().map(|f| f.detections.len()).sum();
+    println!(
+        "map: {} keyframes, {} points, {} observations; objects: {} with an ellipsoid ({} dynamic) from {dets} detections",
+        st.keyframes, st.points, st.observations, st.objects, st.dynamic_objects
+    );
+    println!("\n| stage | median ms | frames |\n|---|---:|---:|");
+    for (name, ms, count) in stage_table(&out) {
+        println!("| {name} | {ms:.1} | {count} |");
+    }
     if let Some(gt) = &seq.ground_truth {
-        let n = gt.len().min(poses.len());
-        let ate = (poses[..n]
-            .iter()
-            .zip(&gt[..n])
-            .map(|(e, g)| (e.translation.vector - g.translation.vector).norm_squared())
-            .sum::<f64>()
-            / n as f64)
-            .sqrt();
-        let path_len: f64 =
-            gt[..n].windows(2).map(|w| (w[1].translation.vector - w[0].translation.vector).norm()).sum();
-        let end = (poses[n - 1].translation.vector - gt[n - 1].translation.vector).norm();
-        println!(
-            "ground truth: path {path_len:.1} m; ATE (RMS, world = first frame) {ate:.3} m; end-point drift {:.2} %",
-            100.0 * end / path_len
-        );
-        for len in [10.0, 20.0, 40.0] {
-            if let Some((t, r)) = rpe(&poses[..n], &gt[..n], len) {
-                println!("RPE over {len:.0} m segments: {t:.2} % translation, {r:.2} deg/100 m");
+        if let Some(e) = trajectory_errors(&out.poses, gt, &[10.0, 20.0, 40.0]) {
+            println!(
+                "\nground truth: path {:.1} m over {} frames; ATE {:.3} m (aligned {:.3} m); end-point drift {:.2} %",
+                e.path_m, e.frames, e.ate_m, e.ate_aligned_m, e.end_drift_pct
+            );
+            for (len, t, r, count) in e.rpe {
+                println!("RPE over {len:.0} m segments ({count}): {t:.2} % translation, {r:.2} deg/100 m");
             }
         }
     }
+    let pictures = pictures(a, &seq, &out, k, image, colour)?;
     println!(
-        "wrote {} and {}",
-        a.out.join("trajectory.kitti.txt").display(),
-        a.out.join("trajectory.tum.txt").display()
+        "\nwrote {}: trajectory.kitti.txt, trajectory.tum.txt, map.json, objects.json, {pictures}",
+        a.out.display()
     );
     Ok(())
+}
+
+/// Top-view outline (x, z) of an ellipsoid: its orthographic projection along y.
+fn footprint(e: &Ellipsoid) -> Vec<[f64; 2]> {
+    let r = e.rotation();
+    let s = r * nalgebra::Matrix3::from_diagonal(&e.semi_axes.map(|a| a * a)) * r.transpose();
+    let c = e.centre();
+    let shape = Matrix2::new(s[(0, 0)], s[(0, 2)], s[(2, 0)], s[(2, 2)]);
+    ellipse_outline(&Ellipse2 { centre: Vector2::new(c.x, c.z), shape }, 48)
+}
+
+fn pictures(
+    a: &RunArgs,
+    seq: &StereoSequence,
+    out: &RunOutput,
+    k: Intrinsics,
+    image: ImageSize,
+    colour: bool,
+) -> anyhow::Result<String> {
+    let xz = |p: &nalgebra::Isometry3<f64>| [p.translation.vector.x, p.translation.vector.z];
+    let estimate: Vec<[f64; 2]> = out.poses.iter().map(xz).collect();
+    let truth: Option<Vec<[f64; 2]>> =
+        seq.ground_truth.as_ref().map(|g| g.iter().take(out.poses.len()).map(xz).collect());
+    let points: Vec<[f64; 2]> = out.map.points.values().map(|p| [p.position[0], p.position[2]]).collect();
+    let objects: Vec<(Vec<[f64; 2]>, u64, bool)> =
+        out.objects.iter().filter_map(|o| o.ellipsoid.as_ref().map(|e| (footprint(e), o.id.0, o.dynamic))).collect();
+    crate::plot::topdown_figure(
+        &crate::plot::TopDown { estimate: &estimate, truth: truth.as_deref(), points: &points, objects: &objects },
+        &a.out,
+        "map",
+    )?;
+    let mut written = "map.svg, map.png".to_string();
+    if !a.overlays {
+        return Ok(written);
+    }
+    let dir = a.out.join("overlays");
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let mut count = 0;
+    for (i, rec) in out.frames.iter().enumerate() {
+        if i as u64 % a.overlay_every != 0 || rec.state.is_none() {
+            continue;
+        }
+        let img: Image = match read_image(&seq.left[rec.index], colour) {
+            Ok(img) => img,
+            Err(e) => {
+                tracing::warn!("overlay of frame {}: {e}", rec.index);
+                continue;
+            }
+        };
+        let overlay = frame_overlay(out, i, k, image);
+        write_image(dir.join(format!("{:06}.png", rec.index)), &draw_overlay(&img, &overlay)?)?;
+        count += 1;
+    }
+    written.push_str(&format!(", {count} overlays in overlays/"));
+    Ok(written)
+}
+
+/// The overlay of frame `i`: detections (thin, coloured by object), projected ellipsoids with ids (dynamic
+/// objects red), and each object's past centroids as a trail.
+fn frame_overlay(out: &RunOutput, i: usize, k: Intrinsics, image: ImageSize) -> Overlay {
+    let rec = &out.frames[i];
+    let camera = Camera::new(k, out.poses[i]);
+    let colour_of = |id: u64| -> [u8; 3] {
+        let h = id.wrapping_mul(2654435761) % 360;
+        let (r, g, b) = match h / 60 {
+            0 => (255, (h % 60 * 4) as u8, 0),
+            1 => (255 - (h % 60 * 4) as u8, 255, 0),
+            2 => (0, 255, (h % 60 * 4) as u8),
+            3 => (0, 255 - (h % 60 * 4) as u8, 255),
+            4 => ((h % 60 * 4) as u8, 0, 255),
+            _ => (255, 0, 255 - (h % 60 * 4) as u8),
+        };
+        [b, g, r]
+    };
+    let red = [40, 40, 230];
+    let mut o = Overlay::default();
+    for (d, t) in rec.detections.iter().zip(&rec.tracks) {
+        let c = t.map(|id| colour_of(id.0)).unwrap_or([200, 200, 200]);
+        o.boxes.push((d.bbox, c, String::new()));
+    }
+    let from_world = camera.world_from_camera.inverse();
+    for obj in &out.objects {
+        let seen_now = obj.observations.iter().any(|x| x.frame == rec.index);
+        let c = if obj.dynamic { red } else { colour_of(obj.id.0) };
+        if let Some(e) = &obj.ellipsoid {
+            if let Ok(conic) = project(e, &camera) {
+                if let Some(ell) = conic.ellipse() {
+                    let outline = ellipse_outline(&ell, 64);
+                    let on_screen =
+                        outline.iter().any(|p| p[0] >= 0.0 && p[0] < image.width && p[1] >= 0.0 && p[1] < image.height);
+                    if on_screen && (seen_now || (from_world * Point3::from(e.centre())).z < 40.0) {
+                        o.lines.push((outline, true, c, 2));
+                        o.labels.push(([ell.centre.x - 8.0, ell.centre.y + 5.0], c, format!("{}", obj.id.0)));
+                    }
+                }
+            }
+        }
+        // trail: the object's centroids (from map points) up to this frame, projected
+        let trail: Vec<[f64; 2]> = obj
+            .observations
+            .iter()
+            .filter(|x| x.frame <= rec.index)
+            .filter_map(|x| x.centroid)
+            .filter_map(|p| {
+                let q = from_world * Point3::from(p);
+                (q.z > 0.5).then(|| [k.fx * q.x / q.z + k.cx, k.fy * q.y / q.z + k.cy])
+            })
+            .collect();
+        if seen_now && trail.len() >= 2 {
+            o.lines.push((trail.clone(), false, c, 1));
+        }
+        if seen_now {
+            for p in trail {
+                o.dots.push((p, c, 2));
+            }
+        }
+    }
+    o
+}
+
+#[derive(Args, Debug)]
+pub struct MapArgs {
+    /// A map file written by `slam-app run` (map.json)
+    map: PathBuf,
+    /// Export the map points as a PLY point cloud
+    #[arg(long)]
+    ply: Option<PathBuf>,
+    /// Export the per-frame trajectory (KITTI format)
+    #[arg(long)]
+    trajectory: Option<PathBuf>,
+    /// Draw the top-down map (SVG + PNG) into this folder
+    #[arg(long)]
+    picture: Option<PathBuf>,
+}
+
+pub fn map(a: &MapArgs) -> anyhow::Result<()> {
+    let map = Map::load(&a.map)?;
+    let s = map.stats();
+    println!("{} (format {} v{})", a.map.display(), map.format, map.version);
+    println!(
+        "frames {}, keyframes {} in {} segment(s), keyframe path {:.1} m, points {}, observations {} ({:.1} per point), objects {} ({} dynamic)",
+        s.frames,
+        s.keyframes,
+        s.segments,
+        s.keyframe_path_m,
+        s.points,
+        s.observations,
+        s.observations as f64 / s.points.max(1) as f64,
+        s.objects,
+        s.dynamic_objects
+    );
+    for o in &map.objects {
+        println!(
+            "object {:>3} class {:>2} centre [{:7.2} {:6.2} {:7.2}] semi-axes [{:.2} {:.2} {:.2}] frames {:>3}{}",
+            o.id,
+            o.class,
+            o.center[0],
+            o.center[1],
+            o.center[2],
+            o.semi_axes[0],
+            o.semi_axes[1],
+            o.semi_axes[2],
+            o.frames.len(),
+            if o.dynamic { " dynamic" } else { "" }
+        );
+    }
+    if let Some(p) = &a.ply {
+        map.export_ply(p)?;
+        println!("wrote {}", p.display());
+    }
+    let poses: Vec<nalgebra::Isometry3<f64>> = map.frame_poses().into_iter().flatten().collect();
+    if let Some(p) = &a.trajectory {
+        if poses.len() != map.trajectory.len() {
+            bail!("{}: {} frames refer to missing keyframes", a.map.display(), map.trajectory.len() - poses.len());
+        }
+        write_kitti_poses(p, &poses)?;
+        println!("wrote {}", p.display());
+    }
+    if let Some(dir) = &a.picture {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        let estimate: Vec<[f64; 2]> = poses.iter().map(|p| [p.translation.vector.x, p.translation.vector.z]).collect();
+        let points: Vec<[f64; 2]> = map.points.values().map(|p| [p.position[0], p.position[2]]).collect();
+        let objects: Vec<(Vec<[f64; 2]>, u64, bool)> = map
+            .objects
+            .iter()
+            .map(|o| {
+                let r = nalgebra::Matrix3::from_row_slice(&o.rotation);
+                let e = Ellipsoid::new(
+                    slam_quadric::se3::isometry_from_parts(&r, &nalgebra::Vector3::from(o.center)),
+                    nalgebra::Vector3::from(o.semi_axes),
+                );
+                (footprint(&e), o.id, o.dynamic)
+            })
+            .collect();
+        let files = crate::plot::topdown_figure(
+            &crate::plot::TopDown { estimate: &estimate, truth: None, points: &points, objects: &objects },
+            dir,
+            "map",
+        )?;
+        for f in files {
+            println!("wrote {}", f.display());
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn footprint_of_a_turned_ellipsoid() {
+        let e = Ellipsoid::new(
+            nalgebra::Isometry3::from_parts(
+                nalgebra::Translation3::new(2.0, 1.0, 10.0),
+                nalgebra::UnitQuaternion::from_axis_angle(&nalgebra::Vector3::y_axis(), std::f64::consts::FRAC_PI_2),
+            ),
+            nalgebra::Vector3::new(2.0, 0.8, 1.0),
+        );
+        let f = footprint(&e);
+        // turned 90° about y: the length (2 m) now runs along z, the width (1 m) along x
+        let (xs, zs): (Vec<f64>, Vec<f64>) = f.iter().map(|p| (p[0], p[1])).unzip();
+        let span = |v: &[f64]| v.iter().cloned().fold(f64::MIN, f64::max) - v.iter().cloned().fold(f64::MAX, f64::min);
+        assert!((span(&xs) - 2.0).abs() < 0.01 && (span(&zs) - 4.0).abs() < 0.01, "{} {}", span(&xs), span(&zs));
+    }
 }

@@ -115,53 +115,107 @@ fn objects_writes_the_object_map() {
     assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("/no/such/seq"));
 }
 
+/// A number printed after `key` in `text`.
+fn number_after(text: &str, key: &str) -> f64 {
+    text.split(key)
+        .nth(1)
+        .and_then(|s| s.split(|c: char| c.is_whitespace() || c == ',').find(|w| !w.is_empty()))
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("`{key}` not followed by a number in:\n{text}"))
+}
+
 #[test]
 fn run_on_the_shipped_sequence() {
     let out = std::env::temp_dir().join(format!("slam-app-run-{}", std::process::id()));
-    let o = app().args(["run", "--out"]).arg(&out).output().expect("runs");
+    let o = app().args(["run", "--overlays", "--overlay-every", "25", "--out"]).arg(&out).output().expect("runs");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8_lossy(&o.stdout);
-    let ate: f64 = text
-        .split("ATE (RMS, world = first frame) ")
-        .nth(1)
-        .and_then(|s| s.split_whitespace().next())
-        .and_then(|s| s.parse().ok())
-        .expect("ATE printed");
-    assert!(ate < 1.5, "{text}");
-    let keyframes = |text: &str| -> usize {
-        text.split("keyframes ")
-            .nth(1)
-            .and_then(|s| s.split(',').next())
-            .and_then(|s| s.parse().ok())
-            .expect("keyframe count printed")
-    };
+    assert!(number_after(&text, "ATE ") < 1.5, "{text}");
+    assert!(number_after(&text, "(aligned ") < 0.6, "{text}");
     // at most 4 frames per keyframe by default, and fewer keyframes than frames
-    let kf = keyframes(&text);
+    let kf = number_after(&text, "keyframes ") as usize;
     assert!((13..51).contains(&kf), "{text}");
-    // --keyframe-gap 1 is frame-to-frame odometry: every frame is a keyframe
-    let o1 = app().args(["run", "--keyframe-gap", "1", "--out"]).arg(out.join("f2f")).output().expect("runs");
-    assert!(o1.status.success(), "{}", String::from_utf8_lossy(&o1.stderr));
-    assert_eq!(keyframes(&String::from_utf8_lossy(&o1.stdout)), 51);
-    let bad = app().args(["run", "--keyframe-gap", "0"]).output().expect("runs");
-    assert!(!bad.status.success());
+    // the stage table and the object count are printed; the detector found and mapped objects
+    assert!(text.contains("| local BA (keyframes, mapping thread) |") && text.contains("| association |"), "{text}");
+    assert!(number_after(&text, "objects: ") >= 3.0, "{text}");
     let kitti = std::fs::read_to_string(out.join("trajectory.kitti.txt")).expect("kitti");
     assert_eq!(kitti.lines().count(), 51);
     let tum = std::fs::read_to_string(out.join("trajectory.tum.txt")).expect("tum");
     assert_eq!(tum.lines().count(), 51);
     assert!(tum.lines().all(|l| l.split_whitespace().count() == 8));
+    let objects: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("objects.json")).expect("objects")).expect("json");
+    assert_eq!(objects["version"], 1);
+    let first = &objects["objects"][0];
+    for key in ["id", "class", "center", "semi_axes", "rotation", "frames", "dynamic"] {
+        assert!(!first[key].is_null(), "{key} missing: {first}");
+    }
+    for f in ["map.json", "map.svg", "map.png", "overlays/000000.png", "overlays/000025.png", "overlays/000050.png"] {
+        assert!(out.join(f).is_file(), "{f} written");
+    }
+    // the saved map loads, is inspected and exported
+    let m = app()
+        .arg("map")
+        .arg(out.join("map.json"))
+        .arg("--ply")
+        .arg(out.join("points.ply"))
+        .arg("--trajectory")
+        .arg(out.join("again.txt"))
+        .output()
+        .expect("runs");
+    assert!(m.status.success(), "{}", String::from_utf8_lossy(&m.stderr));
+    let mt = String::from_utf8_lossy(&m.stdout);
+    assert_eq!(number_after(&mt, "keyframes ") as usize, kf, "{mt}");
+    assert!(std::fs::read_to_string(out.join("points.ply")).expect("ply").starts_with("ply\n"));
+    assert_eq!(
+        std::fs::read_to_string(out.join("again.txt")).expect("traj"),
+        kitti,
+        "the map reproduces the trajectory"
+    );
+    // --keyframe-gap 1 is frame-to-frame odometry: every frame is a keyframe
+    let o1 = app()
+        .args(["run", "--detector", "none", "--keyframe-gap", "1", "--out"])
+        .arg(out.join("f2f"))
+        .output()
+        .expect("runs");
+    assert!(o1.status.success(), "{}", String::from_utf8_lossy(&o1.stderr));
+    assert_eq!(number_after(&String::from_utf8_lossy(&o1.stdout), "keyframes ") as usize, 51);
+    let bad = app().args(["run", "--keyframe-gap", "0"]).output().expect("runs");
+    assert!(!bad.status.success());
+    // settings: the defaults print as TOML, a file overrides them, an unknown key is an error naming the file
+    let p = app().args(["run", "--print-config"]).output().expect("runs");
+    let toml_text = String::from_utf8_lossy(&p.stdout);
+    assert!(toml_text.contains("[tracking]") && toml_text.contains("[mapping]") && toml_text.contains("[objects]"));
+    std::fs::write(out.join("gap2.toml"), "[tracking]\nkeyframe_max_gap = 1\n").expect("toml");
+    let o2 = app()
+        .args(["run", "--detector", "none", "--max-frames", "12", "--config"])
+        .arg(out.join("gap2.toml"))
+        .arg("--out")
+        .arg(out.join("cfg"))
+        .output()
+        .expect("runs");
+    assert!(o2.status.success(), "{}", String::from_utf8_lossy(&o2.stderr));
+    assert_eq!(number_after(&String::from_utf8_lossy(&o2.stdout), "keyframes ") as usize, 12);
+    std::fs::write(out.join("typo.toml"), "[tracking]\nkeyframe_gap = 1\n").expect("toml");
+    let o3 = app().args(["run", "--config"]).arg(out.join("typo.toml")).output().expect("runs");
+    let err = String::from_utf8_lossy(&o3.stderr);
+    assert!(!o3.status.success() && err.contains("typo.toml") && err.contains("keyframe_gap"), "{err}");
 }
 
 #[test]
-fn run_survives_missing_corrupt_and_black_frames() {
-    // a copy of the sequence with frame 10 missing on the right, frame 20 corrupt, frame 30 black
+fn run_survives_missing_corrupt_and_black_frames_and_a_jump() {
+    // a copy of the sequence with frame 10 missing on the right, frame 20 corrupt, frame 25 black, and
+    // a jump after frame 32 (the next input frames are source frames 42–50: about 11 m ahead)
     let src = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06"));
     let dst = std::env::temp_dir().join(format!("slam-app-broken-{}", std::process::id()));
     let seq = dst.join("sequences/06");
+    let source_of = |i: usize| if i <= 32 { i } else { i + 9 };
     for d in ["image_0", "image_1"] {
         std::fs::create_dir_all(seq.join(d)).expect("dir");
-        for i in 0..40 {
-            let name = format!("{i:06}.png");
-            std::fs::copy(src.join("sequences/06").join(d).join(&name), seq.join(d).join(&name)).expect("copy");
+        for i in 0..42 {
+            let from = format!("{:06}.png", source_of(i));
+            std::fs::copy(src.join("sequences/06").join(d).join(&from), seq.join(d).join(format!("{i:06}.png")))
+                .expect("copy");
         }
     }
     std::fs::copy(src.join("sequences/06/calib.txt"), seq.join("calib.txt")).expect("calib");
@@ -169,14 +223,27 @@ fn run_survives_missing_corrupt_and_black_frames() {
     std::fs::write(seq.join("image_0/000020.png"), b"\x89PNG\r\n\x1a\ngarbage").expect("corrupt");
     // black frame: write a black PNG through the app's own image writer
     let black = slam_core::Image::new(1226, 370, 1, vec![0; 1226 * 370]).expect("image");
-    slam_frontend::write_image(seq.join("image_0/000030.png"), &black).expect("black");
-    slam_frontend::write_image(seq.join("image_1/000030.png"), &black).expect("black");
-    let o = app().args(["run"]).arg(&seq).arg("--out").arg(dst.join("out")).output().expect("runs");
+    slam_frontend::write_image(seq.join("image_0/000025.png"), &black).expect("black");
+    slam_frontend::write_image(seq.join("image_1/000025.png"), &black).expect("black");
+    let o =
+        app().args(["run", "--detector", "none"]).arg(&seq).arg("--out").arg(dst.join("out")).output().expect("runs");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8_lossy(&o.stdout);
-    assert!(text.contains("unreadable 2"), "{text}");
+    assert_eq!(number_after(&text, "unreadable ") as usize, 2, "{text}");
+    // the black frame is lost (no features), the jump is either relocalised or starts a new segment
+    assert!(number_after(&text, "lost ") >= 1.0, "{text}");
+    assert!(number_after(&text, "relocalised ") + number_after(&text, "new map segments ") >= 1.0, "{text}");
     let kitti = std::fs::read_to_string(dst.join("out/trajectory.kitti.txt")).expect("kitti");
-    assert_eq!(kitti.lines().count(), 40, "one pose per input frame");
+    assert_eq!(kitti.lines().count(), 42, "one pose per input frame");
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("frame 10") && err.contains("frame 20"), "{err}");
+    assert!(err.contains("frame=10") && err.contains("frame=20"), "{err}");
+    // after the jump the poses continue about 11 m further on (ground truth: source frames 42…)
+    let gt: Vec<f64> = std::fs::read_to_string(src.join("poses/06.txt"))
+        .expect("gt")
+        .lines()
+        .map(|l| l.split_whitespace().nth(11).and_then(|v| v.parse().ok()).expect("z"))
+        .collect();
+    let z_last: f64 =
+        kitti.lines().last().and_then(|l| l.split_whitespace().nth(11)).and_then(|v| v.parse().ok()).expect("z");
+    assert!((z_last - gt[50]).abs() < 3.0, "last z {z_last:.1} m vs ground truth {:.1} m\n{text}", gt[50]);
 }

@@ -11,6 +11,7 @@ pub mod assoc;
 pub mod detection;
 pub mod rng;
 pub mod source;
+pub mod tracking;
 
 /// The geometry crate, re-exported so that users of the seams need one dependency.
 pub use slam_quadric as geometry;
@@ -18,6 +19,10 @@ pub use slam_quadric as geometry;
 pub use assoc::{Assignment, AssociationInput, Associator, PointPair, TrackView};
 pub use detection::{ClassId, Detection, Mask, Region, TrackId};
 pub use source::{DetectError, DetectionSource, Image};
+pub use tracking::{
+    KeyframeCorrection, KeyframeData, KeyframeId, KeyframePoint, PointId, StageTimes, StereoTracker, TrackError,
+    TrackState, TrackedFrame,
+};
 
 /// Common types, meant to be glob-imported: `use slam_core::prelude::*;`.
 pub mod prelude {

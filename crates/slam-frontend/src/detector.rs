@@ -172,9 +172,20 @@ impl DnnDetector {
         Ok(dets)
     }
 
+    /// Keep only these classes (COCO indices; empty = all).
+    pub fn set_classes(&mut self, classes: Vec<u16>) {
+        self.config.classes = classes;
+    }
+
     /// Detect objects in an image.
     pub fn detect_image(&mut self, image: &Image) -> Result<Vec<Detection>, FrontendError> {
-        let mat = image_to_mat(image)?;
+        let mut mat = image_to_mat(image)?;
+        if mat.channels() == 1 {
+            // grey sequences (KITTI odometry image_0/1): the network wants three channels
+            let mut bgr = Mat::default();
+            opencv::imgproc::cvt_color_def(&mat, &mut bgr, opencv::imgproc::COLOR_GRAY2BGR)?;
+            mat = bgr;
+        }
         let (w, h) = (mat.cols(), mat.rows());
         let mut all = Vec::new();
         match self.config.mode {
@@ -191,6 +202,13 @@ impl DnnDetector {
                     let roi = Mat::roi(&mat, core::Rect::new(x0, 0, tw, h))?.try_clone()?;
                     for mut d in self.run_crop(&roi, true)? {
                         let b = d.bbox;
+                        // a box cut by an inner tile edge is a partial object: the neighbouring tile or the
+                        // whole-frame pass sees it whole
+                        let cut_left = x0 > 0 && b.xmin <= 2.0;
+                        let cut_right = x0 + tw < w && b.xmax >= tw as f64 - 2.0;
+                        if cut_left || cut_right {
+                            continue;
+                        }
                         d.bbox = BBox::new(b.xmin + x0 as f64, b.ymin, b.xmax + x0 as f64, b.ymax);
                         all.push(d);
                     }

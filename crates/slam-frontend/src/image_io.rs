@@ -126,3 +126,95 @@ pub fn draw_detections(
     }
     mat_to_image(&m)
 }
+
+/// A polyline of an [`Overlay`]: points, `closed` when the last point joins the first, BGR colour, line
+/// width.
+pub type Polyline = (Vec<[f64; 2]>, bool, [u8; 3], i32);
+
+/// What [`draw_overlay`] draws: boxes, closed or open polylines, points and labels, in BGR colours.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Overlay {
+    /// Boxes with colour and label.
+    pub boxes: Vec<(slam_core::geometry::BBox, [u8; 3], String)>,
+    /// Polylines.
+    pub lines: Vec<Polyline>,
+    /// Labels at pixel positions.
+    pub labels: Vec<([f64; 2], [u8; 3], String)>,
+    /// Filled dots (position, colour, radius).
+    pub dots: Vec<([f64; 2], [u8; 3], i32)>,
+}
+
+/// Points along an image ellipse (`(x − c)ᵀ E⁻¹ (x − c) = 1`), for drawing; empty when the shape is not
+/// positive definite.
+pub fn ellipse_outline(e: &slam_core::geometry::Ellipse2, samples: usize) -> Vec<[f64; 2]> {
+    let eig = e.shape.symmetric_eigen();
+    if eig.eigenvalues.iter().any(|l| l.is_nan() || *l <= 0.0 || !l.is_finite()) {
+        return Vec::new();
+    }
+    let (a, b) = (eig.eigenvalues[0].sqrt(), eig.eigenvalues[1].sqrt());
+    let (v0, v1) = (eig.eigenvectors.column(0), eig.eigenvectors.column(1));
+    (0..samples)
+        .map(|i| {
+            let t = std::f64::consts::TAU * i as f64 / samples as f64;
+            let p = e.centre + v0 * (a * t.cos()) + v1 * (b * t.sin());
+            [p.x, p.y]
+        })
+        .collect()
+}
+
+/// Draw an [`Overlay`] on a copy of an image (grey images become colour).
+pub fn draw_overlay(image: &Image, overlay: &Overlay) -> Result<Image, FrontendError> {
+    use opencv::imgproc;
+    let mut m = image_to_mat(image)?;
+    if m.channels() == 1 {
+        let mut c = Mat::default();
+        imgproc::cvt_color_def(&m, &mut c, imgproc::COLOR_GRAY2BGR)?;
+        m = c;
+    }
+    let colour = |c: [u8; 3]| core::Scalar::new(c[0] as f64, c[1] as f64, c[2] as f64, 0.0);
+    let clamp = |v: f64| v.clamp(-1.0e5, 1.0e5) as i32;
+    for (pts, closed, c, width) in &overlay.lines {
+        let v: core::Vector<core::Point> = pts.iter().map(|p| core::Point::new(clamp(p[0]), clamp(p[1]))).collect();
+        if v.len() >= 2 {
+            let mut all = core::Vector::<core::Vector<core::Point>>::new();
+            all.push(v);
+            imgproc::polylines(&mut m, &all, *closed, colour(*c), *width, imgproc::LINE_AA, 0)?;
+        }
+    }
+    for (p, c, r) in &overlay.dots {
+        imgproc::circle(&mut m, core::Point::new(clamp(p[0]), clamp(p[1])), *r, colour(*c), -1, imgproc::LINE_AA, 0)?;
+    }
+    for (b, c, label) in &overlay.boxes {
+        let rect = core::Rect::new(clamp(b.xmin), clamp(b.ymin), b.width().max(1.0) as i32, b.height().max(1.0) as i32);
+        imgproc::rectangle(&mut m, rect, colour(*c), 1, imgproc::LINE_8, 0)?;
+        if !label.is_empty() {
+            let org = core::Point::new(clamp(b.xmin), (clamp(b.ymin) - 4).max(12));
+            imgproc::put_text(
+                &mut m,
+                label,
+                org,
+                imgproc::FONT_HERSHEY_SIMPLEX,
+                0.45,
+                colour(*c),
+                1,
+                imgproc::LINE_AA,
+                false,
+            )?;
+        }
+    }
+    for (p, c, label) in &overlay.labels {
+        let org = core::Point::new(clamp(p[0]), clamp(p[1]));
+        imgproc::put_text(
+            &mut m,
+            label,
+            org,
+            imgproc::FONT_HERSHEY_SIMPLEX,
+            0.55,
+            colour(*c),
+            2,
+            imgproc::LINE_AA,
+            false,
+        )?;
+    }
+    mat_to_image(&m)
+}

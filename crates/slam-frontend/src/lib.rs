@@ -11,5 +11,5 @@ pub mod image_io;
 pub mod stereo_vo;
 
 pub use detector::{DetectorConfig, DnnDetector, InputMode};
-pub use image_io::{draw_detections, read_image, write_image, FrontendError};
-pub use stereo_vo::{StereoRig, StereoVo, TrackStatus, VoConfig, VoFrame};
+pub use image_io::{draw_detections, draw_overlay, ellipse_outline, read_image, write_image, FrontendError, Overlay};
+pub use stereo_vo::{StereoRig, StereoVo, VoConfig};

@@ -9,7 +9,10 @@ use std::time::Instant;
 
 use nalgebra::{Isometry3, Matrix3, Vector3};
 use opencv::{calib3d, core, features2d, prelude::*};
-use slam_core::Image;
+use slam_core::{
+    geometry::BBox, Image, KeyframeCorrection, KeyframeData, KeyframeId, KeyframePoint, PointId, PointPair, StageTimes,
+    StereoTracker, TrackError, TrackState, TrackedFrame,
+};
 use slam_optim::{
     factors::{MonoReprojection, StereoReprojection},
     Graph, Huber, LevenbergMarquardt, LmParams, NoiseModel, Values, Var,
@@ -51,6 +54,8 @@ pub struct VoConfig {
     pub keyframe_inlier_ratio: f64,
     /// ... or when this many frames have been tracked against it.
     pub keyframe_max_gap: usize,
+    /// Most keypoints followed by optical flow per detection box (association cue).
+    pub flow_points_per_region: usize,
 }
 
 impl Default for VoConfig {
@@ -66,37 +71,9 @@ impl Default for VoConfig {
             min_inliers: 30,
             keyframe_inlier_ratio: 0.5,
             keyframe_max_gap: 4,
+            flow_points_per_region: 40,
         }
     }
-}
-
-/// Tracking outcome of a frame.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum TrackStatus {
-    /// The first frame (the world origin).
-    Initialised,
-    /// Tracked against the current keyframe.
-    Tracked {
-        /// PnP inliers.
-        inliers: usize,
-    },
-    /// Tracking failed; the pose is the constant-velocity prediction.
-    Lost,
-}
-
-/// Result of one frame.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct VoFrame {
-    /// Pose of the left camera (world = first frame's left camera).
-    pub world_from_camera: Isometry3<f64>,
-    /// What happened.
-    pub status: TrackStatus,
-    /// Stereo points of this frame.
-    pub stereo_points: usize,
-    /// This frame became the keyframe that the next frames are tracked against.
-    pub keyframe: bool,
-    /// Milliseconds spent in feature extraction, stereo matching, tracking (matching + PnP + refinement).
-    pub timings_ms: [f64; 3],
 }
 
 struct Frame {
@@ -106,17 +83,30 @@ struct Frame {
     obs: Vec<[f64; 3]>,
     /// For each left keypoint, its stereo point (if any).
     of_keypoint: Vec<Option<usize>>,
+    /// Map-point id of each point (set when the frame becomes a keyframe).
+    ids: Vec<PointId>,
+    /// Points still usable (the mapper may cull some).
+    valid: Vec<bool>,
 }
 
-/// Frame-to-frame stereo visual odometry.
+/// The keyframe frames are tracked against.
+struct Reference {
+    frame: Frame,
+    id: KeyframeId,
+    world_from_kf: Isometry3<f64>,
+    /// Parent keyframe and `parent_from_this`.
+    parent: Option<(KeyframeId, Isometry3<f64>)>,
+}
+
+/// Stereo visual odometry against the last keyframe, with keyframe corrections from a mapper.
 pub struct StereoVo {
     orb: core::Ptr<features2d::ORB>,
     rig: StereoRig,
     config: VoConfig,
-    /// The keyframe that frames are tracked against.
-    prev: Option<Frame>,
-    world_from_prev: Isometry3<f64>,
-    /// Pose of the last processed frame in the keyframe.
+    reference: Option<Reference>,
+    next_keyframe: KeyframeId,
+    next_point: PointId,
+    /// Pose of the last processed frame in the reference keyframe.
     kf_from_last: Isometry3<f64>,
     /// Inliers of the first frame tracked against the keyframe.
     kf_inliers: Option<usize>,
@@ -124,6 +114,9 @@ pub struct StereoVo {
     since_kf: usize,
     /// `T_last←curr` of the last step (constant-velocity model).
     velocity: Isometry3<f64>,
+    /// Grey left images and left keypoints of the previous and current frame (optical flow).
+    grey: [Option<Mat>; 2],
+    keypoints: [Vec<(f64, f64)>; 2],
 }
 
 /// A borrowed 8-bit grey image.
@@ -183,6 +176,9 @@ fn hamming(a: &[u8; 32], b: &[u8; 32]) -> u32 {
     a.iter().zip(b).map(|(x, y)| (x ^ y).count_ones()).sum()
 }
 
+/// A solved pose (current from reference) and its inlier matches (reference point, current keypoint).
+type Solved = (Isometry3<f64>, Vec<(usize, usize)>);
+
 /// Keypoint positions and their 256-bit ORB descriptors.
 type Features = (Vec<(f64, f64)>, Vec<[u8; 32]>);
 
@@ -223,12 +219,15 @@ impl StereoVo {
             orb,
             rig,
             config,
-            prev: None,
-            world_from_prev: Isometry3::identity(),
+            reference: None,
+            next_keyframe: 0,
+            next_point: 0,
             kf_from_last: Isometry3::identity(),
             kf_inliers: None,
             since_kf: 0,
             velocity: Isometry3::identity(),
+            grey: [None, None],
+            keypoints: [Vec::new(), Vec::new()],
         })
     }
 
@@ -288,11 +287,12 @@ impl StereoVo {
             desc.push(ld[i]);
             obs.push([u, v, u - disparity]);
         }
-        Frame { points, desc, obs, of_keypoint }
+        let n = points.len();
+        Frame { points, desc, obs, of_keypoint, ids: vec![0; n], valid: vec![true; n] }
     }
 
     /// Match the previous frame's points into the current left keypoints around their predicted pixels.
-    fn track(
+    fn guided_match(
         &self,
         prev: &Frame,
         curr_from_prev: &Isometry3<f64>,
@@ -310,6 +310,9 @@ impl StereoVo {
         let mut used = vec![false; left.len()];
         let mut out = Vec::new();
         for (pi, x) in prev.points.iter().enumerate() {
+            if !prev.valid[pi] {
+                continue;
+            }
             let c = curr_from_prev * nalgebra::Point3::from(*x);
             if c.z <= 0.1 {
                 continue;
@@ -346,57 +349,211 @@ impl StereoVo {
         out
     }
 
-    /// Process one rectified stereo pair (grey or colour; colour is converted).
-    pub fn process(&mut self, left: &Image, right: &Image) -> Result<VoFrame, FrontendError> {
-        let t0 = Instant::now();
-        let to_grey = |img: &Image| -> Result<Mat, FrontendError> {
-            let m = image_to_mat(img)?;
-            if m.channels() == 3 {
-                let mut g = Mat::default();
-                opencv::imgproc::cvt_color_def(&m, &mut g, opencv::imgproc::COLOR_BGR2GRAY)?;
-                Ok(g)
-            } else {
-                Ok(m)
+    /// Brute-force descriptor matching of the reference points against all keypoints (ratio test):
+    /// relocalisation when the motion model gives no usable prediction.
+    fn match_all(&self, prev: &Frame, ld: &[[u8; 32]]) -> Vec<(usize, usize)> {
+        let mut used = vec![false; ld.len()];
+        let mut out = Vec::new();
+        for (pi, d) in prev.desc.iter().enumerate() {
+            if !prev.valid[pi] {
+                continue;
             }
+            let (mut best, mut second, mut arg) = (u32::MAX, u32::MAX, usize::MAX);
+            for (j, e) in ld.iter().enumerate() {
+                let h = hamming(d, e);
+                if h < best {
+                    (second, best, arg) = (best, h, j);
+                } else if h < second {
+                    second = h;
+                }
+            }
+            if arg != usize::MAX && !used[arg] && best <= 64 && (best as f64) < 0.9 * second as f64 {
+                used[arg] = true;
+                out.push((pi, arg));
+            }
+        }
+        out
+    }
+
+    /// Make `frame` the reference keyframe; ids of points matched to the old reference carry over.
+    fn take_keyframe(
+        &mut self,
+        mut frame: Frame,
+        frame_index: usize,
+        world_from_kf: Isometry3<f64>,
+        parent: Option<(KeyframeId, Isometry3<f64>)>,
+        carried: &[(usize, usize)],
+    ) -> KeyframeData {
+        let old_ids = self.reference.as_ref().map(|r| &r.frame.ids);
+        let mut from_keypoint = std::collections::HashMap::new();
+        if let Some(ids) = old_ids {
+            for &(p, c) in carried {
+                from_keypoint.insert(c, ids[p]);
+            }
+        }
+        let mut keypoint_of = vec![usize::MAX; frame.points.len()];
+        for (kp, q) in frame.of_keypoint.iter().enumerate() {
+            if let Some(q) = q {
+                keypoint_of[*q] = kp;
+            }
+        }
+        for (q, id) in frame.ids.iter_mut().enumerate() {
+            *id = match from_keypoint.get(&keypoint_of[q]) {
+                Some(&old) => old,
+                None => {
+                    self.next_point += 1;
+                    self.next_point - 1
+                }
+            };
+        }
+        let id = self.next_keyframe;
+        self.next_keyframe += 1;
+        let data = KeyframeData {
+            id,
+            frame: frame_index,
+            world_from_camera: world_from_kf,
+            parent,
+            points: frame
+                .points
+                .iter()
+                .zip(&frame.obs)
+                .zip(&frame.ids)
+                .map(|((x, o), &pid)| KeyframePoint { id: pid, camera_point: *x, observation: *o })
+                .collect(),
         };
-        let (lm, rm) = (to_grey(left)?, to_grey(right)?);
-        let (lp, ld) = extract(&mut self.orb, &lm)?;
+        self.reference = Some(Reference { frame, id, world_from_kf, parent });
+        self.kf_from_last = Isometry3::identity();
+        self.kf_inliers = None;
+        self.since_kf = 0;
+        data
+    }
+
+    fn grey_of(img: &Image) -> Result<Mat, FrontendError> {
+        let m = image_to_mat(img)?;
+        if m.channels() == 3 {
+            let mut g = Mat::default();
+            opencv::imgproc::cvt_color_def(&m, &mut g, opencv::imgproc::COLOR_BGR2GRAY)?;
+            Ok(g)
+        } else {
+            Ok(m)
+        }
+    }
+
+    /// Track one rectified stereo pair (grey or colour; colour is converted).
+    pub fn process(
+        &mut self,
+        frame_index: usize,
+        left: &Image,
+        right: &Image,
+        exclude: &[BBox],
+    ) -> Result<TrackedFrame, FrontendError> {
+        let t0 = Instant::now();
+        let (lm, rm) = (Self::grey_of(left)?, Self::grey_of(right)?);
+        let (mut lp, mut ld) = extract(&mut self.orb, &lm)?;
+        if !exclude.is_empty() {
+            let keep: Vec<bool> = lp.iter().map(|&(u, v)| !exclude.iter().any(|b| b.contains_point(u, v))).collect();
+            let mut k = keep.iter();
+            lp.retain(|_| *k.next().unwrap_or(&true));
+            let mut k = keep.iter();
+            ld.retain(|_| *k.next().unwrap_or(&true));
+        }
         let (rp, rd) = extract(&mut self.orb, &rm)?;
         let t1 = Instant::now();
         let (lg, rg) = (GreyView::of(&lm)?, GreyView::of(&rm)?);
         let frame = self.stereo(&lp, &ld, &rp, &rd, (&lg, &rg));
         let t2 = Instant::now();
+        self.grey.swap(0, 1);
+        self.grey[1] = Some(lm.clone());
+        self.keypoints.swap(0, 1);
+        self.keypoints[1] = lp.clone();
         let stereo_points = frame.points.len();
-        let Some(prev) = self.prev.take() else {
-            self.prev = Some(frame);
-            self.world_from_prev = Isometry3::identity();
-            return Ok(VoFrame {
+        let times = |t3: Instant| StageTimes {
+            extraction: (t1 - t0).as_secs_f64() * 1e3,
+            stereo: (t2 - t1).as_secs_f64() * 1e3,
+            tracking: (t3 - t2).as_secs_f64() * 1e3,
+        };
+        let Some(reference) = self.reference.as_ref() else {
+            let kf = self.take_keyframe(frame, frame_index, Isometry3::identity(), None, &[]);
+            return Ok(TrackedFrame {
                 world_from_camera: Isometry3::identity(),
-                status: TrackStatus::Initialised,
+                reference: (kf.id, Isometry3::identity()),
+                state: TrackState::Initialised,
                 stereo_points,
-                keyframe: true,
-                timings_ms: [(t1 - t0).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3, 0.0],
+                keyframe: Some(kf),
+                times: times(Instant::now()),
             });
         };
+        let prev = &reference.frame;
         let predicted = (self.kf_from_last * self.velocity).inverse(); // curr ← keyframe
-        let mut matches = self.track(&prev, &predicted, &lp, &ld, self.config.search_radius);
+        let mut matches = self.guided_match(prev, &predicted, &lp, &ld, self.config.search_radius);
         if matches.len() < self.config.min_inliers {
-            matches = self.track(&prev, &self.kf_from_last.inverse(), &lp, &ld, 4.0 * self.config.search_radius);
+            matches = self.guided_match(prev, &self.kf_from_last.inverse(), &lp, &ld, 4.0 * self.config.search_radius);
         }
-        let solved = self.pnp(&prev, &frame, &lp, &matches, &predicted)?;
-        let (curr_from_prev, status) = match solved {
-            Some((pose, inliers)) => (pose, TrackStatus::Tracked { inliers }),
-            None => (predicted, TrackStatus::Lost),
+        let mut solved =
+            self.pnp(prev, &frame, &lp, &matches, &predicted, (self.config.ransac_px, 200, self.config.min_inliers))?;
+        let mut state = solved.as_ref().map(|s| TrackState::Tracked { inliers: s.1.len() });
+        // best unverified relocalisation pose: where a new map segment starts if nothing better is found
+        let mut fallback = None;
+        if solved.is_none() {
+            // relocalisation, first along the motion: dropped frames (a jump ahead) look like the motion
+            // model applied several times
+            for k in [2, 3, 5, 8, 12, 16] {
+                let mut step = Isometry3::identity();
+                for _ in 0..k {
+                    step *= self.velocity;
+                }
+                let guess = (self.kf_from_last * step).inverse();
+                let m = self.guided_match(prev, &guess, &lp, &ld, 2.0 * self.config.search_radius);
+                tracing::trace!(steps = k, matches = m.len(), "relocalisation along the motion");
+                if m.len() >= self.config.min_inliers {
+                    solved =
+                        self.pnp(prev, &frame, &lp, &m, &guess, (self.config.ransac_px, 200, self.config.min_inliers))?;
+                    if solved.is_some() {
+                        tracing::info!(frame = frame_index, steps = k, "relocalised along the motion");
+                        break;
+                    }
+                }
+            }
+            if solved.is_none() {
+                // then by descriptors alone, no motion prior, with a wider RANSAC threshold
+                let all = self.match_all(prev, &ld);
+                tracing::debug!(frame = frame_index, matches = all.len(), "relocalisation: descriptor matches");
+                // (many outliers: a minimal 4-point solver and many more RANSAC rounds)
+                let candidate =
+                    self.pnp(prev, &frame, &lp, &all, &predicted, (2.0 * self.config.ransac_px, 5000, 12))?;
+                // verify: the candidate pose must explain many guided matches
+                if let Some((pose, _)) = candidate {
+                    fallback = Some(pose);
+                    let m = self.guided_match(prev, &pose, &lp, &ld, self.config.search_radius);
+                    tracing::trace!(matches = m.len(), "relocalisation candidate check");
+                    let need = (2 * self.config.min_inliers / 3).max(12);
+                    solved = self.pnp(prev, &frame, &lp, &m, &pose, (self.config.ransac_px, 200, need))?;
+                }
+            }
+            state = solved.as_ref().map(|s| TrackState::Relocalised { inliers: s.1.len() });
+            if let Some(s) = &solved {
+                tracing::info!(
+                    frame = frame_index,
+                    inliers = s.1.len(),
+                    "relocalised against keyframe {}",
+                    reference.id
+                );
+            }
+        }
+        let (ref_id, world_from_ref) = (reference.id, reference.world_from_kf);
+        let (curr_from_prev, state, inliers) = match (solved, state) {
+            (Some((pose, inl)), Some(state)) => (pose, state, inl),
+            _ => (fallback.unwrap_or(predicted), TrackState::Lost, Vec::new()),
         };
         let kf_from_curr = curr_from_prev.inverse();
-        let tracked = matches!(status, TrackStatus::Tracked { .. });
+        let tracked = state != TrackState::Lost;
         if tracked {
             self.velocity = self.kf_from_last.inverse() * kf_from_curr;
         }
-        let world_from_curr = self.world_from_prev * kf_from_curr;
+        let world_from_curr = world_from_ref * kf_from_curr;
         self.since_kf += 1;
-        let want_keyframe = match status {
-            TrackStatus::Tracked { inliers } => {
+        let want_keyframe = match state {
+            TrackState::Tracked { inliers } => {
                 let base = *self.kf_inliers.get_or_insert(inliers);
                 (inliers as f64) < self.config.keyframe_inlier_ratio * base as f64
                     || self.since_kf >= self.config.keyframe_max_gap
@@ -404,28 +561,75 @@ impl StereoVo {
             _ => true,
         };
         // keep the old keyframe when this frame has too few points of its own (black frame, blur)
-        let keyframe = want_keyframe && (frame.points.len() >= self.config.min_inliers || tracked);
-        if keyframe {
-            self.prev = Some(frame);
-            self.world_from_prev = world_from_curr;
-            self.kf_from_last = Isometry3::identity();
-            self.kf_inliers = None;
-            self.since_kf = 0;
+        let keyframe = if want_keyframe && (frame.points.len() >= self.config.min_inliers || tracked) {
+            // a lost frame starts a new map segment: no parent, no carried points
+            let parent = tracked.then_some((ref_id, kf_from_curr));
+            if !tracked {
+                tracing::warn!(frame = frame_index, "tracking lost: new map segment from this frame");
+            }
+            Some(self.take_keyframe(frame, frame_index, world_from_curr, parent, &inliers))
         } else {
-            self.prev = Some(prev);
             self.kf_from_last = kf_from_curr;
-        }
-        let t3 = Instant::now();
-        Ok(VoFrame {
+            None
+        };
+        Ok(TrackedFrame {
             world_from_camera: world_from_curr,
-            status,
+            reference: (ref_id, kf_from_curr),
+            state,
             stereo_points,
             keyframe,
-            timings_ms: [(t1 - t0).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3, (t3 - t2).as_secs_f64() * 1e3],
+            times: times(Instant::now()),
         })
     }
 
-    /// PnP RANSAC on the matches, then a motion-only Huber refinement on the inliers.
+    /// Forward-backward Lucas-Kanade flow of the previous frame's keypoints inside `regions` into the
+    /// current frame; pairs whose round trip misses by more than a pixel are dropped.
+    pub fn optical_flow(&self, regions: &[BBox]) -> Result<Vec<PointPair>, FrontendError> {
+        let ([Some(prev), Some(curr)], [kp, _]) = (&self.grey, &self.keypoints) else { return Ok(Vec::new()) };
+        let mut pts = core::Vector::<core::Point2f>::new();
+        for b in regions {
+            let inside: Vec<&(f64, f64)> = kp.iter().filter(|&&(u, v)| b.contains_point(u, v)).collect();
+            let step = inside.len().div_ceil(self.config.flow_points_per_region.max(1)).max(1);
+            for p in inside.iter().step_by(step) {
+                pts.push(core::Point2f::new(p.0 as f32, p.1 as f32));
+            }
+        }
+        if pts.is_empty() {
+            return Ok(Vec::new());
+        }
+        let lk = |a: &Mat, b: &Mat, from: &core::Vector<core::Point2f>| -> Result<_, FrontendError> {
+            let mut to = core::Vector::<core::Point2f>::new();
+            let mut status = core::Vector::<u8>::new();
+            let mut err = core::Vector::<f32>::new();
+            opencv::video::calc_optical_flow_pyr_lk(
+                a,
+                b,
+                from,
+                &mut to,
+                &mut status,
+                &mut err,
+                core::Size::new(21, 21),
+                3,
+                core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 30, 0.01)?,
+                0,
+                1e-4,
+            )?;
+            Ok((to, status))
+        };
+        let (fwd, s1) = lk(prev, curr, &pts)?;
+        let (back, s2) = lk(curr, prev, &fwd)?;
+        let mut out = Vec::new();
+        for i in 0..pts.len() {
+            let (p, q, r) = (pts.get(i)?, fwd.get(i)?, back.get(i)?);
+            if s1.get(i)? == 1 && s2.get(i)? == 1 && ((p.x - r.x).powi(2) + (p.y - r.y).powi(2)) < 1.0 {
+                out.push(PointPair { reference: [p.x as f64, p.y as f64], current: [q.x as f64, q.y as f64] });
+            }
+        }
+        Ok(out)
+    }
+
+    /// PnP RANSAC on the matches, then a two-frame stereo bundle adjustment on the inliers; returns the
+    /// pose and the inlier matches.
     fn pnp(
         &self,
         prev: &Frame,
@@ -433,8 +637,9 @@ impl StereoVo {
         lp: &[(f64, f64)],
         matches: &[(usize, usize)],
         guess: &Isometry3<f64>,
-    ) -> Result<Option<(Isometry3<f64>, usize)>, FrontendError> {
-        if matches.len() < self.config.min_inliers {
+        (ransac_px, iterations, min_inliers): (f32, i32, usize),
+    ) -> Result<Option<Solved>, FrontendError> {
+        if matches.len() < min_inliers {
             return Ok(None);
         }
         let obj: core::Vector<core::Point3f> = matches
@@ -459,13 +664,14 @@ impl StereoVo {
             &mut rvec,
             &mut tvec,
             false,
-            200,
-            self.config.ransac_px,
+            iterations,
+            ransac_px,
             0.999,
             &mut inliers,
-            calib3d::SOLVEPNP_EPNP,
+            if iterations > 200 { calib3d::SOLVEPNP_AP3P } else { calib3d::SOLVEPNP_EPNP },
         )?;
-        if !ok || inliers.len() < self.config.min_inliers {
+        tracing::trace!(matches = matches.len(), inliers = inliers.len(), "PnP RANSAC");
+        if !ok || inliers.len() < min_inliers {
             return Ok(None);
         }
         let mut rmat = Mat::default();
@@ -516,6 +722,43 @@ impl StereoVo {
                 curr_from_prev = p.inverse();
             }
         }
-        Ok(Some((curr_from_prev, inliers.len())))
+        Ok(Some((curr_from_prev, inliers.iter().map(|i| matches[i as usize]).collect())))
+    }
+}
+
+impl StereoTracker for StereoVo {
+    fn track(
+        &mut self,
+        frame: usize,
+        left: &Image,
+        right: &Image,
+        exclude: &[BBox],
+    ) -> Result<TrackedFrame, TrackError> {
+        self.process(frame, left, right, exclude).map_err(|e| TrackError(e.to_string()))
+    }
+
+    fn correct(&mut self, c: &KeyframeCorrection) {
+        let Some(r) = self.reference.as_mut() else { return };
+        if r.id == c.id {
+            r.world_from_kf = c.world_from_camera;
+            let kf_from_world = c.world_from_camera.inverse();
+            let refined: std::collections::HashMap<PointId, Vector3<f64>> = c.points.iter().copied().collect();
+            let culled: std::collections::HashSet<PointId> = c.culled.iter().copied().collect();
+            for (i, id) in r.frame.ids.iter().enumerate() {
+                if culled.contains(id) {
+                    r.frame.valid[i] = false;
+                } else if let Some(x) = refined.get(id) {
+                    r.frame.points[i] = (kf_from_world * nalgebra::Point3::from(*x)).coords;
+                }
+            }
+        } else if let Some((parent, parent_from_ref)) = r.parent {
+            if parent == c.id {
+                r.world_from_kf = c.world_from_camera * parent_from_ref;
+            }
+        }
+    }
+
+    fn flow(&mut self, regions: &[BBox]) -> Result<Vec<PointPair>, TrackError> {
+        self.optical_flow(regions).map_err(|e| TrackError(e.to_string()))
     }
 }

@@ -3,14 +3,14 @@
 //!
 //! See [`refine`] for the stages (starts, re-weighted passes, joint camera-object stage).
 
-use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, UnitQuaternion, Vector3, Vector4};
 use slam_quadric::{
     init::{triangulate_box_centres, BoxView, Dqp, InitError, Initializer, TriangulationConfig},
     se3, BoundsModel, Ellipsoid, ImageSize,
 };
 
 use crate::{
-    factors::{AxisDirection, AxisPrior, BoxFactor, PosePrior},
+    factors::{AxisDirection, AxisPrior, BoxFactor, PosePrior, TexturePlane},
     Graph, Huber, LevenbergMarquardt, LmParams, NoiseModel, Values, Var, L2,
 };
 
@@ -60,6 +60,12 @@ pub struct RefineConfig {
     /// The joint stage runs only when the shift part of the misfit exceeds this multiple of its size
     /// part (see [`refine`]).
     pub shift_ratio: f64,
+    /// Standard deviation of the texture-plane error, metres (only with planes, [`refine_with_planes`]).
+    pub plane_sigma_m: f64,
+    /// Huber threshold of the texture-plane error, metres.
+    pub plane_huber_m: f64,
+    /// With texture planes, the re-estimated box σ is at least this, pixels.
+    pub plane_box_floor_px: f64,
 }
 
 impl Default for RefineConfig {
@@ -74,6 +80,9 @@ impl Default for RefineConfig {
             pose_rot_sigma_deg: 0.2,
             consistent_rms_px: 0.2,
             shift_ratio: 2.0,
+            plane_sigma_m: 0.25,
+            plane_huber_m: 0.5,
+            plane_box_floor_px: 2.0,
         }
     }
 }
@@ -125,7 +134,15 @@ pub fn optimise_object(
     start: Ellipsoid,
 ) -> Option<(Ellipsoid, f64)> {
     let sigmas = vec![config.box_sigma_px; views.len()];
-    optimise_object_weighted(views, image, prior, config, &sigmas, start, None)
+    optimise_object_weighted(views, image, prior, config, start, Stage { sigmas: &sigmas, drift: None, planes: &[] })
+}
+
+/// What one optimisation stage uses besides the views: one box σ per view (pixels), the pose drift
+/// (`None`: cameras fixed) and texture planes.
+struct Stage<'a> {
+    sigmas: &'a [f64],
+    drift: Option<f64>,
+    planes: &'a [Vector4<f64>],
 }
 
 /// [`optimise_object`] with one box σ per view (pixels); with `drift`, the cameras other than the
@@ -136,9 +153,8 @@ fn optimise_object_weighted(
     image: &ImageSize,
     prior: &ObjectPrior,
     config: &RefineConfig,
-    sigmas: &[f64],
     start: Ellipsoid,
-    drift: Option<f64>,
+    Stage { sigmas, drift, planes }: Stage<'_>,
 ) -> Option<(Ellipsoid, f64)> {
     let mut values = Values::new();
     let mut graph = Graph::new();
@@ -173,6 +189,13 @@ fn optimise_object_weighted(
             .ok()?;
     }
     graph.add(AxisPrior::new(ko, prior.axes), NoiseModel::Diagonal(prior.sigma.as_slice().to_vec()), L2).ok()?;
+    for plane in planes {
+        if let Some(f) = TexturePlane::new(ko, *plane) {
+            graph
+                .add(f, NoiseModel::Isotropic(config.plane_sigma_m), Huber(config.plane_huber_m / config.plane_sigma_m))
+                .ok()?;
+        }
+    }
     // The paper's assumption: the object only yaws; its height axis (own y) stays along the reference
     // camera's y axis (gravity for a level camera), 0.5° σ.
     let up = first.rotation * Vector3::y();
@@ -209,6 +232,20 @@ pub fn refine(
     prior: &ObjectPrior,
     config: &RefineConfig,
 ) -> Result<Ellipsoid, InitError> {
+    refine_with_planes(views, image, prior, config, &[])
+}
+
+/// [`refine`] with the paper's texture-plane error: each plane `[n, d]` (`n` unit, pointing out of the
+/// object towards the cameras, see [`TexturePlane`]) comes from a triangle of the object's map points;
+/// the ellipsoid's tangent plane with that normal should coincide with it (σ `plane_sigma_m`, Huber).
+/// The planes enter every optimisation stage after the starts.
+pub fn refine_with_planes(
+    views: &[BoxView],
+    image: &ImageSize,
+    prior: &ObjectPrior,
+    config: &RefineConfig,
+    planes: &[Vector4<f64>],
+) -> Result<Ellipsoid, InitError> {
     let mut starts = Vec::new();
     if let Ok(e) = Dqp::default().initialize(views) {
         starts.push(align_to_prior(&e, &prior.axes));
@@ -230,7 +267,10 @@ pub fn refine(
     // Pass 1 from every start at the configured σ; the best result goes on to the re-weighted passes.
     let mut best: Option<(Ellipsoid, f64)> = None;
     for s in starts {
-        if let Some((e, cost)) = optimise_object(views, image, prior, config, s) {
+        let sigmas = vec![config.box_sigma_px; views.len()];
+        if let Some((e, cost)) =
+            optimise_object_weighted(views, image, prior, config, s, Stage { sigmas: &sigmas, drift: None, planes })
+        {
             let in_front =
                 views.iter().all(|v| slam_quadric::classify(&e, &v.camera) == slam_quadric::Visibility::InFront);
             if in_front && best.as_ref().is_none_or(|b| cost < b.1) {
@@ -238,15 +278,25 @@ pub fn refine(
             }
         }
     }
+    // Boxes that fit perfectly may still be biased (a drive-by cannot tell a shifted car from a
+    // shifted box); with planes, a box is never trusted below `plane_box_floor_px`.
+    let min_sigma =
+        if planes.is_empty() { config.min_sigma_px } else { config.min_sigma_px.max(config.plane_box_floor_px) };
     if let Some((mut e, _)) = best {
         for _ in 1..config.passes {
             let Some(rms) = box_rms(views, image, &e) else { break };
             // per view: its own misfit, but never below the overall RMS / 2 (one view cannot claim to be
             // much better than the data as a whole)
             let all = (rms.iter().map(|r| r * r).sum::<f64>() / rms.len().max(1) as f64).sqrt();
-            let sigmas: Vec<f64> =
-                rms.iter().map(|r| r.max(0.5 * all).clamp(config.min_sigma_px, config.max_sigma_px)).collect();
-            match optimise_object_weighted(views, image, prior, config, &sigmas, e, None) {
+            let sigmas: Vec<f64> = rms.iter().map(|r| r.max(0.5 * all).clamp(min_sigma, config.max_sigma_px)).collect();
+            match optimise_object_weighted(
+                views,
+                image,
+                prior,
+                config,
+                e,
+                Stage { sigmas: &sigmas, drift: None, planes },
+            ) {
                 Some((next, _))
                     if views
                         .iter()
@@ -267,8 +317,15 @@ pub fn refine(
             let (shift, size) = shift_and_size_rms(views, image, &e).unwrap_or((0.0, 0.0));
             if all > config.consistent_rms_px && shift > config.shift_ratio * size {
                 let sigmas: Vec<f64> =
-                    rms.iter().map(|r| r.max(0.5 * all).clamp(config.min_sigma_px, config.max_sigma_px)).collect();
-                if let Some(j) = optimise_object_weighted(views, image, prior, config, &sigmas, e, Some(drift)) {
+                    rms.iter().map(|r| r.max(0.5 * all).clamp(min_sigma, config.max_sigma_px)).collect();
+                if let Some(j) = optimise_object_weighted(
+                    views,
+                    image,
+                    prior,
+                    config,
+                    e,
+                    Stage { sigmas: &sigmas, drift: Some(drift), planes },
+                ) {
                     e = j.0;
                 }
             }

@@ -1,8 +1,16 @@
-//! Composition of the SLAM parts. Now: the [`objects::ObjectMapper`], which turns a stream of posed
-//! detections into an object map (association with any `Associator`, ellipsoid initialisation and
-//! optimisation), and its JSON export. The threaded pipeline and the map database come with the stereo
-//! front end.
+//! Composition of the SLAM parts: the threaded system ([`system`]: detection, tracking and local
+//! mapping threads talking through channels), the map database ([`map`]), local bundle adjustment
+//! ([`mapping`]), the object mapper ([`objects`]: association, ellipsoid initialisation and
+//! optimisation) and the objects' texture planes ([`texture`]).
+//!
+//! OpenCV stays out: the visual front end comes in through `slam_core::StereoTracker`, detections
+//! through `slam_core::DetectionSource`.
 
 #![warn(missing_docs)]
 
+pub mod eval;
+pub mod map;
+pub mod mapping;
 pub mod objects;
+pub mod system;
+pub mod texture;

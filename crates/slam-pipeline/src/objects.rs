@@ -12,11 +12,11 @@
 
 use std::{collections::BTreeMap, path::Path};
 
-use nalgebra::Vector3;
+use nalgebra::{Vector3, Vector4};
 use serde::Serialize;
 use slam_assoc::{ObjectTracker, TrackerConfig, TrackerInput};
-use slam_core::{geometry::BBox, Associator, ClassId, Detection, TrackId};
-use slam_optim::object::{refine, ObjectPrior, RefineConfig};
+use slam_core::{geometry::BBox, Associator, ClassId, Detection, KeyframeId, PointId, PointPair, TrackId};
+use slam_optim::object::{refine_with_planes, ObjectPrior, RefineConfig};
 use slam_quadric::{init::BoxView, project, Camera, Ellipsoid, ImageSize};
 
 /// How an object's ellipsoid is computed from its views.
@@ -67,6 +67,14 @@ pub struct MapperConfig {
     pub max_views: usize,
     /// RMS box misfit above which a fitted object is flagged dynamic, pixels. Default 12.
     pub dynamic_rms_px: f64,
+    /// An object whose map-point centroid moves more than this between its first and latest
+    /// keyframe observation (plus 5 % of its depth, for stereo noise) is moving, metres. Default 3.
+    pub dynamic_motion_m: f64,
+    /// A fitted ellipsoid farther than this from the camera of its latest view is discarded (beyond
+    /// the stereo range, boxes alone do not fix the depth), metres. Default 80.
+    pub max_depth_m: f64,
+    /// Static objects of one class closer than this are merged, metres. Default 1.5.
+    pub merge_distance_m: f64,
     /// Tracker settings.
     pub tracker: TrackerConfig,
 }
@@ -82,6 +90,9 @@ impl Default for MapperConfig {
             refit_every: 5,
             max_views: 20,
             dynamic_rms_px: 12.0,
+            dynamic_motion_m: 3.0,
+            max_depth_m: 80.0,
+            merge_distance_m: 1.5,
             tracker: TrackerConfig::default(),
         }
     }
@@ -110,6 +121,11 @@ pub struct Observation {
     pub bbox: BBox,
     /// Index of the detection in that frame's input (lets callers trace detections back).
     pub detection: usize,
+    /// Median world position of the map points inside the box (keyframes of the full pipeline).
+    pub centroid: Option<Vector3<f64>>,
+    /// The frame's reference keyframe and its pose in it (full pipeline): lets the fit use the
+    /// keyframe's refined pose.
+    pub reference: Option<(KeyframeId, nalgebra::Isometry3<f64>)>,
 }
 
 /// An object of the map.
@@ -123,9 +139,89 @@ pub struct MappedObject {
     pub observations: Vec<Observation>,
     /// Fitted ellipsoid (world frame), once there is one.
     pub ellipsoid: Option<Ellipsoid>,
-    /// Flagged as moving.
+    /// Flagged as moving (box misfit or moving map points).
     pub dynamic: bool,
+    /// Its map points moved: it is never fitted again.
+    pub moving: bool,
+    /// Map points on the object (full pipeline), for texture planes.
+    pub points: std::collections::BTreeSet<PointId>,
     fitted_at: usize,
+}
+
+/// An ellipsoid fit to run (possibly on another thread): everything it needs, by value.
+#[derive(Debug, Clone)]
+pub struct FitJob {
+    /// The object.
+    pub id: TrackId,
+    /// Its class.
+    pub class: ClassId,
+    /// The views used.
+    pub views: Vec<BoxView>,
+    /// Reference keyframe and relative pose of each view, when known ([`FitJob::repose`]).
+    pub references: Vec<Option<(KeyframeId, nalgebra::Isometry3<f64>)>>,
+    /// Its map points (the runner looks up their positions for texture planes).
+    pub points: Vec<PointId>,
+    method: FitMethod,
+    image: ImageSize,
+    dynamic_rms_px: f64,
+    max_depth_m: f64,
+}
+
+/// Outcome of a [`FitJob`].
+#[derive(Debug, Clone)]
+pub struct FitResult {
+    /// The object.
+    pub id: TrackId,
+    /// The ellipsoid, when the fit succeeded.
+    pub ellipsoid: Option<Ellipsoid>,
+    /// Box misfit too large for a static object.
+    pub dynamic: bool,
+}
+
+impl FitJob {
+    /// Replace each view's camera pose by `keyframe pose ∘ relative pose` where `keyframe_pose` knows
+    /// the view's reference keyframe (the mapper's refined poses).
+    pub fn repose(&mut self, keyframe_pose: impl Fn(KeyframeId) -> Option<nalgebra::Isometry3<f64>>) {
+        for (v, r) in self.views.iter_mut().zip(&self.references) {
+            if let Some(pose) = r.and_then(|(k, rel)| keyframe_pose(k).map(|p| p * rel)) {
+                v.camera.world_from_camera = pose;
+            }
+        }
+    }
+
+    /// Run the fit; `planes` are texture planes of the object's points (used by [`FitMethod::Refine`]).
+    pub fn run(&self, planes: &[Vector4<f64>]) -> FitResult {
+        use slam_quadric::init::{Conic, Dqp, Initializer, QSlamSvd, Tri};
+        let views = &self.views;
+        let fitted = match self.method {
+            FitMethod::Refine => {
+                refine_with_planes(views, &self.image, &class_prior(self.class), &RefineConfig::default(), planes)
+            }
+            FitMethod::QSlam => QSlamSvd.initialize(views),
+            FitMethod::Conic => Conic::default().initialize(views),
+            FitMethod::Tri => Tri::default().initialize(views),
+            FitMethod::TriYaw => Dqp::default().initialize(views),
+        };
+        let too_far = |e: &Ellipsoid| {
+            views
+                .last()
+                .is_some_and(|v| (e.centre() - v.camera.world_from_camera.translation.vector).norm() > self.max_depth_m)
+        };
+        match fitted {
+            Ok(e) if too_far(&e) => {
+                tracing::debug!(object = %self.id, "ellipsoid beyond {} m discarded", self.max_depth_m);
+                FitResult { id: self.id, ellipsoid: None, dynamic: false }
+            }
+            Ok(e) => {
+                let rms = box_rms(views, &self.image, &e);
+                FitResult { id: self.id, ellipsoid: Some(e), dynamic: rms.is_none_or(|r| r > self.dynamic_rms_px) }
+            }
+            Err(err) => {
+                tracing::debug!(object = %self.id, "no ellipsoid yet: {err}");
+                FitResult { id: self.id, ellipsoid: None, dynamic: false }
+            }
+        }
+    }
 }
 
 /// The object mapper.
@@ -133,13 +229,21 @@ pub struct ObjectMapper {
     tracker: ObjectTracker,
     config: MapperConfig,
     objects: BTreeMap<TrackId, MappedObject>,
+    /// Tracks found to duplicate another object; their detections are ignored.
+    merged: BTreeMap<TrackId, TrackId>,
     fits: usize,
 }
 
 impl ObjectMapper {
     /// A mapper around an associator.
     pub fn new(associator: Box<dyn Associator>, config: MapperConfig) -> Self {
-        Self { tracker: ObjectTracker::new(associator, config.tracker), config, objects: BTreeMap::new(), fits: 0 }
+        Self {
+            tracker: ObjectTracker::new(associator, config.tracker),
+            config,
+            objects: BTreeMap::new(),
+            merged: BTreeMap::new(),
+            fits: 0,
+        }
     }
 
     /// All objects, by id.
@@ -152,8 +256,33 @@ impl ObjectMapper {
         self.fits
     }
 
-    /// Process one frame; returns each detection's object.
+    /// Process one frame and fit the touched objects that are due, on this thread (image-free mode);
+    /// returns each detection's object.
     pub fn step(&mut self, frame: usize, camera: &Camera, detections: &[Detection]) -> Vec<Option<TrackId>> {
+        let tracks = self.associate(frame, camera, None, detections, &[]);
+        let mut touched: Vec<TrackId> = tracks.iter().flatten().copied().collect();
+        touched.sort();
+        touched.dedup();
+        for id in touched {
+            if let Some(job) = self.job_for(id) {
+                let result = job.run(&[]);
+                self.apply(result);
+            }
+        }
+        tracks
+    }
+
+    /// Associate one frame's detections with the objects (ODA with the projected ellipsoids and, when
+    /// given, keypoints tracked from the previous frame by optical flow) and record the observations;
+    /// returns each detection's object. No fitting: see [`ObjectMapper::fit_jobs`].
+    pub fn associate(
+        &mut self,
+        frame: usize,
+        camera: &Camera,
+        reference: Option<(KeyframeId, nalgebra::Isometry3<f64>)>,
+        detections: &[Detection],
+        flow: &[PointPair],
+    ) -> Vec<Option<TrackId>> {
         let projected: BTreeMap<TrackId, BBox> = self
             .objects
             .values()
@@ -163,30 +292,117 @@ impl ObjectMapper {
                 Some((o.id, b))
             })
             .collect();
-        let out = self.tracker.step(&TrackerInput { detections, projected: &projected, flow: &[], keyframe: true });
-        let mut touched = Vec::new();
+        let out = self.tracker.step(&TrackerInput { detections, projected: &projected, flow, keyframe: true });
         for (k, (t, d)) in out.tracks.iter().zip(detections).enumerate() {
             let Some(id) = *t else { continue };
+            if self.merged.contains_key(&id) {
+                continue;
+            }
             let obj = self.objects.entry(id).or_insert_with(|| MappedObject {
                 id,
                 class: d.class,
                 observations: Vec::new(),
                 ellipsoid: None,
                 dynamic: false,
+                moving: false,
+                points: Default::default(),
                 fitted_at: 0,
             });
-            obj.observations.push(Observation { frame, camera: *camera, bbox: d.bbox, detection: k });
-            touched.push(id);
-        }
-        for id in touched {
-            self.maybe_fit(id);
+            obj.observations.push(Observation {
+                frame,
+                camera: *camera,
+                bbox: d.bbox,
+                detection: k,
+                centroid: None,
+                reference,
+            });
         }
         out.tracks
     }
 
-    fn maybe_fit(&mut self, id: TrackId) {
+    /// Attach map points seen inside the object's latest box and their median position (callers pass
+    /// `None` when too few points support it); flags the object as moving when that centroid lies more
+    /// than `dynamic_motion_m` (+5 % of depth) from the median of its earlier centroids.
+    pub fn add_points(&mut self, id: TrackId, points: &[PointId], centroid: Option<Vector3<f64>>) {
         let cfg = self.config;
         let Some(obj) = self.objects.get_mut(&id) else { return };
+        obj.points.extend(points.iter().copied());
+        let earlier: Vec<Vector3<f64>> = obj.observations.iter().filter_map(|o| o.centroid).collect();
+        let Some(last) = obj.observations.last_mut() else { return };
+        last.centroid = centroid;
+        let (Some(c), false) = (centroid, earlier.is_empty()) else { return };
+        let median = |k: usize| {
+            let mut v: Vec<f64> = earlier.iter().map(|p| p[k]).collect();
+            v.sort_by(|a, b| a.total_cmp(b));
+            v[v.len() / 2]
+        };
+        let reference = Vector3::new(median(0), median(1), median(2));
+        let depth = (c - last.camera.world_from_camera.translation.vector).norm();
+        let moved = (c - reference).norm();
+        if moved > cfg.dynamic_motion_m + 0.05 * depth && !obj.moving {
+            tracing::info!(object = %id, moved_m = moved, "object is moving: not mapped");
+            obj.moving = true;
+            obj.dynamic = true;
+        }
+    }
+
+    /// Fit jobs of every object that is due (sorted by id); marks them as fitted at their current view
+    /// count. Moving objects get none.
+    pub fn fit_jobs(&mut self) -> Vec<FitJob> {
+        let ids: Vec<TrackId> = self.objects.keys().copied().collect();
+        ids.into_iter().filter_map(|id| self.job_for(id)).collect()
+    }
+
+    /// Take the result of a fit.
+    pub fn apply(&mut self, result: FitResult) {
+        let id = result.id;
+        let Some(obj) = self.objects.get_mut(&id) else { return };
+        if let Some(e) = result.ellipsoid {
+            obj.ellipsoid = Some(e);
+            obj.dynamic = obj.moving || result.dynamic;
+        }
+        self.merge_duplicates(id);
+    }
+
+    /// Objects of the same class whose ellipsoid centres are closer than `merge_distance_m` are one
+    /// object seen as two tracks (a detector that boxes a car twice, a track broken by a missed
+    /// detection): the one with fewer observations is dropped and its later detections ignored.
+    fn merge_duplicates(&mut self, id: TrackId) {
+        let Some(c) = self.objects.get(&id).and_then(|o| o.ellipsoid.map(|e| (e.centre(), o.class))) else { return };
+        let other = self.objects.values().find(|o| {
+            o.id != id
+                && o.class == c.1
+                && !o.moving
+                && o.ellipsoid.is_some_and(|e| (e.centre() - c.0).norm() < self.config.merge_distance_m)
+        });
+        let Some(other) = other.map(|o| o.id) else { return };
+        let n = |k: &TrackId| self.objects.get(k).map_or(0, |o| o.observations.len());
+        // keep the longer track (the older one on a tie)
+        let (keep, drop) = if (n(&other), std::cmp::Reverse(other)) >= (n(&id), std::cmp::Reverse(id)) {
+            (other, id)
+        } else {
+            (id, other)
+        };
+        if let Some(gone) = self.objects.remove(&drop) {
+            tracing::debug!(kept = %keep, dropped = %drop, "duplicate object merged");
+            if let Some(k) = self.objects.get_mut(&keep) {
+                k.points.extend(gone.points);
+            }
+            self.merged.insert(drop, keep);
+        }
+    }
+
+    /// Tracks merged into another object (dropped → kept).
+    pub fn merged(&self) -> &BTreeMap<TrackId, TrackId> {
+        &self.merged
+    }
+
+    fn job_for(&mut self, id: TrackId) -> Option<FitJob> {
+        let cfg = self.config;
+        let obj = self.objects.get_mut(&id)?;
+        if obj.moving {
+            return None;
+        }
         let usable: Vec<&Observation> =
             obj.observations.iter().filter(|o| !o.bbox.touches_border(&cfg.image, cfg.border_margin_px)).collect();
         let due = match obj.ellipsoid {
@@ -194,7 +410,7 @@ impl ObjectMapper {
             Some(_) => usable.len() >= obj.fitted_at + cfg.refit_every,
         };
         if !due || usable.len() < cfg.min_views {
-            return;
+            return None;
         }
         let (first, last) = (usable[0], usable[usable.len() - 1]);
         let ray = |o: &Observation| {
@@ -203,7 +419,7 @@ impl ObjectMapper {
         };
         let parallax = ray(first).angle(&ray(last)).to_degrees();
         if parallax < cfg.min_parallax_deg && obj.ellipsoid.is_none() {
-            return;
+            return None;
         }
         let n = usable.len();
         let pick: Vec<usize> = if n <= cfg.max_views {
@@ -212,24 +428,20 @@ impl ObjectMapper {
             (0..cfg.max_views).map(|i| i * (n - 1) / (cfg.max_views - 1)).collect()
         };
         let views: Vec<BoxView> = pick.iter().map(|&i| BoxView::new(usable[i].camera, usable[i].bbox)).collect();
+        let references = pick.iter().map(|&i| usable[i].reference).collect();
         obj.fitted_at = n;
         self.fits += 1;
-        use slam_quadric::init::{Conic, Dqp, Initializer, QSlamSvd, Tri};
-        let fitted = match cfg.method {
-            FitMethod::Refine => refine(&views, &cfg.image, &class_prior(obj.class), &RefineConfig::default()),
-            FitMethod::QSlam => QSlamSvd.initialize(&views),
-            FitMethod::Conic => Conic::default().initialize(&views),
-            FitMethod::Tri => Tri::default().initialize(&views),
-            FitMethod::TriYaw => Dqp::default().initialize(&views),
-        };
-        match fitted {
-            Ok(e) => {
-                let rms = box_rms(&views, &cfg.image, &e);
-                obj.dynamic = rms.is_none_or(|r| r > cfg.dynamic_rms_px);
-                obj.ellipsoid = Some(e);
-            }
-            Err(err) => tracing::debug!(object = %id, "no ellipsoid yet: {err}"),
-        }
+        Some(FitJob {
+            id,
+            class: obj.class,
+            views,
+            references,
+            points: obj.points.iter().copied().collect(),
+            method: cfg.method,
+            image: cfg.image,
+            dynamic_rms_px: cfg.dynamic_rms_px,
+            max_depth_m: cfg.max_depth_m,
+        })
     }
 }
 

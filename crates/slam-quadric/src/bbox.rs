@@ -142,6 +142,11 @@ impl BBox {
         self.xmin <= other.xmin && self.ymin <= other.ymin && self.xmax >= other.xmax && self.ymax >= other.ymax
     }
 
+    /// True when the point `(x, y)` lies inside (edges included).
+    pub fn contains_point(&self, x: f64, y: f64) -> bool {
+        self.xmin <= x && x <= self.xmax && self.ymin <= y && y <= self.ymax
+    }
+
     /// True when the boxes overlap or touch.
     pub fn intersects(&self, other: &BBox) -> bool {
         self.xmin <= other.xmax && other.xmin <= self.xmax && self.ymin <= other.ymax && other.ymin <= self.ymax

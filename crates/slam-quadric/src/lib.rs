@@ -52,3 +52,5 @@ pub use conic::{
 };
 pub use ellipsoid::{ConstrainError, Ellipsoid, Tangent9};
 pub use init::{BoxView, InitError, Initializer};
+/// The linear-algebra crate of the public API, re-exported so dependants use the same version.
+pub use nalgebra;

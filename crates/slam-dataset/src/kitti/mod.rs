@@ -4,5 +4,6 @@ pub mod calib;
 pub mod odometry;
 pub mod poses;
 pub mod raw;
+pub mod stereo;
 pub mod tracking;
 pub mod tracklets;

@@ -33,7 +33,7 @@ pub struct OdometrySequence {
     pub ground_truth: Option<Vec<Isometry3<f64>>>,
 }
 
-fn list_images(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
+pub(crate) fn list_images(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
     let rd = std::fs::read_dir(dir).map_err(|source| DatasetError::Io { path: dir.to_path_buf(), source })?;
     let mut v: Vec<PathBuf> = rd
         .filter_map(|e| e.ok().map(|e| e.path()))

@@ -1,0 +1,216 @@
+//! `slam-app run` settings from TOML: one table per stage, every key optional (defaults below, printed
+//! by `slam-app run --print-config`), unknown keys rejected with the file's name.
+
+use std::path::Path;
+
+use anyhow::Context;
+use serde::{Deserialize, Serialize};
+use slam_frontend::VoConfig;
+use slam_pipeline::{mapping::MappingConfig, objects::MapperConfig, system::SystemConfig, texture::TextureConfig};
+
+/// Visual odometry (slam-frontend `VoConfig`).
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrackingToml {
+    /// ORB features per image.
+    pub features: i32,
+    /// Largest Hamming distance of a stereo match.
+    pub stereo_hamming: u32,
+    /// Row tolerance of stereo matching, pixels.
+    pub row_tolerance: f64,
+    /// Nearest stereo depth kept, metres.
+    pub min_depth: f64,
+    /// Farthest stereo depth kept, metres.
+    pub max_depth: f64,
+    /// Largest Hamming distance of a frame-to-frame match.
+    pub track_hamming: u32,
+    /// Search radius around the predicted position, pixels.
+    pub search_radius: f64,
+    /// PnP RANSAC threshold, pixels.
+    pub ransac_px: f32,
+    /// Fewest PnP inliers for a tracked frame.
+    pub min_inliers: usize,
+    /// New keyframe when inliers drop below this fraction of the keyframe's first frame.
+    pub keyframe_inlier_ratio: f64,
+    /// ... or after this many frames.
+    pub keyframe_max_gap: usize,
+    /// Keypoints followed by optical flow per detection box.
+    pub flow_points_per_region: usize,
+}
+
+impl Default for TrackingToml {
+    fn default() -> Self {
+        let v = VoConfig::default();
+        Self {
+            features: v.features,
+            stereo_hamming: v.stereo_hamming,
+            row_tolerance: v.row_tolerance,
+            min_depth: v.depth_range.0,
+            max_depth: v.depth_range.1,
+            track_hamming: v.track_hamming,
+            search_radius: v.search_radius,
+            ransac_px: v.ransac_px,
+            min_inliers: v.min_inliers,
+            keyframe_inlier_ratio: v.keyframe_inlier_ratio,
+            keyframe_max_gap: v.keyframe_max_gap,
+            flow_points_per_region: v.flow_points_per_region,
+        }
+    }
+}
+
+impl TrackingToml {
+    pub fn vo(&self) -> VoConfig {
+        VoConfig {
+            features: self.features,
+            stereo_hamming: self.stereo_hamming,
+            row_tolerance: self.row_tolerance,
+            depth_range: (self.min_depth, self.max_depth),
+            track_hamming: self.track_hamming,
+            search_radius: self.search_radius,
+            ransac_px: self.ransac_px,
+            min_inliers: self.min_inliers,
+            keyframe_inlier_ratio: self.keyframe_inlier_ratio,
+            keyframe_max_gap: self.keyframe_max_gap,
+            flow_points_per_region: self.flow_points_per_region,
+        }
+    }
+}
+
+/// Object mapping (slam-pipeline `MapperConfig`; the associator keeps its defaults).
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ObjectsToml {
+    /// Fewest border-free boxes before an ellipsoid is fitted.
+    pub min_views: usize,
+    /// Smallest angle between the first and latest ray through the box centres, degrees.
+    pub min_parallax_deg: f64,
+    /// Boxes this close to the border are not used for fitting, pixels.
+    pub border_margin_px: f64,
+    /// Refit after this many new boxes.
+    pub refit_every: usize,
+    /// Most views in one fit.
+    pub max_views: usize,
+    /// RMS box misfit above which an object is flagged dynamic, pixels (25 here: detector boxes are
+    /// noisier than the labels the image-free mode's 12 px was set on; moving map points are the main cue).
+    pub dynamic_rms_px: f64,
+    /// Centroid motion above which an object is moving, metres (+5 % of depth).
+    pub dynamic_motion_m: f64,
+    /// Ellipsoids farther than this from their latest camera are discarded, metres.
+    pub max_depth_m: f64,
+    /// Static objects of one class closer than this are merged, metres.
+    pub merge_distance_m: f64,
+}
+
+impl Default for ObjectsToml {
+    fn default() -> Self {
+        let m = MapperConfig::default();
+        Self {
+            min_views: m.min_views,
+            min_parallax_deg: m.min_parallax_deg,
+            border_margin_px: m.border_margin_px,
+            refit_every: m.refit_every,
+            max_views: m.max_views,
+            // detector boxes (partial, jittery) miss more than label boxes; the motion test is the main cue
+            dynamic_rms_px: 25.0,
+            dynamic_motion_m: m.dynamic_motion_m,
+            max_depth_m: m.max_depth_m,
+            merge_distance_m: m.merge_distance_m,
+        }
+    }
+}
+
+/// Threads and their hand-over (slam-pipeline `SystemConfig`).
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SystemToml {
+    /// Frames between a keyframe and the use of the mapper's reply.
+    pub correction_lag: usize,
+    /// Run the detector on every n-th frame.
+    pub detect_every: usize,
+    /// Keep keypoints of moving objects out of tracking.
+    pub exclude_moving: bool,
+    /// Central fraction of a box whose map points belong to the object.
+    pub object_core: f64,
+}
+
+impl Default for SystemToml {
+    fn default() -> Self {
+        let s = SystemConfig::default();
+        Self {
+            correction_lag: s.correction_lag,
+            detect_every: s.detect_every,
+            exclude_moving: s.exclude_moving,
+            object_core: s.object_core,
+        }
+    }
+}
+
+/// All settings of a run.
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RunConfig {
+    /// Visual odometry.
+    pub tracking: TrackingToml,
+    /// Local mapping (bundle adjustment).
+    pub mapping: MappingConfig,
+    /// Objects.
+    pub objects: ObjectsToml,
+    /// Texture planes.
+    pub texture: TextureConfig,
+    /// Threads.
+    pub system: SystemToml,
+}
+
+impl RunConfig {
+    pub fn read(path: &Path) -> anyhow::Result<Self> {
+        let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+        toml::from_str(&text).with_context(|| format!("{}: invalid configuration", path.display()))
+    }
+
+    pub fn to_toml(self) -> String {
+        toml::to_string(&self).unwrap_or_default()
+    }
+
+    pub fn system(&self, image: slam_quadric::ImageSize) -> SystemConfig {
+        let o = self.objects;
+        SystemConfig {
+            mapping: self.mapping,
+            objects: MapperConfig {
+                image,
+                min_views: o.min_views,
+                min_parallax_deg: o.min_parallax_deg,
+                border_margin_px: o.border_margin_px,
+                refit_every: o.refit_every,
+                max_views: o.max_views,
+                dynamic_rms_px: o.dynamic_rms_px,
+                dynamic_motion_m: o.dynamic_motion_m,
+                max_depth_m: o.max_depth_m,
+                merge_distance_m: o.merge_distance_m,
+                ..MapperConfig::default()
+            },
+            texture: self.texture,
+            correction_lag: self.system.correction_lag,
+            detect_every: self.system.detect_every,
+            exclude_moving: self.system.exclude_moving,
+            object_core: self.system.object_core,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_round_trip_through_toml_and_unknown_keys_fail() {
+        let text = RunConfig::default().to_toml();
+        assert!(text.contains("[tracking]") && text.contains("keyframe_max_gap = 4") && text.contains("[mapping]"));
+        let back: RunConfig = toml::from_str(&text).expect("parses");
+        assert_eq!(back.tracking.vo(), VoConfig::default());
+        let partial: RunConfig = toml::from_str("[mapping]\nwindow = 9\n").expect("partial");
+        assert_eq!(partial.mapping.window, 9);
+        assert_eq!(partial.tracking.features, 2000);
+        let e = toml::from_str::<RunConfig>("[tracking]\nfeatures_typo = 3\n").expect_err("unknown key");
+        assert!(e.to_string().contains("features_typo"), "{e}");
+    }
+}

@@ -1,0 +1,136 @@
+//! The tracking contract: the visual front end as the pipeline sees it.
+//!
+//! A [`StereoTracker`] turns rectified stereo pairs into camera poses and, on keyframes, hands over the
+//! keyframe's stereo points with stable map-point ids, so that a local-mapping stage (which owns the map)
+//! can run bundle adjustment and send corrections back. The pipeline (`slam-pipeline`) depends on this
+//! trait only; the OpenCV implementation lives in `slam-frontend`.
+
+use slam_quadric::{
+    nalgebra::{Isometry3, Vector3},
+    BBox,
+};
+
+use crate::{assoc::PointPair, source::Image};
+
+/// Identity of a map point, unique within a run.
+pub type PointId = u64;
+
+/// Identity of a keyframe, unique within a run (0, 1, 2, … in creation order).
+pub type KeyframeId = u64;
+
+/// One stereo observation of a map point in a keyframe.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KeyframePoint {
+    /// The map point.
+    pub id: PointId,
+    /// Position in the keyframe's left-camera frame, metres (from the stereo disparity).
+    pub camera_point: Vector3<f64>,
+    /// Observation `[u_left, v, u_right]`, pixels.
+    pub observation: [f64; 3],
+}
+
+/// What the tracker gives the mapper for a new keyframe.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KeyframeData {
+    /// Keyframe id.
+    pub id: KeyframeId,
+    /// Frame index in the sequence.
+    pub frame: usize,
+    /// Tracked pose of the left camera (world from camera).
+    pub world_from_camera: Isometry3<f64>,
+    /// The keyframe it was tracked from and the pose relative to it (`parent_from_this`); `None` for
+    /// the first keyframe of a map segment.
+    pub parent: Option<(KeyframeId, Isometry3<f64>)>,
+    /// Stereo observations; points matched to earlier keyframes keep their ids.
+    pub points: Vec<KeyframePoint>,
+}
+
+/// Tracking outcome of a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TrackState {
+    /// First frame of a map segment (the world origin for the first segment).
+    Initialised,
+    /// Tracked against the reference keyframe.
+    Tracked {
+        /// PnP inliers.
+        inliers: usize,
+    },
+    /// Tracking failed: the pose is the motion-model prediction.
+    Lost,
+    /// Tracking was lost and then recovered by relocalisation against the reference keyframe with a
+    /// wide search.
+    Relocalised {
+        /// PnP inliers.
+        inliers: usize,
+    },
+}
+
+/// Per-stage time of one frame, milliseconds.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StageTimes {
+    /// Feature extraction (both images).
+    pub extraction: f64,
+    /// Stereo matching.
+    pub stereo: f64,
+    /// Frame tracking (matching, PnP, pose refinement).
+    pub tracking: f64,
+}
+
+/// Result of tracking one frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackedFrame {
+    /// Pose of the left camera, world from camera.
+    pub world_from_camera: Isometry3<f64>,
+    /// The reference keyframe the pose was computed against, and the pose relative to it (so that the
+    /// final trajectory can follow keyframe corrections).
+    pub reference: (KeyframeId, Isometry3<f64>),
+    /// What happened.
+    pub state: TrackState,
+    /// Stereo points found in this frame.
+    pub stereo_points: usize,
+    /// Set when this frame became a keyframe.
+    pub keyframe: Option<KeyframeData>,
+    /// Stage timings.
+    pub times: StageTimes,
+}
+
+/// A keyframe pose and points refined by the mapper.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KeyframeCorrection {
+    /// Which keyframe.
+    pub id: KeyframeId,
+    /// Its refined pose.
+    pub world_from_camera: Isometry3<f64>,
+    /// Refined world positions of map points it observes.
+    pub points: Vec<(PointId, Vector3<f64>)>,
+    /// Map points the mapper culled (outliers); the tracker stops using them.
+    pub culled: Vec<PointId>,
+}
+
+/// Errors a tracker reports (image conversion or library failures; a failed frame is not an error but
+/// [`TrackState::Lost`]).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct TrackError(pub String);
+
+/// A stereo visual front end.
+pub trait StereoTracker: Send {
+    /// Track one rectified stereo pair. Keypoints inside `exclude` boxes (moving objects) are not used.
+    fn track(
+        &mut self,
+        frame: usize,
+        left: &Image,
+        right: &Image,
+        exclude: &[BBox],
+    ) -> Result<TrackedFrame, TrackError>;
+
+    /// Apply the mapper's refinement of a keyframe: when it is the reference keyframe (or the reference's
+    /// parent), the reference pose and points follow it. Callers apply corrections at points that do
+    /// not depend on thread timing, so runs are reproducible.
+    fn correct(&mut self, correction: &KeyframeCorrection);
+
+    /// Keypoints of the last tracked frame's predecessor followed into the last frame by optical flow
+    /// (for the associator's semantic-inlier cue), restricted to `regions` of the predecessor. Trackers
+    /// without flow return an empty list.
+    fn flow(&mut self, regions: &[BBox]) -> Result<Vec<PointPair>, TrackError>;
+}

@@ -1,0 +1,138 @@
+//! Trajectory error against ground truth: ATE (RMS of position errors, in the shared first-frame world
+//! and after a rigid alignment), RPE over distance segments (KITTI's odometry metric: translation % and
+//! degrees per 100 m), and end-point drift.
+
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
+
+/// Errors of an estimated trajectory.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrajectoryErrors {
+    /// Poses compared.
+    pub frames: usize,
+    /// Ground-truth path length, metres.
+    pub path_m: f64,
+    /// RMS position error with both trajectories starting at the identity (no alignment), metres.
+    pub ate_m: f64,
+    /// RMS position error after the best rigid alignment (Horn / Umeyama without scale), metres.
+    pub ate_aligned_m: f64,
+    /// Distance between the last estimated and true positions over the path length, %.
+    pub end_drift_pct: f64,
+    /// `(segment length m, translation %, rotation deg/100 m, segments)` for each length with segments.
+    pub rpe: Vec<(f64, f64, f64, usize)>,
+}
+
+/// Rigid transform `T` minimising `Σ |T·a_i − b_i|²` (Horn / Umeyama, no scale); `None` for fewer than
+/// three points.
+pub fn align_rigid(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> Option<Isometry3<f64>> {
+    let n = a.len().min(b.len());
+    if n < 3 {
+        return None;
+    }
+    let ca = a[..n].iter().sum::<Vector3<f64>>() / n as f64;
+    let cb = b[..n].iter().sum::<Vector3<f64>>() / n as f64;
+    let mut h = Matrix3::zeros();
+    for (p, q) in a[..n].iter().zip(&b[..n]) {
+        h += (p - ca) * (q - cb).transpose();
+    }
+    let svd = h.svd(true, true);
+    let (u, vt) = (svd.u?, svd.v_t?);
+    let v = vt.transpose();
+    let d = (v * u.transpose()).determinant().signum();
+    let r = v * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose();
+    let rot = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r));
+    let t = cb - rot * ca;
+    Some(Isometry3::from_parts(Translation3::from(t), rot))
+}
+
+/// KITTI's relative-pose error over all segments of `length` metres (by ground-truth distance):
+/// mean `|t_err| / length` (%) and `angle_err / length` (deg/100 m), and the number of segments.
+pub fn rpe(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], length: f64) -> Option<(f64, f64, usize)> {
+    let n = est.len().min(gt.len());
+    let mut dist = vec![0.0; n];
+    for i in 1..n {
+        dist[i] = dist[i - 1] + (gt[i].translation.vector - gt[i - 1].translation.vector).norm();
+    }
+    let (mut t_sum, mut r_sum, mut count) = (0.0, 0.0, 0usize);
+    for i in 0..n {
+        let Some(j) = (i..n).find(|&j| dist[j] - dist[i] >= length) else { break };
+        let err = (gt[i].inverse() * gt[j]).inverse() * (est[i].inverse() * est[j]);
+        t_sum += err.translation.vector.norm() / length;
+        r_sum += err.rotation.angle().to_degrees() / length;
+        count += 1;
+    }
+    (count > 0).then(|| (100.0 * t_sum / count as f64, 100.0 * r_sum / count as f64, count))
+}
+
+/// All errors of `est` against `gt` (first `min(len)` poses), RPE at the given segment lengths.
+pub fn trajectory_errors(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], lengths: &[f64]) -> Option<TrajectoryErrors> {
+    let n = est.len().min(gt.len());
+    if n < 2 {
+        return None;
+    }
+    let pe: Vec<Vector3<f64>> = est[..n].iter().map(|p| p.translation.vector).collect();
+    let pg: Vec<Vector3<f64>> = gt[..n].iter().map(|p| p.translation.vector).collect();
+    let rms = |pairs: &mut dyn Iterator<Item = f64>| (pairs.map(|d| d * d).sum::<f64>() / n as f64).sqrt();
+    let ate_m = rms(&mut pe.iter().zip(&pg).map(|(a, b)| (a - b).norm()));
+    let ate_aligned_m = match align_rigid(&pe, &pg) {
+        Some(t) => rms(&mut pe
+            .iter()
+            .zip(&pg)
+            .map(|(a, b)| (t * nalgebra::Point3::from(*a) - nalgebra::Point3::from(*b)).norm())),
+        None => ate_m,
+    };
+    let path_m: f64 = pg.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
+    let end = (pe[n - 1] - pg[n - 1]).norm();
+    Some(TrajectoryErrors {
+        frames: n,
+        path_m,
+        ate_m,
+        ate_aligned_m,
+        end_drift_pct: if path_m > 0.0 { 100.0 * end / path_m } else { f64::NAN },
+        rpe: lengths.iter().filter_map(|&l| rpe(&est[..n], &gt[..n], l).map(|(t, r, c)| (l, t, r, c))).collect(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn straight(n: usize, step: f64) -> Vec<Isometry3<f64>> {
+        (0..n).map(|i| Isometry3::translation(0.0, 0.0, step * i as f64)).collect()
+    }
+
+    #[test]
+    fn a_perfect_trajectory_has_no_error() {
+        let gt = straight(50, 1.0);
+        let e = trajectory_errors(&gt, &gt, &[10.0]).expect("errors");
+        assert!(e.ate_m < 1e-12 && e.ate_aligned_m < 1e-12 && e.end_drift_pct < 1e-12);
+        assert_eq!(e.rpe.len(), 1);
+        assert!(e.rpe[0].1 < 1e-12 && e.rpe[0].3 == 40);
+    }
+
+    #[test]
+    fn a_scale_error_shows_as_drift_and_rpe() {
+        let gt = straight(51, 1.0);
+        let est = straight(51, 1.01); // 1 % too long
+        let e = trajectory_errors(&est, &gt, &[10.0, 20.0]).expect("errors");
+        assert!((e.end_drift_pct - 1.0).abs() < 1e-9, "{e:?}");
+        for (_, t, r, _) in &e.rpe {
+            assert!((t - 1.0).abs() < 1e-9 && r.abs() < 1e-9, "{e:?}");
+        }
+        // positions 0.01·i off: RMS over i = 0..50
+        let expected = ((0..51).map(|i| (0.01 * i as f64).powi(2)).sum::<f64>() / 51.0).sqrt();
+        assert!((e.ate_m - expected).abs() < 1e-9);
+        assert!(e.ate_aligned_m < e.ate_m, "alignment can only help");
+    }
+
+    #[test]
+    fn alignment_undoes_a_rigid_motion() {
+        let gt: Vec<Isometry3<f64>> =
+            (0..30).map(|i| Isometry3::translation((0.2 * i as f64).sin() * 3.0, 0.1 * i as f64, i as f64)).collect();
+        let t =
+            Isometry3::from_parts(Translation3::new(1.0, -2.0, 0.5), UnitQuaternion::from_euler_angles(0.1, 0.3, -0.2));
+        let est: Vec<Isometry3<f64>> = gt.iter().map(|p| t * p).collect();
+        let e = trajectory_errors(&est, &gt, &[]).expect("errors");
+        assert!(e.ate_m > 1.0 && e.ate_aligned_m < 1e-9, "{e:?}");
+        assert!(align_rigid(&[Vector3::zeros(); 2], &[Vector3::zeros(); 2]).is_none());
+    }
+}

@@ -1,0 +1,317 @@
+//! Local mapping: keyframes into the map, local bundle adjustment over a window of recent keyframes
+//! (the optimisation crate's stereo reprojection factor, Huber), and culling of outlier observations.
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use nalgebra::{Isometry3, Point3, Vector3};
+use slam_core::{geometry::Intrinsics, KeyframeCorrection, KeyframeData, KeyframeId, PointId};
+use slam_optim::{factors::StereoReprojection, Graph, Huber, LevenbergMarquardt, LmParams, NoiseModel, Values, Var};
+
+use crate::map::{pose_from_array, pose_to_array, Map, MapKeyframe, MapPoint};
+
+/// Settings of the local mapper.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MappingConfig {
+    /// Keyframes optimised together (the newest ones of the current map segment). Default 6.
+    pub window: usize,
+    /// Huber threshold of the stereo reprojection error, pixels. Default 2.8 (√7.815, the 95 % χ² bound
+    /// of a 3-D residual at σ = 1 px).
+    pub huber_px: f64,
+    /// Observations whose squared error (px²) exceeds this after the adjustment are culled. Default 7.815.
+    pub cull_chi2: f64,
+    /// Levenberg-Marquardt iterations per adjustment. Default 10.
+    pub iterations: usize,
+    /// Run bundle adjustment at all (off: keyframes are only inserted). Default on.
+    pub bundle_adjustment: bool,
+}
+
+impl Default for MappingConfig {
+    fn default() -> Self {
+        Self { window: 6, huber_px: 7.815f64.sqrt(), cull_chi2: 7.815, iterations: 10, bundle_adjustment: true }
+    }
+}
+
+/// Result of inserting a keyframe.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MappingReport {
+    /// What to send back to the tracker.
+    pub correction: KeyframeCorrection,
+    /// Keyframes adjusted (free) and held fixed.
+    pub window: (usize, usize),
+    /// Observations culled.
+    pub culled_observations: usize,
+    /// Milliseconds in the adjustment.
+    pub ba_ms: f64,
+}
+
+/// Owner of the map's keyframes and points.
+pub struct LocalMapper {
+    map: Map,
+    k: Intrinsics,
+    baseline: f64,
+    config: MappingConfig,
+}
+
+impl LocalMapper {
+    /// A mapper for a rectified stereo rig.
+    pub fn new(k: Intrinsics, baseline: f64, config: MappingConfig) -> Self {
+        Self { map: Map::default(), k, baseline, config }
+    }
+
+    /// The map so far.
+    pub fn map(&self) -> &Map {
+        &self.map
+    }
+
+    /// Mutable access for the pipeline (objects, trajectory).
+    pub fn map_mut(&mut self) -> &mut Map {
+        &mut self.map
+    }
+
+    /// Give up the map.
+    pub fn into_map(self) -> Map {
+        self.map
+    }
+
+    fn project(&self, pose: &Isometry3<f64>, x: &Vector3<f64>) -> Option<[f64; 3]> {
+        let c = pose.inverse() * Point3::from(*x);
+        (c.z > 0.1).then(|| {
+            let u = self.k.fx * c.x / c.z + self.k.cx;
+            [u, self.k.fy * c.y / c.z + self.k.cy, u - self.k.fx * self.baseline / c.z]
+        })
+    }
+
+    /// Insert a keyframe (its pose chained to its parent's refined pose), adjust the local window and
+    /// cull outliers.
+    pub fn insert_keyframe(&mut self, kf: &KeyframeData) -> MappingReport {
+        let pose = match kf.parent {
+            Some((p, rel)) => self.map.keyframe_pose(p).map(|pp| pp * rel).unwrap_or(kf.world_from_camera),
+            None => kf.world_from_camera,
+        };
+        let mut observations = Vec::with_capacity(kf.points.len());
+        for p in &kf.points {
+            if !p.observation.iter().all(|v| v.is_finite()) || !p.camera_point.iter().all(|v| v.is_finite()) {
+                continue;
+            }
+            let entry = self.map.points.entry(p.id).or_insert_with(|| {
+                let x = pose * Point3::from(p.camera_point);
+                MapPoint { position: [x.x, x.y, x.z], observed_by: Vec::new() }
+            });
+            entry.observed_by.push(kf.id);
+            observations.push((p.id, p.observation));
+        }
+        self.map.keyframes.insert(
+            kf.id,
+            MapKeyframe { frame: kf.frame, pose: pose_to_array(&pose), parent: kf.parent.map(|p| p.0), observations },
+        );
+        let start = std::time::Instant::now();
+        let (window, culled) = if self.config.bundle_adjustment { self.adjust(kf.id) } else { ((0, 0), 0) };
+        let ba_ms = start.elapsed().as_secs_f64() * 1e3;
+        let mut culled_ids = Vec::new();
+        let mut points = Vec::new();
+        if let Some(k) = self.map.keyframes.get(&kf.id) {
+            let kept: BTreeSet<PointId> = k.observations.iter().map(|o| o.0).collect();
+            for p in &kf.points {
+                if kept.contains(&p.id) {
+                    if let Some(x) = self.map.point(p.id) {
+                        points.push((p.id, x));
+                    }
+                } else {
+                    culled_ids.push(p.id);
+                }
+            }
+        }
+        MappingReport {
+            correction: KeyframeCorrection {
+                id: kf.id,
+                world_from_camera: self.map.keyframe_pose(kf.id).unwrap_or(pose),
+                points,
+                culled: culled_ids,
+            },
+            window,
+            culled_observations: culled,
+            ba_ms,
+        }
+    }
+
+    /// Bundle adjustment of the newest keyframes of `newest`'s segment; returns (free, fixed) keyframe
+    /// counts and the number of culled observations.
+    fn adjust(&mut self, newest: KeyframeId) -> ((usize, usize), usize) {
+        // the window: newest keyframes back to the segment's start
+        let mut window = Vec::new();
+        for (&id, k) in self.map.keyframes.range(..=newest).rev() {
+            window.push(id);
+            if k.parent.is_none() || window.len() >= self.config.window {
+                break;
+            }
+        }
+        let window_set: BTreeSet<KeyframeId> = window.iter().copied().collect();
+        let local_points: BTreeSet<PointId> = window
+            .iter()
+            .filter_map(|id| self.map.keyframes.get(id))
+            .flat_map(|k| k.observations.iter().map(|o| o.0))
+            .collect();
+        let mut fixed: BTreeSet<KeyframeId> = local_points
+            .iter()
+            .filter_map(|p| self.map.points.get(p))
+            .flat_map(|p| p.observed_by.iter().copied())
+            .filter(|k| !window_set.contains(k))
+            .collect();
+        if fixed.is_empty() {
+            // the segment's first keyframes: the oldest of the window holds the gauge
+            if let Some(&oldest) = window.last() {
+                fixed.insert(oldest);
+            }
+        }
+        if window.len() < 2 && fixed.iter().all(|f| window_set.contains(f)) {
+            return ((0, fixed.len()), 0);
+        }
+        let mut values = Values::new();
+        let mut graph = Graph::new();
+        let mut lm =
+            LevenbergMarquardt::new(LmParams { max_iterations: self.config.iterations, ..LmParams::default() });
+        let mut pose_keys = BTreeMap::new();
+        for id in window_set.union(&fixed) {
+            let Some(pose) = self.map.keyframe_pose(*id) else { continue };
+            let key = values.add(Var::Pose(pose));
+            if fixed.contains(id) {
+                lm.fix(key);
+            }
+            pose_keys.insert(*id, key);
+        }
+        let mut point_keys = BTreeMap::new();
+        for pid in &local_points {
+            let Some(x) = self.map.point(*pid) else { continue };
+            let key = values.add(Var::Point(x));
+            lm.eliminate(key);
+            point_keys.insert(*pid, key);
+        }
+        for (kid, &pk) in &pose_keys {
+            let Some(k) = self.map.keyframes.get(kid) else { continue };
+            for (pid, obs) in &k.observations {
+                let Some(&xk) = point_keys.get(pid) else { continue };
+                let _ = graph.add(
+                    StereoReprojection::new(pk, xk, self.k, self.baseline, *obs),
+                    NoiseModel::Isotropic(1.0),
+                    Huber(self.config.huber_px),
+                );
+            }
+        }
+        if let Err(e) = lm.solve(&graph, &mut values, None) {
+            tracing::warn!(keyframe = newest, "local bundle adjustment failed: {e}");
+            return ((0, fixed.len()), 0);
+        }
+        for (kid, key) in &pose_keys {
+            if fixed.contains(kid) {
+                continue;
+            }
+            if let (Some(p), Some(k)) = (values.pose(*key), self.map.keyframes.get_mut(kid)) {
+                k.pose = pose_to_array(p);
+            }
+        }
+        for (pid, key) in &point_keys {
+            if let (Some(x), Some(p)) = (values.point(*key), self.map.points.get_mut(pid)) {
+                if x.iter().all(|v| v.is_finite()) {
+                    p.position = [x.x, x.y, x.z];
+                }
+            }
+        }
+        // cull observations that still disagree, then points nobody sees
+        let mut culled = 0;
+        for kid in &window {
+            let Some(pose) = self.map.keyframe_pose(*kid) else { continue };
+            let obs = self.map.keyframes.get(kid).map(|k| k.observations.clone()).unwrap_or_default();
+            let mut keep = Vec::with_capacity(obs.len());
+            for (pid, o) in obs {
+                let good = self.map.point(pid).and_then(|x| self.project(&pose, &x)).is_some_and(|p| {
+                    (p[0] - o[0]).powi(2) + (p[1] - o[1]).powi(2) + (p[2] - o[2]).powi(2) <= self.config.cull_chi2
+                });
+                if good {
+                    keep.push((pid, o));
+                } else {
+                    culled += 1;
+                    if let Some(p) = self.map.points.get_mut(&pid) {
+                        p.observed_by.retain(|k| k != kid);
+                        if p.observed_by.is_empty() {
+                            self.map.points.remove(&pid);
+                        }
+                    }
+                }
+            }
+            if let Some(k) = self.map.keyframes.get_mut(kid) {
+                k.observations = keep;
+            }
+        }
+        ((window_set.len() - window_set.intersection(&fixed).count(), fixed.len()), culled)
+    }
+
+    /// Keyframe pose of a stored keyframe (convenience for callers holding an id).
+    pub fn keyframe_pose(&self, id: KeyframeId) -> Option<Isometry3<f64>> {
+        self.map.keyframes.get(&id).map(|k| pose_from_array(&k.pose))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use slam_core::KeyframePoint;
+
+    /// Noisy keyframes over a static point field: local BA pulls the keyframe poses back towards the
+    /// truth and culls a gross outlier.
+    #[test]
+    fn local_ba_reduces_pose_error_and_culls_outliers() {
+        let k = Intrinsics::new(700.0, 700.0, 600.0, 180.0);
+        let b = 0.54;
+        let mut rng = slam_core::rng::SimRng::new(3);
+        let points: Vec<Vector3<f64>> = (0..300)
+            .map(|_| Vector3::new(rng.uniform(-15.0, 15.0), rng.uniform(-3.0, 2.0), rng.uniform(8.0, 40.0)))
+            .collect();
+        let truth: Vec<Isometry3<f64>> =
+            (0..6).map(|i| Isometry3::translation(0.1 * i as f64, 0.0, 1.0 * i as f64)).collect();
+        let mut mapper = LocalMapper::new(k, b, MappingConfig::default());
+        let mut err_before = 0.0;
+        let mut last = None;
+        for (i, t) in truth.iter().enumerate() {
+            // the tracker's pose: off by a growing error
+            let noisy = Isometry3::translation(0.03 * i as f64, -0.02 * i as f64, 0.04 * i as f64) * t;
+            err_before += (noisy.translation.vector - t.translation.vector).norm();
+            let mut kps = Vec::new();
+            for (id, x) in points.iter().enumerate() {
+                let c = t.inverse() * Point3::from(*x);
+                if c.z < 1.0 {
+                    continue;
+                }
+                let u = k.fx * c.x / c.z + k.cx + 0.3 * rng.normal();
+                let v = k.fy * c.y / c.z + k.cy + 0.3 * rng.normal();
+                let mut ur = u - k.fx * b / c.z + 0.3 * rng.normal();
+                if id == 5 && i == 5 {
+                    ur -= 25.0; // a gross stereo mismatch
+                }
+                let z = k.fx * b / (u - ur);
+                let cp = Vector3::new((u - k.cx) * z / k.fx, (v - k.cy) * z / k.fy, z);
+                kps.push(KeyframePoint { id: id as u64, camera_point: cp, observation: [u, v, ur] });
+            }
+            // the tracker's relative pose to the previous keyframe, from its own (noisy) poses
+            let parent = (i > 0).then(|| {
+                let prev_noisy =
+                    Isometry3::translation(0.03 * (i - 1) as f64, -0.02 * (i - 1) as f64, 0.04 * (i - 1) as f64)
+                        * truth[i - 1];
+                (i as u64 - 1, prev_noisy.inverse() * noisy)
+            });
+            let data = KeyframeData { id: i as u64, frame: i, world_from_camera: noisy, parent, points: kps };
+            last = Some(mapper.insert_keyframe(&data));
+        }
+        let report = last.expect("report");
+        assert!(report.window.0 >= 4, "{:?}", report.window);
+        assert!(report.correction.culled.contains(&5), "the mismatch is culled");
+        let err_after: f64 = truth
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                (mapper.keyframe_pose(i as u64).expect("kf").translation.vector - t.translation.vector).norm()
+            })
+            .sum();
+        assert!(err_after < 0.2 * err_before, "BA error {err_after:.3} vs tracker error {err_before:.3}");
+    }
+}

@@ -1,0 +1,480 @@
+//! The running system: the paper's threads, talking through `crossbeam-channel` messages.
+//!
+//! ```text
+//!  reader ──frames──▶ detection ──frames+boxes──▶ tracking ──keyframes+fit jobs──▶ local mapping
+//!                                                    ▲                                   │
+//!                                                    └──── corrections + fitted objects ─┘
+//! ```
+//! - **reader**: decodes the stereo pairs (the caller's iterator) ahead of time.
+//! - **detection**: runs the [`DetectionSource`] on every `detect_every`-th left image.
+//! - **tracking** (the calling thread): the [`StereoTracker`], optical flow in the boxes, object
+//!   association ([`ObjectMapper::associate`]), the moving-object test, and on keyframes the fit jobs.
+//! - **local mapping**: the only owner of the [`Map`]: keyframe insertion, local bundle adjustment,
+//!   culling, and the object fits (texture planes from the map points). The tracking thread reads the
+//!   map only through the mapper's replies (keyframe corrections, fitted objects); `on_frame` observers
+//!   get per-frame records, and the final map is handed over when the run ends. No locks are shared.
+//!
+//! Determinism: the tracker applies the mapper's reply for a keyframe made at frame `f` just before it
+//! tracks frame `f + correction_lag` (waiting for it if need be), never "whenever it arrives", so a run
+//! gives the same output however the threads are scheduled.
+
+use std::{collections::VecDeque, time::Instant};
+
+use crossbeam_channel::{bounded, unbounded, Receiver, Sender};
+use nalgebra::{Isometry3, Point3, Vector3};
+use slam_core::{
+    geometry::{BBox, Camera, Intrinsics},
+    ClassId, Detection, DetectionSource, Image, KeyframeCorrection, KeyframeData, StereoTracker, TrackId, TrackState,
+};
+
+use crate::{
+    map::{pose_to_array, FramePose, Map, MapObject},
+    mapping::{LocalMapper, MappingConfig},
+    objects::{class_prior, FitJob, FitResult, MappedObject, MapperConfig, ObjectMapper},
+    texture::{texture_planes, TextureConfig},
+};
+
+/// Settings of the system.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SystemConfig {
+    /// Local mapping.
+    pub mapping: MappingConfig,
+    /// Object mapping.
+    pub objects: MapperConfig,
+    /// Texture planes.
+    pub texture: TextureConfig,
+    /// Frames between a keyframe and the application of the mapper's reply to it. Default 2.
+    pub correction_lag: usize,
+    /// Run the detector on every n-th frame (others get no boxes). Default 1.
+    pub detect_every: usize,
+    /// Keep keypoints of moving objects out of tracking. Default on.
+    pub exclude_moving: bool,
+    /// Map points inside the central part of a box (this fraction of its width and height) belong to
+    /// the object. Default 0.6.
+    pub object_core: f64,
+}
+
+impl Default for SystemConfig {
+    fn default() -> Self {
+        Self {
+            mapping: MappingConfig::default(),
+            objects: MapperConfig::default(),
+            texture: TextureConfig::default(),
+            correction_lag: 2,
+            detect_every: 1,
+            exclude_moving: true,
+            object_core: 0.6,
+        }
+    }
+}
+
+/// One input frame: its stereo pair, or why it could not be read.
+#[derive(Debug)]
+pub struct FrameInput {
+    /// Frame index in the sequence.
+    pub index: usize,
+    /// Left and right images, or the reason they are missing.
+    pub images: Result<(Image, Image), String>,
+}
+
+/// What happened in one frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameRecord {
+    /// Frame index.
+    pub index: usize,
+    /// Tracking state; `None` for an unreadable frame.
+    pub state: Option<TrackState>,
+    /// The frame became a keyframe.
+    pub keyframe: bool,
+    /// Detections used.
+    pub detections: Vec<Detection>,
+    /// Object of each detection.
+    pub tracks: Vec<Option<TrackId>>,
+    /// Stage times, milliseconds.
+    pub times: FrameTimes,
+}
+
+/// Per-frame stage times, milliseconds.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FrameTimes {
+    /// Detection (its own thread).
+    pub detection: f64,
+    /// Feature extraction.
+    pub extraction: f64,
+    /// Stereo matching.
+    pub stereo: f64,
+    /// Frame tracking.
+    pub tracking: f64,
+    /// Optical flow for the association.
+    pub flow: f64,
+    /// Object association.
+    pub association: f64,
+    /// Local bundle adjustment (keyframes; mapping thread).
+    pub bundle_adjustment: f64,
+    /// Object initialisation and optimisation (keyframes; mapping thread).
+    pub objects: f64,
+}
+
+/// Counts of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct RunCounts {
+    /// Frames.
+    pub frames: usize,
+    /// Keyframes.
+    pub keyframes: usize,
+    /// Frames whose images could not be read (pose held).
+    pub unreadable: usize,
+    /// Frames where tracking failed.
+    pub lost: usize,
+    /// Frames recovered by relocalisation.
+    pub relocalised: usize,
+    /// Map segments started after a failure (the first one not counted).
+    pub new_segments: usize,
+    /// Detection failures (counted and logged, the frame goes on without boxes).
+    pub detector_errors: usize,
+    /// Observations culled by local mapping.
+    pub culled_observations: usize,
+}
+
+/// Everything a run produced.
+pub struct RunOutput {
+    /// The map: keyframes, points, objects, per-frame trajectory.
+    pub map: Map,
+    /// Pose of every input frame (left camera, world from camera), following the refined keyframes.
+    pub poses: Vec<Isometry3<f64>>,
+    /// The objects with their observations.
+    pub objects: Vec<MappedObject>,
+    /// Per-frame records.
+    pub frames: Vec<FrameRecord>,
+    /// Counts.
+    pub counts: RunCounts,
+}
+
+/// Requests to the local-mapping thread.
+pub enum MapperRequest {
+    /// A new keyframe and the object fits due at it.
+    Keyframe(Box<KeyframeData>, Vec<FitJob>),
+    /// Stop and hand the map over.
+    Finish,
+}
+
+struct MapperReply {
+    correction: KeyframeCorrection,
+    fits: Vec<FitResult>,
+    ba_ms: f64,
+    fit_ms: f64,
+    culled: usize,
+}
+
+/// Failures of the system itself (not of the data: bad frames are counted and logged).
+#[derive(Debug, thiserror::Error)]
+pub enum SystemError {
+    /// The tracker failed in a way it could not turn into a lost frame.
+    #[error("frame {frame}: {message}")]
+    Tracker {
+        /// Frame index.
+        frame: usize,
+        /// The tracker's message.
+        message: String,
+    },
+    /// A thread stopped unexpectedly.
+    #[error("the {0} thread stopped unexpectedly")]
+    Thread(&'static str),
+}
+
+fn mapping_thread(
+    mut mapper: LocalMapper,
+    texture: TextureConfig,
+    requests: Receiver<MapperRequest>,
+    replies: Sender<MapperReply>,
+) -> Map {
+    for req in requests {
+        match req {
+            MapperRequest::Keyframe(kf, mut jobs) => {
+                let report = mapper.insert_keyframe(&kf);
+                for job in &mut jobs {
+                    job.repose(|k| mapper.keyframe_pose(k));
+                }
+                let t = Instant::now();
+                let camera_of = |job: &FitJob| job.views.last().map(|v| v.camera);
+                let fits = jobs
+                    .iter()
+                    .map(|job| {
+                        let points: Vec<Vector3<f64>> =
+                            job.points.iter().filter_map(|p| mapper.map().point(*p)).collect();
+                        let planes = camera_of(job).map(|c| texture_planes(&points, &c, &texture)).unwrap_or_default();
+                        job.run(&planes)
+                    })
+                    .collect();
+                let reply = MapperReply {
+                    correction: report.correction,
+                    fits,
+                    ba_ms: report.ba_ms,
+                    fit_ms: t.elapsed().as_secs_f64() * 1e3,
+                    culled: report.culled_observations,
+                };
+                if replies.send(reply).is_err() {
+                    break;
+                }
+            }
+            MapperRequest::Finish => break,
+        }
+    }
+    mapper.into_map()
+}
+
+/// Fewest map points in a box for its centroid to count.
+const MIN_OBJECT_POINTS: usize = 5;
+
+/// Map points of a keyframe inside the central part of a box at the depth the box's height implies
+/// for the class (±30 %, at least ±3 m: background seen past the object is not the object), and their
+/// median world position (`None` below [`MIN_OBJECT_POINTS`] points).
+fn object_points(kf: &KeyframeData, b: &BBox, core: f64, class: ClassId, fy: f64) -> (Vec<u64>, Option<Vector3<f64>>) {
+    let (cx, cy) = (0.5 * (b.xmin + b.xmax), 0.5 * (b.ymin + b.ymax));
+    let (hw, hh) = (0.5 * core * (b.xmax - b.xmin), 0.5 * core * (b.ymax - b.ymin));
+    let expected = fy * 2.0 * class_prior(class).axes.y / b.height().max(1.0);
+    let tolerance = (0.3 * expected).max(3.0);
+    let kept: Vec<(u64, Vector3<f64>)> = kf
+        .points
+        .iter()
+        .filter(|p| (p.observation[0] - cx).abs() <= hw && (p.observation[1] - cy).abs() <= hh)
+        .filter(|p| (p.camera_point.z - expected).abs() <= tolerance)
+        .map(|p| (p.id, (kf.world_from_camera * Point3::from(p.camera_point)).coords))
+        .collect();
+    let median = |k: usize| {
+        let mut v: Vec<f64> = kept.iter().map(|p| p.1[k]).collect();
+        v.sort_by(|a, b| a.total_cmp(b));
+        v[v.len() / 2]
+    };
+    // a centroid needs a few points: one stray point of the background would fake a motion
+    let centroid = (kept.len() >= MIN_OBJECT_POINTS).then(|| Vector3::new(median(0), median(1), median(2)));
+    (kept.iter().map(|p| p.0).collect(), centroid)
+}
+
+/// Run the whole system over `frames`.
+///
+/// `detector` is `None` for a run without objects. `on_frame` sees each frame's record as soon as it is
+/// tracked (progress output).
+pub fn run(
+    frames: Box<dyn Iterator<Item = FrameInput> + Send>,
+    mut tracker: Box<dyn StereoTracker>,
+    detector: Option<Box<dyn DetectionSource>>,
+    intrinsics: Intrinsics,
+    baseline: f64,
+    config: &SystemConfig,
+    on_frame: &mut dyn FnMut(&FrameRecord),
+) -> Result<RunOutput, SystemError> {
+    let config = *config;
+    std::thread::scope(|scope| {
+        // reader → detection
+        let (frame_tx, frame_rx) = bounded::<FrameInput>(4);
+        scope.spawn(move || {
+            for f in frames {
+                if frame_tx.send(f).is_err() {
+                    break;
+                }
+            }
+        });
+        // detection → tracking
+        type Detected = (FrameInput, Result<Vec<Detection>, String>, f64);
+        let (det_tx, det_rx) = bounded::<Detected>(4);
+        let detect_every = config.detect_every.max(1);
+        scope.spawn(move || {
+            let mut detector = detector;
+            for f in frame_rx {
+                let t = Instant::now();
+                let dets = match (&mut detector, &f.images) {
+                    (Some(d), Ok((left, _))) if f.index % detect_every == 0 => {
+                        let img = d.needs_image().then_some(left);
+                        d.detect(f.index, img).map_err(|e| e.to_string())
+                    }
+                    (Some(d), Err(_)) if !d.needs_image() && f.index % detect_every == 0 => {
+                        d.detect(f.index, None).map_err(|e| e.to_string())
+                    }
+                    _ => Ok(Vec::new()),
+                };
+                let ms = t.elapsed().as_secs_f64() * 1e3;
+                if det_tx.send((f, dets, ms)).is_err() {
+                    break;
+                }
+            }
+        });
+        // local mapping
+        let (req_tx, req_rx) = unbounded::<MapperRequest>();
+        let (reply_tx, reply_rx) = unbounded::<MapperReply>();
+        let mapper = LocalMapper::new(intrinsics, baseline, config.mapping);
+        let texture = config.texture;
+        let mapping = scope.spawn(move || mapping_thread(mapper, texture, req_rx, reply_tx));
+
+        // tracking, on this thread
+        let mut objects = ObjectMapper::new(Box::new(slam_assoc::Oda::default()), config.objects);
+        let mut records: Vec<FrameRecord> = Vec::new();
+        let mut trajectory: Vec<FramePose> = Vec::new();
+        let mut counts = RunCounts::default();
+        let mut pending: VecDeque<(usize, usize)> = VecDeque::new(); // (keyframe frame, record index)
+        let mut last_reference: Option<(u64, Isometry3<f64>)> = None;
+        let mut prev_boxes: Vec<BBox> = Vec::new();
+        let mut moving_boxes: Vec<BBox> = Vec::new();
+        let apply = |reply: MapperReply,
+                     tracker: &mut Box<dyn StereoTracker>,
+                     objects: &mut ObjectMapper,
+                     record: Option<&mut FrameRecord>,
+                     counts: &mut RunCounts| {
+            tracker.correct(&reply.correction);
+            for fit in reply.fits {
+                objects.apply(fit);
+            }
+            counts.culled_observations += reply.culled;
+            if let Some(r) = record {
+                r.times.bundle_adjustment = reply.ba_ms;
+                r.times.objects = reply.fit_ms;
+            }
+        };
+        for (input, dets, det_ms) in det_rx {
+            let i = input.index;
+            while let Some(&(kf_frame, rec)) = pending.front() {
+                if kf_frame + config.correction_lag > i {
+                    break;
+                }
+                let reply = reply_rx.recv().map_err(|_| SystemError::Thread("local mapping"))?;
+                apply(reply, &mut tracker, &mut objects, records.get_mut(rec), &mut counts);
+                pending.pop_front();
+            }
+            counts.frames += 1;
+            let detections = match dets {
+                Ok(d) => d,
+                Err(e) => {
+                    counts.detector_errors += 1;
+                    tracing::warn!(frame = i, "detector failed: {e}; frame has no boxes");
+                    Vec::new()
+                }
+            };
+            let mut times = FrameTimes { detection: det_ms, ..FrameTimes::default() };
+            let (left, right) = match input.images {
+                Ok(pair) => pair,
+                Err(why) => {
+                    counts.unreadable += 1;
+                    tracing::warn!(frame = i, "unreadable: {why}; pose held");
+                    let (kf, rel) = last_reference.unwrap_or((0, Isometry3::identity()));
+                    trajectory.push(FramePose {
+                        frame: i,
+                        keyframe: kf,
+                        relative: pose_to_array(&rel),
+                        state: "unreadable".into(),
+                    });
+                    let record = FrameRecord {
+                        index: i,
+                        state: None,
+                        keyframe: false,
+                        detections: Vec::new(),
+                        tracks: Vec::new(),
+                        times,
+                    };
+                    on_frame(&record);
+                    records.push(record);
+                    prev_boxes.clear();
+                    continue;
+                }
+            };
+            let exclude: &[BBox] = if config.exclude_moving { &moving_boxes } else { &[] };
+            let tf = tracker
+                .track(i, &left, &right, exclude)
+                .map_err(|e| SystemError::Tracker { frame: i, message: e.to_string() })?;
+            times.extraction = tf.times.extraction;
+            times.stereo = tf.times.stereo;
+            times.tracking = tf.times.tracking;
+            match tf.state {
+                TrackState::Lost => counts.lost += 1,
+                TrackState::Relocalised { .. } => counts.relocalised += 1,
+                _ => {}
+            }
+            let t = Instant::now();
+            let flow = if prev_boxes.is_empty() {
+                Vec::new()
+            } else {
+                tracker.flow(&prev_boxes).unwrap_or_else(|e| {
+                    tracing::debug!(frame = i, "optical flow failed: {e}");
+                    Vec::new()
+                })
+            };
+            times.flow = t.elapsed().as_secs_f64() * 1e3;
+            let t = Instant::now();
+            let camera = Camera::new(intrinsics, tf.world_from_camera);
+            let tracks = objects.associate(i, &camera, Some(tf.reference), &detections, &flow);
+            if let Some(kf) = &tf.keyframe {
+                if kf.parent.is_none() && kf.id > 0 {
+                    counts.new_segments += 1;
+                }
+                for (d, t) in detections.iter().zip(&tracks) {
+                    if let Some(id) = t {
+                        let (pts, centroid) = object_points(kf, &d.bbox, config.object_core, d.class, intrinsics.fy);
+                        objects.add_points(*id, &pts, centroid);
+                    }
+                }
+            }
+            moving_boxes = detections
+                .iter()
+                .zip(&tracks)
+                .filter(|(_, t)| t.is_some_and(|id| objects.objects().any(|o| o.id == id && o.moving)))
+                .map(|(d, _)| {
+                    let b = d.bbox;
+                    let (mx, my) = (0.1 * (b.xmax - b.xmin), 0.1 * (b.ymax - b.ymin));
+                    BBox::new(b.xmin - mx, b.ymin - my, b.xmax + mx, b.ymax + my)
+                })
+                .collect();
+            prev_boxes = detections.iter().map(|d| d.bbox).collect();
+            times.association = t.elapsed().as_secs_f64() * 1e3;
+            last_reference = Some(tf.reference);
+            trajectory.push(FramePose {
+                frame: i,
+                keyframe: tf.reference.0,
+                relative: pose_to_array(&tf.reference.1),
+                state: match tf.state {
+                    TrackState::Initialised => "initialised",
+                    TrackState::Tracked { .. } => "tracked",
+                    TrackState::Lost => "lost",
+                    TrackState::Relocalised { .. } => "relocalised",
+                }
+                .into(),
+            });
+            let is_kf = tf.keyframe.is_some();
+            if let Some(kf) = tf.keyframe {
+                counts.keyframes += 1;
+                let jobs = objects.fit_jobs();
+                req_tx
+                    .send(MapperRequest::Keyframe(Box::new(kf), jobs))
+                    .map_err(|_| SystemError::Thread("local mapping"))?;
+                pending.push_back((i, records.len()));
+            }
+            let record = FrameRecord { index: i, state: Some(tf.state), keyframe: is_kf, detections, tracks, times };
+            on_frame(&record);
+            records.push(record);
+        }
+        while let Some((_, rec)) = pending.pop_front() {
+            let reply = reply_rx.recv().map_err(|_| SystemError::Thread("local mapping"))?;
+            apply(reply, &mut tracker, &mut objects, records.get_mut(rec), &mut counts);
+        }
+        let _ = req_tx.send(MapperRequest::Finish);
+        let mut map = mapping.join().map_err(|_| SystemError::Thread("local mapping"))?;
+        map.trajectory = trajectory;
+        map.objects = objects.objects().filter_map(map_object).collect();
+        let poses = map.frame_poses().into_iter().map(|p| p.unwrap_or_else(Isometry3::identity)).collect();
+        Ok(RunOutput { map, poses, objects: objects.objects().cloned().collect(), frames: records, counts })
+    })
+}
+
+/// The stored form of an object with an ellipsoid.
+pub fn map_object(o: &MappedObject) -> Option<MapObject> {
+    let e = o.ellipsoid.as_ref()?;
+    let r = e.rotation();
+    Some(MapObject {
+        id: o.id.0,
+        class: o.class.0,
+        center: [e.centre().x, e.centre().y, e.centre().z],
+        semi_axes: [e.semi_axes.x, e.semi_axes.y, e.semi_axes.z],
+        rotation: [r[(0, 0)], r[(0, 1)], r[(0, 2)], r[(1, 0)], r[(1, 1)], r[(1, 2)], r[(2, 0)], r[(2, 1)], r[(2, 2)]],
+        frames: o.observations.iter().map(|x| x.frame).collect(),
+        dynamic: o.dynamic,
+        points: o.points.iter().copied().collect(),
+    })
+}
