@@ -27,6 +27,9 @@ enum Command {
     /// sequence (default: the shipped odometry sequence 06, frames 0–50); writes the trajectory, the map,
     /// the object map and pictures; prints ATE/RPE when ground truth exists.
     Run(Box<run_cmd::RunArgs>),
+    /// Speed of the whole system on the shipped sequence: frames/s and per-stage medians without
+    /// objects, with detections from a file, and with the shipped detector.
+    RunBench(run_cmd::RunBenchArgs),
     /// Inspect a saved map (counts, objects) and export it (PLY points, trajectory, top-down picture).
     Map(run_cmd::MapArgs),
     /// Compare object associators (ODA vs IoU-only): ID switches on simulated crossings and on real
@@ -99,6 +102,7 @@ fn run() -> anyhow::Result<()> {
     match cli.command {
         Command::Run(a) => run_cmd::run(&a),
         Command::Map(a) => run_cmd::map(&a),
+        Command::RunBench(a) => run_cmd::run_bench(&a),
         Command::Assoc(cmd) => assoc_cmd::run(cmd),
         Command::OptimBench(a) => optim_cmd::run(&a),
         Command::Sim(a) => sim_cmd::run(&a),

@@ -151,15 +151,38 @@ fn stage_table(out: &RunOutput) -> Vec<(&'static str, f64, usize)> {
         .collect()
 }
 
-pub fn run(a: &RunArgs) -> anyhow::Result<()> {
+/// A finished run and what is needed to report on it.
+struct Outcome {
+    out: RunOutput,
+    seq: StereoSequence,
+    elapsed: f64,
+    k: Intrinsics,
+    image: ImageSize,
+    colour: bool,
+}
+
+/// Keeps the detections of the mapped classes only.
+struct ClassFilter(Box<dyn DetectionSource>);
+
+impl DetectionSource for ClassFilter {
+    fn name(&self) -> &str {
+        self.0.name()
+    }
+    fn needs_image(&self) -> bool {
+        self.0.needs_image()
+    }
+    fn detect(&mut self, frame: usize, image: Option<&Image>) -> Result<Vec<slam_core::Detection>, slam_core::DetectError> {
+        let mut d = self.0.detect(frame, image)?;
+        d.retain(|d| OBJECT_CLASSES.contains(&d.class.0));
+        Ok(d)
+    }
+}
+
+fn settings(a: &RunArgs) -> anyhow::Result<RunConfig> {
     let mut cfg = match &a.config {
         Some(p) => RunConfig::read(p)?,
         None => RunConfig::default(),
     };
-    if a.print_config {
-        print!("{}", cfg.to_toml());
-        return Ok(());
-    }
     if let Some(g) = a.keyframe_gap {
         cfg.tracking.keyframe_max_gap = g as usize;
     }
@@ -169,25 +192,31 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     if let Some(n) = a.detect_every {
         cfg.system.detect_every = n as usize;
     }
+    Ok(cfg)
+}
+
+fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outcome> {
     let path = a.path.clone().unwrap_or_else(|| crate::fixture("kitti_odom_06/sequences/06"));
     let seq = open_stereo(&path)?;
     let n = a.max_frames.unwrap_or(usize::MAX).min(seq.left.len());
     let [fx, fy, cx, cy] = seq.intrinsics;
     let k = Intrinsics::new(fx, fy, cx, cy);
     let rig = StereoRig { k, baseline: seq.baseline };
-    println!(
-        "quadric SLAM on {} ({:?} layout, {n} of {} frames, fx {fx:.1}, baseline {:.4} m, detector {:?})",
-        seq.dir.display(),
-        seq.layout,
-        seq.left.len(),
-        seq.baseline,
-        a.detector
-    );
+    if !quiet {
+        println!(
+            "quadric SLAM on {} ({:?} layout, {n} of {} frames, fx {fx:.1}, baseline {:.4} m, detector {:?})",
+            seq.dir.display(),
+            seq.layout,
+            seq.left.len(),
+            seq.baseline,
+            a.detector
+        );
+    }
     let colour = seq.layout != Layout::Odometry;
     let first = read_image(&seq.left[0], colour).with_context(|| format!("first frame {}", seq.left[0].display()))?;
     let image = ImageSize::new(first.width as f64, first.height as f64);
     let tracker = Box::new(StereoVo::new(rig, cfg.tracking.vo())?);
-    let det = detector(a, &seq)?;
+    let det = detector(a, &seq)?.map(|d| Box::new(ClassFilter(d)) as Box<dyn DetectionSource>);
     let pairs: Vec<(usize, PathBuf, PathBuf)> =
         (0..n).map(|i| (i, seq.left[i].clone(), seq.right[i].clone())).collect();
     let frames = Box::new(pairs.into_iter().map(move |(i, l, r)| {
@@ -203,7 +232,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
             });
         FrameInput { index: i, images }
     }));
-    let bar = indicatif::ProgressBar::new(n as u64);
+    let bar = if quiet { indicatif::ProgressBar::hidden() } else { indicatif::ProgressBar::new(n as u64) };
     bar.set_style(
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames {per_sec} eta {eta} {msg}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
@@ -217,7 +246,16 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     };
     let out = system::run(frames, tracker, det, k, seq.baseline, &cfg.system(image), &mut on_frame)?;
     bar.finish_and_clear();
-    let elapsed = start.elapsed().as_secs_f64();
+    Ok(Outcome { out, seq, elapsed: start.elapsed().as_secs_f64(), k, image, colour })
+}
+
+pub fn run(a: &RunArgs) -> anyhow::Result<()> {
+    let cfg = settings(a)?;
+    if a.print_config {
+        print!("{}", cfg.to_toml());
+        return Ok(());
+    }
+    let Outcome { out, seq, elapsed, k, image, colour } = run_system(a, &cfg, false)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
     write_kitti_poses(a.out.join("trajectory.kitti.txt"), &out.poses)?;
     let m = out.poses.len().min(seq.times.len());
@@ -249,8 +287,8 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     if let Some(gt) = &seq.ground_truth {
         if let Some(e) = trajectory_errors(&out.poses, gt, &[10.0, 20.0, 40.0]) {
             println!(
-                "\nground truth: path {:.1} m over {} frames; ATE {:.3} m (aligned {:.3} m); end-point drift {:.2} %",
-                e.path_m, e.frames, e.ate_m, e.ate_aligned_m, e.end_drift_pct
+                "\nground truth: path {:.1} m over {} frames; ATE {:.3} m (aligned {:.3} m); end-point drift {:.2} %; scale {:.4}",
+                e.path_m, e.frames, e.ate_m, e.ate_aligned_m, e.end_drift_pct, e.scale
             );
             for (len, t, r, count) in e.rpe {
                 println!("RPE over {len:.0} m segments ({count}): {t:.2} % translation, {r:.2} deg/100 m");
@@ -261,6 +299,72 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     println!(
         "\nwrote {}: trajectory.kitti.txt, trajectory.tum.txt, map.json, objects.json, {pictures}",
         a.out.display()
+    );
+    Ok(())
+}
+
+#[derive(Args, Debug)]
+pub struct RunBenchArgs {
+    /// Runs per configuration (the table shows medians)
+    #[arg(long, default_value_t = 3)]
+    repeat: usize,
+    /// Frames per run (default: the whole shipped sequence)
+    #[arg(long)]
+    max_frames: Option<usize>,
+}
+
+/// `slam-app run-bench`: the system on the shipped sequence without objects, with detections from the
+/// shipped file, and with the shipped detector on every frame; medians over repeated runs.
+pub fn run_bench(b: &RunBenchArgs) -> anyhow::Result<()> {
+    #[derive(clap::Parser)]
+    struct Wrap {
+        #[command(flatten)]
+        run: RunArgs,
+    }
+    use clap::Parser;
+    let file = crate::fixture("kitti_odom_06/detections/yolo_fastest_tiles3.json");
+    let file = file.to_string_lossy().to_string();
+    let configs: [(&str, Vec<&str>); 3] = [
+        ("no objects (--detector none)", vec!["--detector", "none"]),
+        ("detections from a file", vec!["--detector", "file", "--detections", &file]),
+        ("shipped detector, every frame", vec!["--detector", "dnn"]),
+    ];
+    let frames = b.max_frames.map(|n| n.to_string());
+    println!("| configuration | frames/s | detection | extraction | stereo | tracking | flow | association | local BA | objects | ATE m |");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let mut fps_of = Vec::new();
+    for (name, extra) in configs {
+        let mut argv = vec!["run"];
+        argv.extend(extra.iter().copied());
+        if let Some(n) = &frames {
+            argv.extend(["--max-frames", n.as_str()]);
+        }
+        let a = Wrap::try_parse_from(argv)?.run;
+        let cfg = settings(&a)?;
+        let mut fps = Vec::new();
+        let mut stages: Vec<Vec<f64>> = vec![Vec::new(); 8];
+        let mut ate = Vec::new();
+        for r in 0..b.repeat.max(1) {
+            let o = run_system(&a, &cfg, true)?;
+            fps.push(o.out.counts.frames as f64 / o.elapsed);
+            for (k, (_, ms, _)) in stage_table(&o.out).into_iter().enumerate() {
+                stages[k].push(ms);
+            }
+            if let Some(e) = o.seq.ground_truth.as_ref().and_then(|g| trajectory_errors(&o.out.poses, g, &[])) {
+                ate.push(e.ate_m);
+            }
+            eprintln!("{name}: run {} of {}: {:.1} frames/s", r + 1, b.repeat.max(1), fps[fps.len() - 1]);
+        }
+        let f = median(&mut fps);
+        fps_of.push(f);
+        let cells: Vec<String> = stages.iter_mut().map(|v| format!("{:.1}", median(v))).collect();
+        println!("| {name} | {f:.1} | {} | {:.3} |", cells.join(" | "), median(&mut ate));
+    }
+    println!(
+        "\nmedian of {} runs each; stage times are medians over frames (local BA and objects: over keyframes, on the mapping thread) in ms. Targets: >= 30 frames/s with detections from a file ({:.1}), >= 10 with the detector ({:.1}).",
+        b.repeat.max(1),
+        fps_of[1],
+        fps_of[2]
     );
     Ok(())
 }

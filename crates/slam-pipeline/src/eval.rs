@@ -17,6 +17,9 @@ pub struct TrajectoryErrors {
     pub ate_aligned_m: f64,
     /// Distance between the last estimated and true positions over the path length, %.
     pub end_drift_pct: f64,
+    /// Scale of the best similarity alignment (estimate to truth is `1 / scale`): above 1 the estimate
+    /// is too long.
+    pub scale: f64,
     /// `(segment length m, translation %, rotation deg/100 m, segments)` for each length with segments.
     pub rpe: Vec<(f64, f64, f64, usize)>,
 }
@@ -73,6 +76,15 @@ pub fn trajectory_errors(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], lengths:
     let pg: Vec<Vector3<f64>> = gt[..n].iter().map(|p| p.translation.vector).collect();
     let rms = |pairs: &mut dyn Iterator<Item = f64>| (pairs.map(|d| d * d).sum::<f64>() / n as f64).sqrt();
     let ate_m = rms(&mut pe.iter().zip(&pg).map(|(a, b)| (a - b).norm()));
+    let scale = align_rigid(&pe, &pg)
+        .map(|t| {
+            let ca = pe.iter().sum::<Vector3<f64>>() / n as f64;
+            let cb = pg.iter().sum::<Vector3<f64>>() / n as f64;
+            let num: f64 = pe.iter().map(|a| (a - ca).norm_squared()).sum();
+            let den: f64 = pe.iter().zip(&pg).map(|(a, b)| (t.rotation * (a - ca)).dot(&(b - cb))).sum();
+            if den > 0.0 { num / den } else { f64::NAN }
+        })
+        .unwrap_or(f64::NAN);
     let ate_aligned_m = match align_rigid(&pe, &pg) {
         Some(t) => rms(&mut pe
             .iter()
@@ -88,6 +100,7 @@ pub fn trajectory_errors(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], lengths:
         ate_m,
         ate_aligned_m,
         end_drift_pct: if path_m > 0.0 { 100.0 * end / path_m } else { f64::NAN },
+        scale,
         rpe: lengths.iter().filter_map(|&l| rpe(&est[..n], &gt[..n], l).map(|(t, r, c)| (l, t, r, c))).collect(),
     })
 }
@@ -115,6 +128,7 @@ mod tests {
         let est = straight(51, 1.01); // 1 % too long
         let e = trajectory_errors(&est, &gt, &[10.0, 20.0]).expect("errors");
         assert!((e.end_drift_pct - 1.0).abs() < 1e-9, "{e:?}");
+        assert!((e.scale - 1.01).abs() < 1e-9, "{e:?}");
         for (_, t, r, _) in &e.rpe {
             assert!((t - 1.0).abs() < 1e-9 && r.abs() < 1e-9, "{e:?}");
         }

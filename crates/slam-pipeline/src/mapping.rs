@@ -147,10 +147,13 @@ impl LocalMapper {
             }
         }
         let window_set: BTreeSet<KeyframeId> = window.iter().copied().collect();
+        // a point seen by one keyframe only says nothing about the poses (its stereo observation alone
+        // fixes it): only points seen at least twice enter the adjustment
         let local_points: BTreeSet<PointId> = window
             .iter()
             .filter_map(|id| self.map.keyframes.get(id))
             .flat_map(|k| k.observations.iter().map(|o| o.0))
+            .filter(|p| self.map.points.get(p).is_some_and(|x| x.observed_by.len() >= 2))
             .collect();
         let mut fixed: BTreeSet<KeyframeId> = local_points
             .iter()
