@@ -78,6 +78,9 @@ pub struct RunArgs {
     /// With --overlays: every n-th frame
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
     overlay_every: u64,
+    /// With --overlays: image format (png, or jpg for files about ten times smaller)
+    #[arg(long, default_value = "png", value_parser = ["png", "jpg"])]
+    overlay_format: String,
     #[command(flatten)]
     model: ModelArgs,
 }
@@ -171,7 +174,11 @@ impl DetectionSource for ClassFilter {
     fn needs_image(&self) -> bool {
         self.0.needs_image()
     }
-    fn detect(&mut self, frame: usize, image: Option<&Image>) -> Result<Vec<slam_core::Detection>, slam_core::DetectError> {
+    fn detect(
+        &mut self,
+        frame: usize,
+        image: Option<&Image>,
+    ) -> Result<Vec<slam_core::Detection>, slam_core::DetectError> {
         let mut d = self.0.detect(frame, image)?;
         d.retain(|d| OBJECT_CLASSES.contains(&d.class.0));
         Ok(d)
@@ -417,7 +424,7 @@ fn pictures(
             }
         };
         let overlay = frame_overlay(out, i, k, image);
-        write_image(dir.join(format!("{:06}.png", rec.index)), &draw_overlay(&img, &overlay)?)?;
+        write_image(dir.join(format!("{:06}.{}", rec.index, a.overlay_format)), &draw_overlay(&img, &overlay)?)?;
         count += 1;
     }
     written.push_str(&format!(", {count} overlays in overlays/"));

@@ -82,7 +82,11 @@ pub fn trajectory_errors(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], lengths:
             let cb = pg.iter().sum::<Vector3<f64>>() / n as f64;
             let num: f64 = pe.iter().map(|a| (a - ca).norm_squared()).sum();
             let den: f64 = pe.iter().zip(&pg).map(|(a, b)| (t.rotation * (a - ca)).dot(&(b - cb))).sum();
-            if den > 0.0 { num / den } else { f64::NAN }
+            if den > 0.0 {
+                num / den
+            } else {
+                f64::NAN
+            }
         })
         .unwrap_or(f64::NAN);
     let ate_aligned_m = match align_rigid(&pe, &pg) {

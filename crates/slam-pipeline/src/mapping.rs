@@ -15,7 +15,7 @@ use crate::map::{pose_from_array, pose_to_array, Map, MapKeyframe, MapPoint};
 pub struct MappingConfig {
     /// Keyframes optimised together (the newest ones of the current map segment). Default 6.
     pub window: usize,
-    /// Huber threshold of the stereo reprojection error, pixels. Default 2.8 (√7.815, the 95 % χ² bound
+    /// Huber threshold of the stereo reprojection error, pixels. Default √7.815 ≈ 2.80 (the 95 % χ² bound
     /// of a 3-D residual at σ = 1 px).
     pub huber_px: f64,
     /// Observations whose squared error (px²) exceeds this after the adjustment are culled. Default 7.815.

@@ -110,6 +110,16 @@ pub fn class_prior(class: ClassId) -> ObjectPrior {
     ObjectPrior { axes: Vector3::new(a.0, a.1, a.2), sigma: Vector3::new(s.0, s.1, s.2) }
 }
 
+/// Classes a detector confuses with each other on one object are merged as one group: vehicles (car,
+/// bus, truck), two-wheelers (bicycle, motorcycle); others stand alone.
+fn class_group(c: ClassId) -> u16 {
+    match c.0 {
+        2 | 5 | 7 => 2,
+        1 | 3 => 1,
+        other => other,
+    }
+}
+
 /// One observation of an object.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Observation {
@@ -364,14 +374,14 @@ impl ObjectMapper {
         self.merge_duplicates(id);
     }
 
-    /// Objects of the same class whose ellipsoid centres are closer than `merge_distance_m` are one
+    /// Objects of the same class group whose ellipsoid centres are closer than `merge_distance_m` are one
     /// object seen as two tracks (a detector that boxes a car twice, a track broken by a missed
     /// detection): the one with fewer observations is dropped and its later detections ignored.
     fn merge_duplicates(&mut self, id: TrackId) {
         let Some(c) = self.objects.get(&id).and_then(|o| o.ellipsoid.map(|e| (e.centre(), o.class))) else { return };
         let other = self.objects.values().find(|o| {
             o.id != id
-                && o.class == c.1
+                && class_group(o.class) == class_group(c.1)
                 && !o.moving
                 && o.ellipsoid.is_some_and(|e| (e.centre() - c.0).norm() < self.config.merge_distance_m)
         });
