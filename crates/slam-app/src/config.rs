@@ -8,74 +8,6 @@ use serde::{Deserialize, Serialize};
 use slam_frontend::VoConfig;
 use slam_pipeline::{mapping::MappingConfig, objects::MapperConfig, system::SystemConfig, texture::TextureConfig};
 
-/// Visual odometry (slam-frontend `VoConfig`).
-#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct TrackingToml {
-    /// ORB features per image.
-    pub features: i32,
-    /// Largest Hamming distance of a stereo match.
-    pub stereo_hamming: u32,
-    /// Row tolerance of stereo matching, pixels.
-    pub row_tolerance: f64,
-    /// Nearest stereo depth kept, metres.
-    pub min_depth: f64,
-    /// Farthest stereo depth kept, metres.
-    pub max_depth: f64,
-    /// Largest Hamming distance of a frame-to-frame match.
-    pub track_hamming: u32,
-    /// Search radius around the predicted position, pixels.
-    pub search_radius: f64,
-    /// PnP RANSAC threshold, pixels.
-    pub ransac_px: f32,
-    /// Fewest PnP inliers for a tracked frame.
-    pub min_inliers: usize,
-    /// New keyframe when inliers drop below this fraction of the keyframe's first frame.
-    pub keyframe_inlier_ratio: f64,
-    /// ... or after this many frames.
-    pub keyframe_max_gap: usize,
-    /// Keypoints followed by optical flow per detection box.
-    pub flow_points_per_region: usize,
-}
-
-impl Default for TrackingToml {
-    fn default() -> Self {
-        let v = VoConfig::default();
-        Self {
-            features: v.features,
-            stereo_hamming: v.stereo_hamming,
-            row_tolerance: v.row_tolerance,
-            min_depth: v.depth_range.0,
-            max_depth: v.depth_range.1,
-            track_hamming: v.track_hamming,
-            search_radius: v.search_radius,
-            ransac_px: v.ransac_px,
-            min_inliers: v.min_inliers,
-            keyframe_inlier_ratio: v.keyframe_inlier_ratio,
-            keyframe_max_gap: v.keyframe_max_gap,
-            flow_points_per_region: v.flow_points_per_region,
-        }
-    }
-}
-
-impl TrackingToml {
-    pub fn vo(&self) -> VoConfig {
-        VoConfig {
-            features: self.features,
-            stereo_hamming: self.stereo_hamming,
-            row_tolerance: self.row_tolerance,
-            depth_range: (self.min_depth, self.max_depth),
-            track_hamming: self.track_hamming,
-            search_radius: self.search_radius,
-            ransac_px: self.ransac_px,
-            min_inliers: self.min_inliers,
-            keyframe_inlier_ratio: self.keyframe_inlier_ratio,
-            keyframe_max_gap: self.keyframe_max_gap,
-            flow_points_per_region: self.flow_points_per_region,
-        }
-    }
-}
-
 /// Object mapping (slam-pipeline `MapperConfig`; the associator keeps its defaults).
 #[derive(Debug, Clone, Copy, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -150,7 +82,7 @@ impl Default for SystemToml {
 #[serde(default, deny_unknown_fields)]
 pub struct RunConfig {
     /// Visual odometry.
-    pub tracking: TrackingToml,
+    pub tracking: VoConfig,
     /// Local mapping (bundle adjustment).
     pub mapping: MappingConfig,
     /// Objects.
@@ -206,7 +138,7 @@ mod tests {
         let text = RunConfig::default().to_toml();
         assert!(text.contains("[tracking]") && text.contains("keyframe_max_gap = 4") && text.contains("[mapping]"));
         let back: RunConfig = toml::from_str(&text).expect("parses");
-        assert_eq!(back.tracking.vo(), VoConfig::default());
+        assert_eq!(back.tracking, VoConfig::default());
         let partial: RunConfig = toml::from_str("[mapping]\nwindow = 9\n").expect("partial");
         assert_eq!(partial.mapping.window, 9);
         assert_eq!(partial.tracking.features, 2000);

@@ -222,7 +222,7 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     let colour = seq.layout != Layout::Odometry;
     let first = read_image(&seq.left[0], colour).with_context(|| format!("first frame {}", seq.left[0].display()))?;
     let image = ImageSize::new(first.width as f64, first.height as f64);
-    let tracker = Box::new(StereoVo::new(rig, cfg.tracking.vo())?);
+    let tracker = Box::new(StereoVo::new(rig, cfg.tracking)?);
     let det = detector(a, &seq)?.map(|d| Box::new(ClassFilter(d)) as Box<dyn DetectionSource>);
     let pairs: Vec<(usize, PathBuf, PathBuf)> =
         (0..n).map(|i| (i, seq.left[i].clone(), seq.right[i].clone())).collect();

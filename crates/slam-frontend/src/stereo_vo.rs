@@ -30,8 +30,9 @@ pub struct StereoRig {
     pub baseline: f64,
 }
 
-/// Settings of [`StereoVo`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Settings of [`StereoVo`] (the `[tracking]` table of `slam-app run --config`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct VoConfig {
     /// ORB features per image.
     pub features: i32,
@@ -39,7 +40,7 @@ pub struct VoConfig {
     pub stereo_hamming: u32,
     /// Row tolerance of stereo matching, pixels.
     pub row_tolerance: f64,
-    /// Depth range kept, metres.
+    /// Depth range kept, metres (nearest, farthest).
     pub depth_range: (f64, f64),
     /// Largest Hamming distance of a frame-to-frame match.
     pub track_hamming: u32,

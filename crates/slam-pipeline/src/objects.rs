@@ -467,6 +467,7 @@ fn box_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid) -> Option<f64> {
 /// Version of the object-map JSON.
 pub const OBJECT_MAP_VERSION: u32 = 1;
 
+/// An object as the object-map JSON stores it (the map file adds its map points).
 #[derive(Serialize)]
 struct ObjectJson {
     id: u64,
@@ -485,6 +486,25 @@ struct MapJson {
     objects: Vec<ObjectJson>,
 }
 
+impl MappedObject {
+    /// The stored form (`None` without an ellipsoid): centre, semi-axes, rotation (3×3 row-major, world
+    /// from object), frames, dynamic flag and map points.
+    pub fn to_map_object(&self) -> Option<crate::map::MapObject> {
+        let e = self.ellipsoid.as_ref()?;
+        let r = e.rotation();
+        Some(crate::map::MapObject {
+            id: self.id.0,
+            class: self.class.0,
+            center: [e.centre().x, e.centre().y, e.centre().z],
+            semi_axes: [e.semi_axes.x, e.semi_axes.y, e.semi_axes.z],
+            rotation: std::array::from_fn(|k| r[(k / 3, k % 3)]),
+            frames: self.observations.iter().map(|x| x.frame).collect(),
+            dynamic: self.dynamic,
+            points: self.points.iter().copied().collect(),
+        })
+    }
+}
+
 /// Write the object map (objects with an ellipsoid) as JSON, atomically. Schema (version 1): `objects`
 /// with `id`, `class` (COCO index), `center` `[x, y, z]` and `rotation` (3×3 row-major, world from
 /// object) in the world frame of the poses, `semi_axes` metres along the object's x (length), y
@@ -492,28 +512,15 @@ struct MapJson {
 pub fn write_object_map(path: &Path, objects: &[&MappedObject]) -> std::io::Result<()> {
     let objects = objects
         .iter()
-        .filter_map(|o| {
-            let e = o.ellipsoid.as_ref()?;
-            let r = e.rotation();
-            Some(ObjectJson {
-                id: o.id.0,
-                class: o.class.0,
-                center: [e.centre().x, e.centre().y, e.centre().z],
-                semi_axes: [e.semi_axes.x, e.semi_axes.y, e.semi_axes.z],
-                rotation: [
-                    r[(0, 0)],
-                    r[(0, 1)],
-                    r[(0, 2)],
-                    r[(1, 0)],
-                    r[(1, 1)],
-                    r[(1, 2)],
-                    r[(2, 0)],
-                    r[(2, 1)],
-                    r[(2, 2)],
-                ],
-                frames: o.observations.iter().map(|x| x.frame).collect(),
-                dynamic: o.dynamic,
-            })
+        .filter_map(|o| o.to_map_object())
+        .map(|m| ObjectJson {
+            id: m.id,
+            class: m.class,
+            center: m.center,
+            semi_axes: m.semi_axes,
+            rotation: m.rotation,
+            frames: m.frames,
+            dynamic: m.dynamic,
         })
         .collect();
     let text = serde_json::to_string_pretty(&MapJson {

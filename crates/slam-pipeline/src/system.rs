@@ -28,7 +28,7 @@ use slam_core::{
 };
 
 use crate::{
-    map::{pose_to_array, FramePose, Map, MapObject},
+    map::{pose_to_array, FramePose, Map},
     mapping::{LocalMapper, MappingConfig},
     objects::{class_prior, FitJob, FitResult, MappedObject, MapperConfig, ObjectMapper},
     texture::{texture_planes, TextureConfig},
@@ -457,24 +457,8 @@ pub fn run(
         let _ = req_tx.send(MapperRequest::Finish);
         let mut map = mapping.join().map_err(|_| SystemError::Thread("local mapping"))?;
         map.trajectory = trajectory;
-        map.objects = objects.objects().filter_map(map_object).collect();
+        map.objects = objects.objects().filter_map(MappedObject::to_map_object).collect();
         let poses = map.frame_poses().into_iter().map(|p| p.unwrap_or_else(Isometry3::identity)).collect();
         Ok(RunOutput { map, poses, objects: objects.objects().cloned().collect(), frames: records, counts })
-    })
-}
-
-/// The stored form of an object with an ellipsoid.
-pub fn map_object(o: &MappedObject) -> Option<MapObject> {
-    let e = o.ellipsoid.as_ref()?;
-    let r = e.rotation();
-    Some(MapObject {
-        id: o.id.0,
-        class: o.class.0,
-        center: [e.centre().x, e.centre().y, e.centre().z],
-        semi_axes: [e.semi_axes.x, e.semi_axes.y, e.semi_axes.z],
-        rotation: [r[(0, 0)], r[(0, 1)], r[(0, 2)], r[(1, 0)], r[(1, 1)], r[(1, 2)], r[(2, 0)], r[(2, 1)], r[(2, 2)]],
-        frames: o.observations.iter().map(|x| x.frame).collect(),
-        dynamic: o.dynamic,
-        points: o.points.iter().copied().collect(),
     })
 }
