@@ -30,6 +30,8 @@ enum Command {
     /// Speed of the whole system on the shipped sequence: frames/s and per-stage medians without
     /// objects, with detections from a file, and with the shipped detector.
     RunBench(run_cmd::RunBenchArgs),
+    /// ATE, drift and RPE of a trajectory file (KITTI or TUM) against ground truth.
+    TrajectoryEval(run_cmd::TrajEvalArgs),
     /// Inspect a saved map (counts, objects) and export it (PLY points, trajectory, top-down picture).
     Map(run_cmd::MapArgs),
     /// Compare object associators (ODA vs IoU-only): ID switches on simulated crossings and on real
@@ -90,6 +92,20 @@ fn main() -> std::process::ExitCode {
 }
 
 fn run() -> anyhow::Result<()> {
+    // `slam-app … | head` closes the pipe early: stop quietly, as Unix tools do, instead of a panic
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let text = info
+            .payload()
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| info.payload().downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if text.contains("failed printing to stdout") && text.contains("Broken pipe") {
+            std::process::exit(0);
+        }
+        default_hook(info);
+    }));
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
@@ -102,6 +118,7 @@ fn run() -> anyhow::Result<()> {
     match cli.command {
         Command::Run(a) => run_cmd::run(&a),
         Command::Map(a) => run_cmd::map(&a),
+        Command::TrajectoryEval(a) => run_cmd::trajectory_eval(&a),
         Command::RunBench(a) => run_cmd::run_bench(&a),
         Command::Assoc(cmd) => assoc_cmd::run(cmd),
         Command::OptimBench(a) => optim_cmd::run(&a),

@@ -46,7 +46,7 @@ pub enum Method {
 }
 
 impl Method {
-    fn fit(self) -> FitMethod {
+    pub(crate) fn fit(self) -> FitMethod {
         match self {
             Method::Refine => FitMethod::Refine,
             Method::Qslam => FitMethod::QSlam,

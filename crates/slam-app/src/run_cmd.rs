@@ -66,6 +66,9 @@ pub struct RunArgs {
     /// Box noise (fraction of box size) for --detector labels
     #[arg(long, default_value_t = 0.0)]
     label_noise: f64,
+    /// Ellipsoid method of the objects (baselines for comparison)
+    #[arg(long, value_enum, default_value_t = crate::objects_cmd::Method::Refine)]
+    method: crate::objects_cmd::Method,
     /// Run the detector on every n-th frame only (overrides system.detect_every)
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     detect_every: Option<u64>,
@@ -251,7 +254,9 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
         }
         bar.inc(1);
     };
-    let out = system::run(frames, tracker, det, k, seq.baseline, &cfg.system(image), &mut on_frame)?;
+    let mut sys = cfg.system(image);
+    sys.objects.method = a.method.fit();
+    let out = system::run(frames, tracker, det, k, seq.baseline, &sys, &mut on_frame)?;
     bar.finish_and_clear();
     Ok(Outcome { out, seq, elapsed: start.elapsed().as_secs_f64(), k, image, colour })
 }
@@ -599,4 +604,52 @@ mod tests {
         let span = |v: &[f64]| v.iter().cloned().fold(f64::MIN, f64::max) - v.iter().cloned().fold(f64::MAX, f64::min);
         assert!((span(&xs) - 2.0).abs() < 0.01 && (span(&zs) - 4.0).abs() < 0.01, "{} {}", span(&xs), span(&zs));
     }
+}
+
+#[derive(Args, Debug)]
+pub struct TrajEvalArgs {
+    /// Estimated poses: KITTI (12 numbers per line) or TUM (time tx ty tz qx qy qz qw), camera to world
+    estimate: PathBuf,
+    /// Ground-truth poses in the same format rules (frames matched by line; TUM by order)
+    ground_truth: PathBuf,
+}
+
+fn read_poses(path: &std::path::Path) -> anyhow::Result<Vec<nalgebra::Isometry3<f64>>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let fields =
+        text.lines().find(|l| !l.trim().is_empty() && !l.starts_with('#')).map_or(0, |l| l.split_whitespace().count());
+    Ok(match fields {
+        12 => slam_dataset::kitti::poses::parse_kitti_poses(path, &text)?,
+        8 => slam_dataset::trajectory::parse_tum(path, &text)?.1,
+        n => bail!("{}: lines of {n} numbers: expected 12 (KITTI) or 8 (TUM)", path.display()),
+    })
+}
+
+/// `slam-app trajectory-eval`: ATE, drift and RPE of any trajectory file against ground truth.
+pub fn trajectory_eval(a: &TrajEvalArgs) -> anyhow::Result<()> {
+    let est = read_poses(&a.estimate)?;
+    let gt = read_poses(&a.ground_truth)?;
+    if est.len() != gt.len() {
+        tracing::warn!(
+            "{} poses against {} ground-truth poses: the first {} compared",
+            est.len(),
+            gt.len(),
+            est.len().min(gt.len())
+        );
+    }
+    // both start at the identity, as KITTI's and our files do
+    let rebase = |v: &[nalgebra::Isometry3<f64>]| -> Vec<nalgebra::Isometry3<f64>> {
+        let first = v.first().copied().unwrap_or_else(nalgebra::Isometry3::identity).inverse();
+        v.iter().map(|p| first * p).collect()
+    };
+    let e = trajectory_errors(&rebase(&est), &rebase(&gt), &[10.0, 20.0, 40.0, 100.0, 200.0, 400.0, 800.0])
+        .context("fewer than two poses")?;
+    println!("| metric | value |\n|---|---:|");
+    println!("| frames | {} |\n| path (ground truth) | {:.1} m |", e.frames, e.path_m);
+    println!("| ATE (first poses aligned) | {:.3} m |\n| ATE (rigid alignment) | {:.3} m |", e.ate_m, e.ate_aligned_m);
+    println!("| end-point drift | {:.2} % |\n| scale (similarity fit) | {:.4} |", e.end_drift_pct, e.scale);
+    for (len, t, r, count) in e.rpe {
+        println!("| RPE {len:.0} m ({count} segments) | {t:.2} % / {r:.2} deg/100 m |");
+    }
+    Ok(())
 }

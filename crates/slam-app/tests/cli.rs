@@ -247,3 +247,63 @@ fn run_survives_missing_corrupt_and_black_frames_and_a_jump() {
         kitti.lines().last().and_then(|l| l.split_whitespace().nth(11)).and_then(|v| v.parse().ok()).expect("z");
     assert!((z_last - gt[50]).abs() < 3.0, "last z {z_last:.1} m vs ground truth {:.1} m\n{text}", gt[50]);
 }
+
+#[test]
+fn trajectory_eval_reads_kitti_and_tum_and_names_bad_files() {
+    let gt = "fixtures/kitti_odom_06/poses/06.txt";
+    let o = app().args(["trajectory-eval", gt, gt]).output().expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("| ATE (first poses aligned) | 0.000 m |") && text.contains("| path (ground truth) | 59.9 m |"),
+        "{text}"
+    );
+    // a TUM file of the same poses, 2 m too far along z at the end: the drift shows
+    let dir = std::env::temp_dir().join(format!("slam-app-traj-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let lines: Vec<String> =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06/poses/06.txt"))
+            .expect("gt")
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().expect("number")).collect();
+                let z = v[11] + 2.0 * i as f64 / 50.0;
+                format!("{} {} {} {} 0 0 0 1", 0.1 * i as f64, v[3], v[7], z)
+            })
+            .collect();
+    let tum = dir.join("est.tum");
+    std::fs::write(&tum, lines.join("\n")).expect("write");
+    let o = app().arg("trajectory-eval").arg(&tum).arg(gt).output().expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("| end-point drift | 3.34 % |"), "{text}");
+    let bad = dir.join("bad.txt");
+    std::fs::write(&bad, "1 2 3\n").expect("write");
+    let o = app().arg("trajectory-eval").arg(&bad).arg(gt).output().expect("runs");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("bad.txt") && err.contains("12 (KITTI) or 8 (TUM)"), "{err}");
+}
+
+/// The local map (older keyframes searched at each new keyframe) makes map points' tracks longer.
+#[test]
+fn local_map_lengthens_point_tracks() {
+    let out = std::env::temp_dir().join(format!("slam-app-local-{}", std::process::id()));
+    std::fs::create_dir_all(&out).expect("dir");
+    let per_point = |config: &str| -> f64 {
+        let cfg = out.join(format!("{config}.toml"));
+        std::fs::write(&cfg, format!("[tracking]\nlocal_keyframes = {config}\n")).expect("toml");
+        let o = app()
+            .args(["run", "--detector", "none", "--max-frames", "25", "--config"])
+            .arg(&cfg)
+            .arg("--out")
+            .arg(out.join(config))
+            .output()
+            .expect("runs");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let text = String::from_utf8_lossy(&o.stdout);
+        number_after(&text, "points, ") / number_after(&text, "keyframes, ")
+    };
+    let (plain, local) = (per_point("0"), per_point("3"));
+    assert!(local > 1.03 * plain, "observations per point: {plain:.3} without, {local:.3} with the local map");
+}

@@ -57,6 +57,12 @@ pub struct VoConfig {
     pub keyframe_max_gap: usize,
     /// Most keypoints followed by optical flow per detection box (association cue).
     pub flow_points_per_region: usize,
+    /// Older keyframes (besides the reference) whose points are searched in each tracked frame (the
+    /// local map), so that a new keyframe's points keep the ids of the map points they re-observe
+    /// (longer tracks for local BA). Default 0: on the shipped sequence it did not pay (docs/system.md).
+    pub local_keyframes: usize,
+    /// Search radius of local-map points around their projection, pixels.
+    pub local_radius: f64,
 }
 
 impl Default for VoConfig {
@@ -73,6 +79,8 @@ impl Default for VoConfig {
             keyframe_inlier_ratio: 0.5,
             keyframe_max_gap: 4,
             flow_points_per_region: 40,
+            local_keyframes: 0,
+            local_radius: 8.0,
         }
     }
 }
@@ -105,6 +113,8 @@ pub struct StereoVo {
     rig: StereoRig,
     config: VoConfig,
     reference: Option<Reference>,
+    /// Older keyframes of the segment, newest first (the local map).
+    local: std::collections::VecDeque<Reference>,
     next_keyframe: KeyframeId,
     next_point: PointId,
     /// Pose of the last processed frame in the reference keyframe.
@@ -221,6 +231,7 @@ impl StereoVo {
             rig,
             config,
             reference: None,
+            local: std::collections::VecDeque::new(),
             next_keyframe: 0,
             next_point: 0,
             kf_from_last: Isometry3::identity(),
@@ -383,15 +394,10 @@ impl StereoVo {
         frame_index: usize,
         world_from_kf: Isometry3<f64>,
         parent: Option<(KeyframeId, Isometry3<f64>)>,
-        carried: &[(usize, usize)],
+        carried: &[(PointId, usize)],
     ) -> KeyframeData {
-        let old_ids = self.reference.as_ref().map(|r| &r.frame.ids);
-        let mut from_keypoint = std::collections::HashMap::new();
-        if let Some(ids) = old_ids {
-            for &(p, c) in carried {
-                from_keypoint.insert(c, ids[p]);
-            }
-        }
+        // keypoint → the map point it was matched to
+        let from_keypoint: std::collections::HashMap<usize, PointId> = carried.iter().map(|&(id, c)| (c, id)).collect();
         let mut keypoint_of = vec![usize::MAX; frame.points.len()];
         for (kp, q) in frame.of_keypoint.iter().enumerate() {
             if let Some(q) = q {
@@ -422,7 +428,15 @@ impl StereoVo {
                 .map(|((x, o), &pid)| KeyframePoint { id: pid, camera_point: *x, observation: *o })
                 .collect(),
         };
-        self.reference = Some(Reference { frame, id, world_from_kf, parent });
+        let old = self.reference.replace(Reference { frame, id, world_from_kf, parent });
+        match (old, parent) {
+            (Some(old), Some(_)) => {
+                self.local.push_front(old);
+                self.local.truncate(self.config.local_keyframes);
+            }
+            // a new segment: the old keyframes' poses are not related to it
+            _ => self.local.clear(),
+        }
         self.kf_from_last = Isometry3::identity();
         self.kf_inliers = None;
         self.since_kf = 0;
@@ -546,6 +560,8 @@ impl StereoVo {
             (Some((pose, inl)), Some(state)) => (pose, state, inl),
             _ => (fallback.unwrap_or(predicted), TrackState::Lost, Vec::new()),
         };
+        // matched map points: (id, keypoint)
+        let mut carried: Vec<(PointId, usize)> = inliers.iter().map(|&(p, c)| (prev.ids[p], c)).collect();
         let kf_from_curr = curr_from_prev.inverse();
         let tracked = state != TrackState::Lost;
         if tracked {
@@ -563,12 +579,21 @@ impl StereoVo {
         };
         // keep the old keyframe when this frame has too few points of its own (black frame, blur)
         let keyframe = if want_keyframe && (frame.points.len() >= self.config.min_inliers || tracked) {
+            if matches!(state, TrackState::Tracked { .. }) && !self.local.is_empty() {
+                // the local map's points re-observed here keep their ids; the pose stays the two-frame
+                // adjustment's (refining it against the older keyframes' points, held fixed, made it
+                // worse: docs/system.md)
+                if let Some(r) = self.reference.as_ref() {
+                    let extra = self.search_local(&r.frame, r.world_from_kf, &curr_from_prev, &carried, &lp, &ld);
+                    carried.extend(extra);
+                }
+            }
             // a lost frame starts a new map segment: no parent, no carried points
             let parent = tracked.then_some((ref_id, kf_from_curr));
             if !tracked {
                 tracing::warn!(frame = frame_index, "tracking lost: new map segment from this frame");
             }
-            Some(self.take_keyframe(frame, frame_index, world_from_curr, parent, &inliers))
+            Some(self.take_keyframe(frame, frame_index, world_from_curr, parent, &carried))
         } else {
             self.kf_from_last = kf_from_curr;
             None
@@ -581,6 +606,47 @@ impl StereoVo {
             keyframe,
             times: times(Instant::now()),
         })
+    }
+
+    /// Points of the older keyframes (the local map) not matched yet, projected with the current pose and
+    /// matched within `local_radius`: `(map point, keypoint)`.
+    fn search_local(
+        &self,
+        reference: &Frame,
+        world_from_ref: Isometry3<f64>,
+        curr_from_ref: &Isometry3<f64>,
+        matched: &[(PointId, usize)],
+        lp: &[(f64, f64)],
+        ld: &[[u8; 32]],
+    ) -> Vec<(PointId, usize)> {
+        let mut seen: std::collections::HashSet<PointId> = matched.iter().map(|m| m.0).collect();
+        seen.extend(reference.ids.iter().copied());
+        let used: std::collections::HashSet<usize> = matched.iter().map(|m| m.1).collect();
+        let ref_from_world = world_from_ref.inverse();
+        let mut candidates = Frame {
+            points: Vec::new(),
+            desc: Vec::new(),
+            obs: Vec::new(),
+            of_keypoint: Vec::new(),
+            ids: Vec::new(),
+            valid: Vec::new(),
+        };
+        for kf in &self.local {
+            let to_ref = ref_from_world * kf.world_from_kf;
+            for (i, id) in kf.frame.ids.iter().enumerate() {
+                if kf.frame.valid[i] && seen.insert(*id) {
+                    candidates.points.push((to_ref * nalgebra::Point3::from(kf.frame.points[i])).coords);
+                    candidates.desc.push(kf.frame.desc[i]);
+                    candidates.ids.push(*id);
+                    candidates.valid.push(true);
+                }
+            }
+        }
+        self.guided_match(&candidates, curr_from_ref, lp, ld, self.config.local_radius)
+            .into_iter()
+            .filter(|&(_, c)| !used.contains(&c))
+            .map(|(i, c)| (candidates.ids[i], c))
+            .collect()
     }
 
     /// Forward-backward Lucas-Kanade flow of the previous frame's keypoints inside `regions` into the
@@ -739,6 +805,9 @@ impl StereoTracker for StereoVo {
     }
 
     fn correct(&mut self, c: &KeyframeCorrection) {
+        for kf in self.local.iter_mut().filter(|k| k.id == c.id) {
+            kf.world_from_kf = c.world_from_camera;
+        }
         let Some(r) = self.reference.as_mut() else { return };
         if r.id == c.id {
             r.world_from_kf = c.world_from_camera;
