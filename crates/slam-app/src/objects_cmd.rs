@@ -29,6 +29,10 @@ pub struct InputArgs {
     /// Ellipsoid method
     #[arg(long, value_enum, default_value_t = Method::Refine)]
     method: Method,
+    /// Also fit objects seen without parallax (a standing camera) once they have this many boxes: depth
+    /// from the class's size prior (off by default, as in the paper)
+    #[arg(long)]
+    without_parallax_after: Option<usize>,
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -107,7 +111,11 @@ fn run(seq: &Sequence, input: &InputArgs) -> (ObjectMapper, BTreeMap<(usize, usi
             by_frame.entry(l.frame).or_default().push(l);
         }
     }
-    let config = MapperConfig { method: input.method.fit(), ..MapperConfig::default() };
+    let config = MapperConfig {
+        method: input.method.fit(),
+        min_views_without_parallax: input.without_parallax_after,
+        ..MapperConfig::default()
+    };
     let mut mapper = ObjectMapper::new(Box::new(Oda::default()), config);
     let mut truth = BTreeMap::new();
     for (frame, pose) in seq.poses.iter().enumerate() {
@@ -282,6 +290,23 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             row.iou += ious.iter().sum::<f64>() / ious.len().max(1) as f64;
             row.e_trans += metrics::e_trans(e, &gt.ellipsoid);
             row.e_axe += metrics::e_axe(e, &gt.ellipsoid);
+            let first = gt.boxes.keys().next().copied().unwrap_or(0);
+            let depth = (seq.poses[first].inverse() * nalgebra::Point3::from(gt.ellipsoid.centre())).z;
+            let err_cam = seq.poses[first].inverse().rotation * (e.centre() - gt.ellipsoid.centre());
+            let last = gt.boxes.keys().last().copied().unwrap_or(0);
+            let travel = (seq.poses[last].translation.vector - seq.poses[first].translation.vector).norm();
+            tracing::debug!(
+                sequence = %name,
+                vehicle = id,
+                e_trans = metrics::e_trans(e, &gt.ellipsoid),
+                e_axe = metrics::e_axe(e, &gt.ellipsoid),
+                frames = gt.boxes.len(),
+                first_depth = depth,
+                travel,
+                err = format!("{:.2} {:.2} {:.2}", err_cam.x, err_cam.y, err_cam.z),
+                axes = format!("{:.2} {:.2} {:.2} vs {:.2} {:.2} {:.2}", e.semi_axes.x, e.semi_axes.y, e.semi_axes.z, gt.ellipsoid.semi_axes.x, gt.ellipsoid.semi_axes.y, gt.ellipsoid.semi_axes.z),
+                "matched vehicle"
+            );
         }
         let f = row.found.max(1) as f64;
         let success = if row.vehicles > 0 { row.found as f64 / row.vehicles as f64 } else { f64::NAN };

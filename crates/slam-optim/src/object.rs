@@ -221,6 +221,22 @@ fn shift_and_size_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid) -> Op
     Some(((shift / n).sqrt(), (size / n).sqrt()))
 }
 
+/// The point on a view's ray through its box centre at the depth where an object of the prior's height
+/// (2 × the own-y semi-axis) spans the box's height.
+fn depth_from_height(view: &BoxView, prior: &ObjectPrior) -> Option<Vector3<f64>> {
+    let k = &view.camera.intrinsics;
+    let h = view.bbox.height();
+    if h.is_nan() || h <= 1.0 {
+        return None;
+    }
+    let depth = k.fy * 2.0 * prior.axes.y / h;
+    let [u, v] = view.bbox.centre();
+    let y = (v - k.cy) / k.fy;
+    let x = (u - k.cx - k.skew * y) / k.fx;
+    let p = view.camera.world_from_camera * nalgebra::Point3::new(x * depth, y * depth, depth);
+    p.coords.iter().all(|c| c.is_finite()).then_some(p.coords)
+}
+
 /// Tri+Yaw followed by object optimisation, then (with `pose_drift`) a joint stage that lets the
 /// cameras move under a drift prior. Starts: the DQP ellipsoid (axes re-ordered to the prior),
 /// and, always, the triangulated box-centre point with the prior's axes at the reference camera's heading
@@ -253,7 +269,14 @@ pub fn refine_with_planes(
     if let Ok(e) = Dqp::with_centre_correction().initialize(views) {
         starts.push(align_to_prior(&e, &prior.axes));
     }
-    let centre = triangulate_box_centres(views, &TriangulationConfig::default());
+    let mut centre = triangulate_box_centres(views, &TriangulationConfig::default());
+    if centre.is_err() {
+        // no parallax (a standing camera): the class's height puts the object at the depth its boxes'
+        // height implies, along the middle view's ray
+        if let Some(c) = views.get(views.len() / 2).and_then(|v| depth_from_height(v, prior)) {
+            centre = Ok(c);
+        }
+    }
     if let (Ok(c), Some(first)) = (centre, views.first()) {
         let heading = first.camera.world_from_camera.rotation;
         for turn in [0.0, std::f64::consts::FRAC_PI_2] {

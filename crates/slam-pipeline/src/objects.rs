@@ -59,6 +59,10 @@ pub struct MapperConfig {
     pub min_views: usize,
     /// Smallest angle between the first and the latest ray through the box centres, degrees. Default 3.
     pub min_parallax_deg: f64,
+    /// With less parallax than `min_parallax_deg`, an object is still fitted (its depth then comes from
+    /// the class's size prior) once it has this many border-free boxes. Default `None` (the paper's
+    /// rule: no fit without parallax); docs/objects.md has what `Some(10)` does on KITTI.
+    pub min_views_without_parallax: Option<usize>,
     /// Boxes within this many pixels of the border are not used for fitting (the paper's rule). Default 5.
     pub border_margin_px: f64,
     /// Refit after this many new boxes. Default 5.
@@ -86,6 +90,7 @@ impl Default for MapperConfig {
             image: ImageSize::new(1242.0, 375.0),
             min_views: 3,
             min_parallax_deg: 3.0,
+            min_views_without_parallax: None,
             border_margin_px: 5.0,
             refit_every: 5,
             max_views: 20,
@@ -428,7 +433,9 @@ impl ObjectMapper {
             o.camera.ray_direction(u, v)
         };
         let parallax = ray(first).angle(&ray(last)).to_degrees();
-        if parallax < cfg.min_parallax_deg && obj.ellipsoid.is_none() {
+        // without parallax (a standing camera) only the class prior fixes the depth: wait for more views
+        let enough_without = cfg.min_views_without_parallax.is_some_and(|n| usable.len() >= n);
+        if parallax < cfg.min_parallax_deg && obj.ellipsoid.is_none() && !enough_without {
             return None;
         }
         let n = usable.len();
