@@ -84,8 +84,16 @@ fn main() -> std::process::ExitCode {
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            // the whole chain, without a backtrace: errors here are about the user's input
-            eprintln!("error: {e:#}");
+            // the whole chain, without a backtrace (errors here are about the user's input); a cause
+            // that its parent's message already quotes is not repeated
+            let mut text = e.to_string();
+            for cause in e.chain().skip(1) {
+                let c = cause.to_string();
+                if !text.ends_with(&c) {
+                    text = format!("{text}: {c}");
+                }
+            }
+            eprintln!("error: {text}");
             std::process::ExitCode::FAILURE
         }
     }

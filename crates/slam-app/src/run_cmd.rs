@@ -209,6 +209,9 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     let path = a.path.clone().unwrap_or_else(|| crate::fixture("kitti_odom_06/sequences/06"));
     let seq = open_stereo(&path)?;
     let n = a.max_frames.unwrap_or(usize::MAX).min(seq.left.len());
+    if n == 0 {
+        bail!("nothing to run: --max-frames 0");
+    }
     let [fx, fy, cx, cy] = seq.intrinsics;
     let k = Intrinsics::new(fx, fy, cx, cy);
     let rig = StereoRig { k, baseline: seq.baseline };

@@ -384,7 +384,10 @@ pub fn run(
             times.stereo = tf.times.stereo;
             times.tracking = tf.times.tracking;
             match tf.state {
-                TrackState::Lost => counts.lost += 1,
+                TrackState::Lost => {
+                    counts.lost += 1;
+                    tracing::warn!(frame = i, stereo_points = tf.stereo_points, "tracking lost");
+                }
                 TrackState::Relocalised { .. } => counts.relocalised += 1,
                 _ => {}
             }
