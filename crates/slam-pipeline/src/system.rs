@@ -97,6 +97,9 @@ pub struct FrameRecord {
 /// Per-frame stage times, milliseconds.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct FrameTimes {
+    /// Wall time from the end of the previous frame's tracking to the end of this one's: the
+    /// system's throughput, all threads included (the first frame: from the start of the run).
+    pub interval: f64,
     /// Detection (its own thread).
     pub detection: f64,
     /// Feature extraction.
@@ -330,6 +333,7 @@ pub fn run(
                 r.times.objects = reply.fit_ms;
             }
         };
+        let mut last_done = Instant::now();
         for (input, dets, det_ms) in det_rx {
             let i = input.index;
             while let Some(&(kf_frame, rec)) = pending.front() {
@@ -449,6 +453,8 @@ pub fn run(
                     .map_err(|_| SystemError::Thread("local mapping"))?;
                 pending.push_back((i, records.len()));
             }
+            times.interval = last_done.elapsed().as_secs_f64() * 1e3;
+            last_done = Instant::now();
             let record = FrameRecord { index: i, state: Some(tf.state), keyframe: is_kf, detections, tracks, times };
             on_frame(&record);
             records.push(record);
