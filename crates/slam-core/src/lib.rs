@@ -1,9 +1,10 @@
 //! Shared vocabulary and trait seams of the quadric-SLAM workspace.
 //!
 //! Implementation crates meet here instead of depending on each other: `slam-assoc` implements
-//! [`assoc::Associator`], and a pipeline holds a `Box<dyn Associator>` chosen from configuration.
+//! [`assoc::Associator`], `slam-frontend` implements [`tracking::StereoTracker`] and
+//! [`source::DetectionSource`], and the pipeline holds `Box<dyn …>` values chosen from configuration.
 //! The crate is deliberately small: typed ids, object classes, detections with optional instance masks,
-//! and the association contract. Geometry comes from `slam-quadric`, re-exported as [`geometry`].
+//! images, and the association, detection and tracking contracts. Geometry comes from `slam-quadric`, re-exported as [`geometry`].
 
 #![warn(missing_docs)]
 

@@ -1,4 +1,5 @@
-//! The OpenCV side of quadric SLAM: image I/O and an object detector on OpenCV's dnn module.
+//! The OpenCV side of quadric SLAM: stereo visual odometry ([`StereoVo`], a `slam_core::StereoTracker`),
+//! image I/O and overlays, and an object detector on OpenCV's dnn module.
 //!
 //! This is the only crate (with `slam-app`) that links OpenCV; OpenCV types never cross its public
 //! API: images are `slam_core::Image`, detections `slam_core::Detection`.
