@@ -63,6 +63,9 @@ pub struct SystemToml {
     pub exclude_moving: bool,
     /// Central fraction of a box whose map points belong to the object.
     pub object_core: f64,
+    /// ODA gate: never give a detection to an object whose projected ellipsoid overlaps it by less than
+    /// this IoU (0: the paper's cost alone).
+    pub projected_gate: f64,
 }
 
 impl Default for SystemToml {
@@ -73,6 +76,7 @@ impl Default for SystemToml {
             detect_every: s.detect_every,
             exclude_moving: s.exclude_moving,
             object_core: s.object_core,
+            projected_gate: s.projected_gate.unwrap_or(0.0),
         }
     }
 }
@@ -125,6 +129,7 @@ impl RunConfig {
             detect_every: self.system.detect_every,
             exclude_moving: self.system.exclude_moving,
             object_core: self.system.object_core,
+            projected_gate: (self.system.projected_gate > 0.0).then_some(self.system.projected_gate),
         }
     }
 }

@@ -31,11 +31,15 @@ pub struct OdaConfig {
     pub max_cost: f64,
     /// Fewest tracked keypoints inside a detection for `a^p` to count. Default 5.
     pub min_flow_points: usize,
+    /// A gate on top of the paper's cost: a track whose projected ellipsoid overlaps a detection by less
+    /// than this IoU never takes it, however well the other cues agree (a fitted, static object does not
+    /// jump to the next car in a row). Default `None` (the paper's cost alone).
+    pub min_projected_iou: Option<f64>,
 }
 
 impl Default for OdaConfig {
     fn default() -> Self {
-        Self { weights: OdaWeights::default(), max_cost: 0.75, min_flow_points: 5 }
+        Self { weights: OdaWeights::default(), max_cost: 0.75, min_flow_points: 5, min_projected_iou: None }
     }
 }
 
@@ -120,6 +124,9 @@ impl Oda {
                             den += w.inliers;
                         }
                         if let Some(p) = t.projected {
+                            if self.config.min_projected_iou.is_some_and(|g| p.iou(&d.bbox) < g) {
+                                return None;
+                            }
                             num += w.projection * (1.0 - p.iou(&d.bbox));
                             den += w.projection;
                         }

@@ -77,7 +77,8 @@ pub struct MapperConfig {
     /// A fitted ellipsoid farther than this from the camera of its latest view is discarded (beyond
     /// the stereo range, boxes alone do not fix the depth), metres. Default 80.
     pub max_depth_m: f64,
-    /// Static objects of one class closer than this are merged, metres. Default 1.5.
+    /// Static objects of one class group closer than this are merged, metres. Default 2.5 (cars parked
+    /// bumper to bumper stand about 4.5 m apart).
     pub merge_distance_m: f64,
     /// Tracker settings.
     pub tracker: TrackerConfig,
@@ -97,7 +98,7 @@ impl Default for MapperConfig {
             dynamic_rms_px: 12.0,
             dynamic_motion_m: 3.0,
             max_depth_m: 80.0,
-            merge_distance_m: 1.5,
+            merge_distance_m: 2.5,
             tracker: TrackerConfig::default(),
         }
     }
@@ -345,6 +346,7 @@ impl ObjectMapper {
         let earlier: Vec<Vector3<f64>> = obj.observations.iter().filter_map(|o| o.centroid).collect();
         let Some(last) = obj.observations.last_mut() else { return };
         last.centroid = centroid;
+        tracing::trace!(object = %id, frame = last.frame, bbox = ?last.bbox, ?centroid, points = points.len(), "object points");
         let (Some(c), false) = (centroid, earlier.is_empty()) else { return };
         let median = |k: usize| {
             let mut v: Vec<f64> = earlier.iter().map(|p| p[k]).collect();

@@ -52,6 +52,9 @@ pub struct SystemConfig {
     /// Map points inside the central part of a box (this fraction of its width and height) belong to
     /// the object. Default 0.6.
     pub object_core: f64,
+    /// ODA gate: a detection is never given to an object whose projected ellipsoid overlaps it by less
+    /// than this IoU. Default `Some(0.1)`; `None` is the paper's cost alone.
+    pub projected_gate: Option<f64>,
 }
 
 impl Default for SystemConfig {
@@ -64,6 +67,7 @@ impl Default for SystemConfig {
             detect_every: 1,
             exclude_moving: true,
             object_core: 0.6,
+            projected_gate: Some(0.1),
         }
     }
 }
@@ -230,13 +234,13 @@ fn mapping_thread(
 const MIN_OBJECT_POINTS: usize = 5;
 
 /// Map points of a keyframe inside the central part of a box at the depth the box's height implies
-/// for the class (±30 %, at least ±3 m: background seen past the object is not the object), and their
+/// for the class (±15 %, at least ±2.5 m: background seen past the object is not the object), and their
 /// median world position (`None` below [`MIN_OBJECT_POINTS`] points).
 fn object_points(kf: &KeyframeData, b: &BBox, core: f64, class: ClassId, fy: f64) -> (Vec<u64>, Option<Vector3<f64>>) {
     let (cx, cy) = (0.5 * (b.xmin + b.xmax), 0.5 * (b.ymin + b.ymax));
     let (hw, hh) = (0.5 * core * (b.xmax - b.xmin), 0.5 * core * (b.ymax - b.ymin));
     let expected = fy * 2.0 * class_prior(class).axes.y / b.height().max(1.0);
-    let tolerance = (0.3 * expected).max(3.0);
+    let tolerance = (0.15 * expected).max(2.5);
     let kept: Vec<(u64, Vector3<f64>)> = kf
         .points
         .iter()
@@ -310,7 +314,11 @@ pub fn run(
         let mapping = scope.spawn(move || mapping_thread(mapper, texture, req_rx, reply_tx));
 
         // tracking, on this thread
-        let mut objects = ObjectMapper::new(Box::new(slam_assoc::Oda::default()), config.objects);
+        let oda = slam_assoc::Oda::new(slam_assoc::OdaConfig {
+            min_projected_iou: config.projected_gate,
+            ..slam_assoc::OdaConfig::default()
+        });
+        let mut objects = ObjectMapper::new(Box::new(oda), config.objects);
         let mut records: Vec<FrameRecord> = Vec::new();
         let mut trajectory: Vec<FramePose> = Vec::new();
         let mut counts = RunCounts::default();
