@@ -75,7 +75,7 @@ pub struct RunArgs {
     /// Process at most this many frames
     #[arg(long)]
     max_frames: Option<usize>,
-    /// Write PNG overlays (detections, projected ellipsoids with ids, trails) into <out>/overlays
+    /// Write overlay images (detections, projected ellipsoids with ids, trails) into <out>/overlays
     #[arg(long)]
     overlays: bool,
     /// With --overlays: every n-th frame
@@ -91,7 +91,7 @@ pub struct RunArgs {
 /// COCO classes mapped as objects: person, bicycle, car, motorcycle, bus, truck.
 const OBJECT_CLASSES: [u16; 6] = [0, 1, 2, 3, 5, 7];
 
-fn detector(a: &RunArgs, seq: &StereoSequence) -> anyhow::Result<Option<Box<dyn DetectionSource>>> {
+fn detector(a: &RunArgs, seq: &StereoSequence, image: ImageSize) -> anyhow::Result<Option<Box<dyn DetectionSource>>> {
     Ok(match a.detector {
         DetectorKind::None => None,
         DetectorKind::Dnn => {
@@ -114,7 +114,7 @@ fn detector(a: &RunArgs, seq: &StereoSequence) -> anyhow::Result<Option<Box<dyn 
                 }
             }
             let noise = GroundTruthNoise { box_sigma: a.label_noise, ..GroundTruthNoise::default() };
-            Some(Box::new(GroundTruthDetections::new(truth, noise, [1242.0, 375.0])))
+            Some(Box::new(GroundTruthDetections::new(truth, noise, [image.width, image.height])))
         }
     })
 }
@@ -236,7 +236,7 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     let first = read_image(&seq.left[0], colour).with_context(|| format!("first frame {}", seq.left[0].display()))?;
     let image = ImageSize::new(first.width as f64, first.height as f64);
     let tracker = Box::new(StereoVo::new(rig, cfg.tracking)?);
-    let det = detector(a, &seq)?.map(|d| Box::new(ClassFilter(d)) as Box<dyn DetectionSource>);
+    let det = detector(a, &seq, image)?.map(|d| Box::new(ClassFilter(d)) as Box<dyn DetectionSource>);
     let pairs: Vec<(usize, PathBuf, PathBuf)> =
         (0..n).map(|i| (i, seq.left[i].clone(), seq.right[i].clone())).collect();
     let frames = Box::new(pairs.into_iter().map(move |(i, l, r)| {
