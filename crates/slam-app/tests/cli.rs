@@ -307,3 +307,49 @@ fn local_map_lengthens_point_tracks() {
     let (plain, local) = (per_point("0"), per_point("3"));
     assert!(local > 1.03 * plain, "observations per point: {plain:.3} without, {local:.3} with the local map");
 }
+
+/// The tracking layout (`training/image_02/NNNN`, `image_03`, `calib/`, `label_02/`) is recognised and
+/// `--detector labels` feeds its label boxes to the system (images: the shipped sequence, renamed).
+#[test]
+fn run_on_a_tracking_layout_with_label_boxes() {
+    let src = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06/sequences/06"));
+    let training = std::env::temp_dir().join(format!("slam-app-tracking-{}/training", std::process::id()));
+    for (from, to) in [("image_0", "image_02/0007"), ("image_1", "image_03/0007")] {
+        std::fs::create_dir_all(training.join(to)).expect("dir");
+        for i in 0..12 {
+            let name = format!("{i:06}.png");
+            std::fs::copy(src.join(from).join(&name), training.join(to).join(&name)).expect("copy");
+        }
+    }
+    std::fs::create_dir_all(training.join("calib")).expect("dir");
+    let calib = std::fs::read_to_string(src.join("calib.txt")).expect("calib");
+    std::fs::write(training.join("calib/0007.txt"), calib.replace("P0:", "P2:").replace("P1:", "P3:")).expect("calib");
+    std::fs::create_dir_all(training.join("label_02")).expect("dir");
+    // one car box per frame, growing as the camera approaches, plus a DontCare region
+    let mut labels = String::new();
+    for f in 0..12 {
+        let g = 4.0 * f as f64;
+        labels += &format!(
+            "{f} 1 Car 0 0 -1.5 {:.2} {:.2} {:.2} {:.2} 1.5 1.6 3.9 4.0 1.6 {:.1} -1.57\n",
+            725.0 + g,
+            161.0 - g / 4.0,
+            844.0 + 2.0 * g,
+            258.0 + g / 2.0,
+            15.0 - 1.2 * f as f64
+        );
+        labels += &format!("{f} -1 DontCare -1 -1 -10 10 10 50 50 -1 -1 -1 -1000 -1000 -1000 -10\n");
+    }
+    std::fs::write(training.join("label_02/0007.txt"), labels).expect("labels");
+    let out = training.join("../out");
+    let o = app()
+        .args(["run", "--detector", "labels", "--out"])
+        .arg(&out)
+        .arg(training.join("image_02/0007"))
+        .output()
+        .expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("Tracking layout, 12 of 12 frames"), "{text}");
+    assert!(text.contains("from 12 detections"), "one Car box per frame, DontCare dropped: {text}");
+    assert!(out.join("objects.json").is_file() && out.join("map.json").is_file());
+}
