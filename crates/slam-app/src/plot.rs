@@ -128,6 +128,9 @@ pub fn simulation_figure(
     Ok(vec![svg, png])
 }
 
+/// Most map points drawn on the top-down map.
+const MAX_POINTS: usize = 5000;
+
 /// What the top-down map shows (x right, z forward of the first camera; metres).
 pub struct TopDown<'a> {
     pub estimate: &'a [[f64; 2]],
@@ -182,13 +185,11 @@ where
         .map_err(err)?;
     chart.configure_mesh().light_line_style(WHITE).x_desc("x (m)").y_desc("z (m)").draw().map_err(err)?;
     let grey = RGBColor(170, 170, 170);
+    // at most MAX_POINTS drawn (evenly thinned), so the SVG stays small on long runs
+    let inside: Vec<&[f64; 2]> = m.points.iter().filter(|p| p[0] > x0 && p[0] < x1 && p[1] > z0 && p[1] < z1).collect();
+    let step = inside.len().div_ceil(MAX_POINTS).max(1);
     chart
-        .draw_series(
-            m.points
-                .iter()
-                .filter(|p| p[0] > x0 && p[0] < x1 && p[1] > z0 && p[1] < z1)
-                .map(|p| Circle::new((p[0], p[1]), 1, grey.filled())),
-        )
+        .draw_series(inside.iter().step_by(step).map(|p| Circle::new((p[0], p[1]), 1, grey.filled())))
         .map_err(err)?
         .label("map points")
         .legend(move |(x, y)| Circle::new((x + 8, y), 2, grey.filled()));
