@@ -353,3 +353,15 @@ fn run_on_a_tracking_layout_with_label_boxes() {
     assert!(text.contains("from 12 detections"), "one Car box per frame, DontCare dropped: {text}");
     assert!(out.join("objects.json").is_file() && out.join("map.json").is_file());
 }
+
+/// Threads or not, a run is reproducible: two runs write the same map file byte for byte.
+#[test]
+fn two_runs_write_the_same_map() {
+    let out = std::env::temp_dir().join(format!("slam-app-repro-{}", std::process::id()));
+    let run = |name: &str| {
+        let o = app().args(["run", "--max-frames", "20", "--out"]).arg(out.join(name)).output().expect("runs");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read(out.join(name).join("map.json")).expect("map")
+    };
+    assert!(run("a") == run("b"), "map.json differs between two runs");
+}
