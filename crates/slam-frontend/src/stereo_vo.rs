@@ -187,6 +187,36 @@ fn hamming(a: &[u8; 32], b: &[u8; 32]) -> u32 {
     a.iter().zip(b).map(|(x, y)| (x ^ y).count_ones()).sum()
 }
 
+/// The two smallest Hamming distances among the candidates offered, and the best candidate.
+#[derive(Debug, Clone, Copy)]
+struct BestTwo {
+    best: u32,
+    second: u32,
+    arg: usize,
+}
+
+impl BestTwo {
+    fn new() -> Self {
+        Self { best: u32::MAX, second: u32::MAX, arg: usize::MAX }
+    }
+
+    fn offer(&mut self, h: u32, j: usize) {
+        if h < self.best {
+            (self.second, self.best, self.arg) = (self.best, h, j);
+        } else if h < self.second {
+            self.second = h;
+        }
+    }
+
+    /// The best candidate when its distance is at most `max_hamming` and below 0.9 × the second best
+    /// (at or below with `tie_ok`); a lone candidate passes the ratio test.
+    fn winner(&self, max_hamming: u32, tie_ok: bool) -> Option<usize> {
+        let limit = 0.9 * self.second as f64;
+        let ratio = self.second == u32::MAX || (self.best as f64) < limit || (tie_ok && self.best as f64 == limit);
+        (self.arg != usize::MAX && self.best <= max_hamming && ratio).then_some(self.arg)
+    }
+}
+
 /// A solved pose (current from reference) and its inlier matches (reference point, current keypoint).
 type Solved = (Isometry3<f64>, Vec<(usize, usize)>);
 
@@ -267,7 +297,7 @@ impl StereoVo {
             let last = by_row.len() - 1;
             let (lo, hi) =
                 ((((v - tol).floor().max(0.0)) as usize).min(last), ((v + tol).ceil().max(0.0) as usize).min(last));
-            let (mut best, mut second, mut arg) = (u32::MAX, u32::MAX, usize::MAX);
+            let mut two = BestTwo::new();
             for row in &by_row[lo..=hi] {
                 for &j in row {
                     let (ur, vr) = right[j];
@@ -275,20 +305,10 @@ impl StereoVo {
                     if (vr - v).abs() > tol || d <= 0.0 || d > 300.0 {
                         continue;
                     }
-                    let h = hamming(&ld[i], &rd[j]);
-                    if h < best {
-                        (second, best, arg) = (best, h, j);
-                    } else if h < second {
-                        second = h;
-                    }
+                    two.offer(hamming(&ld[i], &rd[j]), j);
                 }
             }
-            if arg == usize::MAX
-                || best > self.config.stereo_hamming
-                || (second != u32::MAX && best as f64 > 0.9 * second as f64)
-            {
-                continue;
-            }
+            let Some(arg) = two.winner(self.config.stereo_hamming, true) else { continue };
             let disparity = refine_disparity(grey.0, grey.1, u, v, right[arg].0).unwrap_or(u - right[arg].0);
             let z = k.fx * self.rig.baseline / disparity;
             if z < self.config.depth_range.0 || z > self.config.depth_range.1 {
@@ -331,7 +351,7 @@ impl StereoVo {
             }
             let (u, v) = (k.fx * c.x / c.z + k.cx, k.fy * c.y / c.z + k.cy);
             let (gx, gy) = ((u / cell) as i64, (v / cell) as i64);
-            let (mut best, mut second, mut arg) = (u32::MAX, u32::MAX, usize::MAX);
+            let mut two = BestTwo::new();
             for dx in -r..=r {
                 for dy in -r..=r {
                     let Some(cands) = grid.get(&(gx + dx, gy + dy)) else { continue };
@@ -340,20 +360,11 @@ impl StereoVo {
                         if (uj - u).powi(2) + (vj - v).powi(2) > radius * radius {
                             continue;
                         }
-                        let h = hamming(&prev.desc[pi], &ld[j]);
-                        if h < best {
-                            (second, best, arg) = (best, h, j);
-                        } else if h < second {
-                            second = h;
-                        }
+                        two.offer(hamming(&prev.desc[pi], &ld[j]), j);
                     }
                 }
             }
-            if arg != usize::MAX
-                && !used[arg]
-                && best <= self.config.track_hamming
-                && (second == u32::MAX || (best as f64) < 0.9 * second as f64)
-            {
+            if let Some(arg) = two.winner(self.config.track_hamming, false).filter(|&a| !used[a]) {
                 used[arg] = true;
                 out.push((pi, arg));
             }
@@ -370,16 +381,11 @@ impl StereoVo {
             if !prev.valid[pi] {
                 continue;
             }
-            let (mut best, mut second, mut arg) = (u32::MAX, u32::MAX, usize::MAX);
+            let mut two = BestTwo::new();
             for (j, e) in ld.iter().enumerate() {
-                let h = hamming(d, e);
-                if h < best {
-                    (second, best, arg) = (best, h, j);
-                } else if h < second {
-                    second = h;
-                }
+                two.offer(hamming(d, e), j);
             }
-            if arg != usize::MAX && !used[arg] && best <= 64 && (best as f64) < 0.9 * second as f64 {
+            if let Some(arg) = two.winner(64, false).filter(|&a| !used[a]) {
                 used[arg] = true;
                 out.push((pi, arg));
             }
