@@ -205,6 +205,11 @@ impl FitJob {
         }
     }
 
+    /// Whether [`FitJob::run`] uses texture planes (only [`FitMethod::Refine`] does).
+    pub fn uses_planes(&self) -> bool {
+        self.method == FitMethod::Refine
+    }
+
     /// Run the fit; `planes` are texture planes of the object's points (used by [`FitMethod::Refine`]).
     pub fn run(&self, planes: &[Vector4<f64>]) -> FitResult {
         use slam_quadric::init::{Conic, Dqp, Initializer, QSlamSvd, Tri};
@@ -265,6 +270,11 @@ impl ObjectMapper {
     /// All objects, by id.
     pub fn objects(&self) -> impl Iterator<Item = &MappedObject> {
         self.objects.values()
+    }
+
+    /// One object.
+    pub fn object(&self, id: TrackId) -> Option<&MappedObject> {
+        self.objects.get(&id)
     }
 
     /// Number of ellipsoid fits run so far.

@@ -203,13 +203,18 @@ fn mapping_thread(
                     job.repose(|k| mapper.keyframe_pose(k));
                 }
                 let t = Instant::now();
-                let camera_of = |job: &FitJob| job.views.last().map(|v| v.camera);
                 let fits = jobs
                     .iter()
                     .map(|job| {
-                        let points: Vec<Vector3<f64>> =
-                            job.points.iter().filter_map(|p| mapper.map().point(*p)).collect();
-                        let planes = camera_of(job).map(|c| texture_planes(&points, &c, &texture)).unwrap_or_default();
+                        // texture planes from the map points as seen by the latest view
+                        let planes = match job.views.last() {
+                            Some(v) if job.uses_planes() => {
+                                let points: Vec<Vector3<f64>> =
+                                    job.points.iter().filter_map(|p| mapper.map().point(*p)).collect();
+                                texture_planes(&points, &v.camera, &texture)
+                            }
+                            _ => Vec::new(),
+                        };
                         job.run(&planes)
                     })
                     .collect();
@@ -290,13 +295,11 @@ pub fn run(
             let mut detector = detector;
             for f in frame_rx {
                 let t = Instant::now();
+                // an unreadable frame is not tracked, so its boxes would go unused
                 let dets = match (&mut detector, &f.images) {
                     (Some(d), Ok((left, _))) if f.index % detect_every == 0 => {
                         let img = d.needs_image().then_some(left);
                         d.detect(f.index, img).map_err(|e| e.to_string())
-                    }
-                    (Some(d), Err(_)) if !d.needs_image() && f.index % detect_every == 0 => {
-                        d.detect(f.index, None).map_err(|e| e.to_string())
                     }
                     _ => Ok(Vec::new()),
                 };
@@ -430,7 +433,7 @@ pub fn run(
             moving_boxes = detections
                 .iter()
                 .zip(&tracks)
-                .filter(|(_, t)| t.is_some_and(|id| objects.objects().any(|o| o.id == id && o.moving)))
+                .filter(|(_, t)| t.and_then(|id| objects.object(id)).is_some_and(|o| o.moving))
                 .map(|(d, _)| {
                     let b = d.bbox;
                     let (mx, my) = (0.1 * (b.xmax - b.xmin), 0.1 * (b.ymax - b.ymin));
