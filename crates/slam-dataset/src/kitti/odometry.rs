@@ -33,6 +33,11 @@ pub struct OdometrySequence {
     pub ground_truth: Option<Vec<Isometry3<f64>>>,
 }
 
+/// Frame times of a sequence without a time file: KITTI's nominal 10 Hz.
+pub(crate) fn nominal_times(frames: usize) -> Vec<f64> {
+    (0..frames).map(|i| 0.1 * i as f64).collect()
+}
+
 pub(crate) fn list_images(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
     let rd = std::fs::read_dir(dir).map_err(|source| DatasetError::Io { path: dir.to_path_buf(), source })?;
     let mut v: Vec<PathBuf> = rd
@@ -71,7 +76,7 @@ impl OdometrySequence {
             }
             t
         } else {
-            (0..left.len()).map(|i| 0.1 * i as f64).collect()
+            nominal_times(left.len())
         };
         let gt_path = dir
             .parent()

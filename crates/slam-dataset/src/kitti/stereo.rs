@@ -8,7 +8,7 @@ use nalgebra::{Isometry3, Matrix3x4};
 use crate::{
     kitti::{
         calib::Calib,
-        odometry::{list_images, OdometrySequence},
+        odometry::{list_images, nominal_times, OdometrySequence},
         raw::read_timestamps,
         tracking::{read_tracking_labels, TrackingLabel},
     },
@@ -114,7 +114,7 @@ fn open_raw(dir: &Path) -> Result<StereoSequence, DatasetError> {
     let right = list_images(&dir.join(r).join("data"))?;
     same_count(dir, &left, &right)?;
     let ts = dir.join(l).join("timestamps.txt");
-    let times = if ts.exists() { read_timestamps(&ts)? } else { (0..left.len()).map(|i| 0.1 * i as f64).collect() };
+    let times = if ts.exists() { read_timestamps(&ts)? } else { nominal_times(left.len()) };
     Ok(StereoSequence {
         layout: Layout::Raw,
         dir: dir.to_path_buf(),
@@ -139,7 +139,7 @@ fn open_tracking(training: &Path, seq: &str) -> Result<StereoSequence, DatasetEr
     same_count(&dir, &left, &right)?;
     let label_path = training.join("label_02").join(format!("{seq}.txt"));
     let labels = if label_path.exists() { Some(read_tracking_labels(&label_path)?) } else { None };
-    let times = (0..left.len()).map(|i| 0.1 * i as f64).collect();
+    let times = nominal_times(left.len());
     Ok(StereoSequence {
         layout: Layout::Tracking,
         dir,
