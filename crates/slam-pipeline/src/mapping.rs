@@ -7,7 +7,7 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use slam_core::{geometry::Intrinsics, KeyframeCorrection, KeyframeData, KeyframeId, PointId};
 use slam_optim::{factors::StereoReprojection, Graph, Huber, LevenbergMarquardt, LmParams, NoiseModel, Values, Var};
 
-use crate::map::{pose_from_array, pose_to_array, Map, MapKeyframe, MapPoint};
+use crate::map::{pose_to_array, Map, MapKeyframe, MapPoint};
 
 /// Settings of the local mapper.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -224,7 +224,7 @@ impl LocalMapper {
         let mut culled = 0;
         for kid in &window {
             let Some(pose) = self.map.keyframe_pose(*kid) else { continue };
-            let obs = self.map.keyframes.get(kid).map(|k| k.observations.clone()).unwrap_or_default();
+            let obs = self.map.keyframes.get_mut(kid).map(|k| std::mem::take(&mut k.observations)).unwrap_or_default();
             let mut keep = Vec::with_capacity(obs.len());
             for (pid, o) in obs {
                 let good = self.map.point(pid).and_then(|x| self.project(&pose, &x)).is_some_and(|p| {
@@ -251,7 +251,7 @@ impl LocalMapper {
 
     /// Keyframe pose of a stored keyframe (convenience for callers holding an id).
     pub fn keyframe_pose(&self, id: KeyframeId) -> Option<Isometry3<f64>> {
-        self.map.keyframes.get(&id).map(|k| pose_from_array(&k.pose))
+        self.map.keyframe_pose(id)
     }
 }
 
