@@ -94,11 +94,8 @@ const OBJECT_CLASSES: [u16; 6] = [0, 1, 2, 3, 5, 7];
 fn detector(a: &RunArgs, seq: &StereoSequence, image: ImageSize) -> anyhow::Result<Option<Box<dyn DetectionSource>>> {
     Ok(match a.detector {
         DetectorKind::None => None,
-        DetectorKind::Dnn => {
-            let mut d = a.model.load().context("loading the detector")?;
-            d.set_classes(OBJECT_CLASSES.to_vec());
-            Some(Box::new(d))
-        }
+        // the mapped classes are kept by `ClassFilter`, for every source alike
+        DetectorKind::Dnn => Some(Box::new(a.model.load().context("loading the detector")?)),
         DetectorKind::File => {
             let path = a.detections.as_ref().context("--detector file needs --detections <file.json>")?;
             Some(Box::new(DetectionFile::read(path)?))

@@ -172,11 +172,6 @@ impl DnnDetector {
         Ok(dets)
     }
 
-    /// Keep only these classes (COCO indices; empty = all).
-    pub fn set_classes(&mut self, classes: Vec<u16>) {
-        self.config.classes = classes;
-    }
-
     /// Detect objects in an image.
     pub fn detect_image(&mut self, image: &Image) -> Result<Vec<Detection>, FrontendError> {
         let mut mat = image_to_mat(image)?;
