@@ -15,11 +15,11 @@ use slam_dataset::{
 use slam_frontend::{draw_overlay, ellipse_outline, read_image, write_image, Overlay, StereoRig, StereoVo};
 use slam_pipeline::{
     eval::trajectory_errors,
-    map::Map,
+    map::{Map, MapObject},
     objects::MappedObject,
     system::{self, FrameInput, FrameTimes, RunOutput},
 };
-use slam_quadric::{project, Camera, Ellipsoid, ImageSize, Intrinsics};
+use slam_quadric::{project, Camera, ImageSize, Intrinsics};
 
 use crate::{config::RunConfig, detect_cmd::ModelArgs};
 
@@ -392,13 +392,33 @@ pub fn run_bench(b: &RunBenchArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Top-view outline (x, z) of an ellipsoid: its orthographic projection along y.
-fn footprint(e: &Ellipsoid) -> Vec<[f64; 2]> {
-    let r = e.rotation();
-    let s = r * nalgebra::Matrix3::from_diagonal(&e.semi_axes.map(|a| a * a)) * r.transpose();
-    let c = e.centre();
+/// Top-view outline (x, z) of a stored object's ellipsoid: its orthographic projection along y.
+fn footprint(o: &MapObject) -> Vec<[f64; 2]> {
+    let r = nalgebra::Matrix3::from_row_slice(&o.rotation);
+    let a = nalgebra::Vector3::from(o.semi_axes);
+    let s = r * nalgebra::Matrix3::from_diagonal(&a.map(|a| a * a)) * r.transpose();
     let shape = Matrix2::new(s[(0, 0)], s[(0, 2)], s[(2, 0)], s[(2, 2)]);
-    ellipse_outline(&Ellipse2 { centre: Vector2::new(c.x, c.z), shape }, 48)
+    ellipse_outline(&Ellipse2 { centre: Vector2::new(o.center[0], o.center[2]), shape }, 48)
+}
+
+/// The top-down picture (`map.svg`, `map.png` in `dir`) of a map, its frame poses and ground truth.
+fn map_picture(
+    map: &Map,
+    poses: &[nalgebra::Isometry3<f64>],
+    truth: Option<&[nalgebra::Isometry3<f64>]>,
+    dir: &std::path::Path,
+) -> anyhow::Result<Vec<PathBuf>> {
+    let xz = |p: &nalgebra::Isometry3<f64>| [p.translation.vector.x, p.translation.vector.z];
+    let estimate: Vec<[f64; 2]> = poses.iter().map(xz).collect();
+    let truth: Option<Vec<[f64; 2]>> = truth.map(|g| g.iter().take(poses.len()).map(xz).collect());
+    let points: Vec<[f64; 2]> = map.points.values().map(|p| [p.position[0], p.position[2]]).collect();
+    let objects: Vec<(Vec<[f64; 2]>, u64, bool)> =
+        map.objects.iter().map(|o| (footprint(o), o.id, o.dynamic)).collect();
+    crate::plot::topdown_figure(
+        &crate::plot::TopDown { estimate: &estimate, truth: truth.as_deref(), points: &points, objects: &objects },
+        dir,
+        "map",
+    )
 }
 
 fn pictures(
@@ -409,18 +429,7 @@ fn pictures(
     image: ImageSize,
     colour: bool,
 ) -> anyhow::Result<String> {
-    let xz = |p: &nalgebra::Isometry3<f64>| [p.translation.vector.x, p.translation.vector.z];
-    let estimate: Vec<[f64; 2]> = out.poses.iter().map(xz).collect();
-    let truth: Option<Vec<[f64; 2]>> =
-        seq.ground_truth.as_ref().map(|g| g.iter().take(out.poses.len()).map(xz).collect());
-    let points: Vec<[f64; 2]> = out.map.points.values().map(|p| [p.position[0], p.position[2]]).collect();
-    let objects: Vec<(Vec<[f64; 2]>, u64, bool)> =
-        out.objects.iter().filter_map(|o| o.ellipsoid.as_ref().map(|e| (footprint(e), o.id.0, o.dynamic))).collect();
-    crate::plot::topdown_figure(
-        &crate::plot::TopDown { estimate: &estimate, truth: truth.as_deref(), points: &points, objects: &objects },
-        &a.out,
-        "map",
-    )?;
+    map_picture(&out.map, &out.poses, seq.ground_truth.as_deref(), &a.out)?;
     let mut written = "map.svg, map.png".to_string();
     if !a.overlays {
         return Ok(written);
@@ -570,26 +579,7 @@ pub fn map(a: &MapArgs) -> anyhow::Result<()> {
     }
     if let Some(dir) = &a.picture {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-        let estimate: Vec<[f64; 2]> = poses.iter().map(|p| [p.translation.vector.x, p.translation.vector.z]).collect();
-        let points: Vec<[f64; 2]> = map.points.values().map(|p| [p.position[0], p.position[2]]).collect();
-        let objects: Vec<(Vec<[f64; 2]>, u64, bool)> = map
-            .objects
-            .iter()
-            .map(|o| {
-                let r = nalgebra::Matrix3::from_row_slice(&o.rotation);
-                let e = Ellipsoid::new(
-                    slam_quadric::se3::isometry_from_parts(&r, &nalgebra::Vector3::from(o.center)),
-                    nalgebra::Vector3::from(o.semi_axes),
-                );
-                (footprint(&e), o.id, o.dynamic)
-            })
-            .collect();
-        let files = crate::plot::topdown_figure(
-            &crate::plot::TopDown { estimate: &estimate, truth: None, points: &points, objects: &objects },
-            dir,
-            "map",
-        )?;
-        for f in files {
+        for f in map_picture(&map, &poses, None, dir)? {
             println!("wrote {}", f.display());
         }
     }
@@ -599,6 +589,7 @@ pub fn map(a: &MapArgs) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use slam_quadric::Ellipsoid;
 
     #[test]
     fn footprint_of_a_turned_ellipsoid() {
@@ -609,7 +600,17 @@ mod tests {
             ),
             nalgebra::Vector3::new(2.0, 0.8, 1.0),
         );
-        let f = footprint(&e);
+        let r = e.rotation();
+        let f = footprint(&MapObject {
+            id: 1,
+            class: 2,
+            center: [e.centre().x, e.centre().y, e.centre().z],
+            semi_axes: [e.semi_axes.x, e.semi_axes.y, e.semi_axes.z],
+            rotation: std::array::from_fn(|k| r[(k / 3, k % 3)]),
+            frames: vec![0],
+            dynamic: false,
+            points: Vec::new(),
+        });
         // turned 90° about y: the length (2 m) now runs along z, the width (1 m) along x
         let (xs, zs): (Vec<f64>, Vec<f64>) = f.iter().map(|p| (p[0], p[1])).unzip();
         let span = |v: &[f64]| v.iter().cloned().fold(f64::MIN, f64::max) - v.iter().cloned().fold(f64::MAX, f64::min);
