@@ -76,7 +76,8 @@ pub fn trajectory_errors(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], lengths:
     let pg: Vec<Vector3<f64>> = gt[..n].iter().map(|p| p.translation.vector).collect();
     let rms = |pairs: &mut dyn Iterator<Item = f64>| (pairs.map(|d| d * d).sum::<f64>() / n as f64).sqrt();
     let ate_m = rms(&mut pe.iter().zip(&pg).map(|(a, b)| (a - b).norm()));
-    let scale = align_rigid(&pe, &pg)
+    let aligned = align_rigid(&pe, &pg);
+    let scale = aligned
         .map(|t| {
             let ca = pe.iter().sum::<Vector3<f64>>() / n as f64;
             let cb = pg.iter().sum::<Vector3<f64>>() / n as f64;
@@ -89,7 +90,7 @@ pub fn trajectory_errors(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], lengths:
             }
         })
         .unwrap_or(f64::NAN);
-    let ate_aligned_m = match align_rigid(&pe, &pg) {
+    let ate_aligned_m = match aligned {
         Some(t) => rms(&mut pe
             .iter()
             .zip(&pg)
