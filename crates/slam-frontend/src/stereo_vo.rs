@@ -484,7 +484,7 @@ impl StereoVo {
         let frame = self.stereo(&lp, &ld, &rp, &rd, (&lg, &rg));
         let t2 = Instant::now();
         self.grey.swap(0, 1);
-        self.grey[1] = Some(lm.clone());
+        self.grey[1] = Some(lm);
         self.keypoints.swap(0, 1);
         self.keypoints[1] = lp.clone();
         let stereo_points = frame.points.len();
