@@ -32,6 +32,9 @@ enum Command {
     RunBench(run_cmd::RunBenchArgs),
     /// ATE, drift and RPE of a trajectory file (KITTI or TUM) against ground truth.
     TrajectoryEval(run_cmd::TrajEvalArgs),
+    /// Estimate the stereo rig's disparity offset (a rectification error that scales depth) from the
+    /// sequence itself: tracks the frames, then scans offsets for the least two-view adjustment cost.
+    StereoCheck(run_cmd::StereoCheckArgs),
     /// Inspect a saved map (counts, objects) and export it (PLY points, trajectory, top-down picture).
     Map(run_cmd::MapArgs),
     /// Compare object associators (ODA vs IoU-only): ID switches on simulated crossings and on real
@@ -126,6 +129,7 @@ fn run() -> anyhow::Result<()> {
     match cli.command {
         Command::Run(a) => run_cmd::run(&a),
         Command::Map(a) => run_cmd::map(&a),
+        Command::StereoCheck(a) => run_cmd::stereo_check(&a),
         Command::TrajectoryEval(a) => run_cmd::trajectory_eval(&a),
         Command::RunBench(a) => run_cmd::run_bench(&a),
         Command::Assoc(cmd) => assoc_cmd::run(cmd),

@@ -365,3 +365,43 @@ fn two_runs_write_the_same_map() {
     };
     assert!(run("a") == run("b"), "map.json differs between two runs");
 }
+
+#[test]
+fn stereo_check_finds_a_shifted_right_camera() {
+    // the shipped frames, and again with every right image shifted 1 px to the left (each disparity 1 px
+    // too large): the estimated offset is about 0, then about −1 px
+    let src = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06/sequences/06"));
+    let dst = std::env::temp_dir().join(format!("slam-app-shifted-{}", std::process::id()));
+    for d in ["image_0", "image_1"] {
+        std::fs::create_dir_all(dst.join(d)).expect("dir");
+    }
+    std::fs::copy(src.join("calib.txt"), dst.join("calib.txt")).expect("calib");
+    for i in 0..51 {
+        let name = format!("{i:06}.png");
+        std::fs::copy(src.join("image_0").join(&name), dst.join("image_0").join(&name)).expect("copy");
+        let mut right = slam_frontend::read_image(src.join("image_1").join(&name), false).expect("read");
+        let w = right.width as usize;
+        for row in right.data.chunks_mut(w) {
+            row.copy_within(1.., 0);
+        }
+        slam_frontend::write_image(dst.join("image_1").join(&name), &right).expect("write");
+    }
+    let offset = |path: &std::path::Path| {
+        let o = app()
+            .args(["stereo-check", "--range", "1.5", "--step", "0.1", "--curve"])
+            .arg(path)
+            .output()
+            .expect("runs");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let text = String::from_utf8_lossy(&o.stdout).to_string();
+        assert!(text.contains("| residual offset (px) |") && !text.contains("end of the scanned range"), "{text}");
+        (number_after(&text, "rig disparity offset: "), text)
+    };
+    let (shipped, text) = offset(src);
+    assert!(shipped.abs() < 0.1, "{text}");
+    let (shifted, text) = offset(&dst);
+    assert!((shifted - shipped + 1.0).abs() < 0.1, "{text}");
+    let _ = std::fs::remove_dir_all(&dst);
+    let bad = app().args(["stereo-check", "--frames", "1"]).output().expect("runs");
+    assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("--frames"));
+}

@@ -19,6 +19,7 @@ use slam_optim::{
 };
 use slam_quadric::{se3, Intrinsics};
 
+use crate::disparity::DisparityPair;
 use crate::image_io::{image_to_mat, FrontendError};
 
 /// A rectified stereo rig.
@@ -63,6 +64,13 @@ pub struct VoConfig {
     pub local_keyframes: usize,
     /// Search radius of local-map points around their projection, pixels.
     pub local_radius: f64,
+    /// Added to every measured disparity, pixels: the rig's disparity offset (see
+    /// [`crate::disparity`]; `slam-app run` estimates it from the first frames unless given).
+    pub disparity_offset: f64,
+    /// Frame pairs kept for [`StereoVo::disparity_pairs`] (offset self-calibration); 0 keeps none.
+    /// Not a settings-file key: `slam-app stereo-check` sets it.
+    #[serde(skip)]
+    pub keep_disparity_pairs: usize,
 }
 
 impl Default for VoConfig {
@@ -81,6 +89,8 @@ impl Default for VoConfig {
             flow_points_per_region: 40,
             local_keyframes: 0,
             local_radius: 8.0,
+            disparity_offset: 0.0,
+            keep_disparity_pairs: 0,
         }
     }
 }
@@ -128,6 +138,8 @@ pub struct StereoVo {
     /// Grey left images and left keypoints of the previous and current frame (optical flow).
     grey: [Option<Mat>; 2],
     keypoints: [Vec<(f64, f64)>; 2],
+    /// Stereo correspondences of tracked frames with their keyframe (up to `keep_disparity_pairs`).
+    pairs: Vec<DisparityPair>,
 }
 
 /// A borrowed 8-bit grey image.
@@ -270,6 +282,7 @@ impl StereoVo {
             velocity: Isometry3::identity(),
             grey: [None, None],
             keypoints: [Vec::new(), Vec::new()],
+            pairs: Vec::new(),
         })
     }
 
@@ -309,7 +322,8 @@ impl StereoVo {
                 }
             }
             let Some(arg) = two.winner(self.config.stereo_hamming, true) else { continue };
-            let disparity = refine_disparity(grey.0, grey.1, u, v, right[arg].0).unwrap_or(u - right[arg].0);
+            let disparity = refine_disparity(grey.0, grey.1, u, v, right[arg].0).unwrap_or(u - right[arg].0)
+                + self.config.disparity_offset;
             let z = k.fx * self.rig.baseline / disparity;
             if z < self.config.depth_range.0 || z > self.config.depth_range.1 {
                 continue;
@@ -460,6 +474,12 @@ impl StereoVo {
         }
     }
 
+    /// Stereo correspondences kept so far for offset self-calibration
+    /// ([`crate::disparity::estimate_disparity_offset`]).
+    pub fn disparity_pairs(&self) -> &[DisparityPair] {
+        &self.pairs
+    }
+
     /// Track one rectified stereo pair (grey or colour; colour is converted).
     pub fn process(
         &mut self,
@@ -572,6 +592,13 @@ impl StereoVo {
         let tracked = state != TrackState::Lost;
         if tracked {
             self.velocity = self.kf_from_last.inverse() * kf_from_curr;
+        }
+        if matches!(state, TrackState::Tracked { .. }) && self.pairs.len() < self.config.keep_disparity_pairs {
+            let (a, b): (Vec<[f64; 3]>, Vec<[f64; 3]>) = inliers
+                .iter()
+                .filter_map(|&(p, c)| Some((prev.obs[p], frame.obs[frame.of_keypoint.get(c).copied().flatten()?])))
+                .unzip();
+            self.pairs.push(DisparityPair { keyframe: a, frame: b, frame_from_keyframe: curr_from_prev });
         }
         let world_from_curr = world_from_ref * kf_from_curr;
         self.since_kf += 1;
