@@ -31,6 +31,8 @@ pub struct ObjectsToml {
     pub max_depth_m: f64,
     /// Static objects of one class closer than this are merged, metres.
     pub merge_distance_m: f64,
+    /// What a box bounds in the object optimisation: "ellipse" (the paper) or "cuboid".
+    pub box_shape: crate::objects_cmd::Shape,
 }
 
 impl Default for ObjectsToml {
@@ -47,6 +49,7 @@ impl Default for ObjectsToml {
             dynamic_motion_m: m.dynamic_motion_m,
             max_depth_m: m.max_depth_m,
             merge_distance_m: m.merge_distance_m,
+            box_shape: crate::objects_cmd::Shape::Ellipse,
         }
     }
 }
@@ -122,6 +125,7 @@ impl RunConfig {
                 dynamic_motion_m: o.dynamic_motion_m,
                 max_depth_m: o.max_depth_m,
                 merge_distance_m: o.merge_distance_m,
+                box_shape: o.box_shape.shape(),
                 ..MapperConfig::default()
             },
             texture: self.texture,
@@ -149,5 +153,13 @@ mod tests {
         assert_eq!(partial.tracking.features, 2000);
         let e = toml::from_str::<RunConfig>("[tracking]\nfeatures_typo = 3\n").expect_err("unknown key");
         assert!(e.to_string().contains("features_typo"), "{e}");
+        // the box model and the disparity offset reach the stages they configure
+        let c: RunConfig =
+            toml::from_str("[objects]\nbox_shape = \"cuboid\"\n[tracking]\ndisparity_offset = 0.1\n").expect("parses");
+        let sys = c.system(slam_quadric::ImageSize::new(1242.0, 375.0));
+        assert_eq!(sys.objects.box_shape, slam_optim::object::BoxShape::Cuboid);
+        assert_eq!(c.tracking.disparity_offset, 0.1);
+        assert!(toml::from_str::<RunConfig>("[objects]\nbox_shape = \"sphere\"\n").is_err());
+        assert!(toml::from_str::<RunConfig>("[tracking]\nkeep_disparity_pairs = 5\n").is_err());
     }
 }

@@ -33,6 +33,27 @@ pub struct InputArgs {
     /// from the class's size prior (off by default, as in the paper)
     #[arg(long)]
     without_parallax_after: Option<usize>,
+    /// What a box bounds in the object optimisation: the ellipsoid (the paper) or its circumscribed cuboid
+    #[arg(long, value_enum, default_value_t = Shape::Ellipse)]
+    box_shape: Shape,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Shape {
+    /// The ellipsoid's projected ellipse
+    Ellipse,
+    /// The ellipsoid's circumscribed cuboid
+    Cuboid,
+}
+
+impl Shape {
+    pub(crate) fn shape(self) -> slam_optim::object::BoxShape {
+        match self {
+            Shape::Ellipse => slam_optim::object::BoxShape::Ellipse,
+            Shape::Cuboid => slam_optim::object::BoxShape::Cuboid,
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -114,6 +135,7 @@ fn run(seq: &Sequence, input: &InputArgs) -> (ObjectMapper, BTreeMap<(usize, usi
     let config = MapperConfig {
         method: input.method.fit(),
         min_views_without_parallax: input.without_parallax_after,
+        box_shape: input.box_shape.shape(),
         ..MapperConfig::default()
     };
     let mut mapper = ObjectMapper::new(Box::new(Oda::default()), config);
@@ -189,6 +211,25 @@ pub struct EvalArgs {
 struct GtVehicle {
     ellipsoid: Ellipsoid,
     boxes: BTreeMap<usize, BBox>,
+    /// Where the rays from each labelled frame's camera through the label's own 3-D centre meet (least
+    /// squares), `None` when they do not (a standing camera).
+    ray_centre: Option<Vector3<f64>>,
+}
+
+/// Least-squares intersection of rays `(origin, direction)`: the point nearest to all of them; `None`
+/// when they are (nearly) parallel.
+fn ray_intersection(rays: &[(Vector3<f64>, Vector3<f64>)]) -> Option<Vector3<f64>> {
+    let mut a = nalgebra::Matrix3::zeros();
+    let mut b = Vector3::zeros();
+    for (o, d) in rays {
+        let d = d.try_normalize(1e-12)?;
+        let m = nalgebra::Matrix3::identity() - d * d.transpose();
+        a += m;
+        b += m * o;
+    }
+    let eig = nalgebra::SymmetricEigen::new(a);
+    let (lo, hi) = (eig.eigenvalues.min(), eig.eigenvalues.max());
+    (lo > 1e-9 * hi.max(1e-12)).then(|| a.try_inverse().map(|inv| inv * b)).flatten()
 }
 
 fn gt_vehicles(seq: &Sequence, min_frames: usize, static_m: f64) -> BTreeMap<i64, GtVehicle> {
@@ -222,7 +263,22 @@ fn gt_vehicles(seq: &Sequence, min_frames: usize, static_m: f64) -> BTreeMap<i64
             Isometry3::from_parts(Translation3::from(mean), rot),
             Vector3::new(len / 2.0, h / 2.0, w / 2.0),
         );
-        out.insert(id, GtVehicle { ellipsoid, boxes: ls.iter().map(|l| (l.frame, l.bbox)).collect() });
+        let rays: Vec<(Vector3<f64>, Vector3<f64>)> = ls
+            .iter()
+            .zip(&centres)
+            .map(|(l, c)| {
+                let origin = seq.poses[l.frame].translation.vector;
+                (origin, c - origin)
+            })
+            .collect();
+        out.insert(
+            id,
+            GtVehicle {
+                ellipsoid,
+                boxes: ls.iter().map(|l| (l.frame, l.bbox)).collect(),
+                ray_centre: ray_intersection(&rays),
+            },
+        );
     }
     out
 }
@@ -234,6 +290,9 @@ struct Row {
     iou: f64,
     e_trans: f64,
     e_axe: f64,
+    /// Sum of the ray-triangulation errors over the found vehicles that have one, and their count.
+    e_ray: f64,
+    rays: usize,
 }
 
 pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
@@ -250,12 +309,13 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         a.min_frames, a.static_m
     );
     println!(
-        "{:<6} {:>8} {:>8} {:>8} {:>8} {:>9} {:>8}",
-        "seq", "vehicles", "found", "success", "IoU2D", "e_trans", "e_axe"
+        "{:<6} {:>8} {:>8} {:>8} {:>8} {:>9} {:>8} {:>8}",
+        "seq", "vehicles", "found", "success", "IoU2D", "e_trans", "e_axe", "e_ray"
     );
-    let mut csv = String::from("sequence,vehicles,found,success,iou2d,e_trans,e_axe\n");
+    let mut csv = String::from("sequence,vehicles,found,success,iou2d,e_trans,e_axe,e_ray\n");
     let (mut tot, mut n_seq) = (Row::default(), 0usize);
     let (mut sum_success, mut sum_iou, mut sum_et, mut sum_ea, mut n_found_seq) = (0.0, 0.0, 0.0, 0.0, 0usize);
+    let (mut sum_ray, mut n_ray_seq) = (0.0, 0usize);
     let image = ImageSize::new(1242.0, 375.0);
     for sdir in &seqs {
         let name = sdir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
@@ -280,7 +340,35 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         }
         let mut row = Row { vehicles: gts.len(), ..Row::default() };
         for (id, gt) in &gts {
-            let Some((_, e)) = best.get(id) else { continue };
+            let Some((_, e)) = best.get(id) else {
+                // why: the objects that took this vehicle's boxes, and what became of them
+                let mut took: Vec<String> = Vec::new();
+                for o in mapper.objects() {
+                    let n =
+                        o.observations.iter().filter(|obs| truth.get(&(obs.frame, obs.detection)) == Some(id)).count();
+                    if n > 0 {
+                        took.push(format!(
+                            "object {} ({n} of its {} boxes, ellipsoid {}, dynamic {})",
+                            o.id,
+                            o.observations.len(),
+                            o.ellipsoid.is_some(),
+                            o.dynamic
+                        ));
+                    }
+                }
+                let first = gt.boxes.keys().next().copied().unwrap_or(0);
+                let last = gt.boxes.keys().last().copied().unwrap_or(0);
+                tracing::debug!(
+                    sequence = %name,
+                    vehicle = id,
+                    frames = gt.boxes.len(),
+                    travel = (seq.poses[last].translation.vector - seq.poses[first].translation.vector).norm(),
+                    first_depth = (seq.poses[first].inverse() * Point3::from(gt.ellipsoid.centre())).z,
+                    "vehicle not found; its boxes went to: {}",
+                    if took.is_empty() { "no object".to_string() } else { took.join("; ") }
+                );
+                continue;
+            };
             row.found += 1;
             let ious: Vec<f64> = gt
                 .boxes
@@ -290,6 +378,10 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             row.iou += ious.iter().sum::<f64>() / ious.len().max(1) as f64;
             row.e_trans += metrics::e_trans(e, &gt.ellipsoid);
             row.e_axe += metrics::e_axe(e, &gt.ellipsoid);
+            if let Some(c) = gt.ray_centre {
+                row.e_ray += (c - gt.ellipsoid.centre()).norm();
+                row.rays += 1;
+            }
             let first = gt.boxes.keys().next().copied().unwrap_or(0);
             let depth = (seq.poses[first].inverse() * nalgebra::Point3::from(gt.ellipsoid.centre())).z;
             let err_cam = seq.poses[first].inverse().rotation * (e.centre() - gt.ellipsoid.centre());
@@ -310,19 +402,21 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         }
         let f = row.found.max(1) as f64;
         let success = if row.vehicles > 0 { row.found as f64 / row.vehicles as f64 } else { f64::NAN };
+        let e_ray = if row.rays > 0 { row.e_ray / row.rays as f64 } else { f64::NAN };
         println!(
-            "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3}",
+            "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3}",
             name,
             row.vehicles,
             row.found,
             success,
             row.iou / f,
             row.e_trans / f,
-            row.e_axe / f
+            row.e_axe / f,
+            e_ray
         );
         let _ = writeln!(
             csv,
-            "{name},{},{},{success},{},{},{}",
+            "{name},{},{},{success},{},{},{},{e_ray}",
             row.vehicles,
             row.found,
             row.iou / f,
@@ -332,6 +426,10 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         if row.vehicles > 0 {
             n_seq += 1;
             sum_success += success;
+        }
+        if row.rays > 0 {
+            n_ray_seq += 1;
+            sum_ray += e_ray;
         }
         if row.found > 0 {
             n_found_seq += 1;
@@ -344,32 +442,59 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         tot.iou += row.iou;
         tot.e_trans += row.e_trans;
         tot.e_axe += row.e_axe;
+        tot.e_ray += row.e_ray;
+        tot.rays += row.rays;
     }
     let f = tot.found.max(1) as f64;
     let m = n_found_seq.max(1) as f64;
     println!(
-        "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3}   (mean of sequences)",
+        "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3}   (mean of sequences)",
         "avg",
         "",
         "",
         sum_success / n_seq.max(1) as f64,
         sum_iou / m,
         sum_et / m,
-        sum_ea / m
+        sum_ea / m,
+        sum_ray / n_ray_seq.max(1) as f64
     );
     println!(
-        "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3}   (pooled over vehicles)",
+        "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3}   (pooled over vehicles)",
         "all",
         tot.vehicles,
         tot.found,
         tot.found as f64 / tot.vehicles.max(1) as f64,
         tot.iou / f,
         tot.e_trans / f,
-        tot.e_axe / f
+        tot.e_axe / f,
+        tot.e_ray / tot.rays.max(1) as f64
+    );
+    println!(
+        "e_ray: e_trans of the point where rays from each labelled frame's camera (pose file) through the \
+         label's own 3-D centre meet, over the same vehicles: what these poses allow a method that places \
+         objects by bearings (docs/objects.md)"
     );
     println!("paper (its KITTI raw drives): success 0.602, IoU2D 0.730, e_trans 2.128 m, e_axe 0.642 m");
     if let Some(p) = &a.csv {
         std::fs::write(p, csv).with_context(|| format!("cannot write {}", p.display()))?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rays_meet_at_their_common_point_and_parallel_rays_do_not() {
+        let p = Vector3::new(-3.0, 1.0, 25.0);
+        let rays: Vec<(Vector3<f64>, Vector3<f64>)> =
+            (0..5).map(|i| Vector3::new(0.1 * i as f64, 0.0, 1.5 * i as f64)).map(|o| (o, p - o)).collect();
+        let x = ray_intersection(&rays).expect("meet");
+        assert!((x - p).norm() < 1e-9, "{x}");
+        // a standing camera: every ray from one point along one direction
+        let standing = vec![(Vector3::zeros(), p); 4];
+        assert!(ray_intersection(&standing).is_none());
+        assert!(ray_intersection(&[(Vector3::zeros(), Vector3::zeros())]).is_none());
+    }
 }

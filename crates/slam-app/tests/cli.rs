@@ -405,3 +405,37 @@ fn stereo_check_finds_a_shifted_right_camera() {
     let bad = app().args(["stereo-check", "--frames", "1"]).output().expect("runs");
     assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("--frames"));
 }
+
+#[test]
+fn eval_scores_a_tracking_sequence_with_both_box_models() {
+    // sequence 0003 alone: 6 static vehicles, all found; the table, the CSV and the e_ray column
+    let dir = std::env::temp_dir().join(format!("slam-app-eval-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let src = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_tracking/0003"));
+    std::fs::create_dir_all(dir.join("0003")).expect("dir");
+    for f in ["label_02.txt", "poses_orbslam3.txt", "calib.txt"] {
+        std::fs::copy(src.join(f), dir.join("0003").join(f)).expect("copy");
+    }
+    let row = |shape: &str| {
+        let csv = dir.join(format!("{shape}.csv"));
+        let o = app().arg("eval").arg(&dir).args(["--box-shape", shape, "--csv"]).arg(&csv).output().expect("runs");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let text = String::from_utf8_lossy(&o.stdout).to_string();
+        assert!(text.lines().any(|l| l.split_whitespace().last() == Some("e_ray")), "{text}");
+        let csv = std::fs::read_to_string(&csv).expect("csv");
+        let line = csv.lines().find(|l| l.starts_with("0003,")).expect("row").to_string();
+        let v: Vec<f64> = line.split(',').skip(1).map(|x| x.parse().expect("number")).collect();
+        assert_eq!(v.len(), 7, "{line}");
+        v // vehicles, found, success, iou2d, e_trans, e_axe, e_ray
+    };
+    let ellipse = row("ellipse");
+    assert_eq!((ellipse[0], ellipse[1]), (6.0, 6.0), "{ellipse:?}");
+    assert!(ellipse[3] > 0.8 && ellipse[4] < 1.0 && ellipse[5] < 0.35, "{ellipse:?}");
+    // e_ray depends on the labels and poses only, and ours beats it here
+    assert!(ellipse[6] > 0.5 && ellipse[4] < ellipse[6], "{ellipse:?}");
+    let cuboid = row("cuboid");
+    assert_eq!(cuboid[6], ellipse[6]);
+    // the cuboid model gets the axes closer and projects a smaller ellipse (lower IoU2D)
+    assert!(cuboid[5] < ellipse[5] && cuboid[3] < ellipse[3], "{cuboid:?} vs {ellipse:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

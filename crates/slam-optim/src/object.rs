@@ -10,7 +10,7 @@ use slam_quadric::{
 };
 
 use crate::{
-    factors::{AxisDirection, AxisPrior, BoxFactor, PosePrior, TexturePlane},
+    factors::{AxisDirection, AxisPrior, BoxFactor, CuboidBoxFactor, PosePrior, TexturePlane},
     Graph, Huber, LevenbergMarquardt, LmParams, NoiseModel, Values, Var, L2,
 };
 
@@ -30,9 +30,22 @@ impl ObjectPrior {
     }
 }
 
+/// What a detected box is taken to bound.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum BoxShape {
+    /// The ellipsoid itself: the exact image-clipped bounds of its projected ellipse (the paper's model).
+    #[default]
+    Ellipse,
+    /// The cuboid circumscribing the ellipsoid (a car is box-shaped): the clamped bounds of its projected
+    /// corners ([`CuboidBoxFactor`]).
+    Cuboid,
+}
+
 /// Settings of [`refine`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RefineConfig {
+    /// The box model of the box error.
+    pub box_shape: BoxShape,
     /// Box noise σ of the first pass, pixels (whitening of the box error).
     pub box_sigma_px: f64,
     /// Huber threshold in pixels (converted to σ units for each pass, so re-estimating σ does not
@@ -71,6 +84,7 @@ pub struct RefineConfig {
 impl Default for RefineConfig {
     fn default() -> Self {
         Self {
+            box_shape: BoxShape::Ellipse,
             box_sigma_px: 1.0,
             huber_px: 3.0,
             passes: 8,
@@ -87,16 +101,20 @@ impl Default for RefineConfig {
     }
 }
 
-/// RMS box error (pixels) of an ellipsoid in each view (clipped model); `None` when it does not project
-/// into a view.
-fn box_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid) -> Option<Vec<f64>> {
-    views
-        .iter()
-        .map(|v| {
-            let r = slam_quadric::box_error(e, &v.camera, &v.bbox, &BoundsModel::Clipped(*image)).ok()?;
-            Some((r.error.norm_squared() / 4.0).sqrt())
-        })
-        .collect()
+/// Box error (predicted − detected, pixels) of an ellipsoid in a view under a box model; `None` when it
+/// does not project.
+pub fn box_residual(v: &BoxView, image: &ImageSize, e: &Ellipsoid, shape: BoxShape) -> Option<Vector4<f64>> {
+    match shape {
+        BoxShape::Ellipse => {
+            Some(slam_quadric::box_error(e, &v.camera, &v.bbox, &BoundsModel::Clipped(*image)).ok()?.error)
+        }
+        BoxShape::Cuboid => crate::factors::cuboid_box_error(&v.camera, e, &v.bbox, image),
+    }
+}
+
+/// RMS box error (pixels) of an ellipsoid in each view; `None` when it does not project into a view.
+fn box_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid, shape: BoxShape) -> Option<Vec<f64>> {
+    views.iter().map(|v| Some((box_residual(v, image, e, shape)?.norm_squared() / 4.0).sqrt())).collect()
 }
 
 /// Re-order an ellipsoid's axes (permuting rotation columns, keeping a proper rotation) to match the
@@ -180,13 +198,18 @@ fn optimise_object_weighted(
                 lm.fix(kp);
             }
         }
-        graph
-            .add(
+        let (noise, huber) = (NoiseModel::Isotropic(sigma), Huber(config.huber_px / sigma));
+        match config.box_shape {
+            BoxShape::Ellipse => graph.add(
                 BoxFactor::new(kp, ko, v.camera.intrinsics, v.bbox, BoundsModel::Clipped(*image)),
-                NoiseModel::Isotropic(sigma),
-                Huber(config.huber_px / sigma),
-            )
-            .ok()?;
+                noise,
+                huber,
+            ),
+            BoxShape::Cuboid => {
+                graph.add(CuboidBoxFactor::new(kp, ko, v.camera.intrinsics, v.bbox, *image), noise, huber)
+            }
+        }
+        .ok()?;
     }
     graph.add(AxisPrior::new(ko, prior.axes), NoiseModel::Diagonal(prior.sigma.as_slice().to_vec()), L2).ok()?;
     for plane in planes {
@@ -208,10 +231,10 @@ fn optimise_object_weighted(
 
 /// RMS over views of the box misfit's shift part (`(e_min + e_max)/2` per axis) and size part
 /// (`(e_max − e_min)/2`), pixels.
-fn shift_and_size_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid) -> Option<(f64, f64)> {
+fn shift_and_size_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid, shape: BoxShape) -> Option<(f64, f64)> {
     let (mut shift, mut size) = (0.0, 0.0);
     for v in views {
-        let r = slam_quadric::box_error(e, &v.camera, &v.bbox, &BoundsModel::Clipped(*image)).ok()?.error;
+        let r = box_residual(v, image, e, shape)?;
         for (lo, hi) in [(r[0], r[2]), (r[1], r[3])] {
             shift += (0.5 * (lo + hi)).powi(2);
             size += (0.5 * (hi - lo)).powi(2);
@@ -307,7 +330,7 @@ pub fn refine_with_planes(
         if planes.is_empty() { config.min_sigma_px } else { config.min_sigma_px.max(config.plane_box_floor_px) };
     if let Some((mut e, _)) = best {
         for _ in 1..config.passes {
-            let Some(rms) = box_rms(views, image, &e) else { break };
+            let Some(rms) = box_rms(views, image, &e, config.box_shape) else { break };
             // per view: its own misfit, but never below the overall RMS / 2 (one view cannot claim to be
             // much better than the data as a whole)
             let all = (rms.iter().map(|r| r * r).sum::<f64>() / rms.len().max(1) as f64).sqrt();
@@ -330,14 +353,14 @@ pub fn refine_with_planes(
                 _ => break,
             }
         }
-        if let (Some(drift), Some(rms)) = (config.pose_drift, box_rms(views, image, &e)) {
+        if let (Some(drift), Some(rms)) = (config.pose_drift, box_rms(views, image, &e, config.box_shape)) {
             let all = (rms.iter().map(|r| r * r).sum::<f64>() / rms.len().max(1) as f64).sqrt();
             // Free the cameras only when the boxes disagree with the given poses. With the cameras free,
             // boxes no longer fix the scene's scale about the first camera; the pose and axis priors
             // share it, which would bias data that are already consistent.
             // Pose errors move a whole box (its two x edges, or its two y edges, together); box noise moves
             // the edges independently. Free the cameras only when the misfit is mostly such shifts.
-            let (shift, size) = shift_and_size_rms(views, image, &e).unwrap_or((0.0, 0.0));
+            let (shift, size) = shift_and_size_rms(views, image, &e, config.box_shape).unwrap_or((0.0, 0.0));
             if all > config.consistent_rms_px && shift > config.shift_ratio * size {
                 let sigmas: Vec<f64> =
                     rms.iter().map(|r| r.max(0.5 * all).clamp(min_sigma, config.max_sigma_px)).collect();

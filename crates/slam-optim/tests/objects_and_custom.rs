@@ -162,3 +162,39 @@ fn texture_planes_correct_a_box_bias() {
     let (e0, e1) = (metrics::e_trans(&plain, &truth), metrics::e_trans(&with, &truth));
     assert!(e1 < 0.7 * e0, "planes should cut the centre error by 30 %: {e0:.3} m -> {e1:.3} m");
 }
+
+/// Boxes that bound a box-shaped car (its cuboid's projected corners): the ellipse model has to bring
+/// the ellipsoid nearer or make it larger to fill them; the cuboid model recovers the car.
+#[test]
+fn the_cuboid_model_fits_boxes_of_a_box_shaped_car() {
+    use slam_optim::object::{refine, BoxShape, ObjectPrior, RefineConfig};
+    use slam_quadric::{cuboid_bounds, init::BoxView};
+    let image = ImageSize::new(1242.0, 375.0);
+    // a parked car ahead on the left, seen obliquely from a camera driving past
+    let truth = Ellipsoid::new(
+        Isometry3::from_parts(
+            Translation3::new(-4.5, 0.9, 20.0),
+            UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.15),
+        ),
+        Vector3::new(2.0, 0.75, 0.85),
+    );
+    let mut views = Vec::new();
+    for i in 0..10 {
+        let cam = Camera::new(K, Isometry3::translation(0.0, 0.0, 1.2 * i as f64));
+        let b = cuboid_bounds(&truth, &cam).expect("in front");
+        if image.as_box().contains(&b) && !b.touches_border(&image, 5.0) {
+            views.push(BoxView::new(cam, b));
+        }
+    }
+    assert!(views.len() >= 6, "{} views", views.len());
+    let prior = ObjectPrior::car();
+    let fit = |shape| {
+        let config = RefineConfig { box_shape: shape, pose_drift: None, ..RefineConfig::default() };
+        refine(&views, &image, &prior, &config).expect("fits")
+    };
+    let (ellipse, cuboid) = (fit(BoxShape::Ellipse), fit(BoxShape::Cuboid));
+    let (e0, e1) = (metrics::e_trans(&ellipse, &truth), metrics::e_trans(&cuboid, &truth));
+    let (a0, a1) = (metrics::e_axe(&ellipse, &truth), metrics::e_axe(&cuboid, &truth));
+    assert!(e1 < 0.1 && a1 < 0.1, "cuboid model: e_trans {e1:.3} m, e_axe {a1:.3} m");
+    assert!(e0 > 3.0 * e1.max(0.05) || a0 > 3.0 * a1.max(0.05), "ellipse model: {e0:.3} m / {a0:.3} m");
+}

@@ -16,7 +16,7 @@ use nalgebra::{Vector3, Vector4};
 use serde::Serialize;
 use slam_assoc::{ObjectTracker, TrackerConfig, TrackerInput};
 use slam_core::{geometry::BBox, Associator, ClassId, Detection, KeyframeId, PointId, PointPair, TrackId};
-use slam_optim::object::{refine_with_planes, ObjectPrior, RefineConfig};
+use slam_optim::object::{box_residual, refine_with_planes, BoxShape, ObjectPrior, RefineConfig};
 use slam_quadric::{init::BoxView, project, Camera, Ellipsoid, ImageSize};
 
 /// How an object's ellipsoid is computed from its views.
@@ -53,6 +53,9 @@ impl FitMethod {
 pub struct MapperConfig {
     /// Fitting method.
     pub method: FitMethod,
+    /// What a box bounds in the object optimisation (the ellipsoid, or its circumscribed cuboid).
+    /// Default: the ellipsoid (the paper's model).
+    pub box_shape: BoxShape,
     /// Image size (for clipped bounds and the border test).
     pub image: ImageSize,
     /// Fewest border-free boxes before an ellipsoid is fitted. Default 3.
@@ -88,6 +91,7 @@ impl Default for MapperConfig {
     fn default() -> Self {
         Self {
             method: FitMethod::Refine,
+            box_shape: BoxShape::Ellipse,
             image: ImageSize::new(1242.0, 375.0),
             min_views: 3,
             min_parallax_deg: 3.0,
@@ -178,6 +182,7 @@ pub struct FitJob {
     /// Its map points (the runner looks up their positions for texture planes).
     pub points: Vec<PointId>,
     method: FitMethod,
+    box_shape: BoxShape,
     image: ImageSize,
     dynamic_rms_px: f64,
     max_depth_m: f64,
@@ -216,7 +221,8 @@ impl FitJob {
         let views = &self.views;
         let fitted = match self.method {
             FitMethod::Refine => {
-                refine_with_planes(views, &self.image, &class_prior(self.class), &RefineConfig::default(), planes)
+                let config = RefineConfig { box_shape: self.box_shape, ..RefineConfig::default() };
+                refine_with_planes(views, &self.image, &class_prior(self.class), &config, planes)
             }
             FitMethod::QSlam => QSlamSvd.initialize(views),
             FitMethod::Conic => Conic::default().initialize(views),
@@ -234,8 +240,14 @@ impl FitJob {
                 FitResult { id: self.id, ellipsoid: None, dynamic: false }
             }
             Ok(e) => {
-                let rms = box_rms(views, &self.image, &e);
-                FitResult { id: self.id, ellipsoid: Some(e), dynamic: rms.is_none_or(|r| r > self.dynamic_rms_px) }
+                let rms = box_rms(views, &self.image, &e, self.box_shape);
+                let dynamic = rms.is_none_or(|r| r > self.dynamic_rms_px);
+                if dynamic {
+                    let mut heights: Vec<f64> = views.iter().map(|v| v.bbox.height()).collect();
+                    heights.sort_by(f64::total_cmp);
+                    tracing::debug!(object = %self.id, rms = ?rms, views = views.len(), median_box_height = heights.get(heights.len() / 2).copied().unwrap_or(0.0), "box misfit: dynamic");
+                }
+                FitResult { id: self.id, ellipsoid: Some(e), dynamic }
             }
             Err(err) => {
                 tracing::debug!(object = %self.id, "no ellipsoid yet: {err}");
@@ -467,6 +479,7 @@ impl ObjectMapper {
             references,
             points: obj.points.iter().copied().collect(),
             method: cfg.method,
+            box_shape: cfg.box_shape,
             image: cfg.image,
             dynamic_rms_px: cfg.dynamic_rms_px,
             max_depth_m: cfg.max_depth_m,
@@ -474,11 +487,10 @@ impl ObjectMapper {
     }
 }
 
-fn box_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid) -> Option<f64> {
+fn box_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid, shape: BoxShape) -> Option<f64> {
     let mut sum = 0.0;
     for v in views {
-        let r = slam_quadric::box_error(e, &v.camera, &v.bbox, &slam_quadric::BoundsModel::Clipped(*image)).ok()?;
-        sum += r.error.norm_squared();
+        sum += box_residual(v, image, e, shape)?.norm_squared();
     }
     Some((sum / (4 * views.len().max(1)) as f64).sqrt())
 }

@@ -39,6 +39,7 @@
 pub mod bbox;
 pub mod camera;
 pub mod conic;
+pub mod cuboid;
 pub mod ellipsoid;
 pub mod init;
 pub mod metrics;
@@ -50,6 +51,7 @@ pub use conic::{
     box_error, classify, predict_box, project, BoundsModel, BoxPrediction, BoxResidual, DualConic, Ellipse2,
     ProjectionError, Visibility,
 };
+pub use cuboid::{cuboid_bounds, cuboid_corners, cuboid_signs};
 pub use ellipsoid::{ConstrainError, Ellipsoid, Tangent9};
 pub use init::{BoxView, InitError, Initializer};
 /// The linear-algebra crate of the public API, re-exported so dependants use the same version.

@@ -19,6 +19,6 @@ mod reproj;
 mod se3;
 
 pub use bal::BalReprojection;
-pub use object::{AxisDirection, AxisPrior, BoxFactor, TexturePlane};
+pub use object::{cuboid_box_error, AxisDirection, AxisPrior, BoxFactor, CuboidBoxFactor, TexturePlane};
 pub use reproj::{MonoReprojection, StereoReprojection};
 pub use se3::{Between, PointPrior, PosePrior};

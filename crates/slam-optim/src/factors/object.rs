@@ -1,7 +1,7 @@
 //! The object terms of Tian et al. §V: box error, prior axis lengths, texture plane.
 
 use nalgebra::{DMatrix, DVector, Vector3, Vector4};
-use slam_quadric::{box_error, BBox, BoundsModel, Camera, ImageSize, Intrinsics};
+use slam_quadric::{box_error, BBox, BoundsModel, Camera, Ellipsoid, ImageSize, Intrinsics};
 
 use crate::{
     factor::{Factor, FactorError},
@@ -64,6 +64,132 @@ impl Factor for BoxFactor {
             jac.push(DMatrix::from_column_slice(4, 9, r.d_quadric.as_slice()));
         }
         Ok(DVector::from_column_slice(r.error.as_slice()))
+    }
+}
+
+/// Box error of the ellipsoid's circumscribed cuboid: its projected corners' bounds, clamped to the
+/// image, minus the detected box (4 pixels), keys `[T_wc, ellipsoid]`. The object model for boxes that
+/// bound a box-shaped object (see `slam_quadric::cuboid`). Each side follows one corner, so the
+/// prediction is piecewise smooth (like the clipped ellipse's); a side clamped to the border has zero
+/// derivative.
+#[derive(Debug, Clone)]
+pub struct CuboidBoxFactor {
+    keys: [Key; 2],
+    k: Intrinsics,
+    measured: BBox,
+    image: ImageSize,
+}
+
+impl CuboidBoxFactor {
+    /// Detected box `measured` of the object `object` in the camera at `pose`, image `image`.
+    pub fn new(pose: Key, object: Key, k: Intrinsics, measured: BBox, image: ImageSize) -> Self {
+        Self { keys: [pose, object], k, measured, image }
+    }
+}
+
+/// The residual of [`CuboidBoxFactor`]: the bounds of the projected corners of `e`'s circumscribed
+/// cuboid, clamped to the image, minus `measured`; `None` when a corner is behind the camera.
+pub fn cuboid_box_error(camera: &Camera, e: &Ellipsoid, measured: &BBox, image: &ImageSize) -> Option<Vector4<f64>> {
+    cuboid_box_prediction(camera, e, image, false).map(|(p, _, _)| p - measured.to_vector())
+}
+
+/// Clamped cuboid box and, on request, its Jacobians (4×6 camera `[ω, v]` right perturbation of
+/// world-from-camera; 4×9 ellipsoid, see `Ellipsoid::retract`).
+fn cuboid_box_prediction(
+    camera: &Camera,
+    e: &Ellipsoid,
+    image: &ImageSize,
+    derivatives: bool,
+) -> Option<(Vector4<f64>, nalgebra::SMatrix<f64, 4, 6>, nalgebra::SMatrix<f64, 4, 9>)> {
+    let cam_from_world = camera.camera_from_world();
+    let r_cw = cam_from_world.rotation.to_rotation_matrix().into_inner();
+    let r_wo = e.rotation();
+    let k = &camera.intrinsics;
+    // per corner: own-frame offset q, camera-frame point p, pixel
+    let mut corners = Vec::with_capacity(8);
+    for s in slam_quadric::cuboid_signs() {
+        let q = s.component_mul(&e.semi_axes);
+        let p = cam_from_world * nalgebra::Point3::from(e.centre() + r_wo * q);
+        if p.z <= 1e-9 || !p.coords.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        let uv = [k.fx * p.x / p.z + k.skew * p.y / p.z + k.cx, k.fy * p.y / p.z + k.cy];
+        corners.push((s, q, p.coords, uv));
+    }
+    // sides: [xmin, ymin, xmax, ymax] → (corner index, coordinate)
+    let pick = |coord: usize, max: bool| {
+        (0..8)
+            .reduce(|a, b| {
+                let (va, vb) = (corners[a].3[coord], corners[b].3[coord]);
+                if (max && vb > va) || (!max && vb < va) {
+                    b
+                } else {
+                    a
+                }
+            })
+            .unwrap_or(0)
+    };
+    let sides = [(pick(0, false), 0), (pick(1, false), 1), (pick(0, true), 0), (pick(1, true), 1)];
+    let limits = [image.width, image.height, image.width, image.height];
+    let mut predicted = Vector4::zeros();
+    let mut d_cam = nalgebra::SMatrix::<f64, 4, 6>::zeros();
+    let mut d_obj = nalgebra::SMatrix::<f64, 4, 9>::zeros();
+    for (row, &(c, coord)) in sides.iter().enumerate() {
+        let raw = corners[c].3[coord];
+        predicted[row] = raw.clamp(0.0, limits[row]);
+        if !derivatives || raw <= 0.0 || raw >= limits[row] {
+            continue;
+        }
+        let (s, q, p, _) = &corners[c];
+        // d pixel / d camera-frame point
+        let jp = if coord == 0 {
+            nalgebra::RowVector3::new(k.fx / p.z, k.skew / p.z, -(k.fx * p.x + k.skew * p.y) / (p.z * p.z))
+        } else {
+            nalgebra::RowVector3::new(0.0, k.fy / p.z, -k.fy * p.y / (p.z * p.z))
+        };
+        // camera: p' = Exp(−ξ) p ≈ p + [p]× ω − v
+        let jw = jp * p.cross_matrix();
+        let jv = -jp;
+        // object: world corner = t + R (q + ω × q + v) with q = s ⊙ (a + δa)
+        let jx = jp * r_cw; // d pixel / d world point
+        let jo = jx * (-(r_wo * q.cross_matrix()));
+        let jt = jx * r_wo;
+        let ja = jx * r_wo * nalgebra::Matrix3::from_diagonal(s);
+        for j in 0..3 {
+            d_cam[(row, j)] = jw[j];
+            d_cam[(row, 3 + j)] = jv[j];
+            d_obj[(row, j)] = jo[j];
+            d_obj[(row, 3 + j)] = jt[j];
+            d_obj[(row, 6 + j)] = ja[j];
+        }
+    }
+    Some((predicted, d_cam, d_obj))
+}
+
+impl Factor for CuboidBoxFactor {
+    fn keys(&self) -> &[Key] {
+        &self.keys
+    }
+
+    fn dim(&self) -> usize {
+        4
+    }
+
+    fn evaluate(
+        &self,
+        values: &Values,
+        jacobians: Option<&mut Vec<DMatrix<f64>>>,
+    ) -> Result<DVector<f64>, FactorError> {
+        let pose = values.require_pose(self.keys[0])?;
+        let e = values.require_ellipsoid(self.keys[1])?;
+        let (p, d_cam, d_obj) = cuboid_box_prediction(&Camera::new(self.k, *pose), e, &self.image, jacobians.is_some())
+            .ok_or_else(|| FactorError::Undefined("a cuboid corner is behind the camera".into()))?;
+        if let Some(jac) = jacobians {
+            jac.clear();
+            jac.push(DMatrix::from_column_slice(4, 6, d_cam.as_slice()));
+            jac.push(DMatrix::from_column_slice(4, 9, d_obj.as_slice()));
+        }
+        Ok(DVector::from_column_slice((p - self.measured.to_vector()).as_slice()))
     }
 }
 
