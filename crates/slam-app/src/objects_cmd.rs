@@ -293,6 +293,8 @@ struct Row {
     /// Sum of the ray-triangulation errors over the found vehicles that have one, and their count.
     e_ray: f64,
     rays: usize,
+    /// Sum over the found vehicles of the IoU2D of the ground-truth ellipsoid itself.
+    iou_truth: f64,
 }
 
 pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
@@ -376,6 +378,12 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
                 .map(|(&f, b)| metrics::projected_iou(e, &Camera::new(seq.k, seq.poses[f]), &image, b))
                 .collect();
             row.iou += ious.iter().sum::<f64>() / ious.len().max(1) as f64;
+            let truth_ious: Vec<f64> = gt
+                .boxes
+                .iter()
+                .map(|(&f, b)| metrics::projected_iou(&gt.ellipsoid, &Camera::new(seq.k, seq.poses[f]), &image, b))
+                .collect();
+            row.iou_truth += truth_ious.iter().sum::<f64>() / truth_ious.len().max(1) as f64;
             row.e_trans += metrics::e_trans(e, &gt.ellipsoid);
             row.e_axe += metrics::e_axe(e, &gt.ellipsoid);
             if let Some(c) = gt.ray_centre {
@@ -443,6 +451,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         tot.e_trans += row.e_trans;
         tot.e_axe += row.e_axe;
         tot.e_ray += row.e_ray;
+        tot.iou_truth += row.iou_truth;
         tot.rays += row.rays;
     }
     let f = tot.found.max(1) as f64;
@@ -468,6 +477,11 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         tot.e_trans / f,
         tot.e_axe / f,
         tot.e_ray / tot.rays.max(1) as f64
+    );
+    println!(
+        "IoU2D of the ground-truth ellipsoids themselves over the same vehicles: {:.3} (an inscribed ellipsoid \
+         projects to a box smaller than the labelled one)",
+        tot.iou_truth / f
     );
     println!(
         "e_ray: e_trans of the point where rays from each labelled frame's camera (pose file) through the \

@@ -422,6 +422,9 @@ fn eval_scores_a_tracking_sequence_with_both_box_models() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let text = String::from_utf8_lossy(&o.stdout).to_string();
         assert!(text.lines().any(|l| l.split_whitespace().last() == Some("e_ray")), "{text}");
+        // the floor the issue names: the true (inscribed) ellipsoids project to boxes with IoU about 0.65
+        let floor = number_after(&text, "ground-truth ellipsoids themselves over the same vehicles: ");
+        assert!(floor > 0.5 && floor < 0.75, "{text}");
         let csv = std::fs::read_to_string(&csv).expect("csv");
         let line = csv.lines().find(|l| l.starts_with("0003,")).expect("row").to_string();
         let v: Vec<f64> = line.split(',').skip(1).map(|x| x.parse().expect("number")).collect();
