@@ -442,3 +442,37 @@ fn eval_scores_a_tracking_sequence_with_both_box_models() {
     assert!(cuboid[5] < ellipse[5] && cuboid[3] < ellipse[3], "{cuboid:?} vs {ellipse:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn run_with_triangulated_points_saves_and_reads_them() {
+    // `triangulate = true`: keypoints without a stereo match become map points from two keyframes; the
+    // map file holds their left-only observations (`null` right column) and reads back
+    let dir = std::env::temp_dir().join(format!("slam-app-tri-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    std::fs::write(dir.join("tri.toml"), "[tracking]\ntriangulate = true\ntriangulate_parallax_deg = 2.0\n")
+        .expect("config");
+    let o = app()
+        .args(["run", "--detector", "none", "--max-frames", "25", "--config"])
+        .arg(dir.join("tri.toml"))
+        .arg("--out")
+        .arg(dir.join("out"))
+        .output()
+        .expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout).to_string();
+    assert!(number_after(&text, "ATE ") < 0.5, "{text}");
+    let map: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("out/map.json")).expect("map")).expect("json");
+    assert_eq!(map["version"], 2);
+    let left_only = map["keyframes"]
+        .as_object()
+        .expect("keyframes")
+        .values()
+        .flat_map(|k| k["observations"].as_array().expect("observations").clone())
+        .filter(|o| o[1][2].is_null())
+        .count();
+    assert!(left_only >= 20, "{left_only} left-only observations");
+    let m = app().arg("map").arg(dir.join("out/map.json")).output().expect("runs");
+    assert!(m.status.success(), "{}", String::from_utf8_lossy(&m.stderr));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -18,15 +18,23 @@ pub type PointId = u64;
 /// Identity of a keyframe, unique within a run (0, 1, 2, … in creation order).
 pub type KeyframeId = u64;
 
-/// One stereo observation of a map point in a keyframe.
+/// One observation of a map point in a keyframe: stereo, or left image only for a point triangulated
+/// from two keyframes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct KeyframePoint {
     /// The map point.
     pub id: PointId,
-    /// Position in the keyframe's left-camera frame, metres (from the stereo disparity).
+    /// Position in the keyframe's left-camera frame, metres (from the stereo disparity, or triangulated).
     pub camera_point: Vector3<f64>,
-    /// Observation `[u_left, v, u_right]`, pixels.
+    /// Observation `[u_left, v, u_right]`, pixels; `u_right` is NaN for a left-only observation.
     pub observation: [f64; 3],
+}
+
+impl KeyframePoint {
+    /// Whether the observation has a right-image column (a stereo observation).
+    pub fn is_stereo(&self) -> bool {
+        self.observation[2].is_finite()
+    }
 }
 
 /// What the tracker gives the mapper for a new keyframe.
@@ -41,8 +49,11 @@ pub struct KeyframeData {
     /// The keyframe it was tracked from and the pose relative to it (`parent_from_this`); `None` for
     /// the first keyframe of a map segment.
     pub parent: Option<(KeyframeId, Isometry3<f64>)>,
-    /// Stereo observations; points matched to earlier keyframes keep their ids.
+    /// Observations in this keyframe; points matched to earlier keyframes keep their ids.
     pub points: Vec<KeyframePoint>,
+    /// Observations in earlier keyframes of points new in this one that were triangulated between the
+    /// two (left image only; `camera_point` in that earlier keyframe's frame).
+    pub earlier: Vec<(KeyframeId, KeyframePoint)>,
 }
 
 /// Tracking outcome of a frame.

@@ -16,8 +16,9 @@ use slam_core::{KeyframeId, PointId};
 
 /// Format name written into every map file.
 pub const MAP_FORMAT: &str = "quadric-slam-map";
-/// Version of the map file format.
-pub const MAP_VERSION: u32 = 1;
+/// Version of the map file format. Version 2 added left-only observations (`u_right` written as
+/// `null`) of triangulated points; version 1 files read unchanged.
+pub const MAP_VERSION: u32 = 2;
 
 /// A pose as stored: quaternion `[qx, qy, qz, qw]` then translation `[tx, ty, tz]`, world from camera.
 pub type PoseArray = [f64; 7];
@@ -46,8 +47,30 @@ pub struct MapKeyframe {
     pub pose: PoseArray,
     /// Parent keyframe (the one it was tracked from); `None` starts a map segment.
     pub parent: Option<KeyframeId>,
-    /// Stereo observations `(point, [u_left, v, u_right])`.
+    /// Observations `(point, [u_left, v, u_right])`; `u_right` is NaN (`null` in the file) for a
+    /// left-only observation of a triangulated point.
+    #[serde(with = "observation_list")]
     pub observations: Vec<(PointId, [f64; 3])>,
+}
+
+/// Observations with a NaN right column written as `null` (JSON has no NaN) and read back as NaN.
+mod observation_list {
+    use super::PointId;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    /// As written: `[point, [u_left, v, u_right or null]]`.
+    type Stored = (PointId, (f64, f64, Option<f64>));
+
+    pub fn serialize<S: Serializer>(obs: &[(PointId, [f64; 3])], s: S) -> Result<S::Ok, S::Error> {
+        let out: Vec<Stored> =
+            obs.iter().map(|(id, o)| (*id, (o[0], o[1], o[2].is_finite().then_some(o[2])))).collect();
+        out.serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<(PointId, [f64; 3])>, D::Error> {
+        let read: Vec<Stored> = Vec::deserialize(d)?;
+        Ok(read.into_iter().map(|(id, (u, v, r))| (id, [u, v, r.unwrap_or(f64::NAN)])).collect())
+    }
 }
 
 /// A map point.
@@ -143,7 +166,7 @@ pub enum MapError {
         message: String,
     },
     /// A map of another version.
-    #[error("{path}: map format version {found}, this build reads version {MAP_VERSION}")]
+    #[error("{path}: map format version {found}, this build reads versions 1 to {MAP_VERSION}")]
     Version {
         /// The file.
         path: PathBuf,
@@ -236,7 +259,7 @@ impl Map {
                 message: format!("format is {:?}, expected {MAP_FORMAT:?}", header.format),
             });
         }
-        if header.version != MAP_VERSION {
+        if header.version != MAP_VERSION && header.version != 1 {
             return Err(MapError::Version { path: path.to_path_buf(), found: header.version });
         }
         serde_json::from_str(&text).map_err(fmt)

@@ -1,11 +1,15 @@
 //! Local mapping: keyframes into the map, local bundle adjustment over a window of recent keyframes
-//! (the optimisation crate's stereo reprojection factor, Huber), and culling of outlier observations.
+//! (the optimisation crate's stereo reprojection factor, Huber; the left-only reprojection factor for
+//! observations of triangulated points), and culling of outlier observations.
 
 use std::collections::{BTreeMap, BTreeSet};
 
 use nalgebra::{Isometry3, Point3, Vector3};
 use slam_core::{geometry::Intrinsics, KeyframeCorrection, KeyframeData, KeyframeId, PointId};
-use slam_optim::{factors::StereoReprojection, Graph, Huber, LevenbergMarquardt, LmParams, NoiseModel, Values, Var};
+use slam_optim::{
+    factors::{MonoReprojection, StereoReprojection},
+    Graph, Huber, LevenbergMarquardt, LmParams, NoiseModel, Values, Var,
+};
 
 use crate::map::{pose_to_array, Map, MapKeyframe, MapPoint};
 
@@ -20,6 +24,8 @@ pub struct MappingConfig {
     pub huber_px: f64,
     /// Observations whose squared error (px²) exceeds this after the adjustment are culled. Default 7.815.
     pub cull_chi2: f64,
+    /// The same for left-only observations (2-D residual). Default 5.991 (95 % χ², 2 degrees of freedom).
+    pub cull_chi2_mono: f64,
     /// Levenberg-Marquardt iterations per adjustment. Default 10.
     pub iterations: usize,
     /// Run bundle adjustment at all (off: keyframes are only inserted). Default on.
@@ -28,7 +34,14 @@ pub struct MappingConfig {
 
 impl Default for MappingConfig {
     fn default() -> Self {
-        Self { window: 6, huber_px: 7.815f64.sqrt(), cull_chi2: 7.815, iterations: 10, bundle_adjustment: true }
+        Self {
+            window: 6,
+            huber_px: 7.815f64.sqrt(),
+            cull_chi2: 7.815,
+            cull_chi2_mono: 5.991,
+            iterations: 10,
+            bundle_adjustment: true,
+        }
     }
 }
 
@@ -89,11 +102,13 @@ impl LocalMapper {
             Some((p, rel)) => self.map.keyframe_pose(p).map(|pp| pp * rel).unwrap_or(kf.world_from_camera),
             None => kf.world_from_camera,
         };
+        // a left-only observation has a NaN right column; anything else non-finite is unusable
+        let usable = |p: &slam_core::KeyframePoint| {
+            p.observation[..2].iter().chain(p.camera_point.iter()).all(|v| v.is_finite())
+                && !p.observation[2].is_infinite()
+        };
         let mut observations = Vec::with_capacity(kf.points.len());
-        for p in &kf.points {
-            if !p.observation.iter().all(|v| v.is_finite()) || !p.camera_point.iter().all(|v| v.is_finite()) {
-                continue;
-            }
+        for p in kf.points.iter().filter(|p| usable(p)) {
             let entry = self.map.points.entry(p.id).or_insert_with(|| {
                 let x = pose * Point3::from(p.camera_point);
                 MapPoint { position: [x.x, x.y, x.z], observed_by: Vec::new() }
@@ -105,6 +120,14 @@ impl LocalMapper {
             kf.id,
             MapKeyframe { frame: kf.frame, pose: pose_to_array(&pose), parent: kf.parent.map(|p| p.0), observations },
         );
+        // triangulated points: their observations in the earlier keyframe they were triangulated with
+        for (earlier, p) in kf.earlier.iter().filter(|(_, p)| usable(p)) {
+            let (Some(k), Some(point)) = (self.map.keyframes.get_mut(earlier), self.map.points.get_mut(&p.id)) else {
+                continue;
+            };
+            k.observations.push((p.id, p.observation));
+            point.observed_by.push(*earlier);
+        }
         let start = std::time::Instant::now();
         let (window, culled) = if self.config.bundle_adjustment { self.adjust(kf.id) } else { ((0, 0), 0) };
         let ba_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -194,11 +217,12 @@ impl LocalMapper {
             let Some(k) = self.map.keyframes.get(kid) else { continue };
             for (pid, obs) in &k.observations {
                 let Some(&xk) = point_keys.get(pid) else { continue };
-                let _ = graph.add(
-                    StereoReprojection::new(pk, xk, self.k, self.baseline, *obs),
-                    NoiseModel::Isotropic(1.0),
-                    Huber(self.config.huber_px),
-                );
+                let (noise, huber) = (NoiseModel::Isotropic(1.0), Huber(self.config.huber_px));
+                let _ = if obs[2].is_nan() {
+                    graph.add(MonoReprojection::new(pk, xk, self.k, [obs[0], obs[1]]), noise, huber)
+                } else {
+                    graph.add(StereoReprojection::new(pk, xk, self.k, self.baseline, *obs), noise, huber)
+                };
             }
         }
         if let Err(e) = lm.solve(&graph, &mut values, None) {
@@ -228,7 +252,12 @@ impl LocalMapper {
             let mut keep = Vec::with_capacity(obs.len());
             for (pid, o) in obs {
                 let good = self.map.point(pid).and_then(|x| self.project(&pose, &x)).is_some_and(|p| {
-                    (p[0] - o[0]).powi(2) + (p[1] - o[1]).powi(2) + (p[2] - o[2]).powi(2) <= self.config.cull_chi2
+                    let left = (p[0] - o[0]).powi(2) + (p[1] - o[1]).powi(2);
+                    if o[2].is_nan() {
+                        left <= self.config.cull_chi2_mono
+                    } else {
+                        left + (p[2] - o[2]).powi(2) <= self.config.cull_chi2
+                    }
                 });
                 if good {
                     keep.push((pid, o));
@@ -302,7 +331,8 @@ mod tests {
                         * truth[i - 1];
                 (i as u64 - 1, prev_noisy.inverse() * noisy)
             });
-            let data = KeyframeData { id: i as u64, frame: i, world_from_camera: noisy, parent, points: kps };
+            let data =
+                KeyframeData { id: i as u64, frame: i, world_from_camera: noisy, parent, points: kps, earlier: vec![] };
             last = Some(mapper.insert_keyframe(&data));
         }
         let report = last.expect("report");
@@ -316,5 +346,58 @@ mod tests {
             })
             .sum();
         assert!(err_after < 0.2 * err_before, "BA error {err_after:.3} vs tracker error {err_before:.3}");
+    }
+
+    /// Points triangulated between two keyframes arrive with left-only observations in both (the
+    /// earlier one through `KeyframeData::earlier`); they enter the adjustment with the left-only
+    /// factor, keep their observations when consistent, and are saved and read back with `null` for the
+    /// missing right column.
+    #[test]
+    fn left_only_observations_of_triangulated_points() {
+        let k = Intrinsics::new(700.0, 700.0, 600.0, 180.0);
+        let b = 0.54;
+        let mut mapper = LocalMapper::new(k, b, MappingConfig::default());
+        let poses = [Isometry3::identity(), Isometry3::translation(0.2, 0.0, 3.0)];
+        let stereo: Vec<Vector3<f64>> = (0..40)
+            .map(|i| Vector3::new(-6.0 + 0.3 * i as f64, -1.0 + 0.05 * i as f64, 10.0 + 0.5 * i as f64))
+            .collect();
+        let mono: Vec<Vector3<f64>> = (0..10).map(|i| Vector3::new(-8.0 + 1.5 * i as f64, 0.5, 30.0)).collect();
+        let observe = |pose: &Isometry3<f64>, x: &Vector3<f64>, stereo: bool, id: u64| {
+            let c = (pose.inverse() * Point3::from(*x)).coords;
+            let u = k.fx * c.x / c.z + k.cx;
+            let ur = if stereo { u - k.fx * b / c.z } else { f64::NAN };
+            KeyframePoint { id, camera_point: c, observation: [u, k.fy * c.y / c.z + k.cy, ur] }
+        };
+        for (i, pose) in poses.iter().enumerate() {
+            let mut points: Vec<KeyframePoint> =
+                stereo.iter().enumerate().map(|(j, x)| observe(pose, x, true, j as u64)).collect();
+            let mut earlier = Vec::new();
+            if i == 1 {
+                for (j, x) in mono.iter().enumerate() {
+                    points.push(observe(pose, x, false, 100 + j as u64));
+                    earlier.push((0, observe(&poses[0], x, false, 100 + j as u64)));
+                }
+            }
+            let parent = (i == 1).then(|| (0, poses[0].inverse() * pose));
+            let data = KeyframeData { id: i as u64, frame: i, world_from_camera: *pose, parent, points, earlier };
+            let report = mapper.insert_keyframe(&data);
+            assert!(report.correction.culled.is_empty(), "{:?}", report.correction.culled);
+        }
+        let map = mapper.map();
+        for j in 0..10u64 {
+            let p = map.points.get(&(100 + j)).expect("triangulated point");
+            assert_eq!(p.observed_by, vec![1, 0]);
+            let x = map.point(100 + j).expect("position");
+            assert!((x - mono[j as usize]).norm() < 1e-6, "{x} vs {}", mono[j as usize]);
+        }
+        let left_only =
+            |m: &Map| m.keyframes.values().flat_map(|k| &k.observations).filter(|o| o.1[2].is_nan()).count();
+        assert_eq!(left_only(map), 20);
+        let path = std::env::temp_dir().join(format!("slam-mono-map-{}.json", std::process::id()));
+        map.save(&path).expect("save");
+        assert!(std::fs::read_to_string(&path).expect("text").contains("null"));
+        let back = Map::load(&path).expect("load");
+        assert_eq!(left_only(&back), 20);
+        let _ = std::fs::remove_file(&path);
     }
 }

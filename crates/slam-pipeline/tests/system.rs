@@ -123,7 +123,7 @@ impl StereoTracker for Scripted {
             let id = self.next_kf;
             self.next_kf += 1;
             let parent = self.reference.map(|(rid, rp)| (rid, rp.inverse() * pose));
-            KeyframeData { id, frame, world_from_camera: pose, parent, points }
+            KeyframeData { id, frame, world_from_camera: pose, parent, points, earlier: vec![] }
         });
         let relative = ref_pose.inverse() * pose;
         if let Some(kf) = &keyframe {
