@@ -33,6 +33,10 @@ pub struct InputArgs {
     /// from the class's size prior (off by default, as in the paper)
     #[arg(long)]
     without_parallax_after: Option<usize>,
+    /// Least angle between an object's first and latest ray through its box centres before it is fitted,
+    /// degrees
+    #[arg(long, default_value_t = 3.0)]
+    min_parallax_deg: f64,
     /// What a box bounds in the object optimisation: the ellipsoid (the paper) or its circumscribed cuboid
     #[arg(long, value_enum, default_value_t = Shape::Ellipse)]
     box_shape: Shape,
@@ -136,6 +140,7 @@ fn run(seq: &Sequence, input: &InputArgs) -> (ObjectMapper, BTreeMap<(usize, usi
         method: input.method.fit(),
         min_views_without_parallax: input.without_parallax_after,
         box_shape: input.box_shape.shape(),
+        min_parallax_deg: input.min_parallax_deg,
         ..MapperConfig::default()
     };
     let mut mapper = ObjectMapper::new(Box::new(Oda::default()), config);
