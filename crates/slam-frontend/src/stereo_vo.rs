@@ -64,8 +64,8 @@ pub struct VoConfig {
     pub local_keyframes: usize,
     /// Search radius of local-map points around their projection, pixels.
     pub local_radius: f64,
-    /// Added to every measured disparity, pixels: the rig's disparity offset (see
-    /// [`crate::disparity`]; `slam-app run` estimates it from the first frames unless given).
+    /// Added to every measured disparity, pixels: a correction of the rig's rectification (see
+    /// [`crate::disparity`]; `slam-app stereo-check` estimates it from a sequence's images). Default 0.
     pub disparity_offset: f64,
     /// At a new keyframe, triangulate its keypoints without a stereo match against the previous
     /// keyframe's (epipolar search, ≥ `triangulate_parallax_deg` of parallax, ≤ 2 px reprojection error
