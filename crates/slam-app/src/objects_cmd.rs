@@ -1,7 +1,11 @@
 //! `slam-app objects` and `slam-app eval`: image-free object mapping on KITTI tracking labels + poses,
 //! and the paper's object metrics.
 
-use std::{collections::BTreeMap, fmt::Write as _, path::PathBuf};
+use std::{
+    collections::{BTreeMap, BTreeSet},
+    fmt::Write as _,
+    path::PathBuf,
+};
 
 use anyhow::{bail, Context};
 use clap::Args;
@@ -204,6 +208,9 @@ pub struct EvalArgs {
     /// Largest spread (max distance from its mean) of a vehicle's world centre to count as static, metres
     #[arg(long, default_value_t = 1.0)]
     static_m: f64,
+    /// Smallest spread of a vehicle's world centre to count as moving (the dynamic-object check), metres
+    #[arg(long, default_value_t = 3.0)]
+    moving_m: f64,
     /// Also write the table as CSV
     #[arg(long)]
     csv: Option<PathBuf>,
@@ -237,28 +244,47 @@ fn ray_intersection(rays: &[(Vector3<f64>, Vector3<f64>)]) -> Option<Vector3<f64
     (lo > 1e-9 * hi.max(1e-12)).then(|| a.try_inverse().map(|inv| inv * b)).flatten()
 }
 
-fn gt_vehicles(seq: &Sequence, min_frames: usize, static_m: f64) -> BTreeMap<i64, GtVehicle> {
+/// A Car/Van label track: its labels and world centres (bottom-centre origin in rect cam0 → box centre
+/// → cam2 → world), their mean and spread (largest distance from the mean).
+struct VehicleTrack<'a> {
+    id: i64,
+    labels: Vec<&'a TrackingLabel>,
+    centres: Vec<Vector3<f64>>,
+    mean: Vector3<f64>,
+    spread: f64,
+}
+
+/// The Car/Van label tracks of at least `min_frames` frames.
+fn vehicle_tracks(seq: &Sequence, min_frames: usize) -> Vec<VehicleTrack<'_>> {
     let mut tracks: BTreeMap<i64, Vec<&TrackingLabel>> = BTreeMap::new();
     for l in &seq.labels {
         if (l.kind == "Car" || l.kind == "Van") && l.track_id >= 0 {
             tracks.entry(l.track_id).or_default().push(l);
         }
     }
+    tracks
+        .into_iter()
+        .filter(|(_, ls)| ls.len() >= min_frames)
+        .map(|(id, labels)| {
+            let centres: Vec<Vector3<f64>> = labels
+                .iter()
+                .map(|l| {
+                    let c =
+                        Vector3::new(l.location[0], l.location[1] - l.dimensions[0] / 2.0, l.location[2]) + seq.t2;
+                    (seq.poses[l.frame] * Point3::from(c)).coords
+                })
+                .collect();
+            let mean = centres.iter().sum::<Vector3<f64>>() / centres.len() as f64;
+            let spread = centres.iter().map(|c| (c - mean).norm()).fold(0.0, f64::max);
+            VehicleTrack { id, labels, centres, mean, spread }
+        })
+        .collect()
+}
+
+fn gt_vehicles(seq: &Sequence, min_frames: usize, static_m: f64) -> BTreeMap<i64, GtVehicle> {
     let mut out = BTreeMap::new();
-    for (id, ls) in tracks {
-        if ls.len() < min_frames {
-            continue;
-        }
-        // bottom-centre origin (rect cam0) → box centre → cam2 → world
-        let centres: Vec<Vector3<f64>> = ls
-            .iter()
-            .map(|l| {
-                let c = Vector3::new(l.location[0], l.location[1] - l.dimensions[0] / 2.0, l.location[2]) + seq.t2;
-                (seq.poses[l.frame] * Point3::from(c)).coords
-            })
-            .collect();
-        let mean = centres.iter().sum::<Vector3<f64>>() / centres.len() as f64;
-        if centres.iter().any(|c| (c - mean).norm() > static_m) {
+    for VehicleTrack { id, labels: ls, centres, mean, spread } in vehicle_tracks(seq, min_frames) {
+        if spread > static_m {
             continue;
         }
         let l0 = ls[0];
@@ -323,12 +349,38 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let (mut tot, mut n_seq) = (Row::default(), 0usize);
     let (mut sum_success, mut sum_iou, mut sum_et, mut sum_ea, mut n_found_seq) = (0.0, 0.0, 0.0, 0.0, 0usize);
     let (mut sum_ray, mut n_ray_seq) = (0.0, 0usize);
+    // moving vehicles: (count, mapped as a static ellipsoid, flagged dynamic only)
+    let mut moving = (0usize, 0usize, 0usize);
     let image = ImageSize::new(1242.0, 375.0);
     for sdir in &seqs {
         let name = sdir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let seq = load(sdir.join("label_02.txt"), sdir.join("poses_orbslam3.txt"), sdir.join("calib.txt"))?;
         let gts = gt_vehicles(&seq, a.min_frames, a.static_m);
+        let movers: BTreeSet<i64> =
+            vehicle_tracks(&seq, a.min_frames).into_iter().filter(|t| t.spread > a.moving_m).map(|t| t.id).collect();
         let (mapper, truth) = run(&seq, &a.input);
+        // moving vehicles: what became of the objects built mostly from their boxes (flagged, mapped)
+        let mut fate: BTreeMap<i64, (bool, bool)> = movers.iter().map(|&t| (t, (false, false))).collect();
+        for o in mapper.objects() {
+            let mut votes: BTreeMap<i64, usize> = BTreeMap::new();
+            for obs in &o.observations {
+                if let Some(&t) = truth.get(&(obs.frame, obs.detection)) {
+                    *votes.entry(t).or_default() += 1;
+                }
+            }
+            let Some((&t, _)) = votes.iter().max_by_key(|(t, n)| (**n, -**t)) else { continue };
+            if let (Some(f), Some(_)) = (fate.get_mut(&t), o.ellipsoid) {
+                if o.dynamic {
+                    f.0 = true;
+                } else {
+                    f.1 = true;
+                    tracing::debug!(sequence = %name, vehicle = t, object = %o.id, "moving vehicle mapped as static");
+                }
+            }
+        }
+        moving.0 += fate.len();
+        moving.1 += fate.values().filter(|f| f.1).count();
+        moving.2 += fate.values().filter(|f| f.0 && !f.1).count();
         // each object votes for the GT track that supplied most of its detections
         let mut best: BTreeMap<i64, (usize, Ellipsoid)> = BTreeMap::new();
         for o in mapper.objects() {
@@ -482,6 +534,15 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         tot.e_trans / f,
         tot.e_axe / f,
         tot.e_ray / tot.rays.max(1) as f64
+    );
+    println!(
+        "moving vehicles (world centre moves more than {} m): {}; mapped as a static ellipsoid: {}, flagged \
+         dynamic: {}, never fitted: {}",
+        a.moving_m,
+        moving.0,
+        moving.1,
+        moving.2,
+        moving.0 - moving.1 - moving.2
     );
     println!(
         "IoU2D of the ground-truth ellipsoids themselves over the same vehicles: {:.3} (an inscribed ellipsoid \
