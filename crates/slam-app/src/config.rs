@@ -27,6 +27,8 @@ pub struct ObjectsToml {
     pub dynamic_rms_px: f64,
     /// Centroid motion above which an object is moving, metres (+5 % of depth).
     pub dynamic_motion_m: f64,
+    /// Fitted semi-axes this many prior σ from the class prior flag an object dynamic (0: off).
+    pub dynamic_prior_sigmas: f64,
     /// Ellipsoids farther than this from their latest camera are discarded, metres.
     pub max_depth_m: f64,
     /// Static objects of one class closer than this are merged, metres.
@@ -47,6 +49,7 @@ impl Default for ObjectsToml {
             // detector boxes (partial, jittery) miss more than label boxes; the motion test is the main cue
             dynamic_rms_px: 25.0,
             dynamic_motion_m: m.dynamic_motion_m,
+            dynamic_prior_sigmas: m.dynamic_prior_sigmas.unwrap_or(0.0),
             max_depth_m: m.max_depth_m,
             merge_distance_m: m.merge_distance_m,
             box_shape: crate::objects_cmd::Shape::Ellipse,
@@ -123,6 +126,7 @@ impl RunConfig {
                 max_views: o.max_views,
                 dynamic_rms_px: o.dynamic_rms_px,
                 dynamic_motion_m: o.dynamic_motion_m,
+                dynamic_prior_sigmas: (o.dynamic_prior_sigmas > 0.0).then_some(o.dynamic_prior_sigmas),
                 max_depth_m: o.max_depth_m,
                 merge_distance_m: o.merge_distance_m,
                 box_shape: o.box_shape.shape(),

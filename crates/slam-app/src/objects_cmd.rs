@@ -41,6 +41,10 @@ pub struct InputArgs {
     /// degrees
     #[arg(long, default_value_t = 3.0)]
     min_parallax_deg: f64,
+    /// Flag an object dynamic when its fitted semi-axes lie this many prior σ from its class prior
+    /// (Mahalanobis; 0: off)
+    #[arg(long, default_value_t = 6.0)]
+    dynamic_prior_sigmas: f64,
     /// What a box bounds in the object optimisation: the ellipsoid (the paper) or its circumscribed cuboid
     #[arg(long, value_enum, default_value_t = Shape::Ellipse)]
     box_shape: Shape,
@@ -145,6 +149,7 @@ fn run(seq: &Sequence, input: &InputArgs) -> (ObjectMapper, BTreeMap<(usize, usi
         min_views_without_parallax: input.without_parallax_after,
         box_shape: input.box_shape.shape(),
         min_parallax_deg: input.min_parallax_deg,
+        dynamic_prior_sigmas: (input.dynamic_prior_sigmas > 0.0).then_some(input.dynamic_prior_sigmas),
         ..MapperConfig::default()
     };
     let mut mapper = ObjectMapper::new(Box::new(Oda::default()), config);
@@ -269,8 +274,7 @@ fn vehicle_tracks(seq: &Sequence, min_frames: usize) -> Vec<VehicleTrack<'_>> {
             let centres: Vec<Vector3<f64>> = labels
                 .iter()
                 .map(|l| {
-                    let c =
-                        Vector3::new(l.location[0], l.location[1] - l.dimensions[0] / 2.0, l.location[2]) + seq.t2;
+                    let c = Vector3::new(l.location[0], l.location[1] - l.dimensions[0] / 2.0, l.location[2]) + seq.t2;
                     (seq.poses[l.frame] * Point3::from(c)).coords
                 })
                 .collect();

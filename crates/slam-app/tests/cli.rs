@@ -119,7 +119,7 @@ fn objects_writes_the_object_map() {
 fn number_after(text: &str, key: &str) -> f64 {
     text.split(key)
         .nth(1)
-        .and_then(|s| s.split(|c: char| c.is_whitespace() || c == ',').find(|w| !w.is_empty()))
+        .and_then(|s| s.split(|c: char| c.is_whitespace() || c == ',' || c == ';').find(|w| !w.is_empty()))
         .and_then(|s| s.parse().ok())
         .unwrap_or_else(|| panic!("`{key}` not followed by a number in:\n{text}"))
 }
@@ -423,6 +423,12 @@ fn eval_scores_a_tracking_sequence_with_both_box_models() {
         let text = String::from_utf8_lossy(&o.stdout).to_string();
         assert!(text.lines().any(|l| l.split_whitespace().last() == Some("e_ray")), "{text}");
         // the floor the issue names: the true (inscribed) ellipsoids project to boxes with IoU about 0.65
+        // the moving vehicles' fate adds up
+        let movers = number_after(&text, "moves more than 3 m): ");
+        let parts = number_after(&text, "mapped as a static ellipsoid: ")
+            + number_after(&text, "flagged dynamic: ")
+            + number_after(&text, "never fitted: ");
+        assert_eq!(movers, parts, "{text}");
         let floor = number_after(&text, "ground-truth ellipsoids themselves over the same vehicles: ");
         assert!(floor > 0.5 && floor < 0.75, "{text}");
         let csv = std::fs::read_to_string(&csv).expect("csv");

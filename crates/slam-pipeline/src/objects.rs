@@ -74,6 +74,10 @@ pub struct MapperConfig {
     pub max_views: usize,
     /// RMS box misfit above which a fitted object is flagged dynamic, pixels. Default 12.
     pub dynamic_rms_px: f64,
+    /// A fitted object (DQP + optimisation) whose semi-axes lie farther than this from its class prior,
+    /// in prior standard deviations (Mahalanobis), is flagged dynamic: fitted as static, a moving object
+    /// needs a size its class does not have. `None` turns the test off. Default 6 (docs/objects.md).
+    pub dynamic_prior_sigmas: Option<f64>,
     /// An object whose map-point centroid moves more than this between its first and latest
     /// keyframe observation (plus 5 % of its depth, for stereo noise) is moving, metres. Default 3.
     pub dynamic_motion_m: f64,
@@ -100,6 +104,7 @@ impl Default for MapperConfig {
             refit_every: 5,
             max_views: 20,
             dynamic_rms_px: 12.0,
+            dynamic_prior_sigmas: Some(6.0),
             dynamic_motion_m: 3.0,
             max_depth_m: 80.0,
             merge_distance_m: 2.5,
@@ -185,6 +190,7 @@ pub struct FitJob {
     box_shape: BoxShape,
     image: ImageSize,
     dynamic_rms_px: f64,
+    dynamic_prior_sigmas: Option<f64>,
     max_depth_m: f64,
 }
 
@@ -241,7 +247,17 @@ impl FitJob {
             }
             Ok(e) => {
                 let rms = box_rms(views, &self.image, &e, self.box_shape);
-                let dynamic = rms.is_none_or(|r| r > self.dynamic_rms_px);
+                // a moving object fitted as a static one usually needs a size its class does not have
+                // (a car driving ahead looks like a large car far away): with the prior-using fit, axes
+                // this many σ from the class prior (Mahalanobis) flag it too
+                let prior = class_prior(self.class);
+                let size_dev = (e.semi_axes - prior.axes).component_div(&prior.sigma).norm();
+                let odd_size =
+                    self.method == FitMethod::Refine && self.dynamic_prior_sigmas.is_some_and(|k| size_dev > k);
+                let dynamic = rms.is_none_or(|r| r > self.dynamic_rms_px) || odd_size;
+                if odd_size {
+                    tracing::debug!(object = %self.id, size_dev, axes = ?e.semi_axes.as_slice(), "size unlike its class: dynamic");
+                }
                 if dynamic {
                     let mut heights: Vec<f64> = views.iter().map(|v| v.bbox.height()).collect();
                     heights.sort_by(f64::total_cmp);
@@ -482,6 +498,7 @@ impl ObjectMapper {
             box_shape: cfg.box_shape,
             image: cfg.image,
             dynamic_rms_px: cfg.dynamic_rms_px,
+            dynamic_prior_sigmas: cfg.dynamic_prior_sigmas,
             max_depth_m: cfg.max_depth_m,
         })
     }

@@ -48,3 +48,27 @@ fn parked_car_is_mapped_and_moving_car_is_not() {
     let text = std::fs::read_to_string(&out).expect("reads");
     assert!(text.contains("\"semi_axes\"") && text.contains("\"dynamic\""));
 }
+
+/// A car ahead driving the same way at half the camera's speed: its boxes are exactly those of a static
+/// car twice as far and twice as large, so the box misfit cannot tell; the fitted size, far from the
+/// class prior, can (`dynamic_prior_sigmas`).
+#[test]
+fn a_slower_car_ahead_is_flagged_by_its_size() {
+    let fit = |config: MapperConfig| {
+        let mut mapper = ObjectMapper::new(Box::new(Oda::default()), config);
+        for f in 0..30 {
+            let cam = Camera::new(K, Isometry3::translation(0.0, 0.0, f as f64));
+            let ahead = car(-3.5, 25.0 + 0.5 * f as f64);
+            let dets: Vec<Detection> = project(&ahead, &cam)
+                .and_then(|c| c.clipped_bounds(&IMAGE))
+                .map(|b| vec![Detection::new(ClassId(2), 1.0, b)])
+                .unwrap_or_default();
+            mapper.step(f, &cam, &dets);
+        }
+        mapper.objects().filter(|o| o.ellipsoid.is_some()).map(|o| o.dynamic).collect::<Vec<bool>>()
+    };
+    let without = fit(MapperConfig { dynamic_prior_sigmas: None, ..MapperConfig::default() });
+    assert_eq!(without, vec![false], "fitted as a static car when only the box misfit is tested");
+    let with = fit(MapperConfig::default());
+    assert_eq!(with, vec![true], "flagged dynamic by its size");
+}
