@@ -715,17 +715,22 @@ pub fn stereo_check(a: &StereoCheckArgs) -> anyhow::Result<()> {
     let rig = StereoRig { k: Intrinsics::new(fx, fy, cx, cy), baseline: seq.baseline };
     let colour = seq.layout != Layout::Odometry;
     let n = a.frames.min(seq.left.len());
-    let mut frames = Vec::with_capacity(n);
-    for i in 0..n {
-        match read_image(&seq.left[i], colour).and_then(|l| read_image(&seq.right[i], colour).map(|r| (l, r))) {
-            Ok(pair) => frames.push((i, pair)),
-            Err(e) => tracing::warn!(frame = i, "skipped: {e}"),
-        }
-    }
+    // images are read again in every round rather than held: a whole sequence would not fit
+    let read =
+        |i: usize| read_image(&seq.left[i], colour).and_then(|l| read_image(&seq.right[i], colour).map(|r| (l, r)));
+    let readable: Vec<usize> = (0..n)
+        .filter(|&i| match read(i) {
+            Ok(_) => true,
+            Err(e) => {
+                tracing::warn!(frame = i, "skipped: {e}");
+                false
+            }
+        })
+        .collect();
     println!(
         "{}: {n} frames ({} unreadable), fx {fx:.1} px, baseline {:.4} m",
         seq.dir.display(),
-        n - frames.len(),
+        n - readable.len(),
         seq.baseline
     );
     println!("| round | offset applied (px) | frame pairs | correspondences | residual estimate (px) |");
@@ -737,8 +742,9 @@ pub fn stereo_check(a: &StereoCheckArgs) -> anyhow::Result<()> {
         tracking.keep_disparity_pairs = usize::MAX;
         tracking.disparity_offset = applied;
         let mut vo = StereoVo::new(rig, tracking)?;
-        for (i, (l, r)) in &frames {
-            vo.process(*i, l, r, &[])?;
+        for &i in &readable {
+            let (l, r) = read(i).with_context(|| format!("frame {i} became unreadable"))?;
+            vo.process(i, &l, &r, &[])?;
         }
         let pairs = vo.disparity_pairs();
         let Some(e) = slam_frontend::disparity::estimate_disparity_offset(&rig, pairs, (-a.range, a.range), a.step)
