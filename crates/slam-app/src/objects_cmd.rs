@@ -233,6 +233,20 @@ struct GtVehicle {
     ray_centre: Option<Vector3<f64>>,
 }
 
+/// The label track that supplied most of an object's detections (ties: the lower id), with its count.
+fn majority_track(
+    o: &slam_pipeline::objects::MappedObject,
+    truth: &BTreeMap<(usize, usize), i64>,
+) -> Option<(i64, usize)> {
+    let mut votes: BTreeMap<i64, usize> = BTreeMap::new();
+    for obs in &o.observations {
+        if let Some(&t) = truth.get(&(obs.frame, obs.detection)) {
+            *votes.entry(t).or_default() += 1;
+        }
+    }
+    votes.into_iter().max_by_key(|&(t, n)| (n, -t))
+}
+
 /// Least-squares intersection of rays `(origin, direction)`: the point nearest to all of them; `None`
 /// when they are (nearly) parallel.
 fn ray_intersection(rays: &[(Vector3<f64>, Vector3<f64>)]) -> Option<Vector3<f64>> {
@@ -366,13 +380,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         // moving vehicles: what became of the objects built mostly from their boxes (flagged, mapped)
         let mut fate: BTreeMap<i64, (bool, bool)> = movers.iter().map(|&t| (t, (false, false))).collect();
         for o in mapper.objects() {
-            let mut votes: BTreeMap<i64, usize> = BTreeMap::new();
-            for obs in &o.observations {
-                if let Some(&t) = truth.get(&(obs.frame, obs.detection)) {
-                    *votes.entry(t).or_default() += 1;
-                }
-            }
-            let Some((&t, _)) = votes.iter().max_by_key(|(t, n)| (**n, -**t)) else { continue };
+            let Some((t, _)) = majority_track(o, &truth) else { continue };
             if let (Some(f), Some(_)) = (fate.get_mut(&t), o.ellipsoid) {
                 if o.dynamic {
                     f.0 = true;
@@ -389,13 +397,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         let mut best: BTreeMap<i64, (usize, Ellipsoid)> = BTreeMap::new();
         for o in mapper.objects() {
             let (Some(e), false) = (o.ellipsoid, o.dynamic) else { continue };
-            let mut votes: BTreeMap<i64, usize> = BTreeMap::new();
-            for obs in &o.observations {
-                if let Some(&t) = truth.get(&(obs.frame, obs.detection)) {
-                    *votes.entry(t).or_default() += 1;
-                }
-            }
-            if let Some((&t, &n)) = votes.iter().max_by_key(|(t, n)| (**n, -**t)) {
+            if let Some((t, n)) = majority_track(o, &truth) {
                 if gts.contains_key(&t) && best.get(&t).is_none_or(|b| n > b.0) {
                     best.insert(t, (n, e));
                 }
