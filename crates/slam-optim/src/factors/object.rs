@@ -58,13 +58,23 @@ impl Factor for BoxFactor {
         let cam = Camera::new(self.k, *pose);
         let r =
             box_error(e, &cam, &self.measured, &self.model).map_err(|err| FactorError::Undefined(err.to_string()))?;
-        if let Some(jac) = jacobians {
-            jac.clear();
-            jac.push(DMatrix::from_column_slice(4, 6, r.d_camera.as_slice()));
-            jac.push(DMatrix::from_column_slice(4, 9, r.d_quadric.as_slice()));
-        }
-        Ok(DVector::from_column_slice(r.error.as_slice()))
+        Ok(box_output(&r.error, &r.d_camera, &r.d_quadric, jacobians))
     }
+}
+
+/// A box factor's residual, and its Jacobians (camera 4×6, ellipsoid 4×9) when asked for.
+fn box_output(
+    error: &Vector4<f64>,
+    d_camera: &nalgebra::SMatrix<f64, 4, 6>,
+    d_object: &nalgebra::SMatrix<f64, 4, 9>,
+    jacobians: Option<&mut Vec<DMatrix<f64>>>,
+) -> DVector<f64> {
+    if let Some(jac) = jacobians {
+        jac.clear();
+        jac.push(DMatrix::from_column_slice(4, 6, d_camera.as_slice()));
+        jac.push(DMatrix::from_column_slice(4, 9, d_object.as_slice()));
+    }
+    DVector::from_column_slice(error.as_slice())
 }
 
 /// Box error of the ellipsoid's circumscribed cuboid: its projected corners' bounds, clamped to the
@@ -184,12 +194,7 @@ impl Factor for CuboidBoxFactor {
         let e = values.require_ellipsoid(self.keys[1])?;
         let (p, d_cam, d_obj) = cuboid_box_prediction(&Camera::new(self.k, *pose), e, &self.image, jacobians.is_some())
             .ok_or_else(|| FactorError::Undefined("a cuboid corner is behind the camera".into()))?;
-        if let Some(jac) = jacobians {
-            jac.clear();
-            jac.push(DMatrix::from_column_slice(4, 6, d_cam.as_slice()));
-            jac.push(DMatrix::from_column_slice(4, 9, d_obj.as_slice()));
-        }
-        Ok(DVector::from_column_slice((p - self.measured.to_vector()).as_slice()))
+        Ok(box_output(&(p - self.measured.to_vector()), &d_cam, &d_obj, jacobians))
     }
 }
 
