@@ -284,6 +284,19 @@ fn numbers_and_settings_are_checked_at_the_edge() {
         case("stereo-check --frames 1", &[&"stereo-check", &"--frames", &"1"], 1, &["--frames must be at least 2"]),
         case("assoc sim --frames 0", &[&"assoc", &"sim", &"--frames", &"0"], 1, &["--frames 0"]),
         case("assoc sim --scenes 0", &[&"assoc", &"sim", &"--scenes", &"0"], 1, &["--scenes 0"]),
+        case("optim-bench --reps 0", &[&"optim-bench", &"--reps", &"0"], 1, &["--reps 0"]),
+        case(
+            "optim-bench --only nothing",
+            &[&"optim-bench", &"--only", &"nothing"],
+            1,
+            &["matches no problem", "parking"],
+        ),
+        case(
+            "optim-bench --data missing",
+            &[&"optim-bench", &"--only", &"parking", &"--data", &"/no/such/optim"],
+            1,
+            &["/no/such/optim"],
+        ),
     ]);
     let n = check(cases);
     assert!(n >= 60, "{n}");

@@ -101,6 +101,7 @@ fn sigkill_at_random_moments_leaves_the_old_or_the_new_run() {
         current = which;
     }
     assert!(seen[0] >= 1, "the immediate kill keeps the old run: {seen:?}");
+    println!("10 kills over {longest:?}: {} left the old run, {} the new one", seen[0], seen[1]);
     // a finished run afterwards removes what the killed runs left beside the folder
     run_to_end(configs[1 - current], &out);
     let left: Vec<String> = std::fs::read_dir(&d)
