@@ -250,8 +250,10 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     }
     // sizes and calibration are checked before the first frame: a right camera of another size would
     // make every frame unreadable
-    let size = crate::validate::stereo_pair(&seq.left[0], &seq.right[0])?;
-    crate::validate::calibration(&calibration_file(&seq), seq.intrinsics, seq.baseline, &seq.left[0], size)?;
+    let (l0, r0) = crate::validate::first_pair(&seq.left, &seq.right)?;
+    let size = crate::validate::stereo_pair(l0, r0)?;
+    crate::validate::calibration(&calibration_file(&seq), seq.intrinsics, seq.baseline, l0, size)?;
+    crate::validate::declared_size(&calibration_file(&seq), l0, size)?;
     let [fx, fy, cx, cy] = seq.intrinsics;
     let k = Intrinsics::new(fx, fy, cx, cy);
     let rig = StereoRig { k, baseline: seq.baseline };
@@ -836,8 +838,9 @@ pub fn stereo_check(a: &StereoCheckArgs) -> anyhow::Result<()> {
     };
     let path = a.path.clone().unwrap_or_else(|| crate::fixture("kitti_odom_06/sequences/06"));
     let seq = open_stereo(&path)?;
-    let size = crate::validate::stereo_pair(&seq.left[0], &seq.right[0])?;
-    crate::validate::calibration(&calibration_file(&seq), seq.intrinsics, seq.baseline, &seq.left[0], size)?;
+    let (l0, r0) = crate::validate::first_pair(&seq.left, &seq.right)?;
+    let size = crate::validate::stereo_pair(l0, r0)?;
+    crate::validate::calibration(&calibration_file(&seq), seq.intrinsics, seq.baseline, l0, size)?;
     let [fx, fy, cx, cy] = seq.intrinsics;
     let rig = StereoRig { k: Intrinsics::new(fx, fy, cx, cy), baseline: seq.baseline };
     let colour = seq.layout != Layout::Odometry;

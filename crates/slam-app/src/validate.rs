@@ -198,7 +198,53 @@ pub fn calibration(
     Ok(())
 }
 
-/// The first stereo pair: both images readable and of the same size (a mismatch names both files).
+/// A raw drive's calibration declares each camera's rectified image size (`S_rect_0N`): the image must
+/// have it. Files without the key (other layouts) are not checked.
+pub fn declared_size(calib: &Path, image: &Path, size: (u32, u32)) -> anyhow::Result<()> {
+    let Some(cam) = image
+        .components()
+        .filter_map(|c| c.as_os_str().to_str())
+        .find_map(|c| c.strip_prefix("image_").filter(|n| n.len() == 2))
+    else {
+        return Ok(());
+    };
+    let Ok(c) = slam_dataset::kitti::calib::Calib::read(calib) else { return Ok(()) };
+    let key = format!("S_rect_{cam}");
+    if !c.has(&key) {
+        return Ok(());
+    }
+    let v = c.numbers(&key, Some(2))?;
+    if (v[0], v[1]) != (size.0 as f64, size.1 as f64) {
+        bail!(
+            "{}: {key} declares {}×{} images, but {} is {}×{}",
+            calib.display(),
+            v[0],
+            v[1],
+            image.display(),
+            size.0,
+            size.1
+        );
+    }
+    Ok(())
+}
+
+/// The first frame with both images on disk (a frame missing in one camera is played as unreadable, so
+/// sizes are checked on the first complete pair).
+pub fn first_pair<'a>(
+    left: &'a [std::path::PathBuf],
+    right: &'a [std::path::PathBuf],
+) -> anyhow::Result<(&'a Path, &'a Path)> {
+    left.iter()
+        .zip(right)
+        .find(|(l, r)| l.is_file() && r.is_file())
+        .map(|(l, r)| (l.as_path(), r.as_path()))
+        .with_context(|| {
+            let dir = left.first().and_then(|p| p.parent()).map(|p| p.display().to_string()).unwrap_or_default();
+            format!("{dir}: no frame has both its left and its right image")
+        })
+}
+
+/// A stereo pair: both images readable and of the same size (a mismatch names both files).
 pub fn stereo_pair(left: &Path, right: &Path) -> anyhow::Result<(u32, u32)> {
     let l = image_size(left)?;
     let r = image_size(right)?;

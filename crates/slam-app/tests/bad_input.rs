@@ -365,6 +365,22 @@ fn sequences_calibration_and_image_sizes() {
     let blank = sequence(&d, "blank", 2, None);
     std::fs::write(blank.join("image_0/000000.png"), b"").expect("empty image");
     let noimg = sequence(&d, "noimg", 0, None);
+    // a raw drive whose calibration declares another rectified image size
+    let raw_src = fixtures().join("kitti_raw_0005/2011_09_26");
+    let date = d.join("raw/2011_09_26");
+    let drive = date.join("2011_09_26_drive_0005_sync");
+    for cam in ["image_00", "image_01"] {
+        std::fs::create_dir_all(drive.join(cam).join("data")).expect("dir");
+        for i in 0..2 {
+            let f = format!("{cam}/data/{i:010}.png");
+            std::fs::copy(raw_src.join("2011_09_26_drive_0005_sync").join(&f), drive.join(&f)).expect("copy");
+        }
+    }
+    let c2c = std::fs::read_to_string(raw_src.join("calib_cam_to_cam.txt")).expect("calib");
+    write(
+        &date.join("calib_cam_to_cam.txt"),
+        &c2c.replace("S_rect_00: 1.242000e+03 3.750000e+02", "S_rect_00: 1.000000e+03 3.000000e+02"),
+    );
     let cases = vec![
         mk("missing sequence", run(&d.join("nowhere")), &["nowhere", "not a folder"]),
         mk("empty folder", run(&empty), &["not a KITTI stereo sequence"]),
@@ -384,6 +400,11 @@ fn sequences_calibration_and_image_sizes() {
         ),
         mk("empty first image", run(&blank), &["000000.png"]),
         mk("no images", run(&noimg), &["no PNG images"]),
+        mk(
+            "raw calibration declares another size",
+            run(&drive),
+            &["calib_cam_to_cam.txt: S_rect_00 declares 1000×300 images", "0000000000.png is 1242×375"],
+        ),
         mk("stereo-check on wrong sizes", vec!["stereo-check".into(), sizes.clone().into()], &["image sizes differ"]),
         mk(
             "stereo-check on a bad calibration",
