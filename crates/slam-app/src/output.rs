@@ -144,6 +144,10 @@ impl OutputDir {
                 let _ = std::fs::remove_dir_all(&b);
             }
         }
+        if std::fs::symlink_metadata(dir).is_ok_and(|m| m.file_type().is_symlink()) {
+            // swapping would replace the link, not the folder it points to
+            bail!("{option} {}: is a symbolic link; give the folder it points to", dir.display());
+        }
         if dir.exists() {
             let meta = std::fs::metadata(dir).with_context(|| format!("{option} {}", dir.display()))?;
             if !meta.is_dir() {
@@ -440,6 +444,14 @@ mod tests {
         std::fs::write(dir.join(MARKER), "slam-app test\nb.txt\n").expect("marker");
         let e = OutputDir::create(&dir, "--out", "test", ours).err().expect("refused").to_string();
         assert!(e.contains("(a.txt)"), "{e}");
+        #[cfg(unix)]
+        {
+            let link = root.join("link");
+            std::os::unix::fs::symlink(&dir, &link).expect("symlink");
+            let e = OutputDir::create(&link, "--out", "test", ours).err().expect("refused").to_string();
+            assert!(e.contains("symbolic link"), "{e}");
+            std::fs::remove_file(&link).expect("rm");
+        }
         let file = root.join("file");
         std::fs::write(&file, "x").expect("write");
         let e = OutputDir::create(&file, "--out", "test", ours).err().expect("refused").to_string();
