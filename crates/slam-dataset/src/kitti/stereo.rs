@@ -246,6 +246,9 @@ fn open_odometry(dir: &Path) -> Result<StereoSequence, DatasetError> {
     })
 }
 
+/// Camera poses of every entry and the median GPS position accuracy, metres.
+type RawTruth = (Vec<Isometry3<f64>>, f64);
+
 /// Camera-0 ground truth of a raw drive's frames from `oxts/data/<id>.txt` and the date's calibration;
 /// `Ok(None)` (with a warning) when the drive has no `oxts/` or a packet or calibration file is missing.
 fn raw_truth(
@@ -254,7 +257,7 @@ fn raw_truth(
     left: &[PathBuf],
     ids: &[usize],
     warnings: &mut Vec<String>,
-) -> Result<Option<(Vec<Isometry3<f64>>, f64)>, DatasetError> {
+) -> Result<Option<RawTruth>, DatasetError> {
     let oxts = drive.join("oxts").join("data");
     if !oxts.is_dir() {
         return Ok(None);
