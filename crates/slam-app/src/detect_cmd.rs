@@ -118,6 +118,20 @@ fn list_images(input: &Path) -> anyhow::Result<Vec<PathBuf>> {
     bail!("no PNG/JPG images in {} (nor in its image_2, image_02/data or image_0)", input.display())
 }
 
+/// The frame id of each image: the number in its file name (KITTI's `000042.png` is frame 42) when every
+/// name is one, so that the detection file lines up with ground truth and with `run` however frames are
+/// missing; else (arbitrary names) the position in name order, said on stdout.
+fn frame_ids(images: &[PathBuf]) -> Vec<usize> {
+    let ids: Option<Vec<usize>> = images.iter().map(|p| slam_dataset::kitti::odometry::frame_id(p)).collect();
+    match ids {
+        Some(ids) if ids.windows(2).all(|w| w[0] < w[1]) => ids,
+        _ => {
+            println!("image names are not all distinct frame numbers: frames are numbered by position in name order");
+            (0..images.len()).collect()
+        }
+    }
+}
+
 /// Overlay files `detect` writes (a folder written before the marker file existed may be replaced when it
 /// holds only these).
 fn overlay_name(name: &str) -> bool {
@@ -125,7 +139,10 @@ fn overlay_name(name: &str) -> bool {
 }
 
 pub fn detect(a: &DetectArgs) -> anyhow::Result<()> {
-    let images = list_images(&a.input)?;
+    let mut images = list_images(&a.input)?;
+    // numeric names sort by their number (9.png before 10.png)
+    images.sort_by_key(|p| (slam_dataset::kitti::odometry::frame_id(p), p.clone()));
+    let ids = frame_ids(&images);
     a.model.check()?;
     // both outputs are checked writable before the first image, and put in place whole at the end
     let json = crate::output::AtomicFile::new(&a.out)?;
@@ -142,7 +159,7 @@ pub fn detect(a: &DetectArgs) -> anyhow::Result<()> {
     );
     let mut file = DetectionFile::default();
     let (mut skipped, mut total) = (0usize, 0usize);
-    for (i, path) in images.iter().enumerate() {
+    for (&i, path) in ids.iter().zip(&images) {
         let img = match read_image(path, true) {
             Ok(img) => img,
             Err(e) => {

@@ -119,35 +119,38 @@ impl DetectionSource for DetectionGuard {
     }
 }
 
-/// Detections of frames no run frame will use: `per_frame` is (frame, boxes) of a source, `run` the
-/// frames run, `len` the sequence's length. `None` when every frame with boxes is used.
+/// Detections of frames the run does not play: `per_frame` is (frame id, boxes) of a source, `played` the
+/// frame ids played (increasing). `None` when every frame with boxes is played.
 pub fn unused_frames(
     source: &str,
     per_frame: impl Iterator<Item = (usize, usize)>,
-    run: usize,
-    len: usize,
+    played: &[usize],
 ) -> Option<String> {
-    let (mut beyond, mut beyond_boxes, mut later, mut later_boxes) = (Vec::new(), 0, 0, 0);
+    let (Some(&first), Some(&last)) = (played.first(), played.last()) else { return None };
+    let (mut after, mut after_boxes, mut other, mut other_boxes) = (Vec::new(), 0, 0, 0);
     for (f, n) in per_frame {
-        if f >= len {
-            beyond.push(f);
-            beyond_boxes += n;
-        } else if f >= run {
-            later += 1;
-            later_boxes += n;
+        if f > last {
+            after.push(f);
+            after_boxes += n;
+        } else if played.binary_search(&f).is_err() {
+            other += 1;
+            other_boxes += n;
         }
     }
     let mut parts = Vec::new();
-    if !beyond.is_empty() {
-        beyond.sort_unstable();
+    if !after.is_empty() {
+        after.sort_unstable();
         parts.push(format!(
-            "{} frames ({beyond_boxes} boxes) lie beyond the sequence's {len} frames (first: frame {}), not used",
-            beyond.len(),
-            beyond[0]
+            "{} frames ({after_boxes} boxes) lie after the last frame played, {last} (first: frame {}), not used",
+            after.len(),
+            after[0]
         ));
     }
-    if later > 0 {
-        parts.push(format!("{later} frames ({later_boxes} boxes) lie beyond the {run} frames run (--max-frames)"));
+    if other > 0 {
+        parts.push(format!(
+            "{other} frames ({other_boxes} boxes) within ids {first}..={last} are not played (missing images or \
+             --frames/--stride), not used"
+        ));
     }
     (!parts.is_empty()).then(|| format!("{source}: {}", parts.join("; ")))
 }
@@ -220,9 +223,11 @@ mod tests {
 
     #[test]
     fn unused_frames_are_reported() {
-        assert_eq!(unused_frames("f", [(0, 3), (4, 1)].into_iter(), 5, 5), None);
-        let m = unused_frames("f.json", [(0, 3), (7, 2), (9, 1), (4, 5)].into_iter(), 4, 6).expect("reported");
-        assert!(m.contains("2 frames (3 boxes) lie beyond the sequence's 6 frames (first: frame 7)"), "{m}");
-        assert!(m.contains("1 frames (5 boxes) lie beyond the 4 frames run"), "{m}");
+        assert_eq!(unused_frames("f", [(0, 3), (4, 1)].into_iter(), &[0, 1, 2, 3, 4]), None);
+        assert_eq!(unused_frames("f", [(0, 3)].into_iter(), &[]), None);
+        let m =
+            unused_frames("f.json", [(0, 3), (7, 2), (9, 1), (2, 5)].into_iter(), &[0, 1, 3, 4, 5]).expect("reported");
+        assert!(m.contains("2 frames (3 boxes) lie after the last frame played, 5 (first: frame 7)"), "{m}");
+        assert!(m.contains("1 frames (5 boxes) within ids 0..=5 are not played"), "{m}");
     }
 }
