@@ -5,6 +5,7 @@ mod config;
 mod detect_cmd;
 mod objects_cmd;
 mod optim_cmd;
+mod optimizer_choice;
 mod plot;
 mod run_cmd;
 mod sim_cmd;
