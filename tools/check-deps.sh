@@ -1,16 +1,22 @@
 #!/usr/bin/env bash
-# Layering check: slam-quadric's normal dependencies are nalgebra only, plus serde behind its feature.
+# Layering checks (docs/architecture.md), on normal (not dev-) dependencies, from Cargo.lock alone:
+#  1. slam-quadric's normal dependencies are nalgebra only, plus serde behind its feature;
+#  2. nothing below the front end links OpenCV;
+#  3. the seam crates (slam-core, slam-optim) depend on no implementation crate;
+#  4. implementation crates depend on seams only (slam-quadric, slam-core, slam-optim), never on each other.
+# Composition crates (slam-pipeline, slam-sim, slam-app) may combine implementations.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+export CARGO_NET_OFFLINE=true
 
-direct() { cargo tree -q -p slam-quadric -e normal --depth 1 --prefix none "$@" | tail -n +2 | awk '{print $1}' | sort -u | tr '\n' ' '; }
+direct() { cargo tree -q -e normal --depth 1 --prefix none "$@" | tail -n +2 | awk '{print $1}' | sort -u | tr '\n' ' '; }
 
-plain=$(direct)
+plain=$(direct -p slam-quadric)
 if [ "$plain" != "nalgebra " ]; then
   echo "check-deps: slam-quadric must depend on nalgebra only; found: $plain" >&2
   exit 1
 fi
-with_serde=$(direct --features serde)
+with_serde=$(direct -p slam-quadric --features serde)
 if [ "$with_serde" != "nalgebra serde " ]; then
   echo "check-deps: slam-quadric with --features serde must add serde only; found: $with_serde" >&2
   exit 1
@@ -18,10 +24,38 @@ fi
 echo "check-deps: slam-quadric depends on [ ${plain}] (+ serde with the serde feature): ok"
 
 # Nothing below the front end links OpenCV.
-for crate in slam-quadric slam-core slam-assoc slam-optim slam-dataset slam-sim; do
+for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline; do
   if cargo tree -q -p "$crate" --all-features -e normal --prefix none | grep -q '^opencv '; then
     echo "check-deps: $crate must not depend on opencv" >&2
     exit 1
   fi
 done
 echo "check-deps: no OpenCV below slam-frontend: ok"
+
+# Workspace crates a crate depends on directly (normal dependencies, all features).
+workspace_deps() { direct -p "$1" --all-features | tr ' ' '\n' | grep '^slam-' | tr '\n' ' ' || true; }
+
+check_only() { # crate, allowed workspace dependencies...
+  local crate=$1
+  shift
+  for dep in $(workspace_deps "$crate"); do
+    local ok=0
+    for allowed in "$@"; do
+      [ "$dep" = "$allowed" ] && ok=1
+    done
+    if [ $ok = 0 ]; then
+      echo "check-deps: $crate must not depend on $dep (allowed: $*)" >&2
+      exit 1
+    fi
+  done
+}
+
+seams="slam-quadric slam-core slam-optim"
+check_only slam-core slam-quadric
+check_only slam-optim slam-quadric slam-core
+echo "check-deps: the seams (slam-core, slam-optim) depend on no implementation crate: ok"
+for crate in slam-assoc slam-dataset slam-frontend slam-lm slam-dogleg; do
+  # shellcheck disable=SC2086
+  check_only "$crate" $seams
+done
+echo "check-deps: implementation crates (slam-assoc, slam-dataset, slam-frontend, slam-lm, slam-dogleg) depend on seams only: ok"

@@ -6,6 +6,7 @@ mod detect_cmd;
 mod guard;
 mod objects_cmd;
 mod optim_cmd;
+mod optimizer_choice;
 mod output;
 mod plot;
 mod run_cmd;

@@ -167,7 +167,8 @@ fn run(seq: &Sequence, input: &InputArgs) -> (ObjectMapper, BTreeMap<(usize, usi
         dynamic_prior_sigmas: (input.dynamic_prior_sigmas > 0.0).then_some(input.dynamic_prior_sigmas),
         ..MapperConfig::default()
     };
-    let mut mapper = ObjectMapper::new(Box::new(Oda::default()), config);
+    let mut mapper =
+        ObjectMapper::new(Box::new(Oda::default()), config, crate::optimizer_choice::OptimizerKind::default().build());
     let mut truth = BTreeMap::new();
     for (frame, pose) in seq.poses.iter().enumerate() {
         let mut rng = SimRng::derive(input.seed, &[frame as u64]);

@@ -6,8 +6,10 @@ use anyhow::Context;
 use clap::Args;
 use slam_optim::{
     io::{read_bal, read_g2o, Problem},
-    LevenbergMarquardt, LmParams, Summary,
+    Options, Summary,
 };
+
+use crate::optimizer_choice::OptimizerKind;
 
 #[derive(Args, Debug)]
 pub struct OptimBenchArgs {
@@ -20,6 +22,9 @@ pub struct OptimBenchArgs {
     /// Only run problems whose name contains this text.
     #[arg(long)]
     only: Option<String>,
+    /// Optimiser backend.
+    #[arg(long, value_enum, default_value_t = OptimizerKind::Lm)]
+    optimizer: OptimizerKind,
 }
 
 /// One anchor row: our problem and the reference numbers measured with Ceres 2.1.0 / GTSAM 4.3.0 on
@@ -91,24 +96,21 @@ const ANCHORS: [Anchor; 6] = [
     },
 ];
 
-fn load(dir: &std::path::Path, a: &Anchor) -> anyhow::Result<(Problem, LevenbergMarquardt)> {
+fn load(dir: &std::path::Path, a: &Anchor) -> anyhow::Result<(Problem, Options)> {
     let path = dir.join(a.file);
-    let mut lm = LevenbergMarquardt::new(LmParams::default());
-    let p = if a.file.ends_with(".g2o") {
-        lm = LevenbergMarquardt::new(LmParams::pose_graph());
-        let p = read_g2o(&path)?;
+    Ok(if a.file.ends_with(".g2o") {
+        let mut p = read_g2o(&path)?;
         if let Some(&k) = p.cameras.first() {
-            lm.fix(k);
+            p.graph.fix(k);
         }
-        p
+        (p, Options::pose_graph())
     } else {
-        let p = read_bal(&path, a.huber)?;
+        let mut p = read_bal(&path, a.huber)?;
         for &k in &p.points {
-            lm.eliminate(k);
+            p.graph.eliminate(k);
         }
-        p
-    };
-    Ok((p, lm))
+        (p, Options::default())
+    })
 }
 
 pub fn run(args: &OptimBenchArgs) -> anyhow::Result<()> {
@@ -120,7 +122,13 @@ pub fn run(args: &OptimBenchArgs) -> anyhow::Result<()> {
         }
     }
     let dir = args.data.clone().unwrap_or_else(|| crate::fixture("optim"));
-    println!("Optimiser benchmark on {} ({} timed runs each, median; single thread)", dir.display(), args.reps);
+    let optimizer = args.optimizer.build();
+    println!(
+        "Optimiser benchmark, backend {:?}, on {} ({} timed runs each, median; single thread)",
+        optimizer.name(),
+        dir.display(),
+        args.reps
+    );
     println!(
         "{:<18} {:>13} {:>13} {:>13} {:>9} {:>5} {:>9} {:>14} {:>7} {:>13}",
         "problem", "initial", "final", "best known", "vs best", "iters", "time s", "reference", "ratio", "ref. cost"
@@ -129,8 +137,10 @@ pub fn run(args: &OptimBenchArgs) -> anyhow::Result<()> {
         let mut times = Vec::new();
         let mut last: Option<Summary> = None;
         for _ in 0..args.reps.max(1) {
-            let (mut p, lm) = load(&dir, a).with_context(|| format!("loading {}", a.file))?;
-            let s = lm.solve(&p.graph, &mut p.values, None).with_context(|| format!("solving {}", a.name))?;
+            let (mut p, options) = load(&dir, a).with_context(|| format!("loading {}", a.file))?;
+            let s = optimizer
+                .optimize(&p.graph, &mut p.values, &options, None)
+                .with_context(|| format!("solving {}", a.name))?;
             times.push(s.elapsed);
             last = Some(s);
         }
@@ -154,6 +164,6 @@ pub fn run(args: &OptimBenchArgs) -> anyhow::Result<()> {
         );
     }
     println!("ratio = our median time / the anchor's single-thread median (ANCHORS.md, ±30 % noise there).");
-    println!("BA: LmParams::default() (Ceres' defaults), points eliminated by Schur; pose graphs: LmParams::pose_graph(), vertex 0 fixed.");
+    println!("BA: Options::default() (Ceres' defaults), points eliminated by Schur; pose graphs: Options::pose_graph(), vertex 0 fixed.");
     Ok(())
 }

@@ -45,6 +45,9 @@ pub struct RunArgs {
     /// Output folder
     #[arg(long, default_value = "out/run")]
     out: PathBuf,
+    /// Optimiser backend for the tracker's two-frame BA, local BA and object fits.
+    #[arg(long, value_enum, default_value_t = crate::optimizer_choice::OptimizerKind::Lm)]
+    optimizer: crate::optimizer_choice::OptimizerKind,
     /// Settings file (TOML; see --print-config for every key and its default)
     #[arg(long)]
     config: Option<PathBuf>,
@@ -326,7 +329,8 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     let first_left = seq.left.iter().find(|p| p.is_file()).unwrap_or(&seq.left[0]);
     let first = read_image(first_left, colour).with_context(|| format!("first frame {}", first_left.display()))?;
     let image = ImageSize::new(first.width as f64, first.height as f64);
-    let tracker = Box::new(StereoVo::new(rig, cfg.tracking)?);
+    let optimizer = a.optimizer.build();
+    let tracker = Box::new(StereoVo::new(rig, cfg.tracking, optimizer.clone())?);
     let mut notes = Vec::new();
     let mut counts = None;
     let det = detector(a, &seq, image, &mut notes)?.map(|d| {
@@ -389,7 +393,7 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     };
     let mut sys = cfg.system(image);
     sys.objects.method = a.method.fit();
-    let out = system::run(frames, tracker, det, k, seq.baseline, &sys, &mut on_frame)?;
+    let out = system::run(frames, tracker, det, k, seq.baseline, &sys, optimizer, &mut on_frame)?;
     bar.finish_and_clear();
     Ok(Outcome { out, seq, elapsed: start.elapsed().as_secs_f64(), k, image, colour, detections: counts, notes })
 }
@@ -937,13 +941,15 @@ pub fn stereo_check(a: &StereoCheckArgs) -> anyhow::Result<()> {
         let mut tracking = cfg.tracking;
         tracking.keep_disparity_pairs = usize::MAX;
         tracking.disparity_offset = applied;
-        let mut vo = StereoVo::new(rig, tracking)?;
+        let optimizer = crate::optimizer_choice::OptimizerKind::default().build();
+        let mut vo = StereoVo::new(rig, tracking, optimizer.clone())?;
         for &i in &readable {
             let (l, r) = read(i).with_context(|| format!("frame {i} became unreadable"))?;
             vo.process(seq.ids[i], &l, &r, &[])?;
         }
         let pairs = vo.disparity_pairs();
-        let Some(e) = slam_frontend::disparity::estimate_disparity_offset(&rig, pairs, (-a.range, a.range), a.step)
+        let Some(e) =
+            slam_frontend::disparity::estimate_disparity_offset(&rig, pairs, (-a.range, a.range), a.step, &*optimizer)
         else {
             bail!("no tracked frame pairs in {n} frames of {}", seq.dir.display());
         };

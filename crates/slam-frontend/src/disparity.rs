@@ -10,7 +10,7 @@
 //! and keeps the offset of least total robust cost (refined by a parabola through the best three).
 
 use nalgebra::Isometry3;
-use slam_optim::{factors::StereoReprojection, Graph, Huber, LevenbergMarquardt, LmParams, NoiseModel, Values, Var};
+use slam_optim::{factors::StereoReprojection, Graph, Huber, NoiseModel, Optimizer, Options, Values, Var};
 
 use crate::stereo_vo::StereoRig;
 
@@ -42,16 +42,15 @@ pub struct OffsetEstimate {
 }
 
 /// Total robust cost of the pairs' two-view adjustments with `offset` added to every disparity.
-fn cost_at(rig: &StereoRig, pairs: &[DisparityPair], offset: f64) -> f64 {
+fn cost_at(rig: &StereoRig, pairs: &[DisparityPair], offset: f64, optimizer: &dyn Optimizer) -> f64 {
     let shift = |o: &[f64; 3]| [o[0], o[1], o[2] - offset];
     let mut total = 0.0;
     for pair in pairs {
         let mut values = Values::new();
         let kf = values.add(Var::Pose(Isometry3::identity()));
         let fr = values.add(Var::Pose(pair.frame_from_keyframe.inverse()));
-        let mut lm = LevenbergMarquardt::new(LmParams { max_iterations: 15, ..LmParams::default() });
-        lm.fix(kf);
         let mut graph = Graph::new();
+        graph.fix(kf);
         for (a, b) in pair.keyframe.iter().zip(&pair.frame) {
             let a = shift(a);
             let d = a[0] - a[2];
@@ -61,7 +60,7 @@ fn cost_at(rig: &StereoRig, pairs: &[DisparityPair], offset: f64) -> f64 {
             let z = rig.k.fx * rig.baseline / d;
             let p = nalgebra::Vector3::new((a[0] - rig.k.cx) * z / rig.k.fx, (a[1] - rig.k.cy) * z / rig.k.fy, z);
             let x = values.add(Var::Point(p));
-            lm.eliminate(x);
+            graph.eliminate(x);
             for (pose, obs) in [(kf, a), (fr, shift(b))] {
                 let _ = graph.add(
                     StereoReprojection::new(pose, x, rig.k, rig.baseline, obs),
@@ -70,20 +69,21 @@ fn cost_at(rig: &StereoRig, pairs: &[DisparityPair], offset: f64) -> f64 {
                 );
             }
         }
-        if let Ok(summary) = lm.solve(&graph, &mut values, None) {
+        if let Ok(summary) = optimizer.optimize(&graph, &mut values, &Options::with_max_iterations(15), None) {
             total += summary.final_cost;
         }
     }
     total
 }
 
-/// Estimate the disparity offset from frame pairs by scanning `range` (pixels) in steps of `step`.
-/// `None` without pairs or with a degenerate range.
+/// Estimate the disparity offset from frame pairs by scanning `range` (pixels) in steps of `step`,
+/// re-solving each pair with `optimizer`. `None` without pairs or with a degenerate range.
 pub fn estimate_disparity_offset(
     rig: &StereoRig,
     pairs: &[DisparityPair],
     range: (f64, f64),
     step: f64,
+    optimizer: &dyn Optimizer,
 ) -> Option<OffsetEstimate> {
     let usable = step > 0.0 && range.1 > range.0 && step.is_finite() && range.0.is_finite() && range.1.is_finite();
     if pairs.is_empty() || !usable {
@@ -93,7 +93,7 @@ pub fn estimate_disparity_offset(
     let curve: Vec<(f64, f64)> = (0..n)
         .map(|i| {
             let e = range.0 + i as f64 * step;
-            (e, cost_at(rig, pairs, e))
+            (e, cost_at(rig, pairs, e, optimizer))
         })
         .collect();
     let best = (0..n).min_by(|&a, &b| curve[a].1.total_cmp(&curve[b].1))?;
@@ -118,6 +118,11 @@ pub fn estimate_disparity_offset(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The optimiser of these tests (the project's Levenberg–Marquardt).
+    fn lm() -> slam_lm::LevenbergMarquardt {
+        slam_lm::LevenbergMarquardt::default()
+    }
     use nalgebra::{Translation3, UnitQuaternion, Vector3};
     use slam_core::rng::SimRng;
     use slam_quadric::Intrinsics;
@@ -163,7 +168,7 @@ mod tests {
     #[test]
     fn recovers_an_injected_offset() {
         for (bias, seed) in [(0.3, 1), (0.0, 2), (-0.2, 3), (-1.0, 6)] {
-            let e = estimate_disparity_offset(&rig(), &pairs(bias, 0.15, seed), (-1.5, 1.5), 0.05).unwrap();
+            let e = estimate_disparity_offset(&rig(), &pairs(bias, 0.15, seed), (-1.5, 1.5), 0.05, &lm()).unwrap();
             assert!(e.interior, "{e:?}");
             assert!((e.offset - bias).abs() < 0.05, "bias {bias}: estimated {}", e.offset);
             assert_eq!((e.pairs, e.points), (6, 1500));
@@ -172,10 +177,10 @@ mod tests {
 
     #[test]
     fn reports_an_offset_outside_the_range_as_such() {
-        let e = estimate_disparity_offset(&rig(), &pairs(0.9, 0.1, 4), (-0.3, 0.3), 0.1).unwrap();
+        let e = estimate_disparity_offset(&rig(), &pairs(0.9, 0.1, 4), (-0.3, 0.3), 0.1, &lm()).unwrap();
         assert!(!e.interior);
         assert!((e.offset - 0.3).abs() < 1e-9);
-        assert!(estimate_disparity_offset(&rig(), &[], (-0.3, 0.3), 0.1).is_none());
-        assert!(estimate_disparity_offset(&rig(), &pairs(0.0, 0.1, 5), (0.3, -0.3), 0.1).is_none());
+        assert!(estimate_disparity_offset(&rig(), &[], (-0.3, 0.3), 0.1, &lm()).is_none());
+        assert!(estimate_disparity_offset(&rig(), &pairs(0.0, 0.1, 5), (0.3, -0.3), 0.1, &lm()).is_none());
     }
 }

@@ -15,7 +15,7 @@ use slam_core::{
 };
 use slam_optim::{
     factors::{MonoReprojection, StereoReprojection},
-    Graph, Huber, LevenbergMarquardt, LmParams, NoiseModel, Values, Var,
+    Graph, Huber, NoiseModel, Options, SharedOptimizer, Values, Var,
 };
 use slam_quadric::{se3, Intrinsics};
 
@@ -152,6 +152,8 @@ pub struct StereoVo {
     keypoints: [Vec<(f64, f64)>; 2],
     /// Stereo correspondences of tracked frames with their keyframe (up to `keep_disparity_pairs`).
     pairs: Vec<DisparityPair>,
+    /// Solves the two-frame stereo bundle adjustments.
+    optimizer: SharedOptimizer,
 }
 
 /// A borrowed 8-bit grey image.
@@ -267,8 +269,8 @@ fn extract(orb: &mut core::Ptr<features2d::ORB>, img: &Mat) -> Result<Features, 
 }
 
 impl StereoVo {
-    /// Odometry for a rig.
-    pub fn new(rig: StereoRig, config: VoConfig) -> Result<Self, FrontendError> {
+    /// Odometry for a rig; its two-frame bundle adjustments use `optimizer`.
+    pub fn new(rig: StereoRig, config: VoConfig, optimizer: SharedOptimizer) -> Result<Self, FrontendError> {
         let orb = features2d::ORB::create(
             config.features,
             1.2,
@@ -295,6 +297,7 @@ impl StereoVo {
             grey: [None, None],
             keypoints: [Vec::new(), Vec::new()],
             pairs: Vec::new(),
+            optimizer,
         })
     }
 
@@ -919,13 +922,12 @@ impl StereoVo {
         let k_prev = values.add(Var::Pose(Isometry3::identity()));
         let k_curr = values.add(Var::Pose(curr_from_prev.inverse()));
         let mut graph = Graph::new();
-        let mut lm = LevenbergMarquardt::new(LmParams { max_iterations: 20, ..LmParams::default() });
-        lm.fix(k_prev);
+        graph.fix(k_prev);
         let b = self.rig.baseline;
         for idx in inliers.iter() {
             let (p, c) = matches[idx as usize];
             let kx = values.add(Var::Point(prev.points[p]));
-            lm.eliminate(kx);
+            graph.eliminate(kx);
             let o = prev.obs[p];
             let _ = if o[2].is_nan() {
                 graph.add(MonoReprojection::new(k_prev, kx, *k, [o[0], o[1]]), NoiseModel::Isotropic(1.0), Huber(2.0))
@@ -949,7 +951,7 @@ impl StereoVo {
                 }
             }
         }
-        if lm.solve(&graph, &mut values, None).is_ok() {
+        if self.optimizer.optimize(&graph, &mut values, &Options::with_max_iterations(20), None).is_ok() {
             if let Some(p) = values.pose(k_curr) {
                 curr_from_prev = p.inverse();
             }

@@ -9,7 +9,7 @@ use crate::{
     factors::{BalReprojection, Between},
     noise::NoiseModel,
     robust::{Huber, RobustKernel, L2},
-    solver::Graph,
+    graph::Graph,
     values::{BalCamera, Key, Values, Var},
 };
 

@@ -11,7 +11,7 @@ use slam_quadric::{
 
 use crate::{
     factors::{AxisDirection, AxisPrior, BoxFactor, CuboidBoxFactor, PosePrior, TexturePlane},
-    Graph, Huber, LevenbergMarquardt, LmParams, NoiseModel, Values, Var, L2,
+    Graph, Huber, NoiseModel, Optimizer, Options, Values, Var, L2,
 };
 
 /// Class prior of an object's semi-axes (own x = length, y = height, z = width) with standard deviations.
@@ -150,17 +150,26 @@ pub fn optimise_object(
     prior: &ObjectPrior,
     config: &RefineConfig,
     start: Ellipsoid,
+    optimizer: &dyn Optimizer,
 ) -> Option<(Ellipsoid, f64)> {
     let sigmas = vec![config.box_sigma_px; views.len()];
-    optimise_object_weighted(views, image, prior, config, start, Stage { sigmas: &sigmas, drift: None, planes: &[] })
+    optimise_object_weighted(
+        views,
+        image,
+        prior,
+        config,
+        start,
+        Stage { sigmas: &sigmas, drift: None, planes: &[], optimizer },
+    )
 }
 
 /// What one optimisation stage uses besides the views: one box σ per view (pixels), the pose drift
-/// (`None`: cameras fixed) and texture planes.
+/// (`None`: cameras fixed), texture planes and the optimiser.
 struct Stage<'a> {
     sigmas: &'a [f64],
     drift: Option<f64>,
     planes: &'a [Vector4<f64>],
+    optimizer: &'a dyn Optimizer,
 }
 
 /// [`optimise_object`] with one box σ per view (pixels); with `drift`, the cameras other than the
@@ -172,17 +181,13 @@ fn optimise_object_weighted(
     prior: &ObjectPrior,
     config: &RefineConfig,
     start: Ellipsoid,
-    Stage { sigmas, drift, planes }: Stage<'_>,
+    Stage { sigmas, drift, planes, optimizer }: Stage<'_>,
 ) -> Option<(Ellipsoid, f64)> {
     let mut values = Values::new();
     let mut graph = Graph::new();
     let ko = values.add(Var::Ellipsoid(start));
-    let mut lm = LevenbergMarquardt::new(LmParams {
-        function_tolerance: 1e-12,
-        parameter_tolerance: 1e-12,
-        max_iterations: 200,
-        ..LmParams::default()
-    });
+    let options =
+        Options { function_tolerance: 1e-12, parameter_tolerance: 1e-12, max_iterations: 200, ..Options::default() };
     let first = views.first()?.camera.world_from_camera;
     let rot_sigma = config.pose_rot_sigma_deg.to_radians();
     for (i, (v, &sigma)) in views.iter().zip(sigmas).enumerate() {
@@ -195,7 +200,7 @@ fn optimise_object_weighted(
                 graph.add(PosePrior::new(kp, pose), noise, L2).ok()?;
             }
             _ => {
-                lm.fix(kp);
+                graph.fix(kp);
             }
         }
         let (noise, huber) = (NoiseModel::Isotropic(sigma), Huber(config.huber_px / sigma));
@@ -223,7 +228,7 @@ fn optimise_object_weighted(
     // camera's y axis (gravity for a level camera), 0.5° σ.
     let up = first.rotation * Vector3::y();
     graph.add(AxisDirection::new(ko, 1, up)?, NoiseModel::Isotropic(0.5f64.to_radians()), L2).ok()?;
-    let summary = lm.solve(&graph, &mut values, None).ok()?;
+    let summary = optimizer.optimize(&graph, &mut values, &options, None).ok()?;
     let e = *values.ellipsoid(ko)?;
     let in_front = views.iter().all(|v| slam_quadric::classify(&e, &v.camera) == slam_quadric::Visibility::InFront);
     (e.is_valid() && in_front).then_some((e, summary.final_cost))
@@ -270,8 +275,9 @@ pub fn refine(
     image: &ImageSize,
     prior: &ObjectPrior,
     config: &RefineConfig,
+    optimizer: &dyn Optimizer,
 ) -> Result<Ellipsoid, InitError> {
-    refine_with_planes(views, image, prior, config, &[])
+    refine_with_planes(views, image, prior, config, &[], optimizer)
 }
 
 /// [`refine`] with the paper's texture-plane error: each plane `[n, d]` (`n` unit, pointing out of the
@@ -284,6 +290,7 @@ pub fn refine_with_planes(
     prior: &ObjectPrior,
     config: &RefineConfig,
     planes: &[Vector4<f64>],
+    optimizer: &dyn Optimizer,
 ) -> Result<Ellipsoid, InitError> {
     let mut starts = Vec::new();
     if let Ok(e) = Dqp::default().initialize(views) {
@@ -314,9 +321,14 @@ pub fn refine_with_planes(
     let mut best: Option<(Ellipsoid, f64)> = None;
     for s in starts {
         let sigmas = vec![config.box_sigma_px; views.len()];
-        if let Some((e, cost)) =
-            optimise_object_weighted(views, image, prior, config, s, Stage { sigmas: &sigmas, drift: None, planes })
-        {
+        if let Some((e, cost)) = optimise_object_weighted(
+            views,
+            image,
+            prior,
+            config,
+            s,
+            Stage { sigmas: &sigmas, drift: None, planes, optimizer },
+        ) {
             let in_front =
                 views.iter().all(|v| slam_quadric::classify(&e, &v.camera) == slam_quadric::Visibility::InFront);
             if in_front && best.as_ref().is_none_or(|b| cost < b.1) {
@@ -341,7 +353,7 @@ pub fn refine_with_planes(
                 prior,
                 config,
                 e,
-                Stage { sigmas: &sigmas, drift: None, planes },
+                Stage { sigmas: &sigmas, drift: None, planes, optimizer },
             ) {
                 Some((next, _))
                     if views
@@ -370,7 +382,7 @@ pub fn refine_with_planes(
                     prior,
                     config,
                     e,
-                    Stage { sigmas: &sigmas, drift: Some(drift), planes },
+                    Stage { sigmas: &sigmas, drift: Some(drift), planes, optimizer },
                 ) {
                     e = j.0;
                 }

@@ -67,7 +67,7 @@ impl Var {
     }
 
     /// Squared norm of the parameters (for the relative step-size test).
-    pub(crate) fn norm_squared(&self) -> f64 {
+    pub fn norm_squared(&self) -> f64 {
         match self {
             Var::Pose(p) => p.translation.vector.norm_squared() + p.rotation.scaled_axis().norm_squared(),
             Var::Point(p) => p.norm_squared(),

@@ -1,12 +1,10 @@
 //! Real BA and pose-graph problems (fixtures/optim): the anchors' initial costs and spot residuals are
-//! reproduced exactly, and the solver reaches the reference minima.
+//! reproduced exactly and malformed files are errors (the minima are in `slam_optim::conformance`, run by
+//! every backend crate).
 
 use std::path::PathBuf;
 
-use slam_optim::{
-    io::{read_bal, read_g2o},
-    LevenbergMarquardt, LmParams,
-};
+use slam_optim::io::{read_bal, read_g2o};
 
 fn fixture(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/optim").join(name)
@@ -33,52 +31,10 @@ fn bal_initial_costs_and_spot_residuals() {
 }
 
 #[test]
-fn dubrovnik_converges_to_zero() {
-    let mut p = read_bal(fixture("dubrovnik-3-7-pre.txt"), None).expect("reads");
-    let mut lm = LevenbergMarquardt::new(LmParams {
-        function_tolerance: 1e-14,
-        parameter_tolerance: 1e-14,
-        ..LmParams::default()
-    });
-    for &k in &p.points {
-        lm.eliminate(k);
-    }
-    let s = lm.solve(&p.graph, &mut p.values, None).expect("solves");
-    assert!(s.final_cost < 1e-6, "{s:?}");
-}
-
-#[test]
-fn problem_16_l2_reaches_the_minimum_in_ten_iterations() {
-    let mut p = read_bal(fixture("problem-16-22106-pre.txt"), None).expect("reads");
-    let mut lm = LevenbergMarquardt::default();
-    for &k in &p.points {
-        lm.eliminate(k);
-    }
-    let s = lm.solve(&p.graph, &mut p.values, None).expect("solves");
-    eprintln!("{s:?}");
-    assert!(rel(s.final_cost, 1.803390e+04) < 1e-3, "{s:?}");
-    assert!(s.iterations <= 10, "{s:?}");
-}
-
-#[test]
-fn pose_graph_initial_costs_and_minima() {
-    for (file, initial, minimum) in
-        [("sphere2500.g2o", 1.305658e+06, 6.757010e+02), ("parking-garage.g2o", 8.363602e+03, 6.341924e-01)]
-    {
-        let mut p = read_g2o(fixture(file)).expect("reads");
+fn pose_graph_initial_costs() {
+    for (file, initial) in [("sphere2500.g2o", 1.305658e+06), ("parking-garage.g2o", 8.363602e+03)] {
+        let p = read_g2o(fixture(file)).expect("reads");
         assert!(rel(p.graph.cost(&p.values).expect("cost"), initial) < 5e-7, "{file}");
-        let mut lm = LevenbergMarquardt::new(LmParams::pose_graph());
-        lm.fix(p.cameras[0]);
-        let s = lm.solve(&p.graph, &mut p.values, None).expect("solves");
-        eprintln!("{file}: {s:?}");
-        assert!(rel(s.final_cost, minimum) < 1e-3, "{file}: {s:?}");
-        assert!(s.iterations <= 8, "{file}: {s:?}");
-        // with the BA defaults (strong Marquardt damping) it still gets there, in more iterations
-        let mut q = read_g2o(fixture(file)).expect("reads");
-        let mut lm = LevenbergMarquardt::default();
-        lm.fix(q.cameras[0]);
-        let s = lm.solve(&q.graph, &mut q.values, None).expect("solves");
-        assert!(rel(s.final_cost, minimum) < 1e-3, "{file} defaults: {s:?}");
     }
 }
 

@@ -443,6 +443,41 @@ mod tests {
         std::fs::remove_dir_all(&dir).ok();
     }
 
+    /// A version-1 file, as builds before left-only observations wrote it (every observation has its
+    /// right column as a number), loads unchanged: same keyframes, points, objects and trajectory, and
+    /// saving it again writes the current version.
+    #[test]
+    fn loads_a_version_1_map() {
+        let dir = std::env::temp_dir().join(format!("map-v1-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("tmp dir");
+        let path = dir.join("v1.json");
+        let v1 = format!(
+            r#"{{"format": "{MAP_FORMAT}", "version": 1,
+  "keyframes": {{"0": {{"frame": 0, "pose": [0, 0, 0, 1, 0, 0, 0], "parent": null,
+                       "observations": [[7, [1.0, 2.0, 0.5]], [8, [10.0, 20.0, 4.25]]]}},
+                "1": {{"frame": 3, "pose": [0, 0, 0, 1, 0, 0, 1.5], "parent": 0, "observations": [[7, [3.0, 2.5, 2.0]]]}}}},
+  "points": {{"7": {{"position": [0.5, 0.1, 9.0], "observed_by": [0, 1]}},
+             "8": {{"position": [-1.0, 0.2, 12.0], "observed_by": [0]}}}},
+  "objects": [{{"id": 4, "class": 2, "center": [1, 0.8, 15], "semi_axes": [2.1, 0.8, 0.85],
+               "rotation": [1, 0, 0, 0, 1, 0, 0, 0, 1], "frames": [0, 3], "dynamic": false, "points": [8]}}],
+  "trajectory": [{{"frame": 0, "keyframe": 0, "relative": [0, 0, 0, 1, 0, 0, 0], "state": "initialised"}}]}}"#
+        );
+        std::fs::write(&path, v1).expect("write");
+        let m = Map::load(&path).expect("a version-1 map loads");
+        assert_eq!(m.version, 1);
+        assert_eq!(m.keyframes[&0].observations, vec![(7, [1.0, 2.0, 0.5]), (8, [10.0, 20.0, 4.25])]);
+        assert_eq!(m.keyframes[&1].parent, Some(0));
+        assert_eq!(m.points[&7].observed_by, vec![0, 1]);
+        assert_eq!((m.objects.len(), m.objects[0].class, m.objects[0].points.clone()), (1, 2, vec![8]));
+        let s = m.stats();
+        assert_eq!((s.keyframes, s.segments, s.points, s.observations, s.frames), (2, 1, 2, 3, 1));
+        let again = Map { version: MAP_VERSION, ..m.clone() };
+        again.save(&dir.join("v2.json")).expect("saves");
+        let back = Map::load(&dir.join("v2.json")).expect("loads");
+        assert_eq!((back.version, back.keyframes, back.points), (MAP_VERSION, m.keyframes, m.points));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
     #[test]
     fn load_rejects_other_files_with_their_path() {
         let dir = std::env::temp_dir().join(format!("map-bad-{}", std::process::id()));

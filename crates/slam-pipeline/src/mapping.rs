@@ -8,7 +8,7 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use slam_core::{geometry::Intrinsics, KeyframeCorrection, KeyframeData, KeyframeId, PointId};
 use slam_optim::{
     factors::{MonoReprojection, StereoReprojection},
-    Graph, Huber, LevenbergMarquardt, LmParams, NoiseModel, Values, Var,
+    Graph, Huber, NoiseModel, Options, SharedOptimizer, Values, Var,
 };
 
 use crate::map::{pose_to_array, Map, MapKeyframe, MapPoint};
@@ -64,12 +64,13 @@ pub struct LocalMapper {
     k: Intrinsics,
     baseline: f64,
     config: MappingConfig,
+    optimizer: SharedOptimizer,
 }
 
 impl LocalMapper {
-    /// A mapper for a rectified stereo rig.
-    pub fn new(k: Intrinsics, baseline: f64, config: MappingConfig) -> Self {
-        Self { map: Map::default(), k, baseline, config }
+    /// A mapper for a rectified stereo rig; local BA uses `optimizer`.
+    pub fn new(k: Intrinsics, baseline: f64, config: MappingConfig, optimizer: SharedOptimizer) -> Self {
+        Self { map: Map::default(), k, baseline, config, optimizer }
     }
 
     /// The map so far.
@@ -195,14 +196,12 @@ impl LocalMapper {
         }
         let mut values = Values::new();
         let mut graph = Graph::new();
-        let mut lm =
-            LevenbergMarquardt::new(LmParams { max_iterations: self.config.iterations, ..LmParams::default() });
         let mut pose_keys = BTreeMap::new();
         for id in window_set.union(&fixed) {
             let Some(pose) = self.map.keyframe_pose(*id) else { continue };
             let key = values.add(Var::Pose(pose));
             if fixed.contains(id) {
-                lm.fix(key);
+                graph.fix(key);
             }
             pose_keys.insert(*id, key);
         }
@@ -210,7 +209,7 @@ impl LocalMapper {
         for pid in &local_points {
             let Some(x) = self.map.point(*pid) else { continue };
             let key = values.add(Var::Point(x));
-            lm.eliminate(key);
+            graph.eliminate(key);
             point_keys.insert(*pid, key);
         }
         for (kid, &pk) in &pose_keys {
@@ -225,7 +224,8 @@ impl LocalMapper {
                 };
             }
         }
-        if let Err(e) = lm.solve(&graph, &mut values, None) {
+        let options = Options::with_max_iterations(self.config.iterations);
+        if let Err(e) = self.optimizer.optimize(&graph, &mut values, &options, None) {
             tracing::warn!(keyframe = newest, "local bundle adjustment failed: {e}");
             return ((0, fixed.len()), 0);
         }
@@ -301,7 +301,12 @@ mod tests {
             .collect();
         let truth: Vec<Isometry3<f64>> =
             (0..6).map(|i| Isometry3::translation(0.1 * i as f64, 0.0, 1.0 * i as f64)).collect();
-        let mut mapper = LocalMapper::new(k, b, MappingConfig::default());
+        let mut mapper = LocalMapper::new(
+            k,
+            b,
+            MappingConfig::default(),
+            std::sync::Arc::new(slam_lm::LevenbergMarquardt::default()),
+        );
         let mut err_before = 0.0;
         let mut last = None;
         for (i, t) in truth.iter().enumerate() {
@@ -356,7 +361,12 @@ mod tests {
     fn left_only_observations_of_triangulated_points() {
         let k = Intrinsics::new(700.0, 700.0, 600.0, 180.0);
         let b = 0.54;
-        let mut mapper = LocalMapper::new(k, b, MappingConfig::default());
+        let mut mapper = LocalMapper::new(
+            k,
+            b,
+            MappingConfig::default(),
+            std::sync::Arc::new(slam_lm::LevenbergMarquardt::default()),
+        );
         let poses = [Isometry3::identity(), Isometry3::translation(0.2, 0.0, 3.0)];
         let stereo: Vec<Vector3<f64>> = (0..40)
             .map(|i| Vector3::new(-6.0 + 0.3 * i as f64, -1.0 + 0.05 * i as f64, 10.0 + 0.5 * i as f64))

@@ -16,7 +16,10 @@ use nalgebra::{Vector3, Vector4};
 use serde::Serialize;
 use slam_assoc::{ObjectTracker, TrackerConfig, TrackerInput};
 use slam_core::{geometry::BBox, Associator, ClassId, Detection, KeyframeId, PointId, PointPair, TrackId};
-use slam_optim::object::{box_residual, refine_with_planes, BoxShape, ObjectPrior, RefineConfig};
+use slam_optim::{
+    object::{box_residual, refine_with_planes, BoxShape, ObjectPrior, RefineConfig},
+    SharedOptimizer,
+};
 use slam_quadric::{init::BoxView, project, Camera, Ellipsoid, ImageSize};
 
 /// How an object's ellipsoid is computed from its views.
@@ -192,6 +195,7 @@ pub struct FitJob {
     dynamic_rms_px: f64,
     dynamic_prior_sigmas: Option<f64>,
     max_depth_m: f64,
+    optimizer: SharedOptimizer,
 }
 
 /// Outcome of a [`FitJob`].
@@ -228,7 +232,7 @@ impl FitJob {
         let fitted = match self.method {
             FitMethod::Refine => {
                 let config = RefineConfig { box_shape: self.box_shape, ..RefineConfig::default() };
-                refine_with_planes(views, &self.image, &class_prior(self.class), &config, planes)
+                refine_with_planes(views, &self.image, &class_prior(self.class), &config, planes, &*self.optimizer)
             }
             FitMethod::QSlam => QSlamSvd.initialize(views),
             FitMethod::Conic => Conic::default().initialize(views),
@@ -281,17 +285,19 @@ pub struct ObjectMapper {
     /// Tracks found to duplicate another object; their detections are ignored.
     merged: BTreeMap<TrackId, TrackId>,
     fits: usize,
+    optimizer: SharedOptimizer,
 }
 
 impl ObjectMapper {
-    /// A mapper around an associator.
-    pub fn new(associator: Box<dyn Associator>, config: MapperConfig) -> Self {
+    /// A mapper around an associator; object fits use `optimizer`.
+    pub fn new(associator: Box<dyn Associator>, config: MapperConfig, optimizer: SharedOptimizer) -> Self {
         Self {
             tracker: ObjectTracker::new(associator, config.tracker),
             config,
             objects: BTreeMap::new(),
             merged: BTreeMap::new(),
             fits: 0,
+            optimizer,
         }
     }
 
@@ -500,6 +506,7 @@ impl ObjectMapper {
             dynamic_rms_px: cfg.dynamic_rms_px,
             dynamic_prior_sigmas: cfg.dynamic_prior_sigmas,
             max_depth_m: cfg.max_depth_m,
+            optimizer: self.optimizer.clone(),
         })
     }
 }

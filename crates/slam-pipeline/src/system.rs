@@ -31,6 +31,7 @@ use slam_core::{
     geometry::{BBox, Camera, Intrinsics},
     ClassId, Detection, DetectionSource, Image, KeyframeCorrection, KeyframeData, StereoTracker, TrackId, TrackState,
 };
+use slam_optim::SharedOptimizer;
 
 use crate::{
     map::{pose_to_array, FramePose, Map},
@@ -270,8 +271,8 @@ fn object_points(kf: &KeyframeData, b: &BBox, core: f64, class: ClassId, fy: f64
 
 /// Run the whole system over `frames`.
 ///
-/// `detector` is `None` for a run without objects. `on_frame` sees each frame's record as soon as it is
-/// tracked (progress output).
+/// `detector` is `None` for a run without objects. `optimizer` solves the local bundle adjustments and
+/// the object fits. `on_frame` sees each frame's record as soon as it is tracked (progress output).
 pub fn run(
     frames: Box<dyn Iterator<Item = FrameInput> + Send>,
     mut tracker: Box<dyn StereoTracker>,
@@ -279,6 +280,7 @@ pub fn run(
     intrinsics: Intrinsics,
     baseline: f64,
     config: &SystemConfig,
+    optimizer: SharedOptimizer,
     on_frame: &mut dyn FnMut(&FrameRecord),
 ) -> Result<RunOutput, SystemError> {
     let config = *config;
@@ -317,7 +319,7 @@ pub fn run(
         // local mapping
         let (req_tx, req_rx) = unbounded::<MapperRequest>();
         let (reply_tx, reply_rx) = unbounded::<MapperReply>();
-        let mapper = LocalMapper::new(intrinsics, baseline, config.mapping);
+        let mapper = LocalMapper::new(intrinsics, baseline, config.mapping, optimizer.clone());
         let texture = config.texture;
         let mapping = scope.spawn(move || mapping_thread(mapper, texture, req_rx, reply_tx));
 
@@ -326,7 +328,7 @@ pub fn run(
             min_projected_iou: config.projected_gate,
             ..slam_assoc::OdaConfig::default()
         });
-        let mut objects = ObjectMapper::new(Box::new(oda), config.objects);
+        let mut objects = ObjectMapper::new(Box::new(oda), config.objects, optimizer);
         let mut records: Vec<FrameRecord> = Vec::new();
         let mut trajectory: Vec<FramePose> = Vec::new();
         let mut counts = RunCounts::default();

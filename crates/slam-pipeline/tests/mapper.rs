@@ -23,7 +23,7 @@ fn car(x: f64, z: f64) -> Ellipsoid {
 #[test]
 fn parked_car_is_mapped_and_moving_car_is_not() {
     let parked = car(5.0, 30.0);
-    let mut mapper = ObjectMapper::new(Box::new(Oda::default()), MapperConfig::default());
+    let mut mapper = ObjectMapper::new(Box::new(Oda::default()), MapperConfig::default(), lm());
     for f in 0..22 {
         let z = f as f64; // 1 m per frame
         let cam = Camera::new(K, Isometry3::translation(0.0, 0.0, z));
@@ -55,7 +55,7 @@ fn parked_car_is_mapped_and_moving_car_is_not() {
 #[test]
 fn a_slower_car_ahead_is_flagged_by_its_size() {
     let fit = |config: MapperConfig| {
-        let mut mapper = ObjectMapper::new(Box::new(Oda::default()), config);
+        let mut mapper = ObjectMapper::new(Box::new(Oda::default()), config, lm());
         for f in 0..30 {
             let cam = Camera::new(K, Isometry3::translation(0.0, 0.0, f as f64));
             let ahead = car(-3.5, 25.0 + 0.5 * f as f64);
@@ -71,4 +71,9 @@ fn a_slower_car_ahead_is_flagged_by_its_size() {
     assert_eq!(without, vec![false], "fitted as a static car when only the box misfit is tested");
     let with = fit(MapperConfig::default());
     assert_eq!(with, vec![true], "flagged dynamic by its size");
+}
+
+/// The optimiser of these tests (the project's Levenberg–Marquardt).
+fn lm() -> slam_optim::SharedOptimizer {
+    std::sync::Arc::new(slam_lm::LevenbergMarquardt::default())
 }

@@ -190,9 +190,10 @@ fn config() -> SystemConfig {
 #[test]
 fn threads_correct_the_drift_and_map_the_parked_car() {
     let mut seen = Vec::new();
-    let out =
-        run(frames(), Box::new(Scripted::new()), Some(Box::new(Boxes)), K, B, &config(), &mut |r| seen.push(r.index))
-            .expect("runs");
+    let out = run(frames(), Box::new(Scripted::new()), Some(Box::new(Boxes)), K, B, &config(), lm(), &mut |r| {
+        seen.push(r.index)
+    })
+    .expect("runs");
     assert_eq!(seen, (0..FRAMES).collect::<Vec<_>>(), "every frame reported, in order");
     assert_eq!(out.poses.len(), FRAMES);
     assert_eq!(out.counts.unreadable, 1);
@@ -220,13 +221,18 @@ fn threads_correct_the_drift_and_map_the_parked_car() {
 
 #[test]
 fn two_runs_give_identical_output() {
-    let a =
-        run(frames(), Box::new(Scripted::new()), Some(Box::new(Boxes)), K, B, &config(), &mut |_| {}).expect("runs");
-    let b =
-        run(frames(), Box::new(Scripted::new()), Some(Box::new(Boxes)), K, B, &config(), &mut |_| {}).expect("runs");
+    let a = run(frames(), Box::new(Scripted::new()), Some(Box::new(Boxes)), K, B, &config(), lm(), &mut |_| {})
+        .expect("runs");
+    let b = run(frames(), Box::new(Scripted::new()), Some(Box::new(Boxes)), K, B, &config(), lm(), &mut |_| {})
+        .expect("runs");
     assert_eq!(a.map, b.map);
     let by_id = |o: &slam_pipeline::system::RunOutput| -> BTreeMap<u64, Option<Vector3<f64>>> {
         o.objects.iter().map(|x| (x.id.0, x.ellipsoid.map(|e| e.centre()))).collect()
     };
     assert_eq!(by_id(&a), by_id(&b));
+}
+
+/// The optimiser of these tests (the project's Levenberg–Marquardt).
+fn lm() -> slam_optim::SharedOptimizer {
+    std::sync::Arc::new(slam_lm::LevenbergMarquardt::default())
 }

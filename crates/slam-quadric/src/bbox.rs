@@ -147,7 +147,12 @@ impl BBox {
         self.xmin <= x && x <= self.xmax && self.ymin <= y && y <= self.ymax
     }
 
-    /// True when the boxes overlap or touch.
+    /// True when the boxes share at least one point: they overlap, touch, or one contains the other.
+    ///
+    /// This is set intersection (`self ∩ other ≠ ∅`), so `a.iou(b) > 0` implies `a.intersects(b)`, and
+    /// containment counts. gtsam-quadrics' `AlignedBox2::intersects` differs: it returns false when one
+    /// box contains the other (its "edges cross" test); we keep the set meaning, which is what gating
+    /// and overlap checks want (a small box inside a large one does overlap it).
     pub fn intersects(&self, other: &BBox) -> bool {
         self.xmin <= other.xmax && other.xmin <= self.xmax && self.ymin <= other.ymax && other.ymin <= self.ymax
     }

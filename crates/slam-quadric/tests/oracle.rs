@@ -230,6 +230,29 @@ fn iou_cases() {
     }
 }
 
+/// Containment, both ways, on the oracle's boxes. The oracle's 25 cases hold no containment; gtsam-quadrics'
+/// `intersects` would return false for these pairs (it excludes containment), ours returns true (set
+/// intersection: docs/quadric-maths.md, `BBox::intersects`). Each oracle box `a` with a box shrunk inside it and
+/// one grown around it.
+#[test]
+fn intersects_includes_containment_both_ways() {
+    let o = oracle();
+    for c in o["iou_cases"].as_array().expect("cases") {
+        let a = BBox::from_array(vecf(&c["a_xyxy"]).try_into().expect("4"));
+        let (w, h) = (a.xmax - a.xmin, a.ymax - a.ymin);
+        let inner = BBox::new(a.xmin + 0.25 * w, a.ymin + 0.25 * h, a.xmax - 0.25 * w, a.ymax - 0.25 * h);
+        let outer = BBox::new(a.xmin - 10.0, a.ymin - 10.0, a.xmax + 10.0, a.ymax + 10.0);
+        for (big, small) in [(a, inner), (outer, a)] {
+            assert!(big.contains(&small) && !small.contains(&big));
+            assert!(big.intersects(&small), "container intersects contained: {big:?} {small:?}");
+            assert!(small.intersects(&big), "contained intersects container: {small:?} {big:?}");
+            assert!((big.iou(&small) - small.area() / big.area()).abs() < 1e-12);
+        }
+        // a box contains and intersects itself
+        assert!(a.contains(&a) && a.intersects(&a));
+    }
+}
+
 struct MultiView {
     truth: Ellipsoid,
     truth_q: DMatrix<f64>,

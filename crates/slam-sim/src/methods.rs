@@ -48,7 +48,9 @@ impl Method {
             Method::Tri => Tri::default().initialize(views),
             Method::TriYaw => Dqp::default().initialize(views),
             Method::TriYawCc => Dqp::with_centre_correction().initialize(views),
-            Method::TriYawRefine => refine(views, image, prior, &RefineConfig::default()),
+            Method::TriYawRefine => {
+                refine(views, image, prior, &RefineConfig::default(), &slam_lm::LevenbergMarquardt::default())
+            }
         }
     }
 }

@@ -1,11 +1,10 @@
-//! A user-defined factor from outside the crate, and object optimisation with the paper's terms.
+//! A user-defined factor from outside the optimisation crates, and the object refinement of
+//! `slam_optim::object` driven by this backend.
 
 use nalgebra::{DMatrix, DVector, Isometry3, Translation3, UnitQuaternion, Vector3, Vector4};
-use slam_optim::{
-    factors::{AxisPrior, BoxFactor, TexturePlane},
-    Factor, FactorError, Graph, Huber, Key, LevenbergMarquardt, LmParams, NoiseModel, Values, Var,
-};
-use slam_quadric::{metrics, project, BoundsModel, Camera, Ellipsoid, ImageSize, Intrinsics};
+use slam_lm::LevenbergMarquardt;
+use slam_optim::{Factor, FactorError, Graph, Key, NoiseModel, Optimizer, Options, Values, Var};
+use slam_quadric::{metrics, project, Camera, Ellipsoid, ImageSize, Intrinsics};
 
 /// Range from a fixed beacon to a point: a factor written by a "user".
 struct Range {
@@ -49,7 +48,7 @@ fn custom_factor_trilateration() {
             .add(Range { keys: [k], beacon: b, range: (truth - b).norm() }, NoiseModel::Isotropic(0.1), slam_optim::L2)
             .expect("fits");
     }
-    let s = LevenbergMarquardt::default().solve(&graph, &mut values, None).expect("solves");
+    let s = LevenbergMarquardt::default().optimize(&graph, &mut values, &Options::default(), None).expect("solves");
     assert!((values.point(k).expect("point") - truth).norm() < 1e-6, "{s:?}");
     // a noise model that does not fit is refused
     assert!(graph
@@ -58,66 +57,6 @@ fn custom_factor_trilateration() {
 }
 
 const K: Intrinsics = Intrinsics { fx: 721.5377, fy: 721.5377, skew: 0.0, cx: 609.5593, cy: 172.854 };
-
-/// Object optimisation: box factors (Huber) from fixed keyframes, an axis prior and a texture plane
-/// recover a car from a poor start.
-#[test]
-fn object_optimisation_recovers_the_car() {
-    let image = ImageSize::new(1242.0, 375.0);
-    let truth = Ellipsoid::new(
-        Isometry3::from_parts(
-            Translation3::new(4.0, 0.9, 18.0),
-            UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.08),
-        ),
-        Vector3::new(2.1, 0.8, 0.85),
-    );
-    let mut values = Values::new();
-    let mut poses = Vec::new();
-    let mut boxes = Vec::new();
-    for i in 0..8 {
-        // driving forward 1 m per keyframe, drifting left
-        let pose = Isometry3::translation(-0.3 * i as f64, 0.0, 1.0 * i as f64);
-        let b = project(&truth, &Camera::new(K, pose)).and_then(|c| c.clipped_bounds(&image)).expect("visible");
-        if BoxFactor::usable(&b, &image, 2.0) {
-            poses.push(values.add(Var::Pose(pose)));
-            boxes.push(b);
-        }
-    }
-    assert!(poses.len() >= 6);
-    let start = Ellipsoid::new(
-        Isometry3::from_parts(Translation3::new(4.6, 0.6, 19.5), UnitQuaternion::identity()),
-        Vector3::new(1.8, 0.9, 1.1),
-    );
-    let ko = values.add(Var::Ellipsoid(start));
-    let mut graph = Graph::new();
-    for (&kp, b) in poses.iter().zip(&boxes) {
-        graph
-            .add(BoxFactor::new(kp, ko, K, *b, BoundsModel::Clipped(image)), NoiseModel::Isotropic(2.0), Huber(1.0))
-            .expect("fits");
-    }
-    graph
-        .add(AxisPrior::new(ko, Vector3::new(2.1, 0.8, 0.85)), NoiseModel::Isotropic(0.5), slam_optim::L2)
-        .expect("fits");
-    // the car's side facing the cameras as a texture plane nᵀx + d = 0, tangent to the true ellipsoid
-    let n = truth.rotation() * Vector3::new(0.0, 0.0, -1.0);
-    let d = -(n.dot(&truth.centre()) + truth.half_extent(&n));
-    graph
-        .add(
-            TexturePlane::new(ko, Vector4::new(n.x, n.y, n.z, d)).expect("plane"),
-            NoiseModel::Isotropic(0.2),
-            Huber(1.0),
-        )
-        .expect("fits");
-    let mut lm = LevenbergMarquardt::new(LmParams { function_tolerance: 1e-10, ..LmParams::default() });
-    for &kp in &poses {
-        lm.fix(kp);
-    }
-    let s = lm.solve(&graph, &mut values, None).expect("solves");
-    let est = values.ellipsoid(ko).expect("ellipsoid");
-    assert!(metrics::e_trans(est, &truth) < 0.05, "{s:?} {est:?}");
-    assert!(metrics::e_axe_ordered(est, &truth) < 0.05, "{s:?} {est:?}");
-    assert!(s.final_cost < 1e-3 * s.initial_cost);
-}
 
 /// `refine_with_planes`: with boxes from a straight drive-by that all sit too far right (a pose or
 /// detector bias the boxes cannot reveal), texture planes from the car's true surface pull the centre
@@ -157,8 +96,9 @@ fn texture_planes_correct_a_box_bias() {
         .collect();
     let config = RefineConfig { pose_drift: None, ..RefineConfig::default() };
     let prior = ObjectPrior::car();
-    let plain = refine(&views, &image, &prior, &config).expect("fits");
-    let with = refine_with_planes(&views, &image, &prior, &config, &planes).expect("fits");
+    let lm = LevenbergMarquardt::default();
+    let plain = refine(&views, &image, &prior, &config, &lm).expect("fits");
+    let with = refine_with_planes(&views, &image, &prior, &config, &planes, &lm).expect("fits");
     let (e0, e1) = (metrics::e_trans(&plain, &truth), metrics::e_trans(&with, &truth));
     assert!(e1 < 0.7 * e0, "planes should cut the centre error by 30 %: {e0:.3} m -> {e1:.3} m");
 }
@@ -190,7 +130,7 @@ fn the_cuboid_model_fits_boxes_of_a_box_shaped_car() {
     let prior = ObjectPrior::car();
     let fit = |shape| {
         let config = RefineConfig { box_shape: shape, pose_drift: None, ..RefineConfig::default() };
-        refine(&views, &image, &prior, &config).expect("fits")
+        refine(&views, &image, &prior, &config, &LevenbergMarquardt::default()).expect("fits")
     };
     let (ellipse, cuboid) = (fit(BoxShape::Ellipse), fit(BoxShape::Cuboid));
     let (e0, e1) = (metrics::e_trans(&ellipse, &truth), metrics::e_trans(&cuboid, &truth));

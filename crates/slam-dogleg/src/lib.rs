@@ -1,0 +1,248 @@
+//! Powell's dog-leg behind [`slam_optim::Optimizer`]: a second backend with a different step rule,
+//! sharing the Schur-complement linear algebra of [`slam_optim::linear`].
+//!
+//! Each iteration computes the Gauss–Newton step `δ_gn` from `(JᵀJ + μ D) δ = −g` (`g = Jᵀr`, `D` the
+//! clamped diagonal of `JᵀJ`, `μ` a small regularisation that grows ×10 whenever the factorisation
+//! fails, as in Ceres' dog-leg, so rank-deficient gauges stay solvable) and the Cauchy point
+//! `δ_sd = −(‖g‖² / ‖J g‖²) g`, then takes, with the trust-region radius `Δ`:
+//!
+//! * `δ_gn` if `‖δ_gn‖ ≤ Δ`;
+//! * `Δ · δ_sd / ‖δ_sd‖` if the Cauchy point is already outside (`‖δ_sd‖ ≥ Δ`);
+//! * otherwise the point of the segment `δ_sd → δ_gn` at distance `Δ`.
+//!
+//! The step is accepted when the gain ratio `ρ` (actual / model decrease) exceeds 1e-3. The radius
+//! follows the classical rule: `Δ ← max(Δ, 3‖δ‖)` when `ρ > 0.75`, `Δ ← ‖δ‖ / 4` when `ρ < 0.25`
+//! (and after a rejected step). A trial point where a factor cannot be evaluated is a rejected step.
+
+use std::time::{Duration, Instant};
+
+use slam_optim::{
+    linear::{LinearSystem, Linearization, Step},
+    Graph, IterationInfo, Observer, OptimError, Optimizer, Options, Summary, Termination, Values,
+};
+
+/// Settings particular to dog-leg (the common ones are [`Options`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DogLegParams {
+    /// Initial regularisation `μ` of the Gauss–Newton system, relative to its clamped diagonal.
+    pub min_mu: f64,
+    /// Largest regularisation before the step counts as failed.
+    pub max_mu: f64,
+    /// Clamp of the diagonal used for the regularisation, lower.
+    pub min_diagonal: f64,
+    /// Clamp of the diagonal, upper.
+    pub max_diagonal: f64,
+    /// Smallest trust-region radius before giving up.
+    pub min_radius: f64,
+    /// Largest trust-region radius.
+    pub max_radius: f64,
+    /// Smallest gain ratio of an accepted step.
+    pub min_relative_decrease: f64,
+}
+
+impl Default for DogLegParams {
+    /// Ceres' dog-leg defaults (μ from 1e-8 to 1, diagonal clamp [1e-6, 1e32]).
+    fn default() -> Self {
+        Self {
+            min_mu: 1e-8,
+            max_mu: 1.0,
+            min_diagonal: 1e-6,
+            max_diagonal: 1e32,
+            min_radius: 1e-32,
+            max_radius: 1e16,
+            min_relative_decrease: 1e-3,
+        }
+    }
+}
+
+/// The dog-leg backend (name `"dogleg"`).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct DogLeg {
+    /// Settings.
+    pub params: DogLegParams,
+}
+
+impl DogLeg {
+    /// A solver with the given settings.
+    pub fn new(params: DogLegParams) -> Self {
+        Self { params }
+    }
+
+    /// The Gauss–Newton step (regularised), raising `mu` until the factorisation succeeds.
+    fn gauss_newton(&self, sys: &LinearSystem, lin: &Linearization, mu: &mut f64) -> Option<Step> {
+        let p = &self.params;
+        while *mu <= p.max_mu {
+            let m = *mu;
+            if let Some(s) = sys.solve(lin, |x| x.clamp(p.min_diagonal, p.max_diagonal) * m) {
+                return Some(s);
+            }
+            *mu *= 10.0;
+        }
+        None
+    }
+}
+
+/// The dog-leg step for radius `radius` from the Gauss–Newton step (if any) and the Cauchy point.
+fn dogleg_step(gn: Option<&Step>, sd: &Step, radius: f64) -> Step {
+    if let Some(gn) = gn {
+        if gn.norm() <= radius {
+            return gn.clone();
+        }
+    }
+    let sd_norm = sd.norm();
+    let Some(gn) = gn.filter(|_| sd_norm < radius) else {
+        return sd.scaled(radius / sd_norm.max(f64::MIN_POSITIVE));
+    };
+    // ‖sd + β (gn − sd)‖ = radius, β ∈ [0, 1]
+    let d = gn.add_scaled(-1.0, sd);
+    let (a, b, c) = (d.norm_squared(), 2.0 * sd.dot(&d), sd.norm_squared() - radius * radius);
+    let disc = (b * b - 4.0 * a * c).max(0.0);
+    let beta = if a > 0.0 { ((-b + disc.sqrt()) / (2.0 * a)).clamp(0.0, 1.0) } else { 0.0 };
+    sd.add_scaled(beta, &d)
+}
+
+impl Optimizer for DogLeg {
+    fn name(&self) -> &str {
+        "dogleg"
+    }
+
+    fn optimize(
+        &self,
+        graph: &Graph,
+        values: &mut Values,
+        options: &Options,
+        mut observer: Option<&mut dyn Observer>,
+    ) -> Result<Summary, OptimError> {
+        let start = Instant::now();
+        let (p, o) = (self.params, options);
+        let sys = LinearSystem::new(graph, values, o.dense_limit)?;
+        let mut lin = sys
+            .linearize(graph, values)
+            .map_err(|(factor, source)| OptimError::InitialEvaluation { factor, source })?;
+        let mut cost = lin.cost;
+        if !cost.is_finite() {
+            return Err(OptimError::NonFiniteCost);
+        }
+        let mut summary = Summary {
+            initial_cost: cost,
+            final_cost: cost,
+            iterations: 0,
+            accepted: 0,
+            termination: Termination::MaxIterations,
+            elapsed: Duration::ZERO,
+            reduced_dim: sys.reduced_dim(),
+            sparse: sys.is_sparse(),
+        };
+        if !sys.has_free_variables() {
+            summary.termination = Termination::NoFreeVariables;
+            summary.elapsed = start.elapsed();
+            return Ok(summary);
+        }
+        let mut radius = o.initial_radius;
+        let mut mu = p.min_mu;
+        // steps at the current linearisation (recomputed after every accepted step)
+        let mut cached: Option<(Option<Step>, Step)> = None;
+        loop {
+            if summary.iterations >= o.max_iterations {
+                summary.termination = Termination::MaxIterations;
+                break;
+            }
+            if sys.gradient_max(&lin) <= o.gradient_tolerance {
+                summary.termination = Termination::GradientTolerance;
+                break;
+            }
+            summary.iterations += 1;
+            let (gn, sd) = match cached.take() {
+                Some(c) => c,
+                None => {
+                    let g = sys.gradient(&lin);
+                    let jg = sys.jacobian_norm_squared(graph, &lin, &g);
+                    let alpha = if jg > 0.0 { g.norm_squared() / jg } else { 0.0 };
+                    (self.gauss_newton(&sys, &lin, &mut mu), g.scaled(-alpha))
+                }
+            };
+            let step = dogleg_step(gn.as_ref(), &sd, radius);
+            let step_norm = step.norm();
+            let mut info = IterationInfo {
+                iteration: summary.iterations,
+                cost,
+                cost_change: f64::NAN,
+                radius,
+                step_norm,
+                accepted: false,
+            };
+            let x_norm = values.iter().map(|(_, v)| v.norm_squared()).sum::<f64>().sqrt();
+            if step_norm <= o.parameter_tolerance * (x_norm + o.parameter_tolerance) {
+                summary.termination = Termination::ParameterTolerance;
+                if let Some(obs) = observer.as_deref_mut() {
+                    obs.on_iteration(&info);
+                }
+                break;
+            }
+            let model = sys.model_decrease(graph, &lin, &step);
+            let trial = sys.retract(values, &step);
+            let mut accepted = false;
+            let mut rho = f64::NEG_INFINITY;
+            if let Ok(new_cost) = sys.cost(graph, &trial) {
+                let change = cost - new_cost;
+                info.cost_change = change;
+                rho = if model > 0.0 { change / model } else { f64::NEG_INFINITY };
+                if new_cost.is_finite() && rho > p.min_relative_decrease {
+                    accepted = true;
+                    *values = trial;
+                    let rel = change.abs() / cost.max(f64::MIN_POSITIVE);
+                    cost = new_cost;
+                    summary.accepted += 1;
+                    info.cost = cost;
+                    if rel < o.function_tolerance {
+                        summary.termination = Termination::FunctionTolerance;
+                        if let Some(obs) = observer.as_deref_mut() {
+                            obs.on_iteration(&IterationInfo { accepted: true, ..info });
+                        }
+                        break;
+                    }
+                    match sys.linearize(graph, values) {
+                        Ok(l) => {
+                            cost = l.cost;
+                            lin = l;
+                            mu = (mu / 10.0).max(p.min_mu);
+                        }
+                        Err(_) => {
+                            summary.termination = Termination::NoProgress;
+                            break;
+                        }
+                    }
+                }
+            }
+            if !accepted {
+                cached = Some((gn, sd));
+            }
+            radius = if rho > 0.75 {
+                radius.max(3.0 * step_norm).min(p.max_radius)
+            } else if rho < 0.25 {
+                0.25 * step_norm.min(radius)
+            } else {
+                radius
+            };
+            info.accepted = accepted;
+            tracing::trace!(iteration = info.iteration, cost = info.cost, radius, accepted, "dog-leg iteration");
+            if let Some(obs) = observer.as_deref_mut() {
+                obs.on_iteration(&info);
+            }
+            if radius < p.min_radius {
+                summary.termination = Termination::NoProgress;
+                break;
+            }
+        }
+        summary.final_cost = cost;
+        summary.elapsed = start.elapsed();
+        tracing::debug!(
+            initial = summary.initial_cost,
+            final_cost = summary.final_cost,
+            iterations = summary.iterations,
+            termination = ?summary.termination,
+            "dog-leg finished"
+        );
+        Ok(summary)
+    }
+}
