@@ -34,14 +34,19 @@ use crate::{
     texture::{texture_planes, TextureConfig},
 };
 
-/// Settings of the system.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Settings of the system (its own keys are the `[system]` table of `slam-app run --config`; the stages'
+/// settings are tables of their own there, `[mapping]`, `[objects]`, `[texture]`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, documented::DocumentedFieldsOpt)]
+#[serde(default, deny_unknown_fields)]
 pub struct SystemConfig {
     /// Local mapping.
+    #[serde(skip)]
     pub mapping: MappingConfig,
     /// Object mapping.
+    #[serde(skip)]
     pub objects: MapperConfig,
     /// Texture planes.
+    #[serde(skip)]
     pub texture: TextureConfig,
     /// Frames between a keyframe and the application of the mapper's reply to it. Default 2.
     pub correction_lag: usize,
@@ -53,7 +58,8 @@ pub struct SystemConfig {
     /// the object. Default 0.6.
     pub object_core: f64,
     /// ODA gate: a detection is never given to an object whose projected ellipsoid overlaps it by less
-    /// than this IoU. Default `Some(0.1)`; `None` is the paper's cost alone.
+    /// than this IoU. Default `Some(0.1)`; `None` (0 in a settings file) is the paper's cost alone.
+    #[serde(with = "crate::settings::zero_is_off")]
     pub projected_gate: Option<f64>,
 }
 
