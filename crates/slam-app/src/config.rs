@@ -11,7 +11,7 @@ use slam_frontend::VoConfig;
 use slam_pipeline::{mapping::MappingConfig, objects::MapperConfig, system::SystemConfig, texture::TextureConfig};
 
 /// All settings of a run.
-#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RunConfig {
     /// Visual odometry (slam-frontend `VoConfig`).
@@ -24,6 +24,37 @@ pub struct RunConfig {
     pub texture: TextureConfig,
     /// Threads and their hand-over (slam-pipeline `SystemConfig`).
     pub system: SystemConfig,
+}
+
+impl Default for RunConfig {
+    /// The running system's defaults, as the libraries define them.
+    fn default() -> Self {
+        let system = SystemConfig::default();
+        Self {
+            tracking: VoConfig::default(),
+            mapping: system.mapping,
+            objects: system.objects,
+            texture: system.texture,
+            system,
+        }
+    }
+}
+
+/// Put `over`'s keys onto `base`, table by table.
+fn overlay(base: &mut toml::Value, over: toml::Value) {
+    match (base, over) {
+        (toml::Value::Table(b), toml::Value::Table(o)) => {
+            for (k, v) in o {
+                match b.get_mut(&k) {
+                    Some(slot) => overlay(slot, v),
+                    None => {
+                        b.insert(k, v);
+                    }
+                }
+            }
+        }
+        (slot, v) => *slot = v,
+    }
 }
 
 /// One table of the settings file, each key preceded by its doc comment as `#` lines.
@@ -48,7 +79,17 @@ fn commented_table<T: Serialize + DocumentedFieldsOpt>(name: &str, what: &str, v
 impl RunConfig {
     pub fn read(path: &Path) -> anyhow::Result<Self> {
         let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-        toml::from_str(&text).with_context(|| format!("{}: invalid configuration", path.display()))
+        Self::parse(&text).with_context(|| format!("{}: invalid configuration", path.display()))
+    }
+
+    /// Settings from TOML text, overlaid key by key on the defaults (a table that sets one key keeps
+    /// the running system's defaults for the others).
+    pub fn parse(text: &str) -> anyhow::Result<Self> {
+        // parsed as written first: errors then name the line
+        toml::from_str::<RunConfig>(text)?;
+        let mut merged = toml::Value::try_from(RunConfig::default())?;
+        overlay(&mut merged, toml::from_str::<toml::Value>(text)?);
+        Ok(merged.try_into()?)
     }
 
     /// The settings as TOML, with every key's doc comment from the library that defines it.
@@ -87,19 +128,22 @@ mod tests {
         assert!(text.contains("[tracking]") && text.contains("keyframe_max_gap = 4") && text.contains("[mapping]"));
         // every key carries its library doc comment
         assert!(text.contains("# ORB features per image.\nfeatures = 2000"), "{text}");
-        assert!(text.contains("dynamic_rms_px = 12.0"), "the library's default: {text}");
-        let back: RunConfig = toml::from_str(&text).expect("parses");
+        assert!(text.contains("dynamic_rms_px = 25.0"), "the running system's default (library): {text}");
+        let back = RunConfig::parse(&text).expect("parses");
         assert_eq!(back.tracking, VoConfig::default());
-        assert_eq!(back.objects, MapperConfig::default());
-        assert_eq!(back.system, SystemConfig::default());
-        let partial: RunConfig = toml::from_str("[mapping]\nwindow = 9\n").expect("partial");
+        assert_eq!(back.objects, SystemConfig::default().objects);
+        assert_eq!(back.system(MapperConfig::default().image), SystemConfig::default());
+        // a table with one key keeps the running system's defaults for the others
+        let one = RunConfig::parse("[objects]\nmin_views = 4\n").expect("parses");
+        assert_eq!(one.objects.min_views, 4);
+        assert_eq!(one.objects.dynamic_rms_px, slam_pipeline::system::DETECTOR_DYNAMIC_RMS_PX);
+        let partial = RunConfig::parse("[mapping]\nwindow = 9\n").expect("partial");
         assert_eq!(partial.mapping.window, 9);
         assert_eq!(partial.tracking.features, 2000);
-        let e = toml::from_str::<RunConfig>("[tracking]\nfeatures_typo = 3\n").expect_err("unknown key");
+        let e = RunConfig::parse("[tracking]\nfeatures_typo = 3\n").expect_err("unknown key");
         assert!(e.to_string().contains("features_typo"), "{e}");
         // the box model and the disparity offset reach the stages they configure
-        let c: RunConfig =
-            toml::from_str("[objects]\nbox_shape = \"cuboid\"\n[tracking]\ndisparity_offset = 0.1\n").expect("parses");
+        let c = RunConfig::parse("[objects]\nbox_shape = \"cuboid\"\n[tracking]\ndisparity_offset = 0.1\n").expect("parses");
         let sys = c.system(slam_quadric::ImageSize::new(1242.0, 375.0));
         assert_eq!(sys.objects.box_shape, slam_optim::object::BoxShape::Cuboid);
         assert_eq!(c.tracking.disparity_offset, 0.1);

@@ -79,7 +79,9 @@ pub struct MapperConfig {
     pub refit_every: usize,
     /// Most views used in one fit (evenly spaced over the track). Default 20.
     pub max_views: usize,
-    /// RMS box misfit above which a fitted object is flagged dynamic, pixels. Default 12.
+    /// RMS box misfit above which a fitted object is flagged dynamic, pixels. Default 12, for
+    /// label-quality boxes (the image-free mode); the running system, fed by a detector, uses 25
+    /// (`system::DETECTOR_DYNAMIC_RMS_PX`, measured in docs/system.md).
     pub dynamic_rms_px: f64,
     /// A fitted object (DQP + optimisation) whose semi-axes lie farther than this from its class prior,
     /// in prior standard deviations (Mahalanobis), is flagged dynamic: fitted as static, a moving object

@@ -76,6 +76,7 @@ mod tests {
         assert!(serde_json::from_str::<MapperConfig>(r#"{"min_view": 3}"#).is_err(), "unknown keys are errors");
         let sys: SystemConfig = serde_json::from_str(r#"{"projected_gate": 0}"#).expect("parses");
         assert_eq!(sys.projected_gate, None);
-        assert_eq!(sys.objects, MapperConfig::default());
+        assert_eq!(sys.objects, SystemConfig::default().objects, "stage settings are not keys of [system]");
+        assert_eq!(sys.objects.dynamic_rms_px, crate::system::DETECTOR_DYNAMIC_RMS_PX);
     }
 }
