@@ -143,7 +143,8 @@ mod tests {
         let e = RunConfig::parse("[tracking]\nfeatures_typo = 3\n").expect_err("unknown key");
         assert!(e.to_string().contains("features_typo"), "{e}");
         // the box model and the disparity offset reach the stages they configure
-        let c = RunConfig::parse("[objects]\nbox_shape = \"cuboid\"\n[tracking]\ndisparity_offset = 0.1\n").expect("parses");
+        let c = RunConfig::parse("[objects]\nbox_shape = \"cuboid\"\n[tracking]\ndisparity_offset = 0.1\n")
+            .expect("parses");
         let sys = c.system(slam_quadric::ImageSize::new(1242.0, 375.0));
         assert_eq!(sys.objects.box_shape, slam_optim::object::BoxShape::Cuboid);
         assert_eq!(c.tracking.disparity_offset, 0.1);

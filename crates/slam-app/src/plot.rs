@@ -295,16 +295,17 @@ where
                 .windows(2)
                 .zip(e.iter().skip(1))
                 .map(|(w, &d)| {
-                    PathElement::new(vec![(w[0][0], w[0][1]), (w[1][0], w[1][1])], error_colour(d / max).stroke_width(3))
+                    PathElement::new(
+                        vec![(w[0][0], w[0][1]), (w[1][0], w[1][1])],
+                        error_colour(d / max).stroke_width(3),
+                    )
                 })
                 .collect();
             chart
                 .draw_series(segs)
                 .map_err(err)?
                 .label(format!("estimate, coloured by error: blue 0 m, yellow {:.2} m, red {max:.2} m", max / 2.0))
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 18, y)], error_colour(1.0).stroke_width(3))
-                });
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], error_colour(1.0).stroke_width(3)));
         }
         _ => {
             let c = RGBColor(31, 119, 180);
@@ -330,11 +331,11 @@ where
             .draw_series(of_state.iter().map(|o| Polygon::new(closed(o), colour.mix(0.35).filled())))
             .map_err(err)?;
         if !of_state.is_empty() {
-            series.label(state.meaning()).legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 18, y + 5)], colour.filled()));
+            series
+                .label(state.meaning())
+                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 18, y + 5)], colour.filled()));
         }
-        chart
-            .draw_series(of_state.iter().map(|o| PathElement::new(closed(o), colour.stroke_width(2))))
-            .map_err(err)?;
+        chart.draw_series(of_state.iter().map(|o| PathElement::new(closed(o), colour.stroke_width(2)))).map_err(err)?;
         for o in of_state {
             if let Some(&(x, z)) = closed(o).iter().max_by(|a, b| a.1.total_cmp(&b.1)) {
                 chart

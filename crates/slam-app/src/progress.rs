@@ -118,10 +118,7 @@ impl Progress {
                     let secs = start.elapsed().as_secs_f64();
                     let rate = *pos as f64 / secs.max(1e-9);
                     let sep = if message.is_empty() { "" } else { "; " };
-                    eprintln!(
-                        "{}: {pos}/{len} {unit} in {secs:.1} s ({rate:.1} {unit}/s){sep}{message}",
-                        self.label
-                    );
+                    eprintln!("{}: {pos}/{len} {unit} in {secs:.1} s ({rate:.1} {unit}/s){sep}{message}", self.label);
                 }
             }
             Mode::Hidden => {}

@@ -108,11 +108,9 @@ impl RunArgs {
             (None, Some((kind, _))) => Ok(kind),
             (Some(kind), None) => Ok(kind),
             (Some(kind), Some((wanted, _))) if kind == wanted => Ok(kind),
-            (Some(kind), Some((wanted, flag))) => bail!(
-                "{flag} is an option of --detector {}, but --detector {} was given",
-                wanted.name(),
-                kind.name()
-            ),
+            (Some(kind), Some((wanted, flag))) => {
+                bail!("{flag} is an option of --detector {}, but --detector {} was given", wanted.name(), kind.name())
+            }
         }
     }
 
@@ -541,24 +539,21 @@ fn frame_overlay(out: &RunOutput, i: usize, k: Intrinsics, image: ImageSize) -> 
         let seen_now = obj.observations.iter().any(|x| x.frame == rec.index);
         let state = ObjectState::of(obj.dynamic, obj.moving);
         let c = state.bgr();
-        match (&obj.ellipsoid, state) {
-            (Some(e), ObjectState::Static | ObjectState::Dynamic) => {
-                if let Some(ell) = project(e, &camera).ok().and_then(|conic| conic.ellipse()) {
-                    let outline = ellipse_outline(&ell, 64);
-                    let on_screen =
-                        outline.iter().any(|p| p[0] >= 0.0 && p[0] < image.width && p[1] >= 0.0 && p[1] < image.height);
-                    if on_screen && (seen_now || (from_world * Point3::from(e.centre())).z < 40.0) {
-                        o.lines.push((outline, true, c, 2));
-                        let tail = if state == ObjectState::Dynamic { " dynamic" } else { "" };
-                        o.labels.push((
-                            [ell.centre.x - 20.0, ell.centre.y + 5.0],
-                            c,
-                            format!("#{} {}{tail}", obj.id.0, obj.class.name()),
-                        ));
-                    }
+        if let (Some(e), ObjectState::Static | ObjectState::Dynamic) = (&obj.ellipsoid, state) {
+            if let Some(ell) = project(e, &camera).ok().and_then(|conic| conic.ellipse()) {
+                let outline = ellipse_outline(&ell, 64);
+                let on_screen =
+                    outline.iter().any(|p| p[0] >= 0.0 && p[0] < image.width && p[1] >= 0.0 && p[1] < image.height);
+                if on_screen && (seen_now || (from_world * Point3::from(e.centre())).z < 40.0) {
+                    o.lines.push((outline, true, c, 2));
+                    let tail = if state == ObjectState::Dynamic { " dynamic" } else { "" };
+                    o.labels.push((
+                        [ell.centre.x - 20.0, ell.centre.y + 5.0],
+                        c,
+                        format!("#{} {}{tail}", obj.id.0, obj.class.name()),
+                    ));
                 }
             }
-            _ => {}
         }
         // trail: the object's centroids (from map points) up to this frame, projected
         let trail: Vec<[f64; 2]> = obj

@@ -151,7 +151,11 @@ fn run_on_the_shipped_sequence() {
         assert!(!first[key].is_null(), "{key} missing: {first}");
     }
     // issue 18, points 5 and 8: class names beside ids, and the files say which frame they are in
-    assert!(objects["objects"].as_array().expect("objects").iter().all(|o| o["class"] != 2 || o["class_name"] == "car"));
+    assert!(objects["objects"]
+        .as_array()
+        .expect("objects")
+        .iter()
+        .all(|o| o["class"] != 2 || o["class_name"] == "car"));
     assert!(objects["frame"].as_str().is_some_and(|f| f.contains("left camera of the first frame")), "{objects}");
     let map_json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("map.json")).expect("map")).expect("json");
@@ -191,11 +195,9 @@ fn run_on_the_shipped_sequence() {
     let mt = String::from_utf8_lossy(&m.stdout);
     // issue 18, point 9: the scene export (in a folder it creates) holds ellipsoids, cameras and points
     let scene = std::fs::read_to_string(out.join("new/folder/scene.ply")).expect("scene");
-    let static_objects = objects["objects"].as_array().expect("objects").iter().filter(|o| o["moving"] == false).count();
-    assert!(
-        mt.contains(&format!("{static_objects} ellipsoids, {kf} camera frusta, 51 trajectory vertices")),
-        "{mt}"
-    );
+    let static_objects =
+        objects["objects"].as_array().expect("objects").iter().filter(|o| o["moving"] == false).count();
+    assert!(mt.contains(&format!("{static_objects} ellipsoids, {kf} camera frusta, 51 trajectory vertices")), "{mt}");
     assert!(scene.starts_with("ply\n") && scene.contains("element face ") && scene.contains("property uchar red"));
     assert!(mt.contains(" car "), "class names in the printed objects: {mt}");
     assert_eq!(number_after(&mt, "keyframes ") as usize, kf, "{mt}");
@@ -224,7 +226,11 @@ fn run_on_the_shipped_sequence() {
     assert!(toml_text.contains("effective settings") && toml_text.contains("keyframe_max_gap = 3"), "{toml_text}");
     assert!(toml_text.contains("# ORB features per image.\nfeatures = 2000"), "{toml_text}");
     let keys = toml_text.lines().filter(|l| l.contains(" = ")).count();
-    let documented = toml_text.lines().zip(toml_text.lines().skip(1)).filter(|(a, b)| a.starts_with('#') && b.contains(" = ")).count();
+    let documented = toml_text
+        .lines()
+        .zip(toml_text.lines().skip(1))
+        .filter(|(a, b)| a.starts_with('#') && b.contains(" = "))
+        .count();
     assert_eq!(keys, documented, "every key has a comment: {toml_text}");
     let help = app().args(["run", "--help"]).output().expect("runs");
     assert!(String::from_utf8_lossy(&help.stdout).contains("Print the effective settings"));

@@ -223,14 +223,7 @@ pub fn draw_overlay(image: &Image, overlay: &Overlay) -> Result<Image, FrontendE
         }
         for (k, (c, text)) in overlay.legend.iter().enumerate() {
             let y = 8 + line * k as i32;
-            imgproc::rectangle(
-                &mut m,
-                core::Rect::new(10, y + 3, 16, 10),
-                colour(*c),
-                -1,
-                imgproc::LINE_8,
-                0,
-            )?;
+            imgproc::rectangle(&mut m, core::Rect::new(10, y + 3, 16, 10), colour(*c), -1, imgproc::LINE_8, 0)?;
             imgproc::put_text(
                 &mut m,
                 text,

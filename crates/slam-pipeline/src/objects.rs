@@ -607,12 +607,8 @@ pub fn write_object_map_in(path: &Path, objects: &[&MappedObject], frame: &str) 
             moving: m.moving,
         })
         .collect();
-    let text = serde_json::to_string_pretty(&MapJson {
-        version: OBJECT_MAP_VERSION,
-        frame,
-        objects,
-    })
-    .map_err(std::io::Error::other)?;
+    let text = serde_json::to_string_pretty(&MapJson { version: OBJECT_MAP_VERSION, frame, objects })
+        .map_err(std::io::Error::other)?;
     let tmp = path.with_extension("json.tmp");
     std::fs::write(&tmp, text)?;
     std::fs::rename(&tmp, path)
