@@ -261,3 +261,34 @@ fn tag(m: &mut Mat, text: &str, org: core::Point, c: [u8; 3], scale: f64) -> Res
     imgproc::put_text(m, text, org, imgproc::FONT_HERSHEY_SIMPLEX, scale, fg, 1, imgproc::LINE_AA, false)?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn overlay_draws_a_legend_panel_and_labels_on_their_colour() {
+        let white = Image::new(320, 120, 1, vec![255; 320 * 120]).expect("image");
+        let bbox = slam_core::geometry::BBox::new(150.0, 60.0, 300.0, 110.0);
+        let overlay = Overlay {
+            boxes: vec![(bbox, [40, 170, 60], "#3 car 0.91".into())],
+            legend: vec![([40, 170, 60], "static object".into()), ([40, 30, 220], "moving object".into())],
+            ..Overlay::default()
+        };
+        let out = draw_overlay(&white, &overlay).expect("draws");
+        assert_eq!(out.channels, 3);
+        let px = |x: usize, y: usize| {
+            let k = 3 * (y * out.width as usize + x);
+            [out.data[k], out.data[k + 1], out.data[k + 2]]
+        };
+        // the panel darkens the image behind the legend; its first swatch has the first entry's colour
+        assert_eq!(px(100, 10), [89, 89, 89], "dark panel (0.35 × 255)");
+        assert_eq!(px(15, 14), [40, 170, 60]);
+        assert_eq!(px(15, 32), [40, 30, 220]);
+        // outside the panel and the box the image is untouched
+        assert_eq!(px(100, 100), [255, 255, 255]);
+        // the box label sits on a filled tag of the box's colour, just above the box
+        let tag = (150..230).filter(|&x| px(x, 50) == [40, 170, 60]).count();
+        assert!(tag > 20, "{tag} tag pixels");
+    }
+}
