@@ -33,46 +33,68 @@ pub struct ModelArgs {
     /// ONNX model instead of Darknet
     #[arg(long, conflicts_with_all = ["cfg", "weights"])]
     onnx: Option<PathBuf>,
-    /// Input mode
-    #[arg(long, value_enum, default_value_t = Mode::Tiles)]
-    mode: Mode,
-    /// Number of tiles across the width (tiles mode)
-    #[arg(long, default_value_t = 3)]
-    tiles: u32,
-    /// Network input size (multiple of 32)
-    #[arg(long, default_value_t = 320)]
-    input_size: i32,
-    /// Smallest score kept
-    #[arg(long, default_value_t = 0.2)]
-    score: f32,
+    /// Input mode (default: tiles)
+    #[arg(long, value_enum)]
+    mode: Option<Mode>,
+    /// Number of tiles across the width (selects --mode tiles; default 3)
+    #[arg(long)]
+    tiles: Option<u32>,
+    /// Network input size, a multiple of 32 (default 320)
+    #[arg(long)]
+    input_size: Option<i32>,
+    /// Smallest score kept (default 0.2)
+    #[arg(long)]
+    score: Option<f32>,
 }
 
 impl ModelArgs {
     /// Range checks of the model options (before any model is loaded).
     pub(crate) fn check(&self) -> anyhow::Result<()> {
         use crate::validate::{count, number, Range, MAX_INPUT_SIZE};
-        if self.input_size < 32 || self.input_size > MAX_INPUT_SIZE || self.input_size % 32 != 0 {
-            bail!(
-                "--input-size {}: must be a multiple of 32 in [32, {MAX_INPUT_SIZE}] (memory grows with its square)",
-                self.input_size
-            );
+        let input_size = self.input_size.unwrap_or(320);
+        if !(32..=MAX_INPUT_SIZE).contains(&input_size) || input_size % 32 != 0 {
+            bail!("--input-size {input_size}: must be a multiple of 32 in [32, {MAX_INPUT_SIZE}] (memory grows with its square)");
         }
         // more tiles than 16 across a KITTI frame would be narrower than the objects they should hold
-        count("--tiles", self.tiles as usize, 1, 16)?;
-        number("--score", self.score as f64, Range::closed(0.0, 1.0), "")?;
+        count("--tiles", self.tiles.unwrap_or(3) as usize, 1, 16)?;
+        number("--score", self.score.unwrap_or(0.2) as f64, Range::closed(0.0, 1.0), "")?;
         Ok(())
+    }
+
+    /// The shipped model in one input mode, every other setting at its default.
+    fn shipped(mode: Mode) -> Self {
+        Self { cfg: None, weights: None, onnx: None, mode: Some(mode), tiles: None, input_size: None, score: None }
+    }
+
+    /// The first of these options given on the command line (they only make sense with the network).
+    pub(crate) fn given(&self) -> Option<&'static str> {
+        [
+            (self.cfg.is_some(), "--cfg"),
+            (self.weights.is_some(), "--weights"),
+            (self.onnx.is_some(), "--onnx"),
+            (self.mode.is_some(), "--mode"),
+            (self.tiles.is_some(), "--tiles"),
+            (self.input_size.is_some(), "--input-size"),
+            (self.score.is_some(), "--score"),
+        ]
+        .into_iter()
+        .find_map(|(given, flag)| given.then_some(flag))
     }
 
     pub(crate) fn load(&self) -> anyhow::Result<DnnDetector> {
         self.check()?;
+        let mode = match (self.mode, self.tiles) {
+            (None | Some(Mode::Tiles), t) => InputMode::Tiles(t.unwrap_or(3)),
+            (Some(m), Some(_)) => {
+                bail!("--tiles is an option of --mode tiles, but --mode {} was given", format!("{m:?}").to_lowercase())
+            }
+            (Some(Mode::Squash), None) => InputMode::Squash,
+            (Some(Mode::Letterbox), None) => InputMode::Letterbox,
+        };
         let config = DetectorConfig {
-            input_size: self.input_size,
-            mode: match self.mode {
-                Mode::Squash => InputMode::Squash,
-                Mode::Letterbox => InputMode::Letterbox,
-                Mode::Tiles => InputMode::Tiles(self.tiles),
-            },
-            score_threshold: self.score,
+            input_size: self.input_size.unwrap_or(320),
+            mode,
+            score_threshold: self.score.unwrap_or(0.2),
             ..DetectorConfig::default()
         };
         Ok(match &self.onnx {
@@ -89,8 +111,8 @@ impl ModelArgs {
 
 #[derive(Args, Debug)]
 pub struct DetectArgs {
-    /// Folder of images (sorted by name), or a KITTI sequence/drive folder containing image_2,
-    /// image_02/data or image_0
+    /// A KITTI stereo sequence in any layout `run` accepts (its left images, numbered as `run` numbers
+    /// frames, so the file feeds `run --detections`), or a folder of images (sorted by name)
     input: PathBuf,
     /// Output detection JSON
     #[arg(long, default_value = "out/detections.json")]
@@ -103,7 +125,16 @@ pub struct DetectArgs {
 }
 
 fn list_images(input: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    let candidates = [input.to_path_buf(), input.join("image_2"), input.join("image_02/data"), input.join("image_0")];
+    if let Ok(seq) = slam_dataset::kitti::stereo::open_stereo(input) {
+        return Ok(seq.left);
+    }
+    let candidates = [
+        input.to_path_buf(),
+        input.join("image_2"),
+        input.join("image_02/data"),
+        input.join("image_0"),
+        input.join("image_00/data"),
+    ];
     for dir in candidates {
         let Ok(rd) = std::fs::read_dir(&dir) else { continue };
         let mut v: Vec<PathBuf> = rd
@@ -115,7 +146,11 @@ fn list_images(input: &Path) -> anyhow::Result<Vec<PathBuf>> {
             return Ok(v);
         }
     }
-    bail!("no PNG/JPG images in {} (nor in its image_2, image_02/data or image_0)", input.display())
+    bail!(
+        "{} is neither a KITTI stereo sequence (odometry, raw or tracking layout) nor a folder of PNG/JPG images \
+         (searched also its image_2, image_02/data, image_0, image_00/data)",
+        input.display()
+    )
 }
 
 /// The frame id of each image: the number in its file name (KITTI's `000042.png` is frame 42) when every
@@ -152,11 +187,7 @@ pub fn detect(a: &DetectArgs) -> anyhow::Result<()> {
         .map(|o| crate::output::OutputDir::create(o, "--overlays", "detect", overlay_name))
         .transpose()?;
     let mut det = a.model.load()?;
-    let bar = indicatif::ProgressBar::new(images.len() as u64);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames {per_sec} eta {eta}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
+    let mut bar = crate::progress::Progress::new("detect", images.len() as u64, "frames", false);
     let mut file = DetectionFile::default();
     let (mut skipped, mut total) = (0usize, 0usize);
     for (&i, path) in ids.iter().zip(&images) {
@@ -165,7 +196,7 @@ pub fn detect(a: &DetectArgs) -> anyhow::Result<()> {
             Err(e) => {
                 tracing::warn!("frame {i} skipped: {e}");
                 skipped += 1;
-                bar.inc(1);
+                bar.inc();
                 continue;
             }
         };
@@ -174,12 +205,12 @@ pub fn detect(a: &DetectArgs) -> anyhow::Result<()> {
         total += d.len();
         if let Some(o) = overlays.as_ref().map(|o| o.path()) {
             let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| format!("{i:06}"));
-            write_image(o.join(format!("{name}.png")), &draw_detections(&img, &d, |c| classes::name(c).to_string())?)?;
+            write_image(o.join(format!("{name}.png")), &draw_detections(&img, &d, |c| c.name().to_string())?)?;
         }
         file.frames.insert(i, d);
-        bar.inc(1);
+        bar.inc();
     }
-    bar.finish_and_clear();
+    bar.finish();
     json.write_with(|tmp| file.write(tmp).map_err(anyhow::Error::from))?;
     if let Some(o) = overlays {
         o.commit()?;
@@ -265,7 +296,7 @@ pub fn recall(a: &RecallArgs) -> anyhow::Result<()> {
         None => vec![Mode::Squash, Mode::Letterbox, Mode::Tiles],
     };
     for m in modes {
-        let args = ModelArgs { cfg: None, weights: None, onnx: None, mode: m, tiles: 3, input_size: 320, score: 0.2 };
+        let args = ModelArgs::shipped(m);
         let mut det = args.load()?;
         let mut found = 0;
         let start = Instant::now();

@@ -9,6 +9,7 @@ mod optim_cmd;
 mod optimizer_choice;
 mod output;
 mod plot;
+mod progress;
 mod run_cmd;
 mod sim_cmd;
 mod validate;
@@ -76,9 +77,13 @@ pub(crate) fn fixture(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures").join(rel)
 }
 
-/// The sequence folders (those holding `label_02.txt`) of an image-free KITTI tracking folder, sorted.
+/// The sequence folders (those holding `label_02.txt`) of an image-free KITTI tracking folder, sorted;
+/// a sequence folder itself is the one sequence.
 pub(crate) fn tracking_sequences(dir: &std::path::Path) -> anyhow::Result<Vec<PathBuf>> {
     use anyhow::Context;
+    if dir.join("label_02.txt").is_file() {
+        return Ok(vec![dir.to_path_buf()]);
+    }
     let mut seqs: Vec<PathBuf> = std::fs::read_dir(dir)
         .with_context(|| format!("cannot list sequences in {}", dir.display()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -86,7 +91,10 @@ pub(crate) fn tracking_sequences(dir: &std::path::Path) -> anyhow::Result<Vec<Pa
         .collect();
     seqs.sort();
     if seqs.is_empty() {
-        anyhow::bail!("no sequence folders with label_02.txt in {}", dir.display());
+        anyhow::bail!(
+            "{} is neither a sequence folder (label_02.txt, poses_orbslam3.txt, calib.txt) nor a folder of them",
+            dir.display()
+        );
     }
     Ok(seqs)
 }
@@ -135,7 +143,7 @@ fn run() -> anyhow::Result<()> {
                 .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
         )
         .with_ansi(std::io::stderr().is_terminal())
-        .with_writer(std::io::stderr)
+        .with_writer(progress::log_writer)
         .init();
     let cli = Cli::parse();
     match cli.command {

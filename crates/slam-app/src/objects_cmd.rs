@@ -220,7 +220,8 @@ pub fn objects(a: &ObjectsArgs) -> anyhow::Result<()> {
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
-    /// Folder of sequence folders (default: the shipped fixtures/kitti_tracking)
+    /// One sequence folder (label_02.txt, poses_orbslam3.txt, calib.txt) or a folder of them (default:
+    /// the shipped fixtures/kitti_tracking)
     dir: Option<PathBuf>,
     /// Fewest labelled frames of a ground-truth vehicle
     #[arg(long, default_value_t = 10)]
@@ -398,8 +399,10 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     // moving vehicles: (count, mapped as a static ellipsoid, flagged dynamic only)
     let mut moving = (0usize, 0usize, 0usize);
     let image = ImageSize::new(1242.0, 375.0);
+    let mut bar = crate::progress::Progress::new("eval", seqs.len() as u64, "sequences", false);
     for sdir in &seqs {
         let name = sdir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        bar.set_message(format!("sequence {name}"));
         let seq = load(sdir.join("label_02.txt"), sdir.join("poses_orbslam3.txt"), sdir.join("calib.txt"))?;
         let gts = gt_vehicles(&seq, a.min_frames, a.static_m);
         let movers: BTreeSet<i64> =
@@ -502,7 +505,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         let f = row.found.max(1) as f64;
         let success = if row.vehicles > 0 { row.found as f64 / row.vehicles as f64 } else { f64::NAN };
         let e_ray = if row.rays > 0 { row.e_ray / row.rays as f64 } else { f64::NAN };
-        println!(
+        bar.println(&format!(
             "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3}",
             name,
             row.vehicles,
@@ -512,7 +515,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             row.e_trans / f,
             row.e_axe / f,
             e_ray
-        );
+        ));
         let _ = writeln!(
             csv,
             "{name},{},{},{success},{},{},{},{e_ray}",
@@ -544,7 +547,9 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         tot.e_ray += row.e_ray;
         tot.iou_truth += row.iou_truth;
         tot.rays += row.rays;
+        bar.inc();
     }
+    bar.finish();
     let f = tot.found.max(1) as f64;
     let m = n_found_seq.max(1) as f64;
     println!(

@@ -131,13 +131,86 @@ pub fn simulation_figure(
 /// Most map points drawn on the top-down map.
 const MAX_POINTS: usize = 5000;
 
+/// What an object is, for pictures: one colour and one legend entry per state (add a state here and
+/// every picture shows it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ObjectState {
+    /// A mapped, static object.
+    Static,
+    /// Mapped but flagged dynamic (box misfit or a size unlike its class).
+    Dynamic,
+    /// Its map points moved: not mapped.
+    Moving,
+}
+
+impl ObjectState {
+    /// All states, in legend order.
+    pub const ALL: [ObjectState; 3] = [ObjectState::Static, ObjectState::Dynamic, ObjectState::Moving];
+
+    /// The state of a stored object.
+    pub fn of(dynamic: bool, moving: bool) -> Self {
+        match (dynamic, moving) {
+            (_, true) => ObjectState::Moving,
+            (true, false) => ObjectState::Dynamic,
+            (false, false) => ObjectState::Static,
+        }
+    }
+
+    /// Colour, RGB.
+    pub fn rgb(self) -> [u8; 3] {
+        match self {
+            ObjectState::Static => [40, 170, 60],
+            ObjectState::Dynamic => [240, 140, 20],
+            ObjectState::Moving => [220, 30, 40],
+        }
+    }
+
+    /// Colour, BGR (OpenCV overlays).
+    pub fn bgr(self) -> [u8; 3] {
+        let [r, g, b] = self.rgb();
+        [b, g, r]
+    }
+
+    /// Legend text.
+    pub fn meaning(self) -> &'static str {
+        match self {
+            ObjectState::Static => "static object (mapped)",
+            ObjectState::Dynamic => "dynamic object (flagged)",
+            ObjectState::Moving => "moving object (not mapped)",
+        }
+    }
+}
+
+/// An object on the top-down map.
+pub struct MapShape {
+    /// Ellipse outline (x, z).
+    pub outline: Vec<[f64; 2]>,
+    /// "#id class".
+    pub label: String,
+    /// Its state (moving objects are not drawn).
+    pub state: ObjectState,
+}
+
 /// What the top-down map shows (x right, z forward of the first camera; metres).
 pub struct TopDown<'a> {
     pub estimate: &'a [[f64; 2]],
+    /// Ground truth, one position per estimated pose (the first ones when shorter).
     pub truth: Option<&'a [[f64; 2]]>,
     pub points: &'a [[f64; 2]],
-    /// Ellipse outline (x, z) of each object, its id and whether it is dynamic.
-    pub objects: &'a [(Vec<[f64; 2]>, u64, bool)],
+    pub objects: &'a [MapShape],
+}
+
+/// Blue (0) → yellow (0.5) → red (1).
+fn error_colour(f: f64) -> RGBColor {
+    let f = f.clamp(0.0, 1.0);
+    let lerp = |a: f64, b: f64, t: f64| (a + (b - a) * t).round() as u8;
+    if f < 0.5 {
+        let t = f / 0.5;
+        RGBColor(lerp(40.0, 240.0, t), lerp(90.0, 200.0, t), lerp(220.0, 30.0, t))
+    } else {
+        let t = (f - 0.5) / 0.5;
+        RGBColor(lerp(240.0, 210.0, t), lerp(200.0, 20.0, t), lerp(30.0, 30.0, t))
+    }
 }
 
 fn draw_topdown<DB: DrawingBackend>(
@@ -149,6 +222,15 @@ where
 {
     let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow::anyhow!("{e:?}");
     root.fill(&WHITE).map_err(err)?;
+    // with ground truth, a column on the right holds the error over distance
+    let (root, side) = if m.truth.is_some() {
+        let (l, r) = root.split_horizontally(root.dim_in_pixel().1);
+        (l, Some(r))
+    } else {
+        (root, None)
+    };
+    let shown: Vec<&MapShape> = m.objects.iter().filter(|o| o.state != ObjectState::Moving).collect();
+    let moving = m.objects.len() - shown.len();
     // frame: the trajectories and objects, plus a margin; points only inside it
     let mut lo = [f64::INFINITY; 2];
     let mut hi = [f64::NEG_INFINITY; 2];
@@ -160,7 +242,7 @@ where
     };
     m.estimate.iter().for_each(&mut grow);
     m.truth.unwrap_or(&[]).iter().for_each(&mut grow);
-    m.objects.iter().flat_map(|o| o.0.iter()).for_each(&mut grow);
+    shown.iter().flat_map(|o| o.outline.iter()).for_each(&mut grow);
     if !lo[0].is_finite() {
         lo = [-10.0, -10.0];
         hi = [10.0, 10.0];
@@ -177,7 +259,7 @@ where
         (z0, z1) = (c - 0.5 * w, c + 0.5 * w);
     }
     let mut chart = ChartBuilder::on(&root)
-        .caption("Top-down map (x right, z forward; metres)", ("sans-serif", 20))
+        .caption("Top-down map: x right, z forward of the first camera (metres)", ("sans-serif", 20))
         .margin(10)
         .x_label_area_size(30)
         .y_label_area_size(40)
@@ -193,36 +275,86 @@ where
         .map_err(err)?
         .label("map points")
         .legend(move |(x, y)| Circle::new((x + 8, y), 2, grey.filled()));
+    // the estimate, each step coloured by its position error when there is ground truth
+    let errors: Option<Vec<f64>> = m.truth.map(|t| {
+        m.estimate.iter().zip(t).map(|(e, g)| ((e[0] - g[0]).powi(2) + (e[1] - g[1]).powi(2)).sqrt()).collect()
+    });
     if let Some(t) = m.truth {
-        let c = RGBColor(44, 160, 44);
+        let c = BLACK;
         chart
-            .draw_series(LineSeries::new(t.iter().map(|p| (p[0], p[1])), c.stroke_width(2)))
+            .draw_series(DashedLineSeries::new(t.iter().map(|p| (p[0], p[1])), 6, 4, c.stroke_width(2)))
             .map_err(err)?
-            .label("ground truth")
+            .label("ground truth (dashed)")
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
     }
-    let c = RGBColor(31, 119, 180);
-    chart
-        .draw_series(LineSeries::new(m.estimate.iter().map(|p| (p[0], p[1])), c.stroke_width(2)))
-        .map_err(err)?
-        .label("estimate")
-        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
-    for (outline, id, dynamic) in m.objects {
-        let colour = if *dynamic { RGBColor(214, 39, 40) } else { RGBColor(255, 127, 14) };
-        let mut pts: Vec<(f64, f64)> = outline.iter().map(|p| (p[0], p[1])).collect();
-        if let Some(&f) = pts.first() {
-            pts.push(f);
-        }
-        chart.draw_series(std::iter::once(PathElement::new(pts.clone(), colour.stroke_width(2)))).map_err(err)?;
-        if let Some(&(x, z)) = pts.iter().max_by(|a, b| a.1.total_cmp(&b.1)) {
+    match &errors {
+        Some(e) if !e.is_empty() => {
+            let max = e.iter().cloned().fold(0.0, f64::max).max(1e-3);
+            let segs: Vec<PathElement<(f64, f64)>> = m
+                .estimate
+                .windows(2)
+                .zip(e.iter().skip(1))
+                .map(|(w, &d)| {
+                    PathElement::new(
+                        vec![(w[0][0], w[0][1]), (w[1][0], w[1][1])],
+                        error_colour(d / max).stroke_width(3),
+                    )
+                })
+                .collect();
             chart
-                .draw_series(std::iter::once(Text::new(
-                    format!("{id}"),
-                    (x, z + 1.0),
-                    ("sans-serif", 14).into_font().color(&colour),
-                )))
-                .map_err(err)?;
+                .draw_series(segs)
+                .map_err(err)?
+                .label(format!("estimate, coloured by error: blue 0 m, yellow {:.2} m, red {max:.2} m", max / 2.0))
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], error_colour(1.0).stroke_width(3)));
         }
+        _ => {
+            let c = RGBColor(31, 119, 180);
+            chart
+                .draw_series(LineSeries::new(m.estimate.iter().map(|p| (p[0], p[1])), c.stroke_width(2)))
+                .map_err(err)?
+                .label("estimate")
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
+        }
+    }
+    for state in [ObjectState::Static, ObjectState::Dynamic] {
+        let [r, g, b] = state.rgb();
+        let colour = RGBColor(r, g, b);
+        let of_state: Vec<&&MapShape> = shown.iter().filter(|o| o.state == state).collect();
+        let closed = |o: &MapShape| -> Vec<(f64, f64)> {
+            let mut pts: Vec<(f64, f64)> = o.outline.iter().map(|p| (p[0], p[1])).collect();
+            if let Some(&f) = pts.first() {
+                pts.push(f);
+            }
+            pts
+        };
+        let series = chart
+            .draw_series(of_state.iter().map(|o| Polygon::new(closed(o), colour.mix(0.35).filled())))
+            .map_err(err)?;
+        if !of_state.is_empty() {
+            series
+                .label(state.meaning())
+                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 18, y + 5)], colour.filled()));
+        }
+        chart.draw_series(of_state.iter().map(|o| PathElement::new(closed(o), colour.stroke_width(2)))).map_err(err)?;
+        for o in of_state {
+            if let Some(&(x, z)) = closed(o).iter().max_by(|a, b| a.1.total_cmp(&b.1)) {
+                chart
+                    .draw_series(std::iter::once(Text::new(
+                        o.label.clone(),
+                        (x, z + 1.0),
+                        ("sans-serif", 13).into_font().color(&colour),
+                    )))
+                    .map_err(err)?;
+            }
+        }
+    }
+    if moving > 0 {
+        let c = RGBColor(220, 30, 40);
+        chart
+            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
+            .map_err(err)?
+            .label(format!("{moving} moving object(s): not mapped, not drawn"))
+            .legend(move |(x, y)| Cross::new((x + 9, y), 5, c.stroke_width(2)));
     }
     chart
         .configure_series_labels()
@@ -231,6 +363,38 @@ where
         .position(SeriesLabelPosition::UpperLeft)
         .draw()
         .map_err(err)?;
+    // inset: position error over the distance travelled (ground truth)
+    if let (Some(e), Some(t), Some(side)) = (&errors, m.truth, side) {
+        if e.len() >= 2 {
+            let mut dist = vec![0.0];
+            for w in t.windows(2) {
+                let last = dist.last().copied().unwrap_or(0.0);
+                dist.push(last + ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt());
+            }
+            let (pw, ph) = side.dim_in_pixel();
+            let inset = side.shrink((0, ph / 8), (pw, ph / 2));
+            let dmax = dist.last().copied().unwrap_or(1.0).max(1e-3);
+            let emax = e.iter().cloned().fold(0.0, f64::max).max(1e-3) * 1.1;
+            let mut c = ChartBuilder::on(&inset)
+                .caption("estimate: position error over distance", ("sans-serif", 16))
+                .margin(12)
+                .x_label_area_size(32)
+                .y_label_area_size(44)
+                .build_cartesian_2d(0f64..dmax, 0f64..emax)
+                .map_err(err)?;
+            c.configure_mesh()
+                .light_line_style(WHITE)
+                .x_desc("distance (m)")
+                .y_desc("error (m)")
+                .label_style(("sans-serif", 13))
+                .draw()
+                .map_err(err)?;
+            c.draw_series(dist.windows(2).zip(e.windows(2)).map(|(d, v)| {
+                PathElement::new(vec![(d[0], v[0]), (d[1], v[1])], error_colour(v[1] / (emax / 1.1)).stroke_width(3))
+            }))
+            .map_err(err)?;
+        }
+    }
     root.present().map_err(err)?;
     Ok(())
 }
@@ -238,7 +402,7 @@ where
 /// Write the top-down map as `<stem>.svg` and `<stem>.png`.
 pub fn topdown_figure(m: &TopDown<'_>, out: &Path, stem: &str) -> anyhow::Result<Vec<PathBuf>> {
     register_font();
-    let size = (900, 900);
+    let size = if m.truth.is_some() { (1400, 900) } else { (900, 900) };
     let svg = out.join(format!("{stem}.svg"));
     let png = out.join(format!("{stem}.png"));
     draw_topdown(SVGBackend::new(&svg, size).into_drawing_area(), m)

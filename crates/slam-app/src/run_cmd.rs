@@ -51,7 +51,8 @@ pub struct RunArgs {
     /// Settings file (TOML; see --print-config for every key and its default)
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Print the default settings as TOML and exit
+    /// Print the effective settings (library defaults, overlaid by --config and the options) as commented
+    /// TOML and exit
     #[arg(long)]
     print_config: bool,
     /// Take a new keyframe after at most this many frames (overrides tracking.keyframe_max_gap)
@@ -60,15 +61,15 @@ pub struct RunArgs {
     /// Turn local bundle adjustment off (overrides mapping.bundle_adjustment)
     #[arg(long)]
     no_ba: bool,
-    /// Detection source
-    #[arg(long, value_enum, default_value_t = DetectorKind::Dnn)]
-    detector: DetectorKind,
-    /// Detection JSON for --detector file
+    /// Detection source (default: dnn; `file` when --detections is given, `labels` when --label-noise is)
+    #[arg(long, value_enum)]
+    detector: Option<DetectorKind>,
+    /// Detection JSON (selects --detector file)
     #[arg(long)]
     detections: Option<PathBuf>,
-    /// Box noise (fraction of box size) for --detector labels
-    #[arg(long, default_value_t = 0.0)]
-    label_noise: f64,
+    /// Box noise, fraction of box size (selects --detector labels; default 0)
+    #[arg(long)]
+    label_noise: Option<f64>,
     /// Ellipsoid method of the objects (baselines for comparison)
     #[arg(long, value_enum, default_value_t = crate::objects_cmd::Method::Refine)]
     method: crate::objects_cmd::Method,
@@ -88,12 +89,12 @@ pub struct RunArgs {
     /// Write overlay images (detections, projected ellipsoids with ids, trails) into <out>/overlays
     #[arg(long)]
     overlays: bool,
-    /// With --overlays: every n-th frame
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
-    overlay_every: u64,
-    /// With --overlays: image format (png, or jpg for files about ten times smaller)
-    #[arg(long, default_value = "png", value_parser = ["png", "jpg"])]
-    overlay_format: String,
+    /// Overlay every n-th frame (implies --overlays; default 1)
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    overlay_every: Option<u64>,
+    /// Overlay image format: png (default), or jpg for files about ten times smaller (implies --overlays)
+    #[arg(long, value_parser = ["png", "jpg"])]
+    overlay_format: Option<String>,
     #[command(flatten)]
     model: ModelArgs,
 }
@@ -145,6 +146,44 @@ fn played_ids(seq: &StereoSequence, sel: &FrameSelection) -> String {
 /// COCO classes mapped as objects: person, bicycle, car, motorcycle, bus, truck.
 const OBJECT_CLASSES: [u16; 6] = [0, 1, 2, 3, 5, 7];
 
+impl RunArgs {
+    /// The detection source: `--detector` when given, else the one the mode-specific options select
+    /// (`--detections`: file, `--label-noise`: labels), else the shipped network. An option of another
+    /// mode than the one chosen is an error that names both.
+    pub(crate) fn detector_kind(&self) -> anyhow::Result<DetectorKind> {
+        let implied = match (&self.detections, self.label_noise) {
+            (Some(_), Some(_)) => bail!("--detections (detector file) and --label-noise (detector labels) conflict"),
+            (Some(_), None) => Some((DetectorKind::File, "--detections")),
+            (None, Some(_)) => Some((DetectorKind::Labels, "--label-noise")),
+            (None, None) => self.model.given().map(|flag| (DetectorKind::Dnn, flag)),
+        };
+        match (self.detector, implied) {
+            (None, None) => Ok(DetectorKind::Dnn),
+            (None, Some((kind, _))) => Ok(kind),
+            (Some(kind), None) => Ok(kind),
+            (Some(kind), Some((wanted, _))) if kind == wanted => Ok(kind),
+            (Some(kind), Some((wanted, flag))) => {
+                bail!("{flag} is an option of --detector {}, but --detector {} was given", wanted.name(), kind.name())
+            }
+        }
+    }
+
+    fn overlays_on(&self) -> bool {
+        self.overlays || self.overlay_every.is_some() || self.overlay_format.is_some()
+    }
+}
+
+impl DetectorKind {
+    fn name(self) -> &'static str {
+        match self {
+            DetectorKind::Dnn => "dnn",
+            DetectorKind::File => "file",
+            DetectorKind::Labels => "labels",
+            DetectorKind::None => "none",
+        }
+    }
+}
+
 /// The detection source of a run; `notes` collects reports of detections no frame of the run uses.
 fn detector(
     a: &RunArgs,
@@ -152,7 +191,7 @@ fn detector(
     image: ImageSize,
     notes: &mut Vec<String>,
 ) -> anyhow::Result<Option<Box<dyn DetectionSource>>> {
-    Ok(match a.detector {
+    Ok(match a.detector_kind()? {
         DetectorKind::None => None,
         // the mapped classes are kept by `ClassFilter`, for every source alike
         DetectorKind::Dnn => Some(Box::new(a.model.load().context("loading the detector")?)),
@@ -186,7 +225,7 @@ fn detector(
             }
             let per_frame = truth.iter().map(|(&f, d)| (f, d.len()));
             notes.extend(crate::guard::unused_frames("labels", per_frame, &seq.ids));
-            let noise = GroundTruthNoise { box_sigma: a.label_noise, ..GroundTruthNoise::default() };
+            let noise = GroundTruthNoise { box_sigma: a.label_noise.unwrap_or(0.0), ..GroundTruthNoise::default() };
             Some(Box::new(GroundTruthDetections::new(truth, noise, [image.width, image.height])))
         }
     })
@@ -273,7 +312,9 @@ impl DetectionSource for ClassFilter {
 
 fn settings(a: &RunArgs) -> anyhow::Result<RunConfig> {
     use crate::validate::{count, number, Range};
-    number("--label-noise", a.label_noise, Range::closed(0.0, 1.0), "(σ as a share of the box size)")?;
+    if let Some(noise) = a.label_noise {
+        number("--label-noise", noise, Range::closed(0.0, 1.0), "(σ as a share of the box size)")?;
+    }
     if let Some(n) = a.max_frames {
         count("--max-frames", n, 1, usize::MAX)?;
     }
@@ -307,14 +348,20 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     let [fx, fy, cx, cy] = seq.intrinsics;
     let k = Intrinsics::new(fx, fy, cx, cy);
     let rig = StereoRig { k, baseline: seq.baseline };
+    let kind = a.detector_kind()?;
     if !quiet {
+        let source = match (kind, &a.detections) {
+            (DetectorKind::File, Some(f)) => format!("detections from {}", f.display()),
+            (DetectorKind::Labels, _) => format!("label boxes, noise {}", a.label_noise.unwrap_or(0.0)),
+            (DetectorKind::Dnn, _) => "the network (dnn)".to_string(),
+            (k, _) => k.name().to_string(),
+        };
         println!(
-            "quadric SLAM on {} ({:?} layout, {n} frames: {}, fx {fx:.1}, baseline {:.4} m, detector {:?})",
+            "quadric SLAM on {} ({:?} layout, {n} frames: {}, fx {fx:.1} px, baseline {:.4} m, detector: {source})",
             seq.dir.display(),
             seq.layout,
             played_ids(&seq, &sel),
             seq.baseline,
-            a.detector
         );
         if !(seq.gaps.is_empty() && seq.one_camera.is_empty()) {
             println!(
@@ -379,22 +426,19 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
             });
         FrameInput { index: i, images }
     }));
-    let bar = if quiet { indicatif::ProgressBar::hidden() } else { indicatif::ProgressBar::new(n as u64) };
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames {per_sec} eta {eta} {msg}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
+    let mut bar = crate::progress::Progress::new("run", n as u64, "frames", quiet);
     let start = std::time::Instant::now();
+    let (mut keyframes, mut lost) = (0usize, 0usize);
     let mut on_frame = |r: &system::FrameRecord| {
-        if r.keyframe {
-            bar.set_message(format!("kf at {}", r.index));
-        }
-        bar.inc(1);
+        keyframes += usize::from(r.keyframe);
+        lost += usize::from(r.state == Some(slam_core::TrackState::Lost));
+        bar.set_message(format!("{keyframes} keyframes, {lost} frames lost"));
+        bar.inc();
     };
     let mut sys = cfg.system(image);
     sys.objects.method = a.method.fit();
     let out = system::run(frames, tracker, det, k, seq.baseline, &sys, optimizer, &mut on_frame)?;
-    bar.finish_and_clear();
+    bar.finish();
     Ok(Outcome { out, seq, elapsed: start.elapsed().as_secs_f64(), k, image, colour, detections: counts, notes })
 }
 
@@ -428,9 +472,10 @@ fn run_output_name(name: &str) -> bool {
 pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     let cfg = settings(a)?;
     if a.print_config {
-        print!("{}", cfg.to_toml());
+        print!("{}", cfg.to_commented_toml());
         return Ok(());
     }
+    a.detector_kind()?;
     // the output folder is written beside the old one and swapped in at the end; checked writable now
     crate::output::catch_interrupt();
     let dir = crate::output::OutputDir::create(&a.out, "--out", "run", run_output_name)?;
@@ -453,7 +498,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     write_tum(w.join("trajectory.tum.txt"), &seq.times, &out.poses)?;
     out.map.save(&w.join("map.json"))?;
     let objects: Vec<&MappedObject> = out.objects.iter().collect();
-    slam_pipeline::objects::write_object_map(&w.join("objects.json"), &objects)
+    slam_pipeline::objects::write_object_map_in(&w.join("objects.json"), &objects, slam_pipeline::map::MAP_WORLD)
         .with_context(|| format!("writing {}", a.out.join("objects.json").display()))?;
     let c = out.counts;
     println!(
@@ -600,8 +645,15 @@ fn map_picture(
     let estimate: Vec<[f64; 2]> = poses.iter().map(xz).collect();
     let truth: Option<Vec<[f64; 2]>> = truth.map(|g| g.iter().take(poses.len()).map(xz).collect());
     let points: Vec<[f64; 2]> = map.points.values().map(|p| [p.position[0], p.position[2]]).collect();
-    let objects: Vec<(Vec<[f64; 2]>, u64, bool)> =
-        map.objects.iter().map(|o| (footprint(o), o.id, o.dynamic)).collect();
+    let objects: Vec<crate::plot::MapShape> = map
+        .objects
+        .iter()
+        .map(|o| crate::plot::MapShape {
+            outline: footprint(o),
+            label: format!("#{} {}", o.id, slam_core::ClassId(o.class).name()),
+            state: crate::plot::ObjectState::of(o.dynamic, o.moving),
+        })
+        .collect();
     crate::plot::topdown_figure(
         &crate::plot::TopDown { estimate: &estimate, truth: truth.as_deref(), points: &points, objects: &objects },
         dir,
@@ -620,14 +672,14 @@ fn pictures(
 ) -> anyhow::Result<String> {
     map_picture(&out.map, &out.poses, seq.truth_from_first().as_deref(), out_dir)?;
     let mut written = "map.svg, map.png".to_string();
-    if !a.overlays {
+    if !a.overlays_on() {
         return Ok(written);
     }
     let dir = out_dir.join("overlays");
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let mut count = 0;
     for (i, rec) in out.frames.iter().enumerate() {
-        if i as u64 % a.overlay_every != 0 || rec.state.is_none() {
+        if i as u64 % a.overlay_every.unwrap_or(1) != 0 || rec.state.is_none() {
             continue;
         }
         // records are in input order: entry i of the played sequence is frame id rec.index
@@ -639,50 +691,59 @@ fn pictures(
             }
         };
         let overlay = frame_overlay(out, i, k, image);
-        write_image(dir.join(format!("{:06}.{}", rec.index, a.overlay_format)), &draw_overlay(&img, &overlay)?)?;
+        let format = a.overlay_format.as_deref().unwrap_or("png");
+        write_image(dir.join(format!("{:06}.{format}", rec.index)), &draw_overlay(&img, &overlay)?)?;
         count += 1;
     }
     written.push_str(&format!(", {count} overlays in overlays/"));
     Ok(written)
 }
 
-/// The overlay of frame `i`: detections (thin, coloured by object), projected ellipsoids with ids (dynamic
-/// objects red), and each object's past centroids as a trail.
+/// The overlay of frame `i`: each detection box with its object's id, class and score, coloured by the
+/// object's state (grey: no object); each mapped object's projected ellipsoid with `#id class`; moving
+/// objects (not mapped) get no ellipsoid; each object's past map-point centroids as a trail; a legend.
 fn frame_overlay(out: &RunOutput, i: usize, k: Intrinsics, image: ImageSize) -> Overlay {
+    use crate::plot::ObjectState;
     let rec = &out.frames[i];
     let camera = Camera::new(k, out.poses[i]);
-    let colour_of = |id: u64| -> [u8; 3] {
-        let h = id.wrapping_mul(2654435761) % 360;
-        let (r, g, b) = match h / 60 {
-            0 => (255, (h % 60 * 4) as u8, 0),
-            1 => (255 - (h % 60 * 4) as u8, 255, 0),
-            2 => (0, 255, (h % 60 * 4) as u8),
-            3 => (0, 255 - (h % 60 * 4) as u8, 255),
-            4 => ((h % 60 * 4) as u8, 0, 255),
-            _ => (255, 0, 255 - (h % 60 * 4) as u8),
-        };
-        [b, g, r]
-    };
-    let red = [40, 40, 230];
+    let grey = [170, 170, 170];
+    let state_of: BTreeMap<u64, ObjectState> =
+        out.objects.iter().map(|o| (o.id.0, ObjectState::of(o.dynamic, o.moving))).collect();
     let mut o = Overlay::default();
     for (d, t) in rec.detections.iter().zip(&rec.tracks) {
-        let c = t.map(|id| colour_of(id.0)).unwrap_or([200, 200, 200]);
-        o.boxes.push((d.bbox, c, String::new()));
+        let (c, label) = match t {
+            Some(id) => {
+                let st = state_of.get(&id.0).copied().unwrap_or(ObjectState::Static);
+                let c = if out.objects.iter().any(|x| x.id == *id && (x.ellipsoid.is_some() || x.moving)) {
+                    st.bgr()
+                } else {
+                    grey
+                };
+                let tail = if st == ObjectState::Moving { " moving" } else { "" };
+                (c, format!("#{} {} {:.2}{tail}", id.0, d.class.name(), d.score))
+            }
+            None => (grey, format!("{} {:.2}", d.class.name(), d.score)),
+        };
+        o.boxes.push((d.bbox, c, label));
     }
     let from_world = camera.world_from_camera.inverse();
     for obj in &out.objects {
         let seen_now = obj.observations.iter().any(|x| x.frame == rec.index);
-        let c = if obj.dynamic { red } else { colour_of(obj.id.0) };
-        if let Some(e) = &obj.ellipsoid {
-            if let Ok(conic) = project(e, &camera) {
-                if let Some(ell) = conic.ellipse() {
-                    let outline = ellipse_outline(&ell, 64);
-                    let on_screen =
-                        outline.iter().any(|p| p[0] >= 0.0 && p[0] < image.width && p[1] >= 0.0 && p[1] < image.height);
-                    if on_screen && (seen_now || (from_world * Point3::from(e.centre())).z < 40.0) {
-                        o.lines.push((outline, true, c, 2));
-                        o.labels.push(([ell.centre.x - 8.0, ell.centre.y + 5.0], c, format!("{}", obj.id.0)));
-                    }
+        let state = ObjectState::of(obj.dynamic, obj.moving);
+        let c = state.bgr();
+        if let (Some(e), ObjectState::Static | ObjectState::Dynamic) = (&obj.ellipsoid, state) {
+            if let Some(ell) = project(e, &camera).ok().and_then(|conic| conic.ellipse()) {
+                let outline = ellipse_outline(&ell, 64);
+                let on_screen =
+                    outline.iter().any(|p| p[0] >= 0.0 && p[0] < image.width && p[1] >= 0.0 && p[1] < image.height);
+                if on_screen && (seen_now || (from_world * Point3::from(e.centre())).z < 40.0) {
+                    o.lines.push((outline, true, c, 2));
+                    let tail = if state == ObjectState::Dynamic { " dynamic" } else { "" };
+                    o.labels.push((
+                        [ell.centre.x - 20.0, ell.centre.y + 5.0],
+                        c,
+                        format!("#{} {}{tail}", obj.id.0, obj.class.name()),
+                    ));
                 }
             }
         }
@@ -706,6 +767,9 @@ fn frame_overlay(out: &RunOutput, i: usize, k: Intrinsics, image: ImageSize) -> 
             }
         }
     }
+    o.legend = ObjectState::ALL.iter().map(|s| (s.bgr(), s.meaning().to_string())).collect();
+    o.legend.push((grey, "detection without a fitted object".into()));
+    o.legend.push(([255, 255, 255], "ellipse: projected ellipsoid; dots: its past centroids".into()));
     o
 }
 
@@ -716,6 +780,10 @@ pub struct MapArgs {
     /// Export the map points as a PLY point cloud
     #[arg(long)]
     ply: Option<PathBuf>,
+    /// Export the 3-D scene as a PLY mesh (MeshLab, Blender, CloudCompare): ellipsoids coloured by state,
+    /// keyframe camera frusta, the trajectory as a tube-free polyline of edges, and the map points
+    #[arg(long)]
+    scene: Option<PathBuf>,
     /// Export the per-frame trajectory (KITTI format)
     #[arg(long)]
     trajectory: Option<PathBuf>,
@@ -742,9 +810,10 @@ pub fn map(a: &MapArgs) -> anyhow::Result<()> {
     );
     for o in &map.objects {
         println!(
-            "object {:>3} class {:>2} centre [{:7.2} {:6.2} {:7.2}] semi-axes [{:.2} {:.2} {:.2}] frames {:>3}{}",
+            "object {:>3} class {:>2} {:<10} centre [{:7.2} {:6.2} {:7.2}] m, semi-axes [{:.2} {:.2} {:.2}] m, frames {:>3}{}",
             o.id,
             o.class,
+            slam_core::ClassId(o.class).name(),
             o.center[0],
             o.center[1],
             o.center[2],
@@ -752,15 +821,42 @@ pub fn map(a: &MapArgs) -> anyhow::Result<()> {
             o.semi_axes[1],
             o.semi_axes[2],
             o.frames.len(),
-            if o.dynamic { " dynamic" } else { "" }
+            match crate::plot::ObjectState::of(o.dynamic, o.moving) {
+                crate::plot::ObjectState::Static => "",
+                crate::plot::ObjectState::Dynamic => " dynamic",
+                crate::plot::ObjectState::Moving => " moving (not mapped)",
+            }
         );
     }
+    let parent_of = |p: &std::path::Path| -> anyhow::Result<()> {
+        if let Some(d) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(d).with_context(|| format!("cannot create {}", d.display()))?;
+        }
+        Ok(())
+    };
     if let Some(p) = &a.ply {
+        parent_of(p)?;
         map.export_ply(p)?;
         println!("wrote {}", p.display());
     }
+    if let Some(p) = &a.scene {
+        parent_of(p)?;
+        let s = map.export_scene_ply(p)?;
+        println!(
+            "wrote {}: {} ellipsoids, {} camera frusta, {} trajectory vertices, {} points ({} vertices, {} faces, {} edges)",
+            p.display(),
+            s.ellipsoids,
+            s.cameras,
+            s.trajectory,
+            s.points,
+            s.vertices,
+            s.faces,
+            s.edges
+        );
+    }
     let poses: Vec<nalgebra::Isometry3<f64>> = map.frame_poses().into_iter().flatten().collect();
     if let Some(p) = &a.trajectory {
+        parent_of(p)?;
         if poses.len() != map.trajectory.len() {
             bail!("{}: {} frames refer to missing keyframes", a.map.display(), map.trajectory.len() - poses.len());
         }
@@ -794,11 +890,13 @@ mod tests {
         let f = footprint(&MapObject {
             id: 1,
             class: 2,
+            class_name: "car".into(),
             center: [e.centre().x, e.centre().y, e.centre().z],
             semi_axes: [e.semi_axes.x, e.semi_axes.y, e.semi_axes.z],
             rotation: std::array::from_fn(|k| r[(k / 3, k % 3)]),
             frames: vec![0],
             dynamic: false,
+            moving: false,
             points: Vec::new(),
         });
         // turned 90° about y: the length (2 m) now runs along z, the width (1 m) along x
@@ -810,44 +908,109 @@ mod tests {
 
 #[derive(Args, Debug)]
 pub struct TrajEvalArgs {
-    /// Estimated poses: KITTI (12 numbers per line) or TUM (time tx ty tz qx qy qz qw), camera to world
+    /// Estimated poses, camera to world: KITTI (12 numbers per line, 3×4 row-major) or TUM
+    /// (`time tx ty tz qx qy qz qw`)
     estimate: PathBuf,
-    /// Ground-truth poses in the same format rules (frames matched by line; TUM by order)
+    /// Ground-truth poses, same formats. Two TUM files are matched by timestamp (nearest within
+    /// --max-diff, as evo does); otherwise pose i of one file is pose i of the other
     ground_truth: PathBuf,
+    /// Largest time difference of a TUM match, seconds
+    #[arg(long, default_value_t = 0.01)]
+    max_diff: f64,
 }
 
-fn read_poses(path: &std::path::Path) -> anyhow::Result<Vec<nalgebra::Isometry3<f64>>> {
+/// A pose file: KITTI poses, or TUM times and poses.
+enum PoseFile {
+    Kitti(Vec<nalgebra::Isometry3<f64>>),
+    Tum(Vec<f64>, Vec<nalgebra::Isometry3<f64>>),
+}
+
+impl PoseFile {
+    fn poses(&self) -> &[nalgebra::Isometry3<f64>] {
+        match self {
+            PoseFile::Kitti(p) | PoseFile::Tum(_, p) => p,
+        }
+    }
+}
+
+fn read_poses(path: &std::path::Path) -> anyhow::Result<PoseFile> {
     let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     let fields =
         text.lines().find(|l| !l.trim().is_empty() && !l.starts_with('#')).map_or(0, |l| l.split_whitespace().count());
     Ok(match fields {
-        12 => slam_dataset::kitti::poses::parse_kitti_poses(path, &text)?,
-        8 => slam_dataset::trajectory::parse_tum(path, &text)?.1,
+        12 => PoseFile::Kitti(slam_dataset::kitti::poses::parse_kitti_poses(path, &text)?),
+        8 => {
+            let (t, p) = slam_dataset::trajectory::parse_tum(path, &text)?;
+            PoseFile::Tum(t, p)
+        }
         n => bail!("{}: lines of {n} numbers: expected 12 (KITTI) or 8 (TUM)", path.display()),
     })
+}
+
+/// Pairs `(estimate index, ground-truth index)`: each estimated time to the nearest ground-truth time
+/// within `max_diff` seconds (ground truth sorted by time first; each ground-truth pose used once, by the
+/// estimate nearest to it).
+fn match_by_time(est: &[f64], gt: &[f64], max_diff: f64) -> Vec<(usize, usize)> {
+    let mut order: Vec<usize> = (0..gt.len()).collect();
+    order.sort_by(|&a, &b| gt[a].total_cmp(&gt[b]));
+    let mut best: BTreeMap<usize, (f64, usize)> = BTreeMap::new();
+    for (i, &t) in est.iter().enumerate() {
+        let k = order.partition_point(|&j| gt[j] < t);
+        let near = [k.checked_sub(1), Some(k)]
+            .into_iter()
+            .flatten()
+            .filter_map(|k| order.get(k).copied())
+            .min_by(|&a, &b| (gt[a] - t).abs().total_cmp(&(gt[b] - t).abs()));
+        if let Some(j) = near {
+            let d = (gt[j] - t).abs();
+            if d <= max_diff && best.get(&j).is_none_or(|b| d < b.0) {
+                best.insert(j, (d, i));
+            }
+        }
+    }
+    let mut pairs: Vec<(usize, usize)> = best.into_iter().map(|(j, (_, i))| (i, j)).collect();
+    pairs.sort();
+    pairs
 }
 
 /// `slam-app trajectory-eval`: ATE, drift and RPE of any trajectory file against ground truth.
 pub fn trajectory_eval(a: &TrajEvalArgs) -> anyhow::Result<()> {
     let est = read_poses(&a.estimate)?;
     let gt = read_poses(&a.ground_truth)?;
-    if est.len() != gt.len() {
-        tracing::warn!(
-            "{} poses against {} ground-truth poses: the first {} compared",
-            est.len(),
-            gt.len(),
-            est.len().min(gt.len())
-        );
-    }
-    // both start at the identity, as KITTI's and our files do
-    let rebase = |v: &[nalgebra::Isometry3<f64>]| -> Vec<nalgebra::Isometry3<f64>> {
-        let first = v.first().copied().unwrap_or_else(nalgebra::Isometry3::identity).inverse();
-        v.iter().map(|p| first * p).collect()
+    let (pairs, how) = match (&est, &gt) {
+        (PoseFile::Tum(te, _), PoseFile::Tum(tg, _)) => {
+            (match_by_time(te, tg, a.max_diff), format!("by timestamp (nearest within {} s)", a.max_diff))
+        }
+        _ => {
+            let n = est.poses().len().min(gt.poses().len());
+            let why = if matches!((&est, &gt), (PoseFile::Kitti(_), PoseFile::Kitti(_))) {
+                "by line (KITTI files have no times)"
+            } else {
+                "by line (one file is KITTI, which has no times)"
+            };
+            ((0..n).map(|i| (i, i)).collect(), why.to_string())
+        }
     };
-    let e = trajectory_errors(&rebase(&est), &rebase(&gt), &[10.0, 20.0, 40.0, 100.0, 200.0, 400.0, 800.0])
-        .context("fewer than two poses")?;
+    println!(
+        "matched {} of {} estimated poses to the {} ground-truth poses {how}",
+        pairs.len(),
+        est.poses().len(),
+        gt.poses().len()
+    );
+    // both start at the identity at the first matched pair, as KITTI's and our files do
+    let pick = |v: &[nalgebra::Isometry3<f64>], first: bool| -> Vec<nalgebra::Isometry3<f64>> {
+        let k = |&(i, j): &(usize, usize)| if first { i } else { j };
+        let origin = pairs.first().map(|p| v[k(p)]).unwrap_or_else(nalgebra::Isometry3::identity).inverse();
+        pairs.iter().map(|p| origin * v[k(p)]).collect()
+    };
+    let e = trajectory_errors(
+        &pick(est.poses(), true),
+        &pick(gt.poses(), false),
+        &[10.0, 20.0, 40.0, 100.0, 200.0, 400.0, 800.0],
+    )
+    .with_context(|| format!("fewer than two matched poses ({} matched)", pairs.len()))?;
     println!("| metric | value |\n|---|---:|");
-    println!("| frames | {} |\n| path (ground truth) | {:.1} m |", e.frames, e.path_m);
+    println!("| poses compared | {} |\n| path (ground truth) | {:.1} m |", e.frames, e.path_m);
     println!("| ATE (first poses aligned) | {:.3} m |\n| ATE (rigid alignment) | {:.3} m |", e.ate_m, e.ate_aligned_m);
     println!("| end-point drift | {:.2} % |\n| scale (similarity fit) | {:.4} |", e.end_drift_pct, e.scale);
     for (len, t, r, count) in e.rpe {

@@ -125,7 +125,7 @@ pub fn run_config(c: &RunConfig, source: &str) -> anyhow::Result<()> {
     number(&at("[objects] dynamic_motion_m"), o.dynamic_motion_m, pos, "m")?;
     number(
         &at("[objects] dynamic_prior_sigmas"),
-        o.dynamic_prior_sigmas,
+        o.dynamic_prior_sigmas.unwrap_or(0.0),
         Range::closed(0.0, f64::INFINITY),
         "(0: off)",
     )?;
@@ -140,7 +140,7 @@ pub fn run_config(c: &RunConfig, source: &str) -> anyhow::Result<()> {
     count(&at("[system] correction_lag"), s.correction_lag, 0, 1000)?;
     count(&at("[system] detect_every"), s.detect_every, 1, usize::MAX)?;
     number(&at("[system] object_core"), s.object_core, Range::above(0.0, 1.0), "(share of the box)")?;
-    number(&at("[system] projected_gate"), s.projected_gate, Range::closed(0.0, 1.0), "(IoU; 0: off)")?;
+    number(&at("[system] projected_gate"), s.projected_gate.unwrap_or(0.0), Range::closed(0.0, 1.0), "(IoU; 0: off)")?;
     count(&at("[system] max_detections"), s.max_detections, 1, 10_000)?;
     Ok(())
 }

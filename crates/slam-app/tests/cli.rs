@@ -149,9 +149,35 @@ fn run_on_the_shipped_sequence() {
         serde_json::from_str(&std::fs::read_to_string(out.join("objects.json")).expect("objects")).expect("json");
     assert_eq!(objects["version"], 1);
     let first = &objects["objects"][0];
-    for key in ["id", "class", "center", "semi_axes", "rotation", "frames", "dynamic"] {
+    for key in ["id", "class", "class_name", "center", "semi_axes", "rotation", "frames", "dynamic", "moving"] {
         assert!(!first[key].is_null(), "{key} missing: {first}");
     }
+    // issue 18, points 5 and 8: class names beside ids, and the files say which frame they are in
+    assert!(objects["objects"]
+        .as_array()
+        .expect("objects")
+        .iter()
+        .all(|o| o["class"] != 2 || o["class_name"] == "car"));
+    assert!(objects["frame"].as_str().is_some_and(|f| f.contains("left camera of the first frame")), "{objects}");
+    let map_json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("map.json")).expect("map")).expect("json");
+    assert!(map_json["frame"].as_str().is_some_and(|f| f.contains("x right, y down, z forward")));
+    // issue 18, point 6: progress as plain lines when stderr is not a terminal; no cryptic messages,
+    // no unrounded numbers in the logs
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("run: 51/51 frames in ") && err.contains(&format!("{kf} keyframes, 0 frames lost")), "{err}");
+    assert!(!err.contains("kf at"), "{err}");
+    // (each log line starts with its time stamp, which has microseconds)
+    let long_float = err
+        .lines()
+        .map(|l| l.split_once("Z ").map_or(l, |(_, rest)| rest))
+        .flat_map(|l| l.split(|c: char| !(c.is_ascii_digit() || c == '.')).map(str::to_string).collect::<Vec<_>>())
+        .any(|w| w.split_once('.').is_some_and(|(_, frac)| frac.len() > 3));
+    assert!(!long_float, "a number with more than 3 decimals in the logs: {err}");
+    // the map picture has the error column (ground truth known): 1400 × 900 pixels
+    let png = std::fs::read(out.join("map.png")).expect("png");
+    let be32 = |k: usize| u32::from_be_bytes([png[k], png[k + 1], png[k + 2], png[k + 3]]);
+    assert_eq!((be32(16), be32(20)), (1400, 900));
     for f in ["map.json", "map.svg", "map.png", "overlays/000000.png", "overlays/000025.png", "overlays/000050.png"] {
         assert!(out.join(f).is_file(), "{f} written");
     }
@@ -163,10 +189,19 @@ fn run_on_the_shipped_sequence() {
         .arg(out.join("points.ply"))
         .arg("--trajectory")
         .arg(out.join("again.txt"))
+        .arg("--scene")
+        .arg(out.join("new/folder/scene.ply"))
         .output()
         .expect("runs");
     assert!(m.status.success(), "{}", String::from_utf8_lossy(&m.stderr));
     let mt = String::from_utf8_lossy(&m.stdout);
+    // issue 18, point 9: the scene export (in a folder it creates) holds ellipsoids, cameras and points
+    let scene = std::fs::read_to_string(out.join("new/folder/scene.ply")).expect("scene");
+    let static_objects =
+        objects["objects"].as_array().expect("objects").iter().filter(|o| o["moving"] == false).count();
+    assert!(mt.contains(&format!("{static_objects} ellipsoids, {kf} camera frusta, 51 trajectory vertices")), "{mt}");
+    assert!(scene.starts_with("ply\n") && scene.contains("element face ") && scene.contains("property uchar red"));
+    assert!(mt.contains(" car "), "class names in the printed objects: {mt}");
     assert_eq!(number_after(&mt, "keyframes ") as usize, kf, "{mt}");
     assert!(std::fs::read_to_string(out.join("points.ply")).expect("ply").starts_with("ply\n"));
     assert_eq!(
@@ -184,10 +219,23 @@ fn run_on_the_shipped_sequence() {
     assert_eq!(number_after(&String::from_utf8_lossy(&o1.stdout), "keyframes ") as usize, 51);
     let bad = app().args(["run", "--keyframe-gap", "0"]).output().expect("runs");
     assert!(!bad.status.success());
-    // settings: the defaults print as TOML, a file overrides them, an unknown key is an error naming the file
-    let p = app().args(["run", "--print-config"]).output().expect("runs");
+    // settings: the effective settings print as commented TOML (issue 18, point 7: the library's doc
+    // comment above each key; options overlay the defaults), a file overrides them, an unknown key is an
+    // error naming the file
+    let p = app().args(["run", "--print-config", "--keyframe-gap", "3"]).output().expect("runs");
     let toml_text = String::from_utf8_lossy(&p.stdout);
     assert!(toml_text.contains("[tracking]") && toml_text.contains("[mapping]") && toml_text.contains("[objects]"));
+    assert!(toml_text.contains("effective settings") && toml_text.contains("keyframe_max_gap = 3"), "{toml_text}");
+    assert!(toml_text.contains("# ORB features per image.\nfeatures = 2000"), "{toml_text}");
+    let keys = toml_text.lines().filter(|l| l.contains(" = ")).count();
+    let documented = toml_text
+        .lines()
+        .zip(toml_text.lines().skip(1))
+        .filter(|(a, b)| a.starts_with('#') && b.contains(" = "))
+        .count();
+    assert_eq!(keys, documented, "every key has a comment: {toml_text}");
+    let help = app().args(["run", "--help"]).output().expect("runs");
+    assert!(String::from_utf8_lossy(&help.stdout).contains("Print the effective settings"));
     std::fs::write(out.join("gap2.toml"), "[tracking]\nkeyframe_max_gap = 1\n").expect("toml");
     let o2 = app()
         .args(["run", "--detector", "none", "--max-frames", "12", "--config"])
@@ -439,6 +487,11 @@ fn eval_scores_a_tracking_sequence_with_both_box_models() {
         assert_eq!(v.len(), 7, "{line}");
         v // vehicles, found, success, iou2d, e_trans, e_axe, e_ray
     };
+    // issue 18, point 4: one sequence folder is taken as it is, with the progress on stderr
+    let one = app().arg("eval").arg(dir.join("0003")).output().expect("runs");
+    assert!(one.status.success(), "{}", String::from_utf8_lossy(&one.stderr));
+    assert!(String::from_utf8_lossy(&one.stdout).lines().any(|l| l.starts_with("0003 ")));
+    assert!(String::from_utf8_lossy(&one.stderr).contains("eval: 1/1 sequences"));
     let ellipse = row("ellipse");
     assert_eq!((ellipse[0], ellipse[1]), (6.0, 6.0), "{ellipse:?}");
     assert!(ellipse[3] > 0.8 && ellipse[4] < 1.0 && ellipse[5] < 0.35, "{ellipse:?}");
@@ -673,4 +726,105 @@ fn run_on_a_raw_drive_prints_errors_against_oxts() {
     assert_eq!(number_after(&text, "over ") as usize, 41, "{text}");
     assert!((10.0..20.0).contains(&number_after(&text, "path ")), "{text}");
     assert!(number_after(&text, "(aligned ") < 1.0, "{text}");
+}
+
+/// Issue 18, point 1: an option of one detection mode selects that mode, or is an error naming the
+/// conflict; the overlay options switch overlays on.
+#[test]
+fn mode_options_select_their_mode_or_name_the_conflict() {
+    let out = std::env::temp_dir().join(format!("slam-app-modes-{}", std::process::id()));
+    let file = "fixtures/kitti_odom_06/detections/yolo_fastest_tiles3.json";
+    let o = app()
+        .args(["run", "--max-frames", "6", "--detections", file, "--overlay-every", "5", "--out"])
+        .arg(&out)
+        .output()
+        .expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains(&format!("detector: detections from {file}")), "--detections selects the file: {text}");
+    assert!(out.join("overlays/000000.png").is_file() && out.join("overlays/000005.png").is_file());
+    for (args, names) in [
+        (vec!["--detector", "dnn", "--detections", file], ["--detections", "--detector dnn"]),
+        (vec!["--detector", "file", "--label-noise", "0.1"], ["--label-noise", "--detector file"]),
+        (vec!["--detector", "none", "--score", "0.5"], ["--score", "--detector none"]),
+        (vec!["--mode", "squash", "--tiles", "2"], ["--tiles", "--mode squash"]),
+    ] {
+        let o = app().arg("run").args(&args).args(["--max-frames", "2", "--out"]).arg(&out).output().expect("runs");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && names.iter().all(|n| err.contains(n)), "{args:?}: {err}");
+    }
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+/// Issue 18, point 3: `detect` takes every layout `run` takes; here a raw drive with grey cameras only
+/// (`image_00/data`), three frames copied from the shipped drive 0005.
+#[test]
+fn detect_reads_a_raw_drive_folder() {
+    let src = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_raw_0005/2011_09_26"));
+    let date = std::env::temp_dir().join(format!("slam-app-rawdrive-{}/2011_09_26", std::process::id()));
+    let drive = date.join("2011_09_26_drive_0005_sync");
+    std::fs::create_dir_all(&date).expect("dir");
+    std::fs::copy(src.join("calib_cam_to_cam.txt"), date.join("calib_cam_to_cam.txt")).expect("calib");
+    for cam in ["image_00", "image_01"] {
+        std::fs::create_dir_all(drive.join(cam).join("data")).expect("dir");
+        for i in 0..3 {
+            let name = format!("{i:010}.png");
+            let from = src.join("2011_09_26_drive_0005_sync").join(cam).join("data").join(&name);
+            std::fs::copy(from, drive.join(cam).join("data").join(&name)).expect("copy");
+        }
+    }
+    let json = date.join("../d.json");
+    let o = app().arg("detect").arg(&drive).arg("--out").arg(&json).output().expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let file = slam_dataset::detections::DetectionFile::read(&json).expect("valid detection file");
+    assert_eq!(file.frames.len(), 3);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("detect: 3/3 frames"), "plain progress line");
+    let _ = std::fs::remove_dir_all(date.join(".."));
+}
+
+/// Issue 18, point 2: two TUM files are matched by timestamp (a trajectory keeping every second pose
+/// scores zero error against the full one), a KITTI file by line, and the output says which.
+#[test]
+fn trajectory_eval_matches_tum_by_time() {
+    let dir = std::env::temp_dir().join(format!("slam-app-tum-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let gt = "fixtures/kitti_odom_06/poses/06.txt";
+    let lines: Vec<String> =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06/poses/06.txt"))
+            .expect("gt")
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().expect("number")).collect();
+                format!("{:.6} {} {} {} 0 0 0 1", 0.1 * i as f64, v[3], v[7], v[11])
+            })
+            .collect();
+    std::fs::write(dir.join("full.tum"), lines.join("\n")).expect("write");
+    let half: Vec<String> = lines.iter().step_by(2).cloned().collect();
+    // a few milliseconds of clock offset stay within the default tolerance (10 ms)
+    let half: Vec<String> = half
+        .iter()
+        .map(|l| {
+            let (t, rest) = l.split_once(' ').expect("line");
+            format!("{:.6} {rest}", t.parse::<f64>().expect("time") + 0.004)
+        })
+        .collect();
+    std::fs::write(dir.join("half.tum"), half.join("\n")).expect("write");
+    let o = app().arg("trajectory-eval").arg(dir.join("half.tum")).arg(dir.join("full.tum")).output().expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("matched 26 of 26 estimated poses to the 51 ground-truth poses by timestamp"), "{text}");
+    assert!(text.contains("| ATE (first poses aligned) | 0.000 m |"), "{text}");
+    // a tighter tolerance than the offset matches nothing: a clear error
+    let o = app()
+        .arg("trajectory-eval")
+        .arg(dir.join("half.tum"))
+        .arg(dir.join("full.tum"))
+        .args(["--max-diff", "0.001"])
+        .output()
+        .expect("runs");
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("0 matched"));
+    let o = app().arg("trajectory-eval").arg(dir.join("half.tum")).arg(gt).output().expect("runs");
+    assert!(String::from_utf8_lossy(&o.stdout).contains("by line (one file is KITTI"), "mixed formats go by line");
+    let _ = std::fs::remove_dir_all(&dir);
 }

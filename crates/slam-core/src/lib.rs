@@ -18,7 +18,7 @@ pub mod tracking;
 pub use slam_quadric as geometry;
 
 pub use assoc::{Assignment, AssociationInput, Associator, PointPair, TrackView};
-pub use detection::{ClassId, Detection, Mask, Region, TrackId};
+pub use detection::{ClassId, Detection, Mask, Region, TrackId, COCO_NAMES};
 pub use source::{DetectError, DetectionSource, Image};
 pub use tracking::{
     KeyframeCorrection, KeyframeData, KeyframeId, KeyframePoint, PointId, StageTimes, StereoTracker, TrackError,

@@ -31,16 +31,7 @@ pub fn kitti_class(kind: &str) -> Option<ClassId> {
     }
 }
 
-/// Short name of a class id (COCO names of the classes above), for tables and overlays.
+/// Name of a class id: its COCO name (`slam_core::ClassId::name`), for tables and overlays.
 pub fn name(class: ClassId) -> &'static str {
-    match class {
-        PERSON => "person",
-        BICYCLE => "bicycle",
-        CAR => "car",
-        MOTORCYCLE => "motorcycle",
-        BUS => "bus",
-        TRAIN => "train",
-        TRUCK => "truck",
-        _ => "other",
-    }
+    class.name()
 }

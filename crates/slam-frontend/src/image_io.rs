@@ -142,6 +142,8 @@ pub struct Overlay {
     pub labels: Vec<([f64; 2], [u8; 3], String)>,
     /// Filled dots (position, colour, radius).
     pub dots: Vec<([f64; 2], [u8; 3], i32)>,
+    /// Legend entries (colour, meaning), drawn in a panel at the top left.
+    pub legend: Vec<([u8; 3], String)>,
 }
 
 /// Points along an image ellipse (`(x − c)ᵀ E⁻¹ (x − c) = 1`), for drawing; empty when the shape is not
@@ -188,33 +190,105 @@ pub fn draw_overlay(image: &Image, overlay: &Overlay) -> Result<Image, FrontendE
         let rect = core::Rect::new(clamp(b.xmin), clamp(b.ymin), b.width().max(1.0) as i32, b.height().max(1.0) as i32);
         imgproc::rectangle(&mut m, rect, colour(*c), 1, imgproc::LINE_8, 0)?;
         if !label.is_empty() {
-            let org = core::Point::new(clamp(b.xmin), (clamp(b.ymin) - 4).max(12));
+            tag(&mut m, label, core::Point::new(clamp(b.xmin), (clamp(b.ymin) - 3).max(12)), *c, 0.4)?;
+        }
+    }
+    for (p, c, label) in &overlay.labels {
+        tag(&mut m, label, core::Point::new(clamp(p[0]), clamp(p[1])), *c, 0.5)?;
+    }
+    if !overlay.legend.is_empty() {
+        // a dark panel, a colour swatch and the meaning per line
+        let line = 18;
+        let width = overlay
+            .legend
+            .iter()
+            .map(|(_, t)| {
+                let mut base = 0;
+                imgproc::get_text_size(t, imgproc::FONT_HERSHEY_SIMPLEX, 0.45, 1, &mut base).map_or(100, |s| s.width)
+            })
+            .max()
+            .unwrap_or(100)
+            + 34;
+        let panel = core::Rect::new(
+            4,
+            4,
+            width.min(m.cols() - 8).max(1),
+            (line * overlay.legend.len() as i32 + 8).min(m.rows() - 8).max(1),
+        );
+        {
+            let mut roi = Mat::roi_mut(&mut m, panel)?;
+            let mut dark = Mat::default();
+            roi.convert_to(&mut dark, -1, 0.35, 0.0)?;
+            dark.copy_to(&mut roi)?;
+        }
+        for (k, (c, text)) in overlay.legend.iter().enumerate() {
+            let y = 8 + line * k as i32;
+            imgproc::rectangle(&mut m, core::Rect::new(10, y + 3, 16, 10), colour(*c), -1, imgproc::LINE_8, 0)?;
             imgproc::put_text(
                 &mut m,
-                label,
-                org,
+                text,
+                core::Point::new(32, y + 13),
                 imgproc::FONT_HERSHEY_SIMPLEX,
                 0.45,
-                colour(*c),
+                core::Scalar::all(255.0),
                 1,
                 imgproc::LINE_AA,
                 false,
             )?;
         }
     }
-    for (p, c, label) in &overlay.labels {
-        let org = core::Point::new(clamp(p[0]), clamp(p[1]));
-        imgproc::put_text(
-            &mut m,
-            label,
-            org,
-            imgproc::FONT_HERSHEY_SIMPLEX,
-            0.55,
-            colour(*c),
-            2,
-            imgproc::LINE_AA,
-            false,
-        )?;
-    }
     mat_to_image(&m)
+}
+
+/// Text on a filled box of its colour (black or white text, whichever reads better), its lower left
+/// corner at `org`.
+fn tag(m: &mut Mat, text: &str, org: core::Point, c: [u8; 3], scale: f64) -> Result<(), FrontendError> {
+    use opencv::imgproc;
+    let mut base = 0;
+    let size = imgproc::get_text_size(text, imgproc::FONT_HERSHEY_SIMPLEX, scale, 1, &mut base)?;
+    let bg = core::Scalar::new(c[0] as f64, c[1] as f64, c[2] as f64, 0.0);
+    imgproc::rectangle(
+        m,
+        core::Rect::new(org.x - 1, org.y - size.height - 2, size.width + 2, size.height + base + 2),
+        bg,
+        -1,
+        imgproc::LINE_8,
+        0,
+    )?;
+    // BGR: perceived brightness of the background
+    let light = 0.114 * c[0] as f64 + 0.587 * c[1] as f64 + 0.299 * c[2] as f64 > 140.0;
+    let fg = if light { core::Scalar::all(0.0) } else { core::Scalar::all(255.0) };
+    imgproc::put_text(m, text, org, imgproc::FONT_HERSHEY_SIMPLEX, scale, fg, 1, imgproc::LINE_AA, false)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn overlay_draws_a_legend_panel_and_labels_on_their_colour() {
+        let white = Image::new(320, 120, 1, vec![255; 320 * 120]).expect("image");
+        let bbox = slam_core::geometry::BBox::new(150.0, 60.0, 300.0, 110.0);
+        let overlay = Overlay {
+            boxes: vec![(bbox, [40, 170, 60], "#3 car 0.91".into())],
+            legend: vec![([40, 170, 60], "static object".into()), ([40, 30, 220], "moving object".into())],
+            ..Overlay::default()
+        };
+        let out = draw_overlay(&white, &overlay).expect("draws");
+        assert_eq!(out.channels, 3);
+        let px = |x: usize, y: usize| {
+            let k = 3 * (y * out.width as usize + x);
+            [out.data[k], out.data[k + 1], out.data[k + 2]]
+        };
+        // the panel darkens the image behind the legend; its first swatch has the first entry's colour
+        assert_eq!(px(100, 10), [89, 89, 89], "dark panel (0.35 × 255)");
+        assert_eq!(px(15, 14), [40, 170, 60]);
+        assert_eq!(px(15, 32), [40, 30, 220]);
+        // outside the panel and the box the image is untouched
+        assert_eq!(px(100, 100), [255, 255, 255]);
+        // the box label sits on a filled tag of the box's colour, just above the box
+        let tag = (150..230).filter(|&x| px(x, 50) == [40, 170, 60]).count();
+        assert!(tag > 20, "{tag} tag pixels");
+    }
 }

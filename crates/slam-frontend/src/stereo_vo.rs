@@ -32,7 +32,7 @@ pub struct StereoRig {
 }
 
 /// Settings of [`StereoVo`] (the `[tracking]` table of `slam-app run --config`).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, documented::DocumentedFieldsOpt)]
 #[serde(default, deny_unknown_fields)]
 pub struct VoConfig {
     /// ORB features per image.

@@ -12,5 +12,6 @@ pub mod eval;
 pub mod map;
 pub mod mapping;
 pub mod objects;
+pub mod settings;
 pub mod system;
 pub mod texture;

@@ -16,6 +16,9 @@ use slam_core::{KeyframeId, PointId};
 
 /// Format name written into every map file.
 pub const MAP_FORMAT: &str = "quadric-slam-map";
+/// The world frame of a map written by the running system (docs/system.md, "Conventions").
+pub const MAP_WORLD: &str =
+    "world = the left camera of the first frame: x right, y down, z forward, metres; poses world from camera";
 /// Version of the map file format. Version 2 added left-only observations (`u_right` written as
 /// `null`) of triangulated points; version 1 files read unchanged.
 pub const MAP_VERSION: u32 = 2;
@@ -89,6 +92,9 @@ pub struct MapObject {
     pub id: u64,
     /// Class (COCO index).
     pub class: u16,
+    /// Its COCO name (written for readers; ignored when read).
+    #[serde(default)]
+    pub class_name: String,
     /// Centre, world frame, metres.
     pub center: [f64; 3],
     /// Semi-axes along the object's x (length), y (height), z (width), metres.
@@ -97,8 +103,12 @@ pub struct MapObject {
     pub rotation: [f64; 9],
     /// Frames of its associated detections.
     pub frames: Vec<usize>,
-    /// Flagged as moving.
+    /// Flagged dynamic (box misfit, size unlike its class, or moving map points).
     pub dynamic: bool,
+    /// Its map points moved: a moving object, not mapped (its ellipsoid is the last fit before that was
+    /// seen, kept for inspection only). Absent in older files: `false`.
+    #[serde(default)]
+    pub moving: bool,
     /// Map points on the object (used for its texture planes).
     pub points: Vec<PointId>,
 }
@@ -123,6 +133,9 @@ pub struct Map {
     pub format: String,
     /// Always [`MAP_VERSION`] when written by this version.
     pub version: u32,
+    /// The world frame, in words ([`MAP_WORLD`]; absent in older files).
+    #[serde(default)]
+    pub frame: String,
     /// Keyframes by id.
     pub keyframes: BTreeMap<KeyframeId, MapKeyframe>,
     /// Map points by id.
@@ -138,6 +151,7 @@ impl Default for Map {
         Self {
             format: MAP_FORMAT.to_string(),
             version: MAP_VERSION,
+            frame: MAP_WORLD.to_string(),
             keyframes: BTreeMap::new(),
             points: BTreeMap::new(),
             objects: Vec::new(),
@@ -377,6 +391,136 @@ impl Map {
     }
 }
 
+/// What [`Map::export_scene_ply`] wrote.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SceneCounts {
+    /// Ellipsoid meshes (static and dynamic objects; moving ones are not mapped and not written).
+    pub ellipsoids: usize,
+    /// Keyframe camera frusta.
+    pub cameras: usize,
+    /// Trajectory vertices (one per frame with a pose).
+    pub trajectory: usize,
+    /// Map points.
+    pub points: usize,
+    /// Vertices, faces and edges in the file.
+    pub vertices: usize,
+    /// Triangles.
+    pub faces: usize,
+    /// Edges.
+    pub edges: usize,
+}
+
+/// Colours of the 3-D scene (RGB): static objects green, dynamic orange, cameras blue, trajectory black,
+/// points grey; the same as the pictures' (docs/system.md).
+const SCENE_STATIC: [u8; 3] = [40, 170, 60];
+const SCENE_DYNAMIC: [u8; 3] = [240, 140, 20];
+const SCENE_CAMERA: [u8; 3] = [31, 119, 180];
+const SCENE_TRAJECTORY: [u8; 3] = [0, 0, 0];
+const SCENE_POINT: [u8; 3] = [150, 150, 150];
+
+impl Map {
+    /// Export the scene as an ASCII PLY mesh (atomically) that MeshLab, Blender and CloudCompare open:
+    /// each mapped object's ellipsoid as a triangle mesh (12 × 24 facets, coloured by state), each
+    /// keyframe's camera as a frustum of four triangles (1 m deep, looking along its z), the frame
+    /// trajectory as edges, and the map points as vertices; world frame of the map ([`MAP_WORLD`]).
+    pub fn export_scene_ply(&self, path: &Path) -> Result<SceneCounts, MapError> {
+        use std::fmt::Write;
+        let mut vertices: Vec<([f64; 3], [u8; 3])> = Vec::new();
+        let mut faces: Vec<[usize; 3]> = Vec::new();
+        let mut edges: Vec<[usize; 2]> = Vec::new();
+        let mut counts = SceneCounts::default();
+        let (rings, segments) = (12usize, 24usize);
+        for o in self.objects.iter().filter(|o| !o.moving) {
+            let colour = if o.dynamic { SCENE_DYNAMIC } else { SCENE_STATIC };
+            let r = nalgebra::Matrix3::from_row_slice(&o.rotation);
+            let base = vertices.len();
+            // poles, then rings × segments
+            for z in [-1.0, 1.0] {
+                let p = r * Vector3::new(0.0, 0.0, z * o.semi_axes[2]) + Vector3::from(o.center);
+                vertices.push(([p.x, p.y, p.z], colour));
+            }
+            for i in 1..rings {
+                let theta = std::f64::consts::PI * i as f64 / rings as f64 - std::f64::consts::FRAC_PI_2;
+                for j in 0..segments {
+                    let phi = std::f64::consts::TAU * j as f64 / segments as f64;
+                    let u = Vector3::new(
+                        o.semi_axes[0] * theta.cos() * phi.cos(),
+                        o.semi_axes[1] * theta.cos() * phi.sin(),
+                        o.semi_axes[2] * theta.sin(),
+                    );
+                    let p = r * u + Vector3::from(o.center);
+                    vertices.push(([p.x, p.y, p.z], colour));
+                }
+            }
+            let at = |i: usize, j: usize| base + 2 + (i - 1) * segments + j % segments;
+            for j in 0..segments {
+                faces.push([base, at(1, j + 1), at(1, j)]);
+                faces.push([base + 1, at(rings - 1, j), at(rings - 1, j + 1)]);
+                for i in 1..rings - 1 {
+                    faces.push([at(i, j), at(i, j + 1), at(i + 1, j + 1)]);
+                    faces.push([at(i, j), at(i + 1, j + 1), at(i + 1, j)]);
+                }
+            }
+            counts.ellipsoids += 1;
+        }
+        for k in self.keyframes.values() {
+            let pose = pose_from_array(&k.pose);
+            let base = vertices.len();
+            let apex = pose.translation.vector;
+            vertices.push(([apex.x, apex.y, apex.z], SCENE_CAMERA));
+            for (x, y) in [(-0.6, -0.2), (0.6, -0.2), (0.6, 0.2), (-0.6, 0.2)] {
+                let p = pose * nalgebra::Point3::new(x, y, 1.0);
+                vertices.push(([p.x, p.y, p.z], SCENE_CAMERA));
+            }
+            for c in 0..4 {
+                faces.push([base, base + 1 + c, base + 1 + (c + 1) % 4]);
+            }
+            counts.cameras += 1;
+        }
+        let first = vertices.len();
+        for p in self.frame_poses().into_iter().flatten() {
+            let t = p.translation.vector;
+            vertices.push(([t.x, t.y, t.z], SCENE_TRAJECTORY));
+        }
+        counts.trajectory = vertices.len() - first;
+        for i in first + 1..vertices.len() {
+            edges.push([i - 1, i]);
+        }
+        for p in self.points.values() {
+            vertices.push((p.position, SCENE_POINT));
+        }
+        counts.points = self.points.len();
+        (counts.vertices, counts.faces, counts.edges) = (vertices.len(), faces.len(), edges.len());
+        let mut s = String::new();
+        let _ = write!(
+            s,
+            "ply\nformat ascii 1.0\ncomment quadric-slam scene: ellipsoids (green static, orange dynamic), camera \
+             frusta (blue), trajectory (black edges), map points (grey)\ncomment {MAP_WORLD}\nelement vertex {}\n\
+             property float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\n\
+             property uchar blue\nelement face {}\nproperty list uchar int vertex_indices\nelement edge {}\n\
+             property int vertex1\nproperty int vertex2\nend_header\n",
+            vertices.len(),
+            faces.len(),
+            edges.len()
+        );
+        for (p, c) in &vertices {
+            let _ = writeln!(s, "{:.4} {:.4} {:.4} {} {} {}", p[0], p[1], p[2], c[0], c[1], c[2]);
+        }
+        for f in &faces {
+            let _ = writeln!(s, "3 {} {} {}", f[0], f[1], f[2]);
+        }
+        for e in &edges {
+            let _ = writeln!(s, "{} {}", e[0], e[1]);
+        }
+        let io = |source| MapError::Io { path: path.to_path_buf(), source };
+        let mut tmp = path.as_os_str().to_owned();
+        tmp.push(".tmp");
+        std::fs::write(&tmp, s).map_err(io)?;
+        std::fs::rename(&tmp, path).map_err(io)?;
+        Ok(counts)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -440,6 +584,37 @@ mod tests {
         m.export_ply(&dir.join("points.ply")).expect("ply");
         let ply = std::fs::read_to_string(dir.join("points.ply")).expect("ply text");
         assert!(ply.contains("element vertex 1") && ply.trim_end().ends_with("0.5 0.1 9"));
+        // the scene: one ellipsoid (a moving one is left out), two frusta, two trajectory vertices, a point
+        let mut m = m;
+        let object = MapObject {
+            id: 4,
+            class: 2,
+            class_name: "car".into(),
+            center: [1.0, 0.0, 10.0],
+            semi_axes: [2.0, 0.8, 0.9],
+            rotation: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            frames: vec![0, 1],
+            dynamic: false,
+            moving: false,
+            points: vec![],
+        };
+        m.objects.push(object.clone());
+        m.objects.push(MapObject { id: 5, moving: true, dynamic: true, ..object });
+        let c = m.export_scene_ply(&dir.join("scene.ply")).expect("scene");
+        assert_eq!((c.ellipsoids, c.cameras, c.trajectory, c.points), (1, 2, 2, 1));
+        let ellipsoid_vertices = 2 + 11 * 24;
+        assert_eq!(c.vertices, ellipsoid_vertices + 2 * 5 + 2 + 1);
+        assert_eq!((c.faces, c.edges), (2 * 24 + 2 * 24 * 10 + 2 * 4, 1));
+        let scene = std::fs::read_to_string(dir.join("scene.ply")).expect("scene text");
+        let body: Vec<&str> = scene.split("end_header\n").nth(1).expect("body").lines().collect();
+        assert_eq!(body.len(), c.vertices + c.faces + c.edges, "header counts match the body");
+        // every ellipsoid vertex lies on the ellipsoid ((x−c)ᵀ A⁻² (x−c) = 1)
+        for line in &body[..ellipsoid_vertices] {
+            let v: Vec<f64> = line.split_whitespace().take(3).map(|x| x.parse().expect("number")).collect();
+            let q = ((v[0] - 1.0) / 2.0).powi(2) + (v[1] / 0.8).powi(2) + ((v[2] - 10.0) / 0.9).powi(2);
+            assert!((q - 1.0).abs() < 1e-3, "{line}: {q}");
+        }
+        assert!(body[..ellipsoid_vertices].iter().all(|l| l.ends_with(" 40 170 60")), "static: green");
         std::fs::remove_dir_all(&dir).ok();
     }
 

@@ -14,7 +14,7 @@ use slam_optim::{
 use crate::map::{pose_to_array, Map, MapKeyframe, MapPoint};
 
 /// Settings of the local mapper.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, documented::DocumentedFieldsOpt)]
 #[serde(default, deny_unknown_fields)]
 pub struct MappingConfig {
     /// Keyframes optimised together (the newest ones of the current map segment). Default 6.

@@ -51,15 +51,20 @@ impl FitMethod {
     }
 }
 
-/// Settings of the [`ObjectMapper`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Settings of the [`ObjectMapper`] (the `[objects]` table of `slam-app run --config`; `method`, `image`
+/// and `tracker` are set by the caller, not by the file).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize, documented::DocumentedFieldsOpt)]
+#[serde(default, deny_unknown_fields)]
 pub struct MapperConfig {
     /// Fitting method.
+    #[serde(skip)]
     pub method: FitMethod,
-    /// What a box bounds in the object optimisation (the ellipsoid, or its circumscribed cuboid).
-    /// Default: the ellipsoid (the paper's model).
+    /// What a box bounds in the object optimisation: "ellipse" (the ellipsoid's projected ellipse, the
+    /// paper's model, default) or "cuboid" (its circumscribed cuboid, docs/objects.md).
+    #[serde(with = "crate::settings::box_shape")]
     pub box_shape: BoxShape,
     /// Image size (for clipped bounds and the border test).
+    #[serde(skip)]
     pub image: ImageSize,
     /// Fewest border-free boxes before an ellipsoid is fitted. Default 3.
     pub min_views: usize,
@@ -67,7 +72,9 @@ pub struct MapperConfig {
     pub min_parallax_deg: f64,
     /// With less parallax than `min_parallax_deg`, an object is still fitted (its depth then comes from
     /// the class's size prior) once it has this many border-free boxes. Default `None` (the paper's
-    /// rule: no fit without parallax); docs/objects.md has what `Some(10)` does on KITTI.
+    /// rule: no fit without parallax; 0 in a settings file); docs/objects.md has what `Some(10)` does on
+    /// KITTI.
+    #[serde(with = "crate::settings::zero_is_off_usize")]
     pub min_views_without_parallax: Option<usize>,
     /// Boxes within this many pixels of the border are not used for fitting (the paper's rule). Default 5.
     pub border_margin_px: f64,
@@ -75,11 +82,15 @@ pub struct MapperConfig {
     pub refit_every: usize,
     /// Most views used in one fit (evenly spaced over the track). Default 20.
     pub max_views: usize,
-    /// RMS box misfit above which a fitted object is flagged dynamic, pixels. Default 12.
+    /// RMS box misfit above which a fitted object is flagged dynamic, pixels. Default 12, for
+    /// label-quality boxes (the image-free mode); the running system, fed by a detector, uses 25
+    /// (`system::DETECTOR_DYNAMIC_RMS_PX`, measured in docs/system.md).
     pub dynamic_rms_px: f64,
     /// A fitted object (DQP + optimisation) whose semi-axes lie farther than this from its class prior,
     /// in prior standard deviations (Mahalanobis), is flagged dynamic: fitted as static, a moving object
-    /// needs a size its class does not have. `None` turns the test off. Default 6 (docs/objects.md).
+    /// needs a size its class does not have. `None` (0 in a settings file) turns the test off. Default 6
+    /// (docs/objects.md).
+    #[serde(with = "crate::settings::zero_is_off")]
     pub dynamic_prior_sigmas: Option<f64>,
     /// An object whose map-point centroid moves more than this between its first and latest
     /// keyframe observation (plus 5 % of its depth, for stereo noise) is moving, metres. Default 3.
@@ -91,6 +102,7 @@ pub struct MapperConfig {
     /// bumper to bumper stand about 4.5 m apart).
     pub merge_distance_m: f64,
     /// Tracker settings.
+    #[serde(skip)]
     pub tracker: TrackerConfig,
 }
 
@@ -259,6 +271,12 @@ impl FitJob {
                 let odd_size =
                     self.method == FitMethod::Refine && self.dynamic_prior_sigmas.is_some_and(|k| size_dev > k);
                 let dynamic = rms.is_none_or(|r| r > self.dynamic_rms_px) || odd_size;
+                tracing::debug!(
+                    object = self.id.0,
+                    views = views.len(),
+                    "fitted: box misfit {} px RMS, size {size_dev:.1} prior sigmas from its class",
+                    rms.map_or("(none)".to_string(), |r| format!("{r:.1}"))
+                );
                 if odd_size {
                     tracing::debug!(object = %self.id, size_dev, axes = ?e.semi_axes.as_slice(), "size unlike its class: dynamic");
                 }
@@ -401,7 +419,12 @@ impl ObjectMapper {
         let depth = (c - last.camera.world_from_camera.translation.vector).norm();
         let moved = (c - reference).norm();
         if moved > cfg.dynamic_motion_m + 0.05 * depth && !obj.moving {
-            tracing::info!(object = %id, moved_m = moved, "object is moving: not mapped");
+            tracing::info!(
+                "object {} ({}) moved {moved:.1} m (more than {:.1} m allowed at {depth:.0} m depth): moving, not mapped",
+                id.0,
+                obj.class.name(),
+                cfg.dynamic_motion_m + 0.05 * depth
+            );
             obj.moving = true;
             obj.dynamic = true;
         }
@@ -527,17 +550,19 @@ pub const OBJECT_MAP_VERSION: u32 = 1;
 struct ObjectJson {
     id: u64,
     class: u16,
+    class_name: String,
     center: [f64; 3],
     semi_axes: [f64; 3],
     rotation: [f64; 9],
     frames: Vec<usize>,
     dynamic: bool,
+    moving: bool,
 }
 
 #[derive(Serialize)]
-struct MapJson {
+struct MapJson<'a> {
     version: u32,
-    frame: &'static str,
+    frame: &'a str,
     objects: Vec<ObjectJson>,
 }
 
@@ -550,40 +575,47 @@ impl MappedObject {
         Some(crate::map::MapObject {
             id: self.id.0,
             class: self.class.0,
+            class_name: self.class.name().to_string(),
             center: [e.centre().x, e.centre().y, e.centre().z],
             semi_axes: [e.semi_axes.x, e.semi_axes.y, e.semi_axes.z],
             rotation: std::array::from_fn(|k| r[(k / 3, k % 3)]),
             frames: self.observations.iter().map(|x| x.frame).collect(),
             dynamic: self.dynamic,
+            moving: self.moving,
             points: self.points.iter().copied().collect(),
         })
     }
 }
 
-/// Write the object map (objects with an ellipsoid) as JSON, atomically. Schema (version 1): `objects`
-/// with `id`, `class` (COCO index), `center` `[x, y, z]` and `rotation` (3×3 row-major, world from
-/// object) in the world frame of the poses, `semi_axes` metres along the object's x (length), y
-/// (height), z (width), `frames` (frames of its detections), `dynamic`.
+/// Write the object map (objects with an ellipsoid) as JSON, atomically, naming the world frame of the
+/// poses the objects were mapped with "world of the input poses" ([`write_object_map_in`]).
 pub fn write_object_map(path: &Path, objects: &[&MappedObject]) -> std::io::Result<()> {
+    write_object_map_in(path, objects, "world of the input poses (camera to world of the left camera)")
+}
+
+/// Write the object map (objects with an ellipsoid) as JSON, atomically. Schema (version 1): `frame`
+/// (the world frame, in words), `objects` with `id`, `class` (COCO index), `class_name`, `center`
+/// `[x, y, z]` and `rotation` (3×3 row-major, world from object) in that world frame, `semi_axes` metres
+/// along the object's x (length), y (height), z (width), `frames` (frames of its detections), `dynamic`
+/// (flagged dynamic by any test) and `moving` (its map points moved: not a mapped object).
+pub fn write_object_map_in(path: &Path, objects: &[&MappedObject], frame: &str) -> std::io::Result<()> {
     let objects = objects
         .iter()
         .filter_map(|o| o.to_map_object())
         .map(|m| ObjectJson {
             id: m.id,
             class: m.class,
+            class_name: m.class_name,
             center: m.center,
             semi_axes: m.semi_axes,
             rotation: m.rotation,
             frames: m.frames,
             dynamic: m.dynamic,
+            moving: m.moving,
         })
         .collect();
-    let text = serde_json::to_string_pretty(&MapJson {
-        version: OBJECT_MAP_VERSION,
-        frame: "world of the input poses",
-        objects,
-    })
-    .map_err(std::io::Error::other)?;
+    let text = serde_json::to_string_pretty(&MapJson { version: OBJECT_MAP_VERSION, frame, objects })
+        .map_err(std::io::Error::other)?;
     let tmp = path.with_extension("json.tmp");
     std::fs::write(&tmp, text)?;
     std::fs::rename(&tmp, path)

@@ -8,7 +8,7 @@ use slam_quadric::Camera;
 use spade::{DelaunayTriangulation, Point2, Triangulation};
 
 /// Which triangles become planes.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, documented::DocumentedFieldsOpt)]
 #[serde(default, deny_unknown_fields)]
 pub struct TextureConfig {
     /// Longest triangle edge, metres (longer ones bridge the object and its background). Default 1.5.
