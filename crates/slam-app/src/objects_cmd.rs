@@ -205,8 +205,12 @@ pub fn objects(a: &ObjectsArgs) -> anyhow::Result<()> {
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
-    /// Folder of sequence folders (default: the shipped fixtures/kitti_tracking)
+    /// Folder of sequence folders (default: the shipped fixtures/kitti_tracking), or the output folder of
+    /// `slam-app run` (objects.json, trajectory.kitti.txt, camera.json) to score against --labels
     dir: Option<PathBuf>,
+    /// With a run's output folder: the labels to score it against (label_02.txt format)
+    #[arg(long)]
+    labels: Option<PathBuf>,
     /// Fewest labelled frames of a ground-truth vehicle
     #[arg(long, default_value_t = 10)]
     min_frames: usize,
@@ -346,8 +350,28 @@ struct Row {
     iou_truth: f64,
 }
 
+/// `slam-app eval <run folder> --labels <label_02.txt>`: score a finished run's object map.
+fn eval_run_folder(dir: &std::path::Path, a: &EvalArgs) -> anyhow::Result<()> {
+    let labels_path = a.labels.as_ref().context("scoring a run folder needs --labels <label_02.txt>")?;
+    let labels = read_tracking_labels(labels_path)?;
+    let poses = read_kitti_poses(dir.join("trajectory.kitti.txt"))?;
+    let geometry = slam_eval::LabelGeometry::read(&dir.join("camera.json"))?;
+    let objects = slam_eval::read_object_map(&dir.join("objects.json"))?;
+    let config =
+        slam_eval::ScoreConfig { min_frames: a.min_frames, static_m: a.static_m, moving_m: a.moving_m, ..Default::default() };
+    let score = slam_eval::score_run(&labels, &poses, &geometry, &objects, &config);
+    print!("{}", score.report());
+    let out = dir.join("objects_score.json");
+    score.write_json(&out)?;
+    println!("wrote {}", out.display());
+    Ok(())
+}
+
 pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let dir = a.dir.clone().unwrap_or_else(|| crate::fixture("kitti_tracking"));
+    if dir.join("objects.json").is_file() && dir.join("trajectory.kitti.txt").is_file() {
+        return eval_run_folder(&dir, a);
+    }
     let seqs = crate::tracking_sequences(&dir)?;
     println!(
         "Object metrics, label boxes as detections (noise {} of box size, dropout {}), ODA + {}",

@@ -1,7 +1,7 @@
 //! `slam-app run`: the whole system on a KITTI stereo sequence; trajectory, map, objects, pictures and
 //! errors. `slam-app map`: inspect and export a saved map.
 
-use std::{collections::BTreeMap, path::PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
@@ -9,9 +9,13 @@ use nalgebra::{Matrix2, Point3, Vector2};
 use slam_core::{geometry::Ellipse2, DetectionSource, Image};
 use slam_dataset::{
     detections::{DetectionFile, GroundTruthDetections, GroundTruthNoise},
-    kitti::stereo::{open_stereo, Layout, StereoSequence},
+    kitti::{
+        stereo::{open_stereo, Layout, StereoSequence},
+        tracking::{read_tracking_labels, TrackingLabel},
+    },
     trajectory::{write_kitti_poses, write_tum},
 };
+use slam_eval::LabelGeometry;
 use slam_frontend::{draw_overlay, ellipse_outline, read_image, write_image, Overlay, StereoRig, StereoVo};
 use slam_pipeline::{
     eval::trajectory_errors,
@@ -66,6 +70,11 @@ pub struct RunArgs {
     /// Box noise (fraction of box size) for --detector labels
     #[arg(long, default_value_t = 0.0)]
     label_noise: f64,
+    /// KITTI tracking labels of this sequence (label_02.txt format): the run's objects are scored
+    /// against them (printed, and objects_score.json), and `--detector labels` takes its boxes from them
+    /// on any layout (3-D boxes projected into the grey camera 0)
+    #[arg(long)]
+    labels: Option<PathBuf>,
     /// Ellipsoid method of the objects (baselines for comparison)
     #[arg(long, value_enum, default_value_t = crate::objects_cmd::Method::Refine)]
     method: crate::objects_cmd::Method,
@@ -91,7 +100,12 @@ pub struct RunArgs {
 /// COCO classes mapped as objects: person, bicycle, car, motorcycle, bus, truck.
 const OBJECT_CLASSES: [u16; 6] = [0, 1, 2, 3, 5, 7];
 
-fn detector(a: &RunArgs, seq: &StereoSequence, image: ImageSize) -> anyhow::Result<Option<Box<dyn DetectionSource>>> {
+fn detector(
+    a: &RunArgs,
+    seq: &StereoSequence,
+    image: ImageSize,
+    labels: Option<&(Vec<TrackingLabel>, LabelGeometry)>,
+) -> anyhow::Result<Option<Box<dyn DetectionSource>>> {
     Ok(match a.detector {
         DetectorKind::None => None,
         // the mapped classes are kept by `ClassFilter`, for every source alike
@@ -101,15 +115,13 @@ fn detector(a: &RunArgs, seq: &StereoSequence, image: ImageSize) -> anyhow::Resu
             Some(Box::new(DetectionFile::read(path)?))
         }
         DetectorKind::Labels => {
-            let labels = seq.labels.as_ref().with_context(|| {
-                format!("--detector labels: {} has no labels (tracking layout with label_02/)", seq.dir.display())
+            let (labels, geometry) = labels.with_context(|| {
+                format!(
+                    "--detector labels: {} has no labels (tracking layout with label_02/): give --labels <label_02.txt>",
+                    seq.dir.display()
+                )
             })?;
-            let mut truth: BTreeMap<usize, Vec<slam_core::Detection>> = BTreeMap::new();
-            for l in labels.iter().filter(|l| !l.is_dont_care()) {
-                if let Some(c) = l.class {
-                    truth.entry(l.frame).or_default().push(slam_core::Detection::new(c, 1.0, l.bbox));
-                }
-            }
+            let truth = geometry.detections(labels);
             let noise = GroundTruthNoise { box_sigma: a.label_noise, ..GroundTruthNoise::default() };
             Some(Box::new(GroundTruthDetections::new(truth, noise, [image.width, image.height])))
         }
@@ -164,6 +176,8 @@ fn stage_table(out: &RunOutput) -> Vec<(&'static str, f64, usize)> {
 /// A finished run and what is needed to report on it.
 struct Outcome {
     out: RunOutput,
+    /// The labels (`--labels`, or the tracking layout's own) and their geometry in the run's camera.
+    labels: Option<(Vec<TrackingLabel>, LabelGeometry)>,
     seq: StereoSequence,
     elapsed: f64,
     k: Intrinsics,
@@ -233,7 +247,16 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     let first = read_image(&seq.left[0], colour).with_context(|| format!("first frame {}", seq.left[0].display()))?;
     let image = ImageSize::new(first.width as f64, first.height as f64);
     let tracker = Box::new(StereoVo::new(rig, cfg.tracking)?);
-    let det = detector(a, &seq, image)?.map(|d| Box::new(ClassFilter(d)) as Box<dyn DetectionSource>);
+    let labels = match (&a.labels, &seq.labels) {
+        (Some(p), _) => Some(read_tracking_labels(p)?),
+        (None, Some(l)) => Some(l.clone()),
+        (None, None) => None,
+    };
+    let labels = match labels {
+        Some(l) => Some((l, LabelGeometry::of_sequence(&seq, image)?)),
+        None => None,
+    };
+    let det = detector(a, &seq, image, labels.as_ref())?.map(|d| Box::new(ClassFilter(d)) as Box<dyn DetectionSource>);
     let pairs: Vec<(usize, PathBuf, PathBuf)> =
         (0..n).map(|i| (i, seq.left[i].clone(), seq.right[i].clone())).collect();
     let frames = Box::new(pairs.into_iter().map(move |(i, l, r)| {
@@ -265,7 +288,7 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     sys.objects.method = a.method.fit();
     let out = system::run(frames, tracker, det, k, seq.baseline, &sys, &mut on_frame)?;
     bar.finish_and_clear();
-    Ok(Outcome { out, seq, elapsed: start.elapsed().as_secs_f64(), k, image, colour })
+    Ok(Outcome { out, labels, seq, elapsed: start.elapsed().as_secs_f64(), k, image, colour })
 }
 
 pub fn run(a: &RunArgs) -> anyhow::Result<()> {
@@ -274,7 +297,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
         print!("{}", cfg.to_toml());
         return Ok(());
     }
-    let Outcome { out, seq, elapsed, k, image, colour } = run_system(a, &cfg, false)?;
+    let Outcome { out, labels, seq, elapsed, k, image, colour } = run_system(a, &cfg, false)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
     write_kitti_poses(a.out.join("trajectory.kitti.txt"), &out.poses)?;
     let m = out.poses.len().min(seq.times.len());
@@ -315,9 +338,30 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
             }
         }
     }
+    LabelGeometry::of_sequence(&seq, image)?.write(&a.out.join("camera.json"))?;
+    let mut scored = String::new();
+    if let Some((labels, geometry)) = &labels {
+        let objects: Vec<slam_eval::ScoredInput> = out
+            .objects
+            .iter()
+            .filter_map(|o| {
+                Some(slam_eval::ScoredInput {
+                    id: o.id.0,
+                    class: o.class.0,
+                    ellipsoid: o.ellipsoid?,
+                    frames: o.observations.iter().map(|x| x.frame).collect(),
+                    dynamic: o.dynamic,
+                })
+            })
+            .collect();
+        let score = slam_eval::score_run(labels, &out.poses, geometry, &objects, &slam_eval::ScoreConfig::default());
+        println!("\n{}", score.report());
+        score.write_json(&a.out.join("objects_score.json"))?;
+        scored.push_str("objects_score.json, ");
+    }
     let pictures = pictures(a, &seq, &out, k, image, colour)?;
     println!(
-        "\nwrote {}: trajectory.kitti.txt, trajectory.tum.txt, map.json, objects.json, {pictures}",
+        "\nwrote {}: trajectory.kitti.txt, trajectory.tum.txt, map.json, objects.json, camera.json, {scored}{pictures}",
         a.out.display()
     );
     Ok(())
