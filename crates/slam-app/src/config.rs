@@ -25,8 +25,9 @@ pub struct ObjectsToml {
     /// RMS box misfit above which an object is flagged dynamic, pixels (25 here: detector boxes are
     /// noisier than the labels the image-free mode's 12 px was set on; moving map points are the main cue).
     pub dynamic_rms_px: f64,
-    /// Centroid motion above which an object is moving, metres (+5 % of depth).
-    pub dynamic_motion_m: f64,
+    /// Stereo-point centroid motion, in standard deviations (depth noise and surface spread), above
+    /// which an object is moving.
+    pub dynamic_motion_sigmas: f64,
     /// Fitted semi-axes this many prior σ from the class prior flag an object dynamic (0: off).
     pub dynamic_prior_sigmas: f64,
     /// Ellipsoids farther than this from their latest camera are discarded, metres.
@@ -48,7 +49,7 @@ impl Default for ObjectsToml {
             max_views: m.max_views,
             // detector boxes (partial, jittery) miss more than label boxes; the motion test is the main cue
             dynamic_rms_px: 25.0,
-            dynamic_motion_m: m.dynamic_motion_m,
+            dynamic_motion_sigmas: m.dynamic_motion_sigmas,
             dynamic_prior_sigmas: m.dynamic_prior_sigmas.unwrap_or(0.0),
             max_depth_m: m.max_depth_m,
             merge_distance_m: m.merge_distance_m,
@@ -69,6 +70,10 @@ pub struct SystemToml {
     pub exclude_moving: bool,
     /// Central fraction of a box whose map points belong to the object.
     pub object_core: f64,
+    /// σ of a stereo disparity, pixels (depth noise of the moving-object test).
+    pub disparity_sigma_px: f64,
+    /// Suppress duplicate and part boxes before association.
+    pub suppress_duplicates: bool,
     /// ODA gate: never give a detection to an object whose projected ellipsoid overlaps it by less than
     /// this IoU (0: the paper's cost alone).
     pub projected_gate: f64,
@@ -82,6 +87,8 @@ impl Default for SystemToml {
             detect_every: s.detect_every,
             exclude_moving: s.exclude_moving,
             object_core: s.object_core,
+            disparity_sigma_px: s.disparity_sigma_px,
+            suppress_duplicates: s.suppress_duplicates,
             projected_gate: s.projected_gate.unwrap_or(0.0),
         }
     }
@@ -125,7 +132,7 @@ impl RunConfig {
                 refit_every: o.refit_every,
                 max_views: o.max_views,
                 dynamic_rms_px: o.dynamic_rms_px,
-                dynamic_motion_m: o.dynamic_motion_m,
+                dynamic_motion_sigmas: o.dynamic_motion_sigmas,
                 dynamic_prior_sigmas: (o.dynamic_prior_sigmas > 0.0).then_some(o.dynamic_prior_sigmas),
                 max_depth_m: o.max_depth_m,
                 merge_distance_m: o.merge_distance_m,
@@ -137,6 +144,8 @@ impl RunConfig {
             detect_every: self.system.detect_every,
             exclude_moving: self.system.exclude_moving,
             object_core: self.system.object_core,
+            disparity_sigma_px: self.system.disparity_sigma_px,
+            suppress_duplicates: self.system.suppress_duplicates,
             projected_gate: (self.system.projected_gate > 0.0).then_some(self.system.projected_gate),
         }
     }

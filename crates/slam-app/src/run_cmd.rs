@@ -314,8 +314,8 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
         median_fps(&out)
     );
     println!(
-        "keyframes {}, lost {}, relocalised {}, new map segments {}, unreadable {}, detector errors {}, culled observations {}",
-        c.keyframes, c.lost, c.relocalised, c.new_segments, c.unreadable, c.detector_errors, c.culled_observations
+        "keyframes {}, lost {}, relocalised {}, new map segments {}, unreadable {}, detector errors {}, culled observations {}, duplicate or part boxes suppressed {}",
+        c.keyframes, c.lost, c.relocalised, c.new_segments, c.unreadable, c.detector_errors, c.culled_observations, c.suppressed_boxes
     );
     let st = out.map.stats();
     let dets: usize = out.frames.iter().map(|f| f.detections.len()).sum();

@@ -486,3 +486,137 @@ impl RunScore {
         std::fs::write(path, text).map_err(|e| crate::EvalError::Io(path.display().to_string(), e))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use slam_core::{geometry::BBox, ClassId};
+
+    const G: LabelGeometry = LabelGeometry {
+        fx: 720.0,
+        fy: 720.0,
+        cx: 620.0,
+        cy: 180.0,
+        width: 1242.0,
+        height: 375.0,
+        label_offset: [0.0; 3],
+        colour: false,
+    };
+
+    /// A label of a 4 × 1.5 × 1.6 m car whose bottom centre is at `p` in the camera of `frame`, heading
+    /// along the camera's z axis.
+    fn car(frame: usize, track: i64, p: Vector3<f64>) -> TrackingLabel {
+        TrackingLabel {
+            frame,
+            track_id: track,
+            kind: "Car".into(),
+            class: Some(ClassId(2)),
+            truncated: 0.0,
+            occluded: 0,
+            bbox: BBox::new(0.0, 0.0, 1.0, 1.0),
+            dimensions: [1.5, 1.6, 4.0],
+            location: [p.x, p.y, p.z],
+            rotation_y: -std::f64::consts::FRAC_PI_2,
+        }
+    }
+
+    fn ellipsoid(centre: Vector3<f64>, yaw: f64) -> Ellipsoid {
+        Ellipsoid::new(
+            Isometry3::from_parts(Translation3::from(centre), UnitQuaternion::from_axis_angle(&Vector3::y_axis(), yaw)),
+            Vector3::new(2.0, 0.75, 0.8),
+        )
+    }
+
+    #[test]
+    fn census_and_vehicle_figures_of_a_scripted_scene() {
+        // the camera drives 1 m per frame along z for 12 frames
+        let poses: Vec<Isometry3<f64>> = (0..12).map(|i| Isometry3::translation(0.0, 0.0, i as f64)).collect();
+        let mut labels = Vec::new();
+        for f in 0..12 {
+            let z = f as f64;
+            labels.push(car(f, 1, Vector3::new(4.0, 1.6, 25.0 - z))); // parked at world (4, 0.85, 25)
+            labels.push(car(f, 2, Vector3::new(-3.0, 1.6, 15.0))); // driving ahead at the camera's speed
+            let mut dc = car(f, -1, Vector3::zeros());
+            dc.kind = "DontCare".into();
+            dc.class = None;
+            dc.bbox = BBox::new(100.0, 150.0, 300.0, 250.0);
+            labels.push(dc);
+        }
+        let frames: Vec<usize> = (0..12).collect();
+        let heading = -std::f64::consts::FRAC_PI_2;
+        let parked = Vector3::new(4.0, 0.85, 25.0);
+        // the DontCare region's ray at 30 m: pixel (200, 200)
+        let in_dont_care = Vector3::new((200.0 - 620.0) / 720.0 * 30.0, (200.0 - 180.0) / 720.0 * 30.0, 30.0);
+        let objects = vec![
+            // the parked car, 0.5 m off and turned by 10°
+            ScoredInput {
+                id: 7,
+                class: 2,
+                ellipsoid: ellipsoid(parked + Vector3::new(0.5, 0.0, 0.0), heading + 10f64.to_radians()),
+                frames: frames.clone(),
+                dynamic: false,
+            },
+            // the same car again, 0.8 m off: a duplicate
+            ScoredInput {
+                id: 9,
+                class: 2,
+                ellipsoid: ellipsoid(parked + Vector3::new(0.0, 0.0, 0.8), heading),
+                frames: frames[..6].to_vec(),
+                dynamic: false,
+            },
+            // the car ahead mapped as static where it was in the middle of the drive
+            ScoredInput {
+                id: 3,
+                class: 2,
+                ellipsoid: ellipsoid(Vector3::new(-3.0, 0.85, 21.0), heading),
+                frames: (4..8).collect(),
+                dynamic: false,
+            },
+            // the car ahead, flagged dynamic
+            ScoredInput {
+                id: 4,
+                class: 2,
+                ellipsoid: ellipsoid(Vector3::new(-3.0, 0.85, 18.0), heading),
+                frames: (2..5).collect(),
+                dynamic: true,
+            },
+            ScoredInput {
+                id: 5,
+                class: 2,
+                ellipsoid: Ellipsoid::new(Isometry3::translation(in_dont_care.x, in_dont_care.y, in_dont_care.z), Vector3::new(1.0, 0.8, 1.0)),
+                frames: vec![0],
+                dynamic: false,
+            },
+            // junk on the road, far from any label
+            ScoredInput { id: 6, class: 2, ellipsoid: ellipsoid(Vector3::new(0.0, 1.0, 40.0), 0.0), frames: vec![0, 1], dynamic: false },
+        ];
+        let s = score_run(&labels, &poses, &G, &objects, &ScoreConfig::default());
+        let c = s.census;
+        assert_eq!(
+            (c.static_objects, c.matched, c.duplicate, c.moving, c.dont_care, c.nothing),
+            (5, 1, 1, 1, 1, 1),
+            "{}",
+            s.report()
+        );
+        assert_eq!((c.dynamic_objects, c.dynamic_on_moving), (1, 1));
+        let fate = |id: u64| s.objects.iter().find(|o| o.id == id).map(|o| o.fate);
+        assert_eq!(fate(7), Some(Fate::Matched));
+        assert_eq!(fate(9), Some(Fate::Duplicate));
+        assert_eq!(fate(3), Some(Fate::Moving));
+        assert_eq!(fate(5), Some(Fate::DontCare));
+        assert_eq!(fate(6), Some(Fate::Nothing));
+        // one static vehicle (track 1), found by object 7
+        let v = s.vehicles;
+        assert_eq!((v.vehicles, v.found), (1, 1));
+        assert!((v.e_trans - 0.5).abs() < 1e-9, "{}", v.e_trans);
+        assert!((v.e_yaw - 10.0).abs() < 1e-6, "{}", v.e_yaw);
+        assert_eq!(v.yaw_within, 1.0);
+        assert!(v.e_axe < 0.1 && v.iou2d > 0.3, "{v:?}");
+        let moving = s.tracks.iter().find(|t| t.track == 2).expect("track 2");
+        assert_eq!((moving.motion, moving.flagged.as_slice()), ("moving", &[4u64][..]));
+        // the JSON carries the same figures
+        let json = serde_json::to_value(&s).expect("serialises");
+        assert_eq!(json["census"]["duplicate"], 1);
+        assert_eq!(json["objects"][0]["fate"], "matched");
+    }
+}

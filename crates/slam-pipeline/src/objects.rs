@@ -78,9 +78,11 @@ pub struct MapperConfig {
     /// in prior standard deviations (Mahalanobis), is flagged dynamic: fitted as static, a moving object
     /// needs a size its class does not have. `None` turns the test off. Default 6 (docs/objects.md).
     pub dynamic_prior_sigmas: Option<f64>,
-    /// An object whose map-point centroid moves more than this between its first and latest
-    /// keyframe observation (plus 5 % of its depth, for stereo noise) is moving, metres. Default 3.
-    pub dynamic_motion_m: f64,
+    /// An object whose stereo-point centroid at a keyframe lies farther than this many standard
+    /// deviations from the median of its earlier centroids is moving (Mahalanobis, along and across the
+    /// viewing ray; σ from the stereo depth noise of both and the spread of the visible surface over
+    /// the object, see [`ObjectMapper::add_points`]). Default 3.
+    pub dynamic_motion_sigmas: f64,
     /// A fitted ellipsoid farther than this from the camera of its latest view is discarded (beyond
     /// the stereo range, boxes alone do not fix the depth), metres. Default 80.
     pub max_depth_m: f64,
@@ -105,7 +107,7 @@ impl Default for MapperConfig {
             max_views: 20,
             dynamic_rms_px: 12.0,
             dynamic_prior_sigmas: Some(6.0),
-            dynamic_motion_m: 3.0,
+            dynamic_motion_sigmas: 3.0,
             max_depth_m: 80.0,
             merge_distance_m: 2.5,
             tracker: TrackerConfig::default(),
@@ -135,6 +137,54 @@ fn class_group(c: ClassId) -> u16 {
     }
 }
 
+/// IoU above which two boxes of one class group are one object (the detector's own class-wise NMS
+/// threshold).
+const DUPLICATE_IOU: f64 = 0.45;
+/// Share of a box's area inside a larger box of its class group above which it is a part of that
+/// object (a tile's cut of a car, its front or its wheels boxed again).
+const NESTED_SHARE: f64 = 0.8;
+
+/// One box per object: boxes of one class group (car / bus / truck; bicycle / motorcycle) that overlap
+/// a larger kept box by IoU above 0.45 (the same object boxed twice: across tiles, or as two classes)
+/// or lie inside it by 80 % of their area (a part of it) are dropped. Larger boxes are kept first (the
+/// whole object, not its part); ties by score, then by position, so the result is deterministic.
+/// Returns the kept boxes in their input order and how many were dropped.
+pub fn suppress_duplicate_boxes(detections: Vec<Detection>) -> (Vec<Detection>, usize) {
+    let mut order: Vec<usize> = (0..detections.len()).collect();
+    let key = |d: &Detection| (d.bbox.area(), d.score, d.bbox.xmin, d.bbox.ymin);
+    order.sort_by(|&a, &b| {
+        let (ka, kb) = (key(&detections[a]), key(&detections[b]));
+        kb.0.total_cmp(&ka.0).then(kb.1.total_cmp(&ka.1)).then(ka.2.total_cmp(&kb.2)).then(ka.3.total_cmp(&kb.3))
+    });
+    let mut keep = vec![false; detections.len()];
+    let mut kept: Vec<usize> = Vec::new();
+    for i in order {
+        let d = &detections[i];
+        let duplicate = kept.iter().any(|&j| {
+            let o = &detections[j];
+            class_group(o.class) == class_group(d.class)
+                && (o.bbox.iou(&d.bbox) > DUPLICATE_IOU
+                    || o.bbox.intersection(&d.bbox).is_some_and(|x| x.area() >= NESTED_SHARE * d.bbox.area()))
+        });
+        if !duplicate {
+            keep[i] = true;
+            kept.push(i);
+        }
+    }
+    let dropped = keep.iter().filter(|k| !**k).count();
+    (detections.into_iter().zip(keep).filter_map(|(d, k)| k.then_some(d)).collect(), dropped)
+}
+
+/// Where an object's stereo points put it at one keyframe: the median world position of its points and
+/// the standard deviation of that position along the viewing ray from stereo depth noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointsCentroid {
+    /// Median world position, metres.
+    pub position: Vector3<f64>,
+    /// `σ_z = z² σ_d / (f b)` at the points' median depth, metres.
+    pub depth_sigma: f64,
+}
+
 /// One observation of an object.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Observation {
@@ -148,6 +198,9 @@ pub struct Observation {
     pub detection: usize,
     /// Median world position of the map points inside the box (keyframes of the full pipeline).
     pub centroid: Option<Vector3<f64>>,
+    /// Standard deviation of that centroid along its viewing ray from stereo depth noise, metres (0
+    /// without a centroid).
+    pub depth_sigma: f64,
     /// The frame's reference keyframe and its pose in it (full pipeline): lets the fit use the
     /// keyframe's refined pose.
     pub reference: Option<(KeyframeId, nalgebra::Isometry3<f64>)>,
@@ -368,34 +421,55 @@ impl ObjectMapper {
                 bbox: d.bbox,
                 detection: k,
                 centroid: None,
+                depth_sigma: 0.0,
                 reference,
             });
         }
         out.tracks
     }
 
-    /// Attach map points seen inside the object's latest box and their median position (callers pass
+    /// Attach map points seen inside the object's latest box and where they put the object (callers pass
     /// `None` when too few points support it); flags the object as moving when that centroid lies more
-    /// than `dynamic_motion_m` (+5 % of depth) from the median of its earlier centroids.
-    pub fn add_points(&mut self, id: TrackId, points: &[PointId], centroid: Option<Vector3<f64>>) {
+    /// than `dynamic_motion_sigmas` standard deviations from the median of its earlier centroids.
+    ///
+    /// The displacement `d` is split along the latest viewing ray and across it. Along the ray its σ
+    /// combines the stereo depth noise of both centroids (`σ_z = z² σ_d / (f b)`) with the wander of the
+    /// visible surface over the object (`s = a / √3`, the σ of a point uniform over the class's
+    /// half-length `a`: which side of a car is seen changes with the view); across the ray, `s` and the
+    /// earlier centroids' depth noise (the ray turns as the camera passes). A static object stays
+    /// within a few σ whatever its depth; a car driving ahead at the camera's speed keeps its depth,
+    /// so its centroid moves with the camera and leaves them.
+    pub fn add_points(&mut self, id: TrackId, points: &[PointId], centroid: Option<PointsCentroid>) {
         let cfg = self.config;
         let Some(obj) = self.objects.get_mut(&id) else { return };
         obj.points.extend(points.iter().copied());
-        let earlier: Vec<Vector3<f64>> = obj.observations.iter().filter_map(|o| o.centroid).collect();
+        let earlier: Vec<(Vector3<f64>, f64)> =
+            obj.observations.iter().filter_map(|o| o.centroid.map(|c| (c, o.depth_sigma))).collect();
+        let class = obj.class;
         let Some(last) = obj.observations.last_mut() else { return };
-        last.centroid = centroid;
+        last.centroid = centroid.map(|c| c.position);
+        last.depth_sigma = centroid.map_or(0.0, |c| c.depth_sigma);
         tracing::trace!(object = %id, frame = last.frame, bbox = ?last.bbox, ?centroid, points = points.len(), "object points");
         let (Some(c), false) = (centroid, earlier.is_empty()) else { return };
-        let median = |k: usize| {
-            let mut v: Vec<f64> = earlier.iter().map(|p| p[k]).collect();
+        let median = |v: &mut Vec<f64>| {
             v.sort_by(|a, b| a.total_cmp(b));
             v[v.len() / 2]
         };
-        let reference = Vector3::new(median(0), median(1), median(2));
-        let depth = (c - last.camera.world_from_camera.translation.vector).norm();
-        let moved = (c - reference).norm();
-        if moved > cfg.dynamic_motion_m + 0.05 * depth && !obj.moving {
-            tracing::info!(object = %id, moved_m = moved, "object is moving: not mapped");
+        let axis = |k: usize| median(&mut earlier.iter().map(|p| p.0[k]).collect());
+        let reference = Vector3::new(axis(0), axis(1), axis(2));
+        let reference_sigma = median(&mut earlier.iter().map(|p| p.1).collect());
+        let Some(ray) = (c.position - last.camera.world_from_camera.translation.vector).try_normalize(1e-9) else {
+            return;
+        };
+        let d = c.position - reference;
+        let along = d.dot(&ray);
+        let across = (d - ray * along).norm();
+        let s = class_prior(class).axes.x / 3f64.sqrt();
+        let sigma_along = (c.depth_sigma.powi(2) + reference_sigma.powi(2) + s * s).sqrt();
+        let sigma_across = (reference_sigma.powi(2) + s * s).sqrt();
+        let m = ((along / sigma_along).powi(2) + (across / sigma_across).powi(2)).sqrt();
+        if m > cfg.dynamic_motion_sigmas && !obj.moving {
+            tracing::info!(object = %id, moved_m = d.norm(), along, across, sigmas = m, "object is moving: not mapped");
             obj.moving = true;
             obj.dynamic = true;
         }
@@ -580,4 +654,36 @@ pub fn write_object_map(path: &Path, objects: &[&MappedObject]) -> std::io::Resu
     let tmp = path.with_extension("json.tmp");
     std::fs::write(&tmp, text)?;
     std::fs::rename(&tmp, path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn one_box_per_object_across_tiles_parts_and_class_groups() {
+        let d = |class: u16, score: f64, b: [f64; 4]| Detection::new(ClassId(class), score, BBox::new(b[0], b[1], b[2], b[3]));
+        let input = vec![
+            d(2, 0.6, [100.0, 100.0, 200.0, 180.0]), // a car
+            d(2, 0.9, [105.0, 102.0, 196.0, 178.0]), // the same car from another tile (IoU 0.86)
+            d(7, 0.5, [98.0, 95.0, 203.0, 182.0]),   // the same car called a truck: same class group
+            d(2, 0.8, [150.0, 120.0, 198.0, 178.0]), // its front half: a part
+            d(0, 0.7, [150.0, 110.0, 170.0, 170.0]), // a person in front of it: another group, kept
+            d(2, 0.7, [400.0, 100.0, 480.0, 160.0]), // another car
+            d(2, 0.7, [470.0, 100.0, 560.0, 160.0]), // its neighbour, overlapping a little: kept
+        ];
+        let (kept, dropped) = suppress_duplicate_boxes(input.clone());
+        assert_eq!(dropped, 3);
+        // the largest box of the first car (the "truck") stands for it; input order is kept
+        let boxes: Vec<[f64; 2]> = kept.iter().map(|k| [k.bbox.xmin, k.bbox.ymin]).collect();
+        assert_eq!(boxes, vec![[98.0, 95.0], [150.0, 110.0], [400.0, 100.0], [470.0, 100.0]]);
+        // deterministic whatever the input order
+        let mut reversed = input;
+        reversed.reverse();
+        let (again, n) = suppress_duplicate_boxes(reversed);
+        assert_eq!(n, 3);
+        let mut a: Vec<[f64; 2]> = again.iter().map(|k| [k.bbox.xmin, k.bbox.ymin]).collect();
+        a.reverse();
+        assert_eq!(a, boxes);
+    }
 }
