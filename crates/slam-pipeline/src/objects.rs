@@ -89,6 +89,20 @@ pub struct MapperConfig {
     /// Static objects of one class group closer than this are merged, metres. Default 2.5 (cars parked
     /// bumper to bumper stand about 4.5 m apart).
     pub merge_distance_m: f64,
+    /// A mapped ellipsoid that should have been detected (in front within `visible_depth_m`, its
+    /// projected box inside the image, not overlapped by another box, in a frame with detections) and
+    /// was not in this many frames in a row is removed (refitted when boxes come again). Default 5: a
+    /// detector that finds a visible car 3 times in 4 misses it 5 times running about once in a
+    /// thousand. `None`: off.
+    pub max_misses: Option<usize>,
+    /// Depth within which a mapped object is expected to be detected, metres. Default 40 (a car's box
+    /// is then at least 27 px tall at KITTI's focal length).
+    pub visible_depth_m: f64,
+    /// An ellipsoid is accepted only where the object's stereo points put it: it must lie within
+    /// `dynamic_motion_sigmas` σ (depth noise and surface spread, as in the motion test) of the median
+    /// of the object's keyframe centroids, and an object without any is not mapped. Off in the
+    /// image-free mode (no points); the running system turns it on.
+    pub stereo_evidence: bool,
     /// Tracker settings.
     pub tracker: TrackerConfig,
 }
@@ -110,6 +124,9 @@ impl Default for MapperConfig {
             dynamic_motion_sigmas: 3.0,
             max_depth_m: 80.0,
             merge_distance_m: 2.5,
+            max_misses: Some(5),
+            visible_depth_m: 40.0,
+            stereo_evidence: false,
             tracker: TrackerConfig::default(),
         }
     }
@@ -224,6 +241,10 @@ pub struct MappedObject {
     /// Map points on the object (full pipeline), for texture planes.
     pub points: std::collections::BTreeSet<PointId>,
     fitted_at: usize,
+    /// Consecutive keyframes whose centroid failed the motion test.
+    motion_strikes: usize,
+    /// Consecutive detector frames in which its ellipsoid should have been seen and was not.
+    misses: usize,
 }
 
 /// An ellipsoid fit to run (possibly on another thread): everything it needs, by value.
@@ -400,6 +421,7 @@ impl ObjectMapper {
             })
             .collect();
         let out = self.tracker.step(&TrackerInput { detections, projected: &projected, flow, keyframe: true });
+        self.count_misses(camera, &projected, detections, &out.tracks);
         for (k, (t, d)) in out.tracks.iter().zip(detections).enumerate() {
             let Some(id) = *t else { continue };
             if self.merged.contains_key(&id) {
@@ -414,6 +436,8 @@ impl ObjectMapper {
                 moving: false,
                 points: Default::default(),
                 fitted_at: 0,
+                motion_strikes: 0,
+                misses: 0,
             });
             obj.observations.push(Observation {
                 frame,
@@ -426,6 +450,53 @@ impl ObjectMapper {
             });
         }
         out.tracks
+    }
+
+    /// Count, for every mapped static object, the frames in which it should have been detected and was
+    /// not; remove its ellipsoid after `max_misses` in a row (see [`MapperConfig::max_misses`]).
+    fn count_misses(
+        &mut self,
+        camera: &Camera,
+        projected: &BTreeMap<TrackId, BBox>,
+        detections: &[Detection],
+        tracks: &[Option<TrackId>],
+    ) {
+        let cfg = self.config;
+        let Some(limit) = cfg.max_misses else { return };
+        // a frame without boxes may be one the detector skipped
+        if detections.is_empty() {
+            return;
+        }
+        let seen: std::collections::BTreeSet<TrackId> =
+            tracks.iter().flatten().map(|t| self.merged.get(t).copied().unwrap_or(*t)).collect();
+        let from_world = camera.world_from_camera.inverse();
+        let usable_of = |o: &MappedObject| {
+            o.observations.iter().filter(|x| !x.bbox.touches_border(&cfg.image, cfg.border_margin_px)).count()
+        };
+        for o in self.objects.values_mut() {
+            let (Some(e), Some(b)) = (o.ellipsoid, projected.get(&o.id)) else { continue };
+            if o.dynamic || seen.contains(&o.id) {
+                o.misses = 0;
+                continue;
+            }
+            let depth = (from_world * nalgebra::Point3::from(e.centre())).z;
+            let in_view = depth > 0.0
+                && depth < cfg.visible_depth_m
+                && !b.touches_border(&cfg.image, cfg.border_margin_px);
+            let covered = detections
+                .iter()
+                .any(|d| d.bbox.intersection(b).is_some_and(|x| x.area() >= 0.3 * b.area()));
+            if !in_view || covered {
+                continue;
+            }
+            o.misses += 1;
+            if o.misses >= limit {
+                tracing::debug!(object = %o.id, misses = o.misses, "visible but not detected: ellipsoid removed");
+                o.ellipsoid = None;
+                o.misses = 0;
+                o.fitted_at = usable_of(o);
+            }
+        }
     }
 
     /// Attach map points seen inside the object's latest box and where they put the object (callers pass
@@ -468,7 +539,9 @@ impl ObjectMapper {
         let sigma_along = (c.depth_sigma.powi(2) + reference_sigma.powi(2) + s * s).sqrt();
         let sigma_across = (reference_sigma.powi(2) + s * s).sqrt();
         let m = ((along / sigma_along).powi(2) + (across / sigma_across).powi(2)).sqrt();
-        if m > cfg.dynamic_motion_sigmas && !obj.moving {
+        // two keyframes in a row: one centroid on the wrong surface must not condemn a parked car
+        obj.motion_strikes = if m > cfg.dynamic_motion_sigmas { obj.motion_strikes + 1 } else { 0 };
+        if obj.motion_strikes >= 2 && !obj.moving {
             tracing::info!(object = %id, moved_m = d.norm(), along, across, sigmas = m, "object is moving: not mapped");
             obj.moving = true;
             obj.dynamic = true;
@@ -487,8 +560,19 @@ impl ObjectMapper {
         let id = result.id;
         let Some(obj) = self.objects.get_mut(&id) else { return };
         if let Some(e) = result.ellipsoid {
+            if self.config.stereo_evidence && !obj.moving {
+                if let Err(why) = stereo_agrees(obj, &e, self.config.dynamic_motion_sigmas) {
+                    tracing::debug!(object = %id, "ellipsoid not accepted: {why}");
+                    obj.ellipsoid = None;
+                    return;
+                }
+            }
             obj.ellipsoid = Some(e);
-            obj.dynamic = obj.moving || result.dynamic;
+            // with stereo points, the points' motion is the dynamic cue and their agreement with the
+            // ellipsoid (above) the gate; box misfit and odd size (boxes cut by the border, parts)
+            // decide only until two centroids let the points' motion be measured
+            let centroids = obj.observations.iter().filter(|o| o.centroid.is_some()).count();
+            obj.dynamic = obj.moving || (result.dynamic && (!self.config.stereo_evidence || centroids < 2));
         }
         self.merge_duplicates(id);
     }
@@ -576,6 +660,31 @@ impl ObjectMapper {
             max_depth_m: cfg.max_depth_m,
         })
     }
+}
+
+/// Whether an ellipsoid lies where the object's stereo points put it (see
+/// [`MapperConfig::stereo_evidence`]): Mahalanobis distance of its centre from the median keyframe
+/// centroid, along the ray (depth noise and surface spread) and across it (surface spread).
+fn stereo_agrees(obj: &MappedObject, e: &Ellipsoid, sigmas: f64) -> Result<(), String> {
+    let with: Vec<&Observation> = obj.observations.iter().filter(|o| o.centroid.is_some()).collect();
+    let Some(last) = with.last() else { return Err("no stereo points on it".into()) };
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(|a, b| a.total_cmp(b));
+        v[v.len() / 2]
+    };
+    let axis = |k: usize| median(with.iter().filter_map(|o| o.centroid.map(|c| c[k])).collect());
+    let c = Vector3::new(axis(0), axis(1), axis(2));
+    let sigma_z = median(with.iter().map(|o| o.depth_sigma).collect());
+    let ray = (c - last.camera.world_from_camera.translation.vector).try_normalize(1e-9).ok_or("centroid at the camera")?;
+    let d = e.centre() - c;
+    let along = d.dot(&ray);
+    let across = (d - ray * along).norm();
+    let s = class_prior(obj.class).axes.x / 3f64.sqrt();
+    let m = ((along / (sigma_z * sigma_z + s * s).sqrt()).powi(2) + (across / s).powi(2)).sqrt();
+    if m > sigmas {
+        return Err(format!("{m:.1} σ from its stereo points ({along:+.1} m along the ray, {across:.1} m across)"));
+    }
+    Ok(())
 }
 
 fn box_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid, shape: BoxShape) -> Option<f64> {

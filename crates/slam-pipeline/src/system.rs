@@ -264,9 +264,10 @@ fn height_range(class: ClassId) -> (f64, f64) {
 /// Candidates: points inside the central part of the box (`core` of its width and height) whose depth
 /// fits the box height for some height the class can have (no near limit for a box cut by the image
 /// border: its height understates the object's). Among them the object is the densest depth cluster:
-/// the window `[z, z + 2w]` holding the most points, `w = max(a, 2 σ_z(z))` with `a` the class's
-/// half-length (a car seen obliquely spans its length in depth) and `σ_z = z² σ_d / (f b)` the stereo
-/// depth noise; ties go to the nearer window (the object hides what lies behind it). The centroid is
+/// windows `[z, z + 2w]` with `w = max(a, 2 σ_z(z))`, `a` the class's half-length (a car seen obliquely
+/// spans its length in depth) and `σ_z = z² σ_d / (f b)` the stereo depth noise; the object is the
+/// nearest window holding at least half as many points as the densest one (it hides what lies behind
+/// it). The centroid is
 /// the points' median world position (`None` below [`MIN_OBJECT_POINTS`] points).
 #[allow(clippy::too_many_arguments)]
 fn object_points(
@@ -294,15 +295,20 @@ fn object_points(
     cand.sort_by(|a, b| a.camera_point.z.total_cmp(&b.camera_point.z).then(a.id.cmp(&b.id)));
     let sigma_z = |z: f64| z * z * disparity_sigma / (k.fx * baseline);
     let half_length = class_prior(class).axes.x;
-    let mut best = (0usize, 0usize); // (count, first index)
-    for i in 0..cand.len() {
-        let z0 = cand[i].camera_point.z;
-        let top = z0 + 2.0 * half_length.max(2.0 * sigma_z(z0));
-        let n = cand[i..].iter().take_while(|p| p.camera_point.z <= top).count();
-        if n > best.0 {
-            best = (n, i);
-        }
-    }
+    let windows: Vec<usize> = (0..cand.len())
+        .map(|i| {
+            let z0 = cand[i].camera_point.z;
+            let top = z0 + 2.0 * half_length.max(2.0 * sigma_z(z0));
+            cand[i..].iter().take_while(|p| p.camera_point.z <= top).count()
+        })
+        .collect();
+    // the nearest window holding at least half as many points as the densest one: the object hides
+    // what lies behind it, and a textured facade behind a plain car can outnumber the car's points
+    let densest = windows.iter().copied().max().unwrap_or(0);
+    let best = windows
+        .iter()
+        .position(|&n| n >= MIN_OBJECT_POINTS && 2 * n >= densest)
+        .map_or((0, 0), |i| (windows[i], i));
     let kept: Vec<(u64, Vector3<f64>, f64)> = cand[best.1..best.1 + best.0]
         .iter()
         .map(|p| (p.id, (kf.world_from_camera * Point3::from(p.camera_point)).coords, p.camera_point.z))
@@ -380,7 +386,8 @@ pub fn run(
             min_projected_iou: config.projected_gate,
             ..slam_assoc::OdaConfig::default()
         });
-        let mut objects = ObjectMapper::new(Box::new(oda), config.objects);
+        // with stereo points, an ellipsoid must agree with them
+        let mut objects = ObjectMapper::new(Box::new(oda), MapperConfig { stereo_evidence: true, ..config.objects });
         let mut records: Vec<FrameRecord> = Vec::new();
         let mut trajectory: Vec<FramePose> = Vec::new();
         let mut counts = RunCounts::default();
