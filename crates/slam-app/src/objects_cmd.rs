@@ -48,6 +48,9 @@ pub struct InputArgs {
     /// What a box bounds in the object optimisation: the ellipsoid (the paper) or its circumscribed cuboid
     #[arg(long, value_enum, default_value_t = Shape::Ellipse)]
     box_shape: Shape,
+    /// Remove an ellipsoid visible but not detected in this many frames in a row (0: never)
+    #[arg(long, default_value_t = 5)]
+    max_misses: usize,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
@@ -150,6 +153,7 @@ fn run(seq: &Sequence, input: &InputArgs) -> (ObjectMapper, BTreeMap<(usize, usi
         box_shape: input.box_shape.shape(),
         min_parallax_deg: input.min_parallax_deg,
         dynamic_prior_sigmas: (input.dynamic_prior_sigmas > 0.0).then_some(input.dynamic_prior_sigmas),
+        max_misses: (input.max_misses > 0).then_some(input.max_misses),
         ..MapperConfig::default()
     };
     let mut mapper = ObjectMapper::new(Box::new(Oda::default()), config);
@@ -348,6 +352,9 @@ struct Row {
     rays: usize,
     /// Sum over the found vehicles of the IoU2D of the ground-truth ellipsoid itself.
     iou_truth: f64,
+    /// Sum of e_yaw (degrees) over the found vehicles, and how many were within 15 degrees.
+    e_yaw: f64,
+    yaw_within: usize,
 }
 
 /// `slam-app eval <run folder> --labels <label_02.txt>`: score a finished run's object map.
@@ -384,10 +391,11 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         a.min_frames, a.static_m
     );
     println!(
-        "{:<6} {:>8} {:>8} {:>8} {:>8} {:>9} {:>8} {:>8}",
-        "seq", "vehicles", "found", "success", "IoU2D", "e_trans", "e_axe", "e_ray"
+        "{:<6} {:>8} {:>8} {:>8} {:>8} {:>9} {:>8} {:>8} {:>8} {:>7}",
+        "seq", "vehicles", "found", "success", "IoU2D", "e_trans", "e_axe", "e_ray", "e_yaw", "<=15deg"
     );
-    let mut csv = String::from("sequence,vehicles,found,success,iou2d,e_trans,e_axe,e_ray\n");
+    let mut csv = String::from("sequence,vehicles,found,success,iou2d,e_trans,e_axe,e_ray,e_yaw,yaw_within_15\n");
+    let (mut sum_yaw, mut sum_within) = (0.0, 0.0);
     let (mut tot, mut n_seq) = (Row::default(), 0usize);
     let (mut sum_success, mut sum_iou, mut sum_et, mut sum_ea, mut n_found_seq) = (0.0, 0.0, 0.0, 0.0, 0usize);
     let (mut sum_ray, mut n_ray_seq) = (0.0, 0usize);
@@ -473,6 +481,10 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             row.iou_truth += truth_ious.iter().sum::<f64>() / truth_ious.len().max(1) as f64;
             row.e_trans += metrics::e_trans(e, &gt.ellipsoid);
             row.e_axe += metrics::e_axe(e, &gt.ellipsoid);
+            let up = seq.poses[gt.boxes.keys().next().copied().unwrap_or(0)].rotation * Vector3::y();
+            let yaw = metrics::e_yaw(e, &gt.ellipsoid, &up);
+            row.e_yaw += yaw;
+            row.yaw_within += usize::from(yaw <= 15.0);
             if let Some(c) = gt.ray_centre {
                 row.e_ray += (c - gt.ellipsoid.centre()).norm();
                 row.rays += 1;
@@ -499,7 +511,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         let success = if row.vehicles > 0 { row.found as f64 / row.vehicles as f64 } else { f64::NAN };
         let e_ray = if row.rays > 0 { row.e_ray / row.rays as f64 } else { f64::NAN };
         println!(
-            "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3}",
+            "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3} {:>8.1} {:>7.2}",
             name,
             row.vehicles,
             row.found,
@@ -507,16 +519,20 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             row.iou / f,
             row.e_trans / f,
             row.e_axe / f,
-            e_ray
+            e_ray,
+            row.e_yaw / f,
+            row.yaw_within as f64 / f
         );
         let _ = writeln!(
             csv,
-            "{name},{},{},{success},{},{},{},{e_ray}",
+            "{name},{},{},{success},{},{},{},{e_ray},{},{}",
             row.vehicles,
             row.found,
             row.iou / f,
             row.e_trans / f,
-            row.e_axe / f
+            row.e_axe / f,
+            row.e_yaw / f,
+            row.yaw_within as f64 / f
         );
         if row.vehicles > 0 {
             n_seq += 1;
@@ -531,6 +547,8 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             sum_iou += row.iou / f;
             sum_et += row.e_trans / f;
             sum_ea += row.e_axe / f;
+            sum_yaw += row.e_yaw / f;
+            sum_within += row.yaw_within as f64 / f;
         }
         tot.vehicles += row.vehicles;
         tot.found += row.found;
@@ -539,12 +557,14 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         tot.e_axe += row.e_axe;
         tot.e_ray += row.e_ray;
         tot.iou_truth += row.iou_truth;
+        tot.e_yaw += row.e_yaw;
+        tot.yaw_within += row.yaw_within;
         tot.rays += row.rays;
     }
     let f = tot.found.max(1) as f64;
     let m = n_found_seq.max(1) as f64;
     println!(
-        "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3}   (mean of sequences)",
+        "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3} {:>8.1} {:>7.2}   (mean of sequences)",
         "avg",
         "",
         "",
@@ -552,10 +572,12 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         sum_iou / m,
         sum_et / m,
         sum_ea / m,
-        sum_ray / n_ray_seq.max(1) as f64
+        sum_ray / n_ray_seq.max(1) as f64,
+        sum_yaw / m,
+        sum_within / m
     );
     println!(
-        "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3}   (pooled over vehicles)",
+        "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3} {:>8.1} {:>7.2}   (pooled over vehicles)",
         "all",
         tot.vehicles,
         tot.found,
@@ -563,7 +585,9 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         tot.iou / f,
         tot.e_trans / f,
         tot.e_axe / f,
-        tot.e_ray / tot.rays.max(1) as f64
+        tot.e_ray / tot.rays.max(1) as f64,
+        tot.e_yaw / f,
+        tot.yaw_within as f64 / f
     );
     println!(
         "moving vehicles (world centre moves more than {} m): {}; mapped as a static ellipsoid: {}, flagged \
