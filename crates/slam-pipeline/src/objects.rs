@@ -275,8 +275,10 @@ pub struct FitResult {
     pub id: TrackId,
     /// The ellipsoid, when the fit succeeded.
     pub ellipsoid: Option<Ellipsoid>,
-    /// Box misfit too large for a static object.
+    /// Box misfit too large for a static object, or a size its class does not have.
     pub dynamic: bool,
+    /// The size alone: semi-axes farther than `dynamic_prior_sigmas` from the class prior.
+    pub odd_size: bool,
 }
 
 impl FitJob {
@@ -317,7 +319,7 @@ impl FitJob {
         match fitted {
             Ok(e) if too_far(&e) => {
                 tracing::debug!(object = %self.id, "ellipsoid beyond {} m discarded", self.max_depth_m);
-                FitResult { id: self.id, ellipsoid: None, dynamic: false }
+                FitResult { id: self.id, ellipsoid: None, dynamic: false, odd_size: false }
             }
             Ok(e) => {
                 let rms = box_rms(views, &self.image, &e, self.box_shape);
@@ -337,11 +339,11 @@ impl FitJob {
                     heights.sort_by(f64::total_cmp);
                     tracing::debug!(object = %self.id, rms = ?rms, views = views.len(), median_box_height = heights.get(heights.len() / 2).copied().unwrap_or(0.0), "box misfit: dynamic");
                 }
-                FitResult { id: self.id, ellipsoid: Some(e), dynamic }
+                FitResult { id: self.id, ellipsoid: Some(e), dynamic, odd_size }
             }
             Err(err) => {
                 tracing::debug!(object = %self.id, "no ellipsoid yet: {err}");
-                FitResult { id: self.id, ellipsoid: None, dynamic: false }
+                FitResult { id: self.id, ellipsoid: None, dynamic: false, odd_size: false }
             }
         }
     }
@@ -561,7 +563,14 @@ impl ObjectMapper {
         let Some(obj) = self.objects.get_mut(&id) else { return };
         if let Some(e) = result.ellipsoid {
             if self.config.stereo_evidence && !obj.moving {
-                if let Err(why) = stereo_agrees(obj, &e, self.config.dynamic_motion_sigmas) {
+                // a size no object of its class has is no evidence of a static object either
+                // and a collapsed fit (a semi-axis under 0.1 m: no person, rider or vehicle is that thin)
+                let agrees = if result.odd_size || e.semi_axes.min() < 0.1 {
+                    Err(format!("a size unlike its class ({:.2?})", e.semi_axes.as_slice()))
+                } else {
+                    stereo_agrees(obj, &e, self.config.dynamic_motion_sigmas)
+                };
+                if let Err(why) = agrees {
                     tracing::debug!(object = %id, "ellipsoid not accepted: {why}");
                     obj.ellipsoid = None;
                     return;
