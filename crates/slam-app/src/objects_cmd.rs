@@ -48,6 +48,9 @@ pub struct InputArgs {
     /// What a box bounds in the object optimisation: the ellipsoid (the paper) or its circumscribed cuboid
     #[arg(long, value_enum, default_value_t = Shape::Ellipse)]
     box_shape: Shape,
+    /// Remove an ellipsoid visible but not detected in this many frames in a row (0: never)
+    #[arg(long, default_value_t = 5)]
+    max_misses: usize,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
@@ -165,6 +168,7 @@ fn run(seq: &Sequence, input: &InputArgs) -> (ObjectMapper, BTreeMap<(usize, usi
         box_shape: input.box_shape.shape(),
         min_parallax_deg: input.min_parallax_deg,
         dynamic_prior_sigmas: (input.dynamic_prior_sigmas > 0.0).then_some(input.dynamic_prior_sigmas),
+        max_misses: (input.max_misses > 0).then_some(input.max_misses),
         ..MapperConfig::default()
     };
     let mut mapper =
@@ -220,9 +224,13 @@ pub fn objects(a: &ObjectsArgs) -> anyhow::Result<()> {
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
-    /// One sequence folder (label_02.txt, poses_orbslam3.txt, calib.txt) or a folder of them (default:
-    /// the shipped fixtures/kitti_tracking)
+    /// One sequence folder (label_02.txt, poses_orbslam3.txt, calib.txt), a folder of them (default: the
+    /// shipped fixtures/kitti_tracking), or the output folder of `slam-app run` (objects.json,
+    /// trajectory.kitti.txt, camera.json) to score against --labels
     dir: Option<PathBuf>,
+    /// With a run's output folder: the labels to score it against (label_02.txt format)
+    #[arg(long)]
+    labels: Option<PathBuf>,
     /// Fewest labelled frames of a ground-truth vehicle
     #[arg(long, default_value_t = 10)]
     min_frames: usize,
@@ -360,6 +368,26 @@ struct Row {
     rays: usize,
     /// Sum over the found vehicles of the IoU2D of the ground-truth ellipsoid itself.
     iou_truth: f64,
+    /// Sum of e_yaw (degrees) over the found vehicles, and how many were within 15 degrees.
+    e_yaw: f64,
+    yaw_within: usize,
+}
+
+/// `slam-app eval <run folder> --labels <label_02.txt>`: score a finished run's object map.
+fn eval_run_folder(dir: &std::path::Path, a: &EvalArgs) -> anyhow::Result<()> {
+    let labels_path = a.labels.as_ref().context("scoring a run folder needs --labels <label_02.txt>")?;
+    let labels = read_tracking_labels(labels_path)?;
+    let poses = read_kitti_poses(dir.join("trajectory.kitti.txt"))?;
+    let geometry = slam_eval::LabelGeometry::read(&dir.join("camera.json"))?;
+    let objects = slam_eval::read_object_map(&dir.join("objects.json"))?;
+    let config =
+        slam_eval::ScoreConfig { min_frames: a.min_frames, static_m: a.static_m, moving_m: a.moving_m, ..Default::default() };
+    let score = slam_eval::score_run(&labels, &poses, &geometry, &objects, &config);
+    print!("{}", score.report());
+    let out = dir.join("objects_score.json");
+    score.write_json(&out)?;
+    println!("wrote {}", out.display());
+    Ok(())
 }
 
 pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
@@ -377,6 +405,9 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     }
     let csv_out = a.csv.as_deref().map(crate::output::AtomicFile::new).transpose()?;
     let dir = a.dir.clone().unwrap_or_else(|| crate::fixture("kitti_tracking"));
+    if dir.join("objects.json").is_file() && dir.join("trajectory.kitti.txt").is_file() {
+        return eval_run_folder(&dir, a);
+    }
     let seqs = crate::tracking_sequences(&dir)?;
     println!(
         "Object metrics, label boxes as detections (noise {} of box size, dropout {}), ODA + {}",
@@ -389,10 +420,11 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         a.min_frames, a.static_m
     );
     println!(
-        "{:<6} {:>8} {:>8} {:>8} {:>8} {:>9} {:>8} {:>8}",
-        "seq", "vehicles", "found", "success", "IoU2D", "e_trans", "e_axe", "e_ray"
+        "{:<6} {:>8} {:>8} {:>8} {:>8} {:>9} {:>8} {:>8} {:>8} {:>7}",
+        "seq", "vehicles", "found", "success", "IoU2D", "e_trans", "e_axe", "e_ray", "e_yaw", "<=15deg"
     );
-    let mut csv = String::from("sequence,vehicles,found,success,iou2d,e_trans,e_axe,e_ray\n");
+    let mut csv = String::from("sequence,vehicles,found,success,iou2d,e_trans,e_axe,e_ray,e_yaw,yaw_within_15\n");
+    let (mut sum_yaw, mut sum_within) = (0.0, 0.0);
     let (mut tot, mut n_seq) = (Row::default(), 0usize);
     let (mut sum_success, mut sum_iou, mut sum_et, mut sum_ea, mut n_found_seq) = (0.0, 0.0, 0.0, 0.0, 0usize);
     let (mut sum_ray, mut n_ray_seq) = (0.0, 0usize);
@@ -480,6 +512,10 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             row.iou_truth += truth_ious.iter().sum::<f64>() / truth_ious.len().max(1) as f64;
             row.e_trans += metrics::e_trans(e, &gt.ellipsoid);
             row.e_axe += metrics::e_axe(e, &gt.ellipsoid);
+            let up = seq.poses[gt.boxes.keys().next().copied().unwrap_or(0)].rotation * Vector3::y();
+            let yaw = metrics::e_yaw(e, &gt.ellipsoid, &up);
+            row.e_yaw += yaw;
+            row.yaw_within += usize::from(yaw <= 15.0);
             if let Some(c) = gt.ray_centre {
                 row.e_ray += (c - gt.ellipsoid.centre()).norm();
                 row.rays += 1;
@@ -506,7 +542,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         let success = if row.vehicles > 0 { row.found as f64 / row.vehicles as f64 } else { f64::NAN };
         let e_ray = if row.rays > 0 { row.e_ray / row.rays as f64 } else { f64::NAN };
         bar.println(&format!(
-            "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3}",
+            "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3} {:>8.1} {:>7.2}",
             name,
             row.vehicles,
             row.found,
@@ -514,16 +550,20 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             row.iou / f,
             row.e_trans / f,
             row.e_axe / f,
-            e_ray
+            e_ray,
+            row.e_yaw / f,
+            row.yaw_within as f64 / f
         ));
         let _ = writeln!(
             csv,
-            "{name},{},{},{success},{},{},{},{e_ray}",
+            "{name},{},{},{success},{},{},{},{e_ray},{},{}",
             row.vehicles,
             row.found,
             row.iou / f,
             row.e_trans / f,
-            row.e_axe / f
+            row.e_axe / f,
+            row.e_yaw / f,
+            row.yaw_within as f64 / f
         );
         if row.vehicles > 0 {
             n_seq += 1;
@@ -538,6 +578,8 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             sum_iou += row.iou / f;
             sum_et += row.e_trans / f;
             sum_ea += row.e_axe / f;
+            sum_yaw += row.e_yaw / f;
+            sum_within += row.yaw_within as f64 / f;
         }
         tot.vehicles += row.vehicles;
         tot.found += row.found;
@@ -546,6 +588,8 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         tot.e_axe += row.e_axe;
         tot.e_ray += row.e_ray;
         tot.iou_truth += row.iou_truth;
+        tot.e_yaw += row.e_yaw;
+        tot.yaw_within += row.yaw_within;
         tot.rays += row.rays;
         bar.inc();
     }
@@ -553,7 +597,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let f = tot.found.max(1) as f64;
     let m = n_found_seq.max(1) as f64;
     println!(
-        "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3}   (mean of sequences)",
+        "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3} {:>8.1} {:>7.2}   (mean of sequences)",
         "avg",
         "",
         "",
@@ -561,10 +605,12 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         sum_iou / m,
         sum_et / m,
         sum_ea / m,
-        sum_ray / n_ray_seq.max(1) as f64
+        sum_ray / n_ray_seq.max(1) as f64,
+        sum_yaw / m,
+        sum_within / m
     );
     println!(
-        "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3}   (pooled over vehicles)",
+        "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3} {:>8.1} {:>7.2}   (pooled over vehicles)",
         "all",
         tot.vehicles,
         tot.found,
@@ -572,7 +618,9 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         tot.iou / f,
         tot.e_trans / f,
         tot.e_axe / f,
-        tot.e_ray / tot.rays.max(1) as f64
+        tot.e_ray / tot.rays.max(1) as f64,
+        tot.e_yaw / f,
+        tot.yaw_within as f64 / f
     );
     println!(
         "moving vehicles (world centre moves more than {} m): {}; mapped as a static ellipsoid: {}, flagged \

@@ -9,9 +9,13 @@ use nalgebra::{Matrix2, Point3, Vector2};
 use slam_core::{geometry::Ellipse2, DetectionSource, Image};
 use slam_dataset::{
     detections::{DetectionFile, GroundTruthDetections, GroundTruthNoise},
-    kitti::stereo::{open_stereo, FrameSelection, Layout, StereoSequence, TruthSource},
+    kitti::{
+        stereo::{open_stereo, FrameSelection, Layout, StereoSequence, TruthSource},
+        tracking::{read_tracking_labels, TrackingLabel},
+    },
     trajectory::{write_kitti_poses, write_tum},
 };
+use slam_eval::LabelGeometry;
 use slam_frontend::{draw_overlay, ellipse_outline, read_image, write_image, Overlay, StereoRig, StereoVo};
 use slam_pipeline::{
     eval::trajectory_errors,
@@ -70,6 +74,11 @@ pub struct RunArgs {
     /// Box noise, fraction of box size (selects --detector labels; default 0)
     #[arg(long)]
     label_noise: Option<f64>,
+    /// KITTI tracking labels of this sequence (label_02.txt format): the run's objects are scored
+    /// against them (printed, and objects_score.json), and `--detector labels` takes its boxes from them
+    /// on any layout (3-D boxes projected into the grey camera 0)
+    #[arg(long)]
+    labels: Option<PathBuf>,
     /// Ellipsoid method of the objects (baselines for comparison)
     #[arg(long, value_enum, default_value_t = crate::objects_cmd::Method::Refine)]
     method: crate::objects_cmd::Method,
@@ -189,6 +198,7 @@ fn detector(
     a: &RunArgs,
     seq: &StereoSequence,
     image: ImageSize,
+    labels: Option<&(Vec<TrackingLabel>, LabelGeometry)>,
     notes: &mut Vec<String>,
 ) -> anyhow::Result<Option<Box<dyn DetectionSource>>> {
     Ok(match a.detector_kind()? {
@@ -214,15 +224,13 @@ fn detector(
             Some(Box::new(file))
         }
         DetectorKind::Labels => {
-            let labels = seq.labels.as_ref().with_context(|| {
-                format!("--detector labels: {} has no labels (tracking layout with label_02/)", seq.dir.display())
+            let (labels, geometry) = labels.with_context(|| {
+                format!(
+                    "--detector labels: {} has no labels (tracking layout with label_02/): give --labels <label_02.txt>",
+                    seq.dir.display()
+                )
             })?;
-            let mut truth: BTreeMap<usize, Vec<slam_core::Detection>> = BTreeMap::new();
-            for l in labels.iter().filter(|l| !l.is_dont_care()) {
-                if let Some(c) = l.class {
-                    truth.entry(l.frame).or_default().push(slam_core::Detection::new(c, 1.0, l.bbox));
-                }
-            }
+            let truth = geometry.detections(labels);
             let per_frame = truth.iter().map(|(&f, d)| (f, d.len()));
             notes.extend(crate::guard::unused_frames("labels", per_frame, &seq.ids));
             let noise = GroundTruthNoise { box_sigma: a.label_noise.unwrap_or(0.0), ..GroundTruthNoise::default() };
@@ -279,6 +287,8 @@ fn stage_table(out: &RunOutput) -> Vec<(&'static str, f64, usize)> {
 /// A finished run and what is needed to report on it.
 struct Outcome {
     out: RunOutput,
+    /// The labels (`--labels`, or the tracking layout's own) and their geometry in the run's camera.
+    labels: Option<(Vec<TrackingLabel>, LabelGeometry)>,
     seq: StereoSequence,
     elapsed: f64,
     k: Intrinsics,
@@ -378,9 +388,18 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     let image = ImageSize::new(first.width as f64, first.height as f64);
     let optimizer = a.optimizer.build();
     let tracker = Box::new(StereoVo::new(rig, cfg.tracking, optimizer.clone())?);
+    let labels = match (&a.labels, &seq.labels) {
+        (Some(p), _) => Some(read_tracking_labels(p)?),
+        (None, Some(l)) => Some(l.clone()),
+        (None, None) => None,
+    };
+    let labels = match labels {
+        Some(l) => Some((l, LabelGeometry::of_sequence(&seq, image)?)),
+        None => None,
+    };
     let mut notes = Vec::new();
     let mut counts = None;
-    let det = detector(a, &seq, image, &mut notes)?.map(|d| {
+    let det = detector(a, &seq, image, labels.as_ref(), &mut notes)?.map(|d| {
         let (g, c) = crate::guard::DetectionGuard::new(
             Box::new(ClassFilter(d)),
             [image.width, image.height],
@@ -439,7 +458,7 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     sys.objects.method = a.method.fit();
     let out = system::run(frames, tracker, det, k, seq.baseline, &sys, optimizer, &mut on_frame)?;
     bar.finish();
-    Ok(Outcome { out, seq, elapsed: start.elapsed().as_secs_f64(), k, image, colour, detections: counts, notes })
+    Ok(Outcome { out, labels, seq, elapsed: start.elapsed().as_secs_f64(), k, image, colour, detections: counts, notes })
 }
 
 /// The calibration file a sequence's intrinsics came from (for messages).
@@ -466,6 +485,9 @@ fn run_output_name(name: &str) -> bool {
             | "map.svg"
             | "map.png"
             | "overlays"
+            | "camera.json"
+            | "objects_score.json"
+            | "tracking.csv"
     ) || name.ends_with(".tmp")
 }
 
@@ -491,7 +513,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     if crate::output::interrupted() {
         return Err(stop(outcome.as_ref().map_or(0, |o| o.out.counts.frames)).into());
     }
-    let Outcome { out, seq, elapsed, k, image, colour, detections, notes } = outcome?;
+    let Outcome { out, labels, seq, elapsed, k, image, colour, detections, notes } = outcome?;
     let w = dir.path();
     // one pose per played frame, in id order; TUM lines carry the frames' own times
     write_kitti_poses(w.join("trajectory.kitti.txt"), &out.poses)?;
@@ -508,8 +530,8 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
         median_fps(&out)
     );
     println!(
-        "keyframes {}, lost {}, relocalised {}, new map segments {}, unreadable {}, detector errors {}, culled observations {}",
-        c.keyframes, c.lost, c.relocalised, c.new_segments, c.unreadable, c.detector_errors, c.culled_observations
+        "keyframes {}, lost {}, relocalised {}, new map segments {}, unreadable {}, detector errors {}, culled observations {}, duplicate or part boxes suppressed {}",
+        c.keyframes, c.lost, c.relocalised, c.new_segments, c.unreadable, c.detector_errors, c.culled_observations, c.suppressed_boxes
     );
     let st = out.map.stats();
     let dets: usize = out.frames.iter().map(|f| f.detections.len()).sum();
@@ -543,13 +565,34 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     for note in &notes {
         println!("unused detections: {note}");
     }
+    LabelGeometry::of_sequence(&seq, image)?.write(&w.join("camera.json"))?;
+    let mut scored = String::new();
+    if let Some((labels, geometry)) = &labels {
+        let objects: Vec<slam_eval::ScoredInput> = out
+            .objects
+            .iter()
+            .filter_map(|o| {
+                Some(slam_eval::ScoredInput {
+                    id: o.id.0,
+                    class: o.class.0,
+                    ellipsoid: o.ellipsoid?,
+                    frames: o.observations.iter().map(|x| x.frame).collect(),
+                    dynamic: o.dynamic,
+                })
+            })
+            .collect();
+        let score = slam_eval::score_run(labels, &out.poses, geometry, &objects, &slam_eval::ScoreConfig::default());
+        println!("\n{}", score.report());
+        score.write_json(&w.join("objects_score.json"))?;
+        scored.push_str("objects_score.json, ");
+    }
     let pictures = pictures(a, w, &seq, &out, k, image, colour)?;
     if crate::output::interrupted() {
         return Err(stop(out.counts.frames).into());
     }
     dir.commit()?;
     println!(
-        "\nwrote {}: trajectory.kitti.txt (one line per played frame), trajectory.tum.txt (frame times), map.json, objects.json, {pictures}; {}",
+        "\nwrote {}: trajectory.kitti.txt (one line per played frame), trajectory.tum.txt (frame times), map.json, objects.json, camera.json, {scored}{pictures}; {}",
         a.out.display(),
         played_ids(&seq, &a.selection())
     );

@@ -122,7 +122,7 @@ pub fn run_config(c: &RunConfig, source: &str) -> anyhow::Result<()> {
     number(&at("[objects] border_margin_px"), o.border_margin_px, Range::closed(0.0, 10_000.0), "px")?;
     count(&at("[objects] refit_every"), o.refit_every, 1, usize::MAX)?;
     number(&at("[objects] dynamic_rms_px"), o.dynamic_rms_px, pos, "px")?;
-    number(&at("[objects] dynamic_motion_m"), o.dynamic_motion_m, pos, "m")?;
+    number(&at("[objects] dynamic_motion_sigmas"), o.dynamic_motion_sigmas, pos, "σ")?;
     number(
         &at("[objects] dynamic_prior_sigmas"),
         o.dynamic_prior_sigmas.unwrap_or(0.0),

@@ -828,3 +828,40 @@ fn trajectory_eval_matches_tum_by_time() {
     assert!(String::from_utf8_lossy(&o.stdout).contains("by line (one file is KITTI"), "mixed formats go by line");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `run --labels` on the first 60 frames of drive 0005 (KITTI tracking 0000) with the labels' own boxes
+/// as detections (3-D boxes projected into the grey camera 0): the parked van is the one static labelled
+/// vehicle and is found, no static object is a duplicate or matches nothing; `eval` on the run's folder
+/// prints the same figures and both write objects_score.json.
+#[test]
+fn run_scores_its_objects_against_labels_and_eval_repeats_it() {
+    let out = std::env::temp_dir().join(format!("slam-app-labels-{}", std::process::id()));
+    let labels = "fixtures/kitti_tracking/0000/label_02.txt";
+    let o = app()
+        .args(["run", "fixtures/kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync", "--detector", "labels"])
+        .args(["--labels", labels, "--max-frames", "60", "--out"])
+        .arg(&out)
+        .output()
+        .expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout).to_string();
+    let line = |t: &str, start: &str| t.lines().find(|l| l.starts_with(start)).map(str::to_string).unwrap_or_default();
+    let figures = line(&text, "objects vs labels (60 frames)");
+    let census = line(&text, "static map objects");
+    assert!(figures.contains("static labelled vehicles 1, found 1 (success 1.000)"), "{text}");
+    assert!(census.contains("duplicate 0") && census.contains("matching nothing 0"), "{text}");
+    assert!(text.contains("label   3 Van") && text.contains("(static): object"), "the parked van is found: {text}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("objects_score.json")).expect("score file")).expect("json");
+    assert_eq!(json["vehicles"]["found"], 1);
+    assert_eq!(json["census"]["duplicate"], 0);
+    let o = app().arg("eval").arg(&out).args(["--labels", labels]).output().expect("eval runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let again = String::from_utf8_lossy(&o.stdout).to_string();
+    assert_eq!(line(&again, "objects vs labels"), figures, "{again}");
+    assert_eq!(line(&again, "static map objects"), census, "{again}");
+    // a run folder without --labels is a clear error
+    let o = app().arg("eval").arg(&out).output().expect("eval runs");
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--labels"));
+    std::fs::remove_dir_all(&out).ok();
+}

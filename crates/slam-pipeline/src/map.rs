@@ -742,11 +742,13 @@ mod tests {
             m.objects.push(MapObject {
                 id: 3,
                 class: 2,
+                class_name: "car".into(),
                 center: [1.0, 0.0, 9.0],
                 semi_axes: [2.0, 0.8, 1.0],
                 rotation: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
                 frames: vec![0, 1],
                 dynamic: false,
+                moving: false,
                 points: vec![7],
             });
             m.check().expect("the sample is consistent");

@@ -92,15 +92,32 @@ pub struct MapperConfig {
     /// (docs/objects.md).
     #[serde(with = "crate::settings::zero_is_off")]
     pub dynamic_prior_sigmas: Option<f64>,
-    /// An object whose map-point centroid moves more than this between its first and latest
-    /// keyframe observation (plus 5 % of its depth, for stereo noise) is moving, metres. Default 3.
-    pub dynamic_motion_m: f64,
+    /// An object whose stereo-point centroid at a keyframe lies farther than this many standard
+    /// deviations from the median of its earlier centroids is moving (Mahalanobis, along and across the
+    /// viewing ray; σ from the stereo depth noise of both and the spread of the visible surface over
+    /// the object, see [`ObjectMapper::add_points`]). Default 3.
+    pub dynamic_motion_sigmas: f64,
     /// A fitted ellipsoid farther than this from the camera of its latest view is discarded (beyond
     /// the stereo range, boxes alone do not fix the depth), metres. Default 80.
     pub max_depth_m: f64,
     /// Static objects of one class group closer than this are merged, metres. Default 2.5 (cars parked
     /// bumper to bumper stand about 4.5 m apart).
     pub merge_distance_m: f64,
+    /// A mapped ellipsoid that should have been detected (in front within `visible_depth_m`, its
+    /// projected box inside the image, not overlapped by another box, in a frame with detections) and
+    /// was not in this many frames in a row is removed (refitted when boxes come again). Default 5: a
+    /// detector that finds a visible car 3 times in 4 misses it 5 times running about once in a
+    /// thousand. `None`: off.
+    #[serde(with = "crate::settings::zero_is_off_usize")]
+    pub max_misses: Option<usize>,
+    /// Depth within which a mapped object is expected to be detected, metres. Default 40 (a car's box
+    /// is then at least 27 px tall at KITTI's focal length).
+    pub visible_depth_m: f64,
+    /// An ellipsoid is accepted only where the object's stereo points put it: it must lie within
+    /// `dynamic_motion_sigmas` σ (depth noise and surface spread, as in the motion test) of the median
+    /// of the object's keyframe centroids, and an object without any is not mapped. Off in the
+    /// image-free mode (no points); the running system turns it on.
+    pub stereo_evidence: bool,
     /// Tracker settings.
     #[serde(skip)]
     pub tracker: TrackerConfig,
@@ -120,9 +137,12 @@ impl Default for MapperConfig {
             max_views: 20,
             dynamic_rms_px: 12.0,
             dynamic_prior_sigmas: Some(6.0),
-            dynamic_motion_m: 3.0,
+            dynamic_motion_sigmas: 3.0,
             max_depth_m: 80.0,
             merge_distance_m: 2.5,
+            max_misses: Some(5),
+            visible_depth_m: 40.0,
+            stereo_evidence: false,
             tracker: TrackerConfig::default(),
         }
     }
@@ -150,6 +170,54 @@ fn class_group(c: ClassId) -> u16 {
     }
 }
 
+/// IoU above which two boxes of one class group are one object (the detector's own class-wise NMS
+/// threshold).
+const DUPLICATE_IOU: f64 = 0.45;
+/// Share of a box's area inside a larger box of its class group above which it is a part of that
+/// object (a tile's cut of a car, its front or its wheels boxed again).
+const NESTED_SHARE: f64 = 0.8;
+
+/// One box per object: boxes of one class group (car / bus / truck; bicycle / motorcycle) that overlap
+/// a larger kept box by IoU above 0.45 (the same object boxed twice: across tiles, or as two classes)
+/// or lie inside it by 80 % of their area (a part of it) are dropped. Larger boxes are kept first (the
+/// whole object, not its part); ties by score, then by position, so the result is deterministic.
+/// Returns the kept boxes in their input order and how many were dropped.
+pub fn suppress_duplicate_boxes(detections: Vec<Detection>) -> (Vec<Detection>, usize) {
+    let mut order: Vec<usize> = (0..detections.len()).collect();
+    let key = |d: &Detection| (d.bbox.area(), d.score, d.bbox.xmin, d.bbox.ymin);
+    order.sort_by(|&a, &b| {
+        let (ka, kb) = (key(&detections[a]), key(&detections[b]));
+        kb.0.total_cmp(&ka.0).then(kb.1.total_cmp(&ka.1)).then(ka.2.total_cmp(&kb.2)).then(ka.3.total_cmp(&kb.3))
+    });
+    let mut keep = vec![false; detections.len()];
+    let mut kept: Vec<usize> = Vec::new();
+    for i in order {
+        let d = &detections[i];
+        let duplicate = kept.iter().any(|&j| {
+            let o = &detections[j];
+            class_group(o.class) == class_group(d.class)
+                && (o.bbox.iou(&d.bbox) > DUPLICATE_IOU
+                    || o.bbox.intersection(&d.bbox).is_some_and(|x| x.area() >= NESTED_SHARE * d.bbox.area()))
+        });
+        if !duplicate {
+            keep[i] = true;
+            kept.push(i);
+        }
+    }
+    let dropped = keep.iter().filter(|k| !**k).count();
+    (detections.into_iter().zip(keep).filter_map(|(d, k)| k.then_some(d)).collect(), dropped)
+}
+
+/// Where an object's stereo points put it at one keyframe: the median world position of its points and
+/// the standard deviation of that position along the viewing ray from stereo depth noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointsCentroid {
+    /// Median world position, metres.
+    pub position: Vector3<f64>,
+    /// `σ_z = z² σ_d / (f b)` at the points' median depth, metres.
+    pub depth_sigma: f64,
+}
+
 /// One observation of an object.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Observation {
@@ -163,6 +231,9 @@ pub struct Observation {
     pub detection: usize,
     /// Median world position of the map points inside the box (keyframes of the full pipeline).
     pub centroid: Option<Vector3<f64>>,
+    /// Standard deviation of that centroid along its viewing ray from stereo depth noise, metres (0
+    /// without a centroid).
+    pub depth_sigma: f64,
     /// The frame's reference keyframe and its pose in it (full pipeline): lets the fit use the
     /// keyframe's refined pose.
     pub reference: Option<(KeyframeId, nalgebra::Isometry3<f64>)>,
@@ -186,6 +257,10 @@ pub struct MappedObject {
     /// Map points on the object (full pipeline), for texture planes.
     pub points: std::collections::BTreeSet<PointId>,
     fitted_at: usize,
+    /// Consecutive keyframes whose centroid failed the motion test.
+    motion_strikes: usize,
+    /// Consecutive detector frames in which its ellipsoid should have been seen and was not.
+    misses: usize,
 }
 
 /// An ellipsoid fit to run (possibly on another thread): everything it needs, by value.
@@ -217,8 +292,10 @@ pub struct FitResult {
     pub id: TrackId,
     /// The ellipsoid, when the fit succeeded.
     pub ellipsoid: Option<Ellipsoid>,
-    /// Box misfit too large for a static object.
+    /// Box misfit too large for a static object, or a size its class does not have.
     pub dynamic: bool,
+    /// The size alone: semi-axes farther than `dynamic_prior_sigmas` from the class prior.
+    pub odd_size: bool,
 }
 
 impl FitJob {
@@ -259,7 +336,7 @@ impl FitJob {
         match fitted {
             Ok(e) if too_far(&e) => {
                 tracing::debug!(object = %self.id, "ellipsoid beyond {} m discarded", self.max_depth_m);
-                FitResult { id: self.id, ellipsoid: None, dynamic: false }
+                FitResult { id: self.id, ellipsoid: None, dynamic: false, odd_size: false }
             }
             Ok(e) => {
                 let rms = box_rms(views, &self.image, &e, self.box_shape);
@@ -285,11 +362,11 @@ impl FitJob {
                     heights.sort_by(f64::total_cmp);
                     tracing::debug!(object = %self.id, rms = ?rms, views = views.len(), median_box_height = heights.get(heights.len() / 2).copied().unwrap_or(0.0), "box misfit: dynamic");
                 }
-                FitResult { id: self.id, ellipsoid: Some(e), dynamic }
+                FitResult { id: self.id, ellipsoid: Some(e), dynamic, odd_size }
             }
             Err(err) => {
                 tracing::debug!(object = %self.id, "no ellipsoid yet: {err}");
-                FitResult { id: self.id, ellipsoid: None, dynamic: false }
+                FitResult { id: self.id, ellipsoid: None, dynamic: false, odd_size: false }
             }
         }
     }
@@ -371,6 +448,7 @@ impl ObjectMapper {
             })
             .collect();
         let out = self.tracker.step(&TrackerInput { detections, projected: &projected, flow, keyframe: true });
+        self.count_misses(camera, &projected, detections, &out.tracks);
         for (k, (t, d)) in out.tracks.iter().zip(detections).enumerate() {
             let Some(id) = *t else { continue };
             if self.merged.contains_key(&id) {
@@ -385,6 +463,8 @@ impl ObjectMapper {
                 moving: false,
                 points: Default::default(),
                 fitted_at: 0,
+                motion_strikes: 0,
+                misses: 0,
             });
             obj.observations.push(Observation {
                 frame,
@@ -392,38 +472,110 @@ impl ObjectMapper {
                 bbox: d.bbox,
                 detection: k,
                 centroid: None,
+                depth_sigma: 0.0,
                 reference,
             });
         }
         out.tracks
     }
 
-    /// Attach map points seen inside the object's latest box and their median position (callers pass
+    /// Count, for every mapped static object, the frames in which it should have been detected and was
+    /// not; remove its ellipsoid after `max_misses` in a row (see [`MapperConfig::max_misses`]).
+    fn count_misses(
+        &mut self,
+        camera: &Camera,
+        projected: &BTreeMap<TrackId, BBox>,
+        detections: &[Detection],
+        tracks: &[Option<TrackId>],
+    ) {
+        let cfg = self.config;
+        let Some(limit) = cfg.max_misses else { return };
+        // a frame without boxes may be one the detector skipped
+        if detections.is_empty() {
+            return;
+        }
+        let seen: std::collections::BTreeSet<TrackId> =
+            tracks.iter().flatten().map(|t| self.merged.get(t).copied().unwrap_or(*t)).collect();
+        let from_world = camera.world_from_camera.inverse();
+        let usable_of = |o: &MappedObject| {
+            o.observations.iter().filter(|x| !x.bbox.touches_border(&cfg.image, cfg.border_margin_px)).count()
+        };
+        for o in self.objects.values_mut() {
+            let (Some(e), Some(b)) = (o.ellipsoid, projected.get(&o.id)) else { continue };
+            if o.dynamic || seen.contains(&o.id) {
+                o.misses = 0;
+                continue;
+            }
+            let depth = (from_world * nalgebra::Point3::from(e.centre())).z;
+            let in_view = depth > 0.0
+                && depth < cfg.visible_depth_m
+                && !b.touches_border(&cfg.image, cfg.border_margin_px);
+            let covered = detections
+                .iter()
+                .any(|d| d.bbox.intersection(b).is_some_and(|x| x.area() >= 0.3 * b.area()));
+            if !in_view || covered {
+                continue;
+            }
+            o.misses += 1;
+            if o.misses >= limit {
+                tracing::debug!(object = %o.id, misses = o.misses, "visible but not detected: ellipsoid removed");
+                o.ellipsoid = None;
+                o.misses = 0;
+                o.fitted_at = usable_of(o);
+            }
+        }
+    }
+
+    /// Attach map points seen inside the object's latest box and where they put the object (callers pass
     /// `None` when too few points support it); flags the object as moving when that centroid lies more
-    /// than `dynamic_motion_m` (+5 % of depth) from the median of its earlier centroids.
-    pub fn add_points(&mut self, id: TrackId, points: &[PointId], centroid: Option<Vector3<f64>>) {
+    /// than `dynamic_motion_sigmas` standard deviations from the median of its earlier centroids.
+    ///
+    /// The displacement `d` is split along the latest viewing ray and across it. Along the ray its σ
+    /// combines the stereo depth noise of both centroids (`σ_z = z² σ_d / (f b)`) with the wander of the
+    /// visible surface over the object (`s = a / √3`, the σ of a point uniform over the class's
+    /// half-length `a`: which side of a car is seen changes with the view); across the ray, `s` and the
+    /// earlier centroids' depth noise (the ray turns as the camera passes). A static object stays
+    /// within a few σ whatever its depth; a car driving ahead at the camera's speed keeps its depth,
+    /// so its centroid moves with the camera and leaves them.
+    pub fn add_points(&mut self, id: TrackId, points: &[PointId], centroid: Option<PointsCentroid>) {
         let cfg = self.config;
         let Some(obj) = self.objects.get_mut(&id) else { return };
         obj.points.extend(points.iter().copied());
-        let earlier: Vec<Vector3<f64>> = obj.observations.iter().filter_map(|o| o.centroid).collect();
+        let earlier: Vec<(Vector3<f64>, f64)> =
+            obj.observations.iter().filter_map(|o| o.centroid.map(|c| (c, o.depth_sigma))).collect();
+        let class = obj.class;
         let Some(last) = obj.observations.last_mut() else { return };
-        last.centroid = centroid;
+        last.centroid = centroid.map(|c| c.position);
+        last.depth_sigma = centroid.map_or(0.0, |c| c.depth_sigma);
         tracing::trace!(object = %id, frame = last.frame, bbox = ?last.bbox, ?centroid, points = points.len(), "object points");
         let (Some(c), false) = (centroid, earlier.is_empty()) else { return };
-        let median = |k: usize| {
-            let mut v: Vec<f64> = earlier.iter().map(|p| p[k]).collect();
+        let median = |v: &mut Vec<f64>| {
             v.sort_by(|a, b| a.total_cmp(b));
             v[v.len() / 2]
         };
-        let reference = Vector3::new(median(0), median(1), median(2));
-        let depth = (c - last.camera.world_from_camera.translation.vector).norm();
-        let moved = (c - reference).norm();
-        if moved > cfg.dynamic_motion_m + 0.05 * depth && !obj.moving {
+        let axis = |k: usize| median(&mut earlier.iter().map(|p| p.0[k]).collect());
+        let reference = Vector3::new(axis(0), axis(1), axis(2));
+        let reference_sigma = median(&mut earlier.iter().map(|p| p.1).collect());
+        let Some(ray) = (c.position - last.camera.world_from_camera.translation.vector).try_normalize(1e-9) else {
+            return;
+        };
+        let d = c.position - reference;
+        let along = d.dot(&ray);
+        let across = (d - ray * along).norm();
+        let s = class_prior(class).axes.x / 3f64.sqrt();
+        let sigma_along = (c.depth_sigma.powi(2) + reference_sigma.powi(2) + s * s).sqrt();
+        let sigma_across = (reference_sigma.powi(2) + s * s).sqrt();
+        let m = ((along / sigma_along).powi(2) + (across / sigma_across).powi(2)).sqrt();
+        // two keyframes in a row: one centroid on the wrong surface must not condemn a parked car
+        obj.motion_strikes = if m > cfg.dynamic_motion_sigmas { obj.motion_strikes + 1 } else { 0 };
+        if obj.motion_strikes >= 2 && !obj.moving {
             tracing::info!(
-                "object {} ({}) moved {moved:.1} m (more than {:.1} m allowed at {depth:.0} m depth): moving, not mapped",
+                "object {} ({}) moved {:.1} m ({:.1} m along the viewing ray, {:.1} m across; {m:.1} σ of the stereo noise): moving, not mapped",
                 id.0,
                 obj.class.name(),
-                cfg.dynamic_motion_m + 0.05 * depth
+                d.norm(),
+                along,
+                across
             );
             obj.moving = true;
             obj.dynamic = true;
@@ -442,8 +594,26 @@ impl ObjectMapper {
         let id = result.id;
         let Some(obj) = self.objects.get_mut(&id) else { return };
         if let Some(e) = result.ellipsoid {
+            if self.config.stereo_evidence && !obj.moving {
+                // a size no object of its class has is no evidence of a static object either
+                // and a collapsed fit (a semi-axis under 0.1 m: no person, rider or vehicle is that thin)
+                let agrees = if result.odd_size || e.semi_axes.min() < 0.1 {
+                    Err(format!("a size unlike its class ({:.2?})", e.semi_axes.as_slice()))
+                } else {
+                    stereo_agrees(obj, &e, self.config.dynamic_motion_sigmas)
+                };
+                if let Err(why) = agrees {
+                    tracing::debug!(object = %id, "ellipsoid not accepted: {why}");
+                    obj.ellipsoid = None;
+                    return;
+                }
+            }
             obj.ellipsoid = Some(e);
-            obj.dynamic = obj.moving || result.dynamic;
+            // with stereo points, the points' motion is the dynamic cue and their agreement with the
+            // ellipsoid (above) the gate; box misfit and odd size (boxes cut by the border, parts)
+            // decide only until two centroids let the points' motion be measured
+            let centroids = obj.observations.iter().filter(|o| o.centroid.is_some()).count();
+            obj.dynamic = obj.moving || (result.dynamic && (!self.config.stereo_evidence || centroids < 2));
         }
         self.merge_duplicates(id);
     }
@@ -534,6 +704,31 @@ impl ObjectMapper {
     }
 }
 
+/// Whether an ellipsoid lies where the object's stereo points put it (see
+/// [`MapperConfig::stereo_evidence`]): Mahalanobis distance of its centre from the median keyframe
+/// centroid, along the ray (depth noise and surface spread) and across it (surface spread).
+fn stereo_agrees(obj: &MappedObject, e: &Ellipsoid, sigmas: f64) -> Result<(), String> {
+    let with: Vec<&Observation> = obj.observations.iter().filter(|o| o.centroid.is_some()).collect();
+    let Some(last) = with.last() else { return Err("no stereo points on it".into()) };
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(|a, b| a.total_cmp(b));
+        v[v.len() / 2]
+    };
+    let axis = |k: usize| median(with.iter().filter_map(|o| o.centroid.map(|c| c[k])).collect());
+    let c = Vector3::new(axis(0), axis(1), axis(2));
+    let sigma_z = median(with.iter().map(|o| o.depth_sigma).collect());
+    let ray = (c - last.camera.world_from_camera.translation.vector).try_normalize(1e-9).ok_or("centroid at the camera")?;
+    let d = e.centre() - c;
+    let along = d.dot(&ray);
+    let across = (d - ray * along).norm();
+    let s = class_prior(obj.class).axes.x / 3f64.sqrt();
+    let m = ((along / (sigma_z * sigma_z + s * s).sqrt()).powi(2) + (across / s).powi(2)).sqrt();
+    if m > sigmas {
+        return Err(format!("{m:.1} σ from its stereo points ({along:+.1} m along the ray, {across:.1} m across)"));
+    }
+    Ok(())
+}
+
 fn box_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid, shape: BoxShape) -> Option<f64> {
     let mut sum = 0.0;
     for v in views {
@@ -619,4 +814,36 @@ pub fn write_object_map_in(path: &Path, objects: &[&MappedObject], frame: &str) 
     let tmp = path.with_extension("json.tmp");
     std::fs::write(&tmp, text)?;
     std::fs::rename(&tmp, path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn one_box_per_object_across_tiles_parts_and_class_groups() {
+        let d = |class: u16, score: f64, b: [f64; 4]| Detection::new(ClassId(class), score, BBox::new(b[0], b[1], b[2], b[3]));
+        let input = vec![
+            d(2, 0.6, [100.0, 100.0, 200.0, 180.0]), // a car
+            d(2, 0.9, [105.0, 102.0, 196.0, 178.0]), // the same car from another tile (IoU 0.86)
+            d(7, 0.5, [98.0, 95.0, 203.0, 182.0]),   // the same car called a truck: same class group
+            d(2, 0.8, [150.0, 120.0, 198.0, 178.0]), // its front half: a part
+            d(0, 0.7, [150.0, 110.0, 170.0, 170.0]), // a person in front of it: another group, kept
+            d(2, 0.7, [400.0, 100.0, 480.0, 160.0]), // another car
+            d(2, 0.7, [470.0, 100.0, 560.0, 160.0]), // its neighbour, overlapping a little: kept
+        ];
+        let (kept, dropped) = suppress_duplicate_boxes(input.clone());
+        assert_eq!(dropped, 3);
+        // the largest box of the first car (the "truck") stands for it; input order is kept
+        let boxes: Vec<[f64; 2]> = kept.iter().map(|k| [k.bbox.xmin, k.bbox.ymin]).collect();
+        assert_eq!(boxes, vec![[98.0, 95.0], [150.0, 110.0], [400.0, 100.0], [470.0, 100.0]]);
+        // deterministic whatever the input order
+        let mut reversed = input;
+        reversed.reverse();
+        let (again, n) = suppress_duplicate_boxes(reversed);
+        assert_eq!(n, 3);
+        let mut a: Vec<[f64; 2]> = again.iter().map(|k| [k.bbox.xmin, k.bbox.ymin]).collect();
+        a.reverse();
+        assert_eq!(a, boxes);
+    }
 }

@@ -36,7 +36,7 @@ use slam_optim::SharedOptimizer;
 use crate::{
     map::{pose_to_array, FramePose, Map},
     mapping::{LocalMapper, MappingConfig},
-    objects::{class_prior, FitJob, FitResult, MappedObject, MapperConfig, ObjectMapper},
+    objects::{class_prior, suppress_duplicate_boxes, FitJob, FitResult, MappedObject, MapperConfig, ObjectMapper, PointsCentroid},
     texture::{texture_planes, TextureConfig},
 };
 
@@ -72,6 +72,13 @@ pub struct SystemConfig {
     /// Map points inside the central part of a box (this fraction of its width and height) belong to
     /// the object. Default 0.6.
     pub object_core: f64,
+    /// Standard deviation of a stereo disparity, pixels: the depth noise `σ_z = z² σ_d / (f b)` of the
+    /// objects' points in the moving-object test. Default 0.5 (ORB keypoints from pyramid levels up
+    /// to 1.2⁴ coarser, matched with sub-pixel refinement).
+    pub disparity_sigma_px: f64,
+    /// Suppress duplicate and part boxes (same class group, IoU above 0.45 or nested) before
+    /// association. Default on.
+    pub suppress_duplicates: bool,
     /// ODA gate: a detection is never given to an object whose projected ellipsoid overlaps it by less
     /// than this IoU. Default `Some(0.1)`; `None` (0 in a settings file) is the paper's cost alone.
     #[serde(with = "crate::settings::zero_is_off")]
@@ -92,6 +99,8 @@ impl Default for SystemConfig {
             detect_every: 1,
             exclude_moving: true,
             object_core: 0.6,
+            disparity_sigma_px: 0.5,
+            suppress_duplicates: true,
             projected_gate: Some(0.1),
             max_detections: 100,
         }
@@ -167,6 +176,8 @@ pub struct RunCounts {
     pub detector_errors: usize,
     /// Observations culled by local mapping.
     pub culled_observations: usize,
+    /// Detector boxes suppressed as duplicates or parts of another box of the same class group.
+    pub suppressed_boxes: usize,
 }
 
 /// Everything a run produced.
@@ -264,28 +275,82 @@ fn mapping_thread(
 /// Fewest map points in a box for its centroid to count.
 const MIN_OBJECT_POINTS: usize = 5;
 
-/// Map points of a keyframe inside the central part of a box at the depth the box's height implies
-/// for the class (±15 %, at least ±2.5 m: background seen past the object is not the object), and their
-/// median world position (`None` below [`MIN_OBJECT_POINTS`] points).
-fn object_points(kf: &KeyframeData, b: &BBox, core: f64, class: ClassId, fy: f64) -> (Vec<u64>, Option<Vector3<f64>>) {
+/// Heights an object of a class group can have, metres: vehicles from a low car to a lorry (1.2–4.5),
+/// people and riders 0.9–2.1, anything else 0.3–5.
+fn height_range(class: ClassId) -> (f64, f64) {
+    match class.0 {
+        2 | 5 | 7 => (1.2, 4.5),
+        0 | 1 | 3 => (0.9, 2.1),
+        _ => (0.3, 5.0),
+    }
+}
+
+/// The stereo points of a keyframe that lie on the object of a box, and where they put it.
+///
+/// Candidates: points inside the central part of the box (`core` of its width and height) whose depth
+/// fits the box height for some height the class can have (no near limit for a box cut by the image
+/// border: its height understates the object's). Among them the object is the densest depth cluster:
+/// windows `[z, z + 2w]` with `w = max(a, 2 σ_z(z))`, `a` the class's half-length (a car seen obliquely
+/// spans its length in depth) and `σ_z = z² σ_d / (f b)` the stereo depth noise; the object is the
+/// nearest window holding at least half as many points as the densest one (it hides what lies behind
+/// it). The centroid is
+/// the points' median world position (`None` below [`MIN_OBJECT_POINTS`] points).
+#[allow(clippy::too_many_arguments)]
+fn object_points(
+    kf: &KeyframeData,
+    b: &BBox,
+    core: f64,
+    class: ClassId,
+    k: &Intrinsics,
+    baseline: f64,
+    disparity_sigma: f64,
+    image: &slam_core::geometry::ImageSize,
+) -> (Vec<u64>, Option<PointsCentroid>) {
     let (cx, cy) = (0.5 * (b.xmin + b.xmax), 0.5 * (b.ymin + b.ymax));
     let (hw, hh) = (0.5 * core * (b.xmax - b.xmin), 0.5 * core * (b.ymax - b.ymin));
-    let expected = fy * 2.0 * class_prior(class).axes.y / b.height().max(1.0);
-    let tolerance = (0.15 * expected).max(2.5);
-    let kept: Vec<(u64, Vector3<f64>)> = kf
+    let (hmin, hmax) = height_range(class);
+    let bh = b.height().max(1.0);
+    let cut = b.touches_border(image, 2.0);
+    let (near, far) = (if cut { 0.0 } else { k.fy * hmin / bh }, k.fy * hmax / bh);
+    let mut cand: Vec<&slam_core::KeyframePoint> = kf
         .points
         .iter()
         .filter(|p| (p.observation[0] - cx).abs() <= hw && (p.observation[1] - cy).abs() <= hh)
-        .filter(|p| (p.camera_point.z - expected).abs() <= tolerance)
-        .map(|p| (p.id, (kf.world_from_camera * Point3::from(p.camera_point)).coords))
+        .filter(|p| p.camera_point.z > 0.0 && (near..=far).contains(&p.camera_point.z))
         .collect();
-    let median = |k: usize| {
-        let mut v: Vec<f64> = kept.iter().map(|p| p.1[k]).collect();
+    cand.sort_by(|a, b| a.camera_point.z.total_cmp(&b.camera_point.z).then(a.id.cmp(&b.id)));
+    let sigma_z = |z: f64| z * z * disparity_sigma / (k.fx * baseline);
+    let half_length = class_prior(class).axes.x;
+    let windows: Vec<usize> = (0..cand.len())
+        .map(|i| {
+            let z0 = cand[i].camera_point.z;
+            let top = z0 + 2.0 * half_length.max(2.0 * sigma_z(z0));
+            cand[i..].iter().take_while(|p| p.camera_point.z <= top).count()
+        })
+        .collect();
+    // the nearest window holding at least half as many points as the densest one: the object hides
+    // what lies behind it, and a textured facade behind a plain car can outnumber the car's points
+    let densest = windows.iter().copied().max().unwrap_or(0);
+    let best = windows
+        .iter()
+        .position(|&n| n >= MIN_OBJECT_POINTS && 2 * n >= densest)
+        .map_or((0, 0), |i| (windows[i], i));
+    let kept: Vec<(u64, Vector3<f64>, f64)> = cand[best.1..best.1 + best.0]
+        .iter()
+        .map(|p| (p.id, (kf.world_from_camera * Point3::from(p.camera_point)).coords, p.camera_point.z))
+        .collect();
+    let median = |mut v: Vec<f64>| {
         v.sort_by(|a, b| a.total_cmp(b));
         v[v.len() / 2]
     };
     // a centroid needs a few points: one stray point of the background would fake a motion
-    let centroid = (kept.len() >= MIN_OBJECT_POINTS).then(|| Vector3::new(median(0), median(1), median(2)));
+    let centroid = (kept.len() >= MIN_OBJECT_POINTS).then(|| {
+        let m = |k: usize| median(kept.iter().map(|p| p.1[k]).collect());
+        PointsCentroid {
+            position: Vector3::new(m(0), m(1), m(2)),
+            depth_sigma: sigma_z(median(kept.iter().map(|p| p.2).collect())),
+        }
+    });
     (kept.iter().map(|p| p.0).collect(), centroid)
 }
 
@@ -348,7 +413,9 @@ pub fn run(
             min_projected_iou: config.projected_gate,
             ..slam_assoc::OdaConfig::default()
         });
-        let mut objects = ObjectMapper::new(Box::new(oda), config.objects, optimizer);
+        // with stereo points, an ellipsoid must agree with them
+        let mut objects =
+            ObjectMapper::new(Box::new(oda), MapperConfig { stereo_evidence: true, ..config.objects }, optimizer);
         let mut records: Vec<FrameRecord> = Vec::new();
         let mut trajectory: Vec<FramePose> = Vec::new();
         let mut counts = RunCounts::default();
@@ -386,6 +453,11 @@ pub fn run(
             }
             counts.frames += 1;
             let detections = match dets {
+                Ok(d) if config.suppress_duplicates => {
+                    let (kept, dropped) = suppress_duplicate_boxes(d);
+                    counts.suppressed_boxes += dropped;
+                    kept
+                }
                 Ok(d) => d,
                 Err(e) => {
                     counts.detector_errors += 1;
@@ -454,7 +526,16 @@ pub fn run(
                 }
                 for (d, t) in detections.iter().zip(&tracks) {
                     if let Some(id) = t {
-                        let (pts, centroid) = object_points(kf, &d.bbox, config.object_core, d.class, intrinsics.fy);
+                        let (pts, centroid) = object_points(
+                            kf,
+                            &d.bbox,
+                            config.object_core,
+                            d.class,
+                            &intrinsics,
+                            baseline,
+                            config.disparity_sigma_px,
+                            &config.objects.image,
+                        );
                         objects.add_points(*id, &pts, centroid);
                     }
                 }

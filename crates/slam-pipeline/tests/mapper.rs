@@ -77,3 +77,39 @@ fn a_slower_car_ahead_is_flagged_by_its_size() {
 fn lm() -> slam_optim::SharedOptimizer {
     std::sync::Arc::new(slam_lm::LevenbergMarquardt::default())
 }
+
+/// A parked car boxed in three frames, fitted, then never detected again while it stays in full view
+/// (the camera slides sideways past it; another car is detected in every frame): its ellipsoid is
+/// removed after `max_misses` frames; the car that keeps being detected keeps its ellipsoid. With the
+/// rule off, the phantom stays.
+#[test]
+fn a_car_missing_where_it_should_be_visible_is_removed() {
+    let run = |max_misses: Option<usize>| {
+        let mut mapper = ObjectMapper::new(Box::new(Oda::default()), MapperConfig { max_misses, ..MapperConfig::default() }, lm());
+        let phantom = car(0.0, 15.0);
+        let kept = car(4.5, 17.0);
+        let mut fitted_early = false;
+        for f in 0..12 {
+            let cam = Camera::new(K, Isometry3::translation(0.5 * f as f64, 0.0, 0.0));
+            let mut dets = Vec::new();
+            for (e, boxed) in [(&phantom, f < 3), (&kept, true)] {
+                if let (true, Ok(b)) = (boxed, project(e, &cam).and_then(|c| c.clipped_bounds(&IMAGE))) {
+                    assert!(!b.touches_border(&IMAGE, 5.0), "frame {f}: in full view");
+                    dets.push(Detection::new(ClassId(2), 1.0, b));
+                }
+            }
+            mapper.step(f, &cam, &dets);
+            if f == 2 {
+                fitted_early = mapper.objects().filter(|o| o.ellipsoid.is_some()).count() == 2;
+            }
+        }
+        let with: Vec<f64> = mapper.objects().filter_map(|o| o.ellipsoid.map(|e| e.centre().z)).collect();
+        (fitted_early, with)
+    };
+    let (fitted, left) = run(MapperConfig::default().max_misses);
+    assert!(fitted, "both cars get an ellipsoid from their first three boxes");
+    assert_eq!(left.len(), 1, "only the car still detected keeps an ellipsoid: {left:?}");
+    assert!((left[0] - 17.0).abs() < 0.5, "{left:?}");
+    let (_, without) = run(None);
+    assert_eq!(without.len(), 2, "{without:?}");
+}

@@ -1,0 +1,622 @@
+//! A run's object map scored against KITTI tracking labels.
+//!
+//! * **Label tracks** are carried into the run's world with the run's own poses (box centre in the run's
+//!   camera, then `world_from_camera` of that frame). A track whose world centre stays within
+//!   `static_m` of its mean is **static** (a parked car moves by the poses' drift and the labels' noise
+//!   only: a few decimetres); one that leaves it by more than `moving_m` is **moving**; in between it
+//!   is neither (a car creeping, or labels too noisy to tell) and is not held against the map either way.
+//! * **Census of the static map objects** (an ellipsoid, not flagged dynamic): each object is projected
+//!   with the run's pose in every frame of its own detections and its image-clipped box compared with
+//!   that frame's label boxes. A frame votes for the label track with the highest IoU (at least
+//!   `match_iou`), else for "DontCare" when at least `dont_care_cover` of the box lies in a DontCare
+//!   region, else for "nothing". The object's fate is its majority vote: a label track → **matched**
+//!   (the object with the most votes for that track), **duplicate** (another object of the same track),
+//!   **moving** (the track is moving: traffic mapped as static); or **dont_care**, or **nothing**.
+//! * **Vehicles**: static Car/Van tracks with at least `min_frames` labelled frames in the run. Found =
+//!   matched by an object. Over the found ones: IoU2D (mean over the labelled frames of the IoU of the
+//!   estimate's clipped projected box with the label's box), e_trans (centre distance to the label
+//!   box's mean world centre), e_axe (semi-axes in the best order vs half the label's l, h, w), e_yaw
+//!   (the estimate's longest horizontal axis vs the labelled heading, modulo 180°) and the share with
+//!   e_yaw within `yaw_within_deg`.
+
+use std::collections::BTreeMap;
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use serde::Serialize;
+use slam_core::geometry::{metrics, project, BBox, Camera, Ellipsoid};
+use slam_dataset::kitti::tracking::TrackingLabel;
+
+use crate::labels::LabelGeometry;
+
+/// Settings of the scoring.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ScoreConfig {
+    /// Least IoU of an object's projected box with a label box for the frame to vote for that label.
+    /// Default 0.3: an ellipsoid inscribed in a car's box projects to a box about 0.7 of the label's in
+    /// each direction, so a good estimate reaches about 0.5 and 0.3 leaves room for a metre of error at
+    /// 15 m.
+    pub match_iou: f64,
+    /// Least share of an object's projected box inside one DontCare region for the frame to vote
+    /// "DontCare". Default 0.5.
+    pub dont_care_cover: f64,
+    /// Largest spread of a label track's world centre for a static track, metres. Default 1.0 (the
+    /// labels' own depth noise plus a run's drift over a few tens of metres).
+    pub static_m: f64,
+    /// Least spread of a label track's world centre for a moving track, metres. Default 3.0.
+    pub moving_m: f64,
+    /// Fewest labelled frames (inside the run) of a vehicle counted for success. Default 10.
+    pub min_frames: usize,
+    /// e_yaw threshold of the "within" share, degrees. Default 15.
+    pub yaw_within_deg: f64,
+}
+
+impl Default for ScoreConfig {
+    fn default() -> Self {
+        Self { match_iou: 0.3, dont_care_cover: 0.5, static_m: 1.0, moving_m: 3.0, min_frames: 10, yaw_within_deg: 15.0 }
+    }
+}
+
+/// A map object to score.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScoredInput {
+    /// Its id.
+    pub id: u64,
+    /// COCO class.
+    pub class: u16,
+    /// Its ellipsoid, world frame of the run.
+    pub ellipsoid: Ellipsoid,
+    /// Frames of its detections.
+    pub frames: Vec<usize>,
+    /// Flagged dynamic by the run.
+    pub dynamic: bool,
+}
+
+/// What a map object turned out to be.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Fate {
+    /// The best object of a static (or not clearly moving) label track.
+    Matched,
+    /// Another object of a label track that already has one.
+    Duplicate,
+    /// An object of a moving label track.
+    Moving,
+    /// Mostly inside DontCare regions.
+    DontCare,
+    /// Matches no label.
+    Nothing,
+    /// Never in view in its own frames (projection failed everywhere): not scored.
+    Unscored,
+}
+
+/// One object's score.
+#[derive(Debug, Clone, Serialize)]
+pub struct ObjectScore {
+    /// Object id.
+    pub id: u64,
+    /// COCO class.
+    pub class: u16,
+    /// Flagged dynamic by the run (those are not in the census).
+    pub dynamic: bool,
+    /// Its fate.
+    pub fate: Fate,
+    /// The label track it voted for, if any.
+    pub track: Option<i64>,
+    /// Frames that voted for its fate, of `frames`.
+    pub votes: usize,
+    /// Frames scored.
+    pub frames: usize,
+}
+
+/// One label track as the run saw it.
+#[derive(Debug, Clone, Serialize)]
+pub struct TrackScore {
+    /// Track id.
+    pub track: i64,
+    /// KITTI type.
+    pub kind: String,
+    /// Labelled frames inside the run.
+    pub frames: usize,
+    /// Largest distance of its world centre from the mean, metres.
+    pub spread_m: f64,
+    /// Static, moving or neither (see the module).
+    pub motion: &'static str,
+    /// Counted as a static vehicle for success.
+    pub vehicle: bool,
+    /// The static map object matched to it.
+    pub object: Option<u64>,
+    /// Dynamic-flagged objects that voted for it.
+    pub flagged: Vec<u64>,
+    /// Figures of the match (vehicles that were found).
+    pub iou2d: Option<f64>,
+    /// Centre error, metres.
+    pub e_trans: Option<f64>,
+    /// Semi-axis error, metres.
+    pub e_axe: Option<f64>,
+    /// Yaw error, degrees.
+    pub e_yaw: Option<f64>,
+}
+
+/// The census of the static map objects.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct Census {
+    /// Static map objects scored.
+    pub static_objects: usize,
+    /// Matched a label track.
+    pub matched: usize,
+    /// A second (third…) object of one label track.
+    pub duplicate: usize,
+    /// A moving label track mapped as static.
+    pub moving: usize,
+    /// In a DontCare region.
+    pub dont_care: usize,
+    /// Matching nothing.
+    pub nothing: usize,
+    /// Not in view in its own frames.
+    pub unscored: usize,
+    /// Objects flagged dynamic by the run (not in the counts above).
+    pub dynamic_objects: usize,
+    /// Of those, the ones whose majority is a moving label track (rightly flagged).
+    pub dynamic_on_moving: usize,
+}
+
+/// Summary figures over the static vehicles.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct VehicleFigures {
+    /// Static labelled vehicles (Car/Van, `min_frames` frames or more).
+    pub vehicles: usize,
+    /// Found (matched by a static map object).
+    pub found: usize,
+    /// found / vehicles (NaN without vehicles).
+    pub success: f64,
+    /// Mean IoU2D over the found ones.
+    pub iou2d: f64,
+    /// Mean centre error, metres.
+    pub e_trans: f64,
+    /// Mean semi-axis error, metres.
+    pub e_axe: f64,
+    /// Mean yaw error, degrees.
+    pub e_yaw: f64,
+    /// Share of the found ones with e_yaw within `yaw_within_deg`.
+    pub yaw_within: f64,
+}
+
+/// The whole score of a run.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunScore {
+    /// Format version of the JSON.
+    pub version: u32,
+    /// Settings used.
+    pub config: ScoreConfig,
+    /// Frames of the run (labels of later frames are ignored).
+    pub frames: usize,
+    /// The census.
+    pub census: Census,
+    /// Vehicle figures.
+    pub vehicles: VehicleFigures,
+    /// Per object.
+    pub objects: Vec<ObjectScore>,
+    /// Per label track (DontCare excluded).
+    pub tracks: Vec<TrackScore>,
+}
+
+/// The label tracks inside the run, with their world centres.
+struct Track<'a> {
+    labels: Vec<&'a TrackingLabel>,
+    spread: f64,
+    mean: Vector3<f64>,
+}
+
+/// The rotation of a label box in the run's world at the frame of `l`.
+fn label_ellipsoid(l: &TrackingLabel, pose: &Isometry3<f64>, centre: Vector3<f64>) -> Ellipsoid {
+    let [h, w, len] = l.dimensions;
+    let rot = pose.rotation * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), l.rotation_y);
+    Ellipsoid::new(Isometry3::from_parts(Translation3::from(centre), rot), Vector3::new(len / 2.0, h / 2.0, w / 2.0))
+}
+
+/// Score a run's objects (`poses`: world from the run's camera, one per frame of the run).
+pub fn score_run(
+    labels: &[TrackingLabel],
+    poses: &[Isometry3<f64>],
+    geometry: &LabelGeometry,
+    objects: &[ScoredInput],
+    config: &ScoreConfig,
+) -> RunScore {
+    let k = geometry.intrinsics();
+    let image = geometry.image();
+    let n = poses.len();
+    // label tracks and DontCare regions inside the run
+    let mut by_track: BTreeMap<i64, Vec<&TrackingLabel>> = BTreeMap::new();
+    let mut dont_care: BTreeMap<usize, Vec<BBox>> = BTreeMap::new();
+    let mut boxes: BTreeMap<usize, Vec<(i64, BBox)>> = BTreeMap::new();
+    for l in labels.iter().filter(|l| l.frame < n) {
+        if l.is_dont_care() {
+            if let Some(b) = geometry.label_box(l) {
+                dont_care.entry(l.frame).or_default().push(b);
+            }
+            continue;
+        }
+        if l.track_id < 0 {
+            continue;
+        }
+        by_track.entry(l.track_id).or_default().push(l);
+        if let Some(b) = geometry.label_box(l) {
+            boxes.entry(l.frame).or_default().push((l.track_id, b));
+        }
+    }
+    let tracks: BTreeMap<i64, Track> = by_track
+        .into_iter()
+        .map(|(id, labels)| {
+            let centres: Vec<Vector3<f64>> = labels
+                .iter()
+                .map(|l| LabelGeometry::to_world(&poses[l.frame], &geometry.centre(l)))
+                .collect();
+            let mean = centres.iter().sum::<Vector3<f64>>() / centres.len() as f64;
+            let spread = centres.iter().map(|c| (c - mean).norm()).fold(0.0, f64::max);
+            (id, Track { labels, spread, mean })
+        })
+        .collect();
+    let is_moving = |t: i64| tracks.get(&t).is_some_and(|t| t.spread > config.moving_m);
+
+    // each object's vote
+    #[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+    enum Vote {
+        Track(i64),
+        DontCare,
+        Nothing,
+    }
+    let mut voted: Vec<(usize, Option<(Vote, usize)>, usize)> = Vec::new(); // (object index, majority, frames)
+    for (oi, o) in objects.iter().enumerate() {
+        let mut votes: BTreeMap<Vote, usize> = BTreeMap::new();
+        let mut scored = 0;
+        for &f in o.frames.iter().filter(|&&f| f < n) {
+            let cam = Camera::new(k, poses[f]);
+            let Some(b) = project(&o.ellipsoid, &cam).ok().and_then(|c| c.clipped_bounds(&image).ok()) else {
+                continue;
+            };
+            scored += 1;
+            let best = boxes
+                .get(&f)
+                .into_iter()
+                .flatten()
+                .map(|(t, lb)| (b.iou(lb), *t))
+                .filter(|(iou, _)| *iou >= config.match_iou)
+                .max_by(|a, b| a.0.total_cmp(&b.0).then(b.1.cmp(&a.1)));
+            let vote = if let Some((_, t)) = best {
+                Vote::Track(t)
+            } else if dont_care.get(&f).into_iter().flatten().any(|d| {
+                b.intersection(d).map_or(0.0, |i| i.area()) >= config.dont_care_cover * b.area().max(1e-9)
+            }) {
+                Vote::DontCare
+            } else {
+                Vote::Nothing
+            };
+            *votes.entry(vote).or_default() += 1;
+        }
+        // majority; ties go to a label track (the lower id), then DontCare (the enum's order)
+        let majority = votes.into_iter().max_by(|a, b| a.1.cmp(&b.1).then(b.0.cmp(&a.0)));
+        voted.push((oi, majority, scored));
+    }
+    // the best static object of each track: the most votes, then the lower id
+    let mut best_of: BTreeMap<i64, (usize, std::cmp::Reverse<u64>, usize)> = BTreeMap::new();
+    for &(oi, m, _) in &voted {
+        let o = &objects[oi];
+        if let (false, Some((Vote::Track(t), v))) = (o.dynamic, m) {
+            let key = (v, std::cmp::Reverse(o.id), oi);
+            if best_of.get(&t).is_none_or(|b| key > *b) {
+                best_of.insert(t, key);
+            }
+        }
+    }
+    let mut census = Census::default();
+    let mut scores = Vec::new();
+    let mut flagged: BTreeMap<i64, Vec<u64>> = BTreeMap::new();
+    for &(oi, m, scored) in &voted {
+        let o = &objects[oi];
+        let (fate, track, votes) = match m {
+            None => (Fate::Unscored, None, 0),
+            Some((Vote::Track(t), v)) if is_moving(t) => (Fate::Moving, Some(t), v),
+            Some((Vote::Track(t), v)) if !o.dynamic && best_of.get(&t).is_some_and(|b| b.2 != oi) => {
+                (Fate::Duplicate, Some(t), v)
+            }
+            Some((Vote::Track(t), v)) => (Fate::Matched, Some(t), v),
+            Some((Vote::DontCare, v)) => (Fate::DontCare, None, v),
+            Some((Vote::Nothing, v)) => (Fate::Nothing, None, v),
+        };
+        if o.dynamic {
+            census.dynamic_objects += 1;
+            if fate == Fate::Moving {
+                census.dynamic_on_moving += 1;
+            }
+            if let Some(t) = track {
+                flagged.entry(t).or_default().push(o.id);
+            }
+        } else {
+            census.static_objects += 1;
+            match fate {
+                Fate::Matched => census.matched += 1,
+                Fate::Duplicate => census.duplicate += 1,
+                Fate::Moving => census.moving += 1,
+                Fate::DontCare => census.dont_care += 1,
+                Fate::Nothing => census.nothing += 1,
+                Fate::Unscored => census.unscored += 1,
+            }
+        }
+        scores.push(ObjectScore { id: o.id, class: o.class, dynamic: o.dynamic, fate, track, votes, frames: scored });
+    }
+
+    // vehicles
+    let mut figures = VehicleFigures::default();
+    let (mut iou_sum, mut et_sum, mut ea_sum, mut ey_sum, mut within) = (0.0, 0.0, 0.0, 0.0, 0usize);
+    let mut track_scores = Vec::new();
+    for (&id, t) in &tracks {
+        let kind = t.labels[0].kind.clone();
+        let motion = if t.spread <= config.static_m {
+            "static"
+        } else if t.spread > config.moving_m {
+            "moving"
+        } else {
+            "unclear"
+        };
+        let vehicle =
+            (kind == "Car" || kind == "Van") && motion == "static" && t.labels.len() >= config.min_frames;
+        let object = best_of.get(&id).filter(|_| !is_moving(id)).map(|b| objects[b.2].id);
+        let mut ts = TrackScore {
+            track: id,
+            kind,
+            frames: t.labels.len(),
+            spread_m: t.spread,
+            motion,
+            vehicle,
+            object,
+            flagged: flagged.remove(&id).unwrap_or_default(),
+            iou2d: None,
+            e_trans: None,
+            e_axe: None,
+            e_yaw: None,
+        };
+        if vehicle {
+            figures.vehicles += 1;
+            if let Some(b) = best_of.get(&id) {
+                let e = &objects[b.2].ellipsoid;
+                let l0 = t.labels[0];
+                let truth = label_ellipsoid(l0, &poses[l0.frame], t.mean);
+                let ious: Vec<f64> = t
+                    .labels
+                    .iter()
+                    .filter_map(|l| {
+                        let lb = geometry.label_box(l)?;
+                        let cam = Camera::new(k, poses[l.frame]);
+                        Some(project(e, &cam).ok().and_then(|c| c.clipped_bounds(&image).ok()).map_or(0.0, |b| b.iou(&lb)))
+                    })
+                    .collect();
+                let iou = ious.iter().sum::<f64>() / ious.len().max(1) as f64;
+                let up = poses[l0.frame].rotation * Vector3::y();
+                let (et, ea, ey) = (metrics::e_trans(e, &truth), metrics::e_axe(e, &truth), metrics::e_yaw(e, &truth, &up));
+                figures.found += 1;
+                iou_sum += iou;
+                et_sum += et;
+                ea_sum += ea;
+                ey_sum += ey;
+                within += usize::from(ey <= config.yaw_within_deg);
+                (ts.iou2d, ts.e_trans, ts.e_axe, ts.e_yaw) = (Some(iou), Some(et), Some(ea), Some(ey));
+            }
+        }
+        track_scores.push(ts);
+    }
+    let f = figures.found.max(1) as f64;
+    figures.success = if figures.vehicles > 0 { figures.found as f64 / figures.vehicles as f64 } else { f64::NAN };
+    if figures.found > 0 {
+        (figures.iou2d, figures.e_trans, figures.e_axe, figures.e_yaw, figures.yaw_within) =
+            (iou_sum / f, et_sum / f, ea_sum / f, ey_sum / f, within as f64 / f);
+    } else {
+        (figures.iou2d, figures.e_trans, figures.e_axe, figures.e_yaw, figures.yaw_within) =
+            (f64::NAN, f64::NAN, f64::NAN, f64::NAN, f64::NAN);
+    }
+    RunScore {
+        version: 1,
+        config: *config,
+        frames: n,
+        census,
+        vehicles: figures,
+        objects: scores,
+        tracks: track_scores,
+    }
+}
+
+impl RunScore {
+    /// The figures as text (several lines).
+    pub fn report(&self) -> String {
+        let v = &self.vehicles;
+        let c = &self.census;
+        let mut s = format!(
+            "objects vs labels ({} frames): static labelled vehicles {}, found {} (success {:.3}); IoU2D {:.3}, \
+             e_trans {:.3} m, e_axe {:.3} m, e_yaw {:.1} deg, within {:.0} deg {:.0} %\n",
+            self.frames,
+            v.vehicles,
+            v.found,
+            v.success,
+            v.iou2d,
+            v.e_trans,
+            v.e_axe,
+            v.e_yaw,
+            self.config.yaw_within_deg,
+            100.0 * v.yaw_within
+        );
+        s.push_str(&format!(
+            "static map objects {}: matched {}, duplicate {}, moving object mapped as static {}, in a DontCare \
+             region {}, matching nothing {}{}; flagged dynamic {} ({} on moving labels)\n",
+            c.static_objects,
+            c.matched,
+            c.duplicate,
+            c.moving,
+            c.dont_care,
+            c.nothing,
+            if c.unscored > 0 { format!(", never in view {}", c.unscored) } else { String::new() },
+            c.dynamic_objects,
+            c.dynamic_on_moving
+        ));
+        for t in self.tracks.iter().filter(|t| t.vehicle || t.motion == "moving") {
+            s.push_str(&format!(
+                "  label {:>3} {:<10} {:>3} frames, spread {:5.2} m ({}): {}\n",
+                t.track,
+                t.kind,
+                t.frames,
+                t.spread_m,
+                t.motion,
+                match (t.object, t.e_trans) {
+                    (Some(o), Some(e)) => format!(
+                        "object {o}, e_trans {e:.2} m, e_axe {:.2} m, e_yaw {:.1} deg, IoU2D {:.2}",
+                        t.e_axe.unwrap_or(f64::NAN),
+                        t.e_yaw.unwrap_or(f64::NAN),
+                        t.iou2d.unwrap_or(f64::NAN)
+                    ),
+                    (Some(o), None) => format!("mapped as static object {o}"),
+                    (None, _) if !t.flagged.is_empty() => format!("flagged dynamic {:?}", t.flagged),
+                    (None, _) => "not mapped".into(),
+                }
+            ));
+        }
+        s
+    }
+
+    /// Write as JSON.
+    pub fn write_json(&self, path: &std::path::Path) -> Result<(), crate::EvalError> {
+        let text = serde_json::to_string_pretty(self).map_err(|e| crate::EvalError::Invalid(e.to_string()))?;
+        std::fs::write(path, text).map_err(|e| crate::EvalError::Io(path.display().to_string(), e))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use slam_core::{geometry::BBox, ClassId};
+
+    const G: LabelGeometry = LabelGeometry {
+        fx: 720.0,
+        fy: 720.0,
+        cx: 620.0,
+        cy: 180.0,
+        width: 1242.0,
+        height: 375.0,
+        label_offset: [0.0; 3],
+        colour: false,
+    };
+
+    /// A label of a 4 × 1.5 × 1.6 m car whose bottom centre is at `p` in the camera of `frame`, heading
+    /// along the camera's z axis.
+    fn car(frame: usize, track: i64, p: Vector3<f64>) -> TrackingLabel {
+        TrackingLabel {
+            frame,
+            track_id: track,
+            kind: "Car".into(),
+            class: Some(ClassId(2)),
+            truncated: 0.0,
+            occluded: 0,
+            bbox: BBox::new(0.0, 0.0, 1.0, 1.0),
+            dimensions: [1.5, 1.6, 4.0],
+            location: [p.x, p.y, p.z],
+            rotation_y: -std::f64::consts::FRAC_PI_2,
+        }
+    }
+
+    fn ellipsoid(centre: Vector3<f64>, yaw: f64) -> Ellipsoid {
+        Ellipsoid::new(
+            Isometry3::from_parts(Translation3::from(centre), UnitQuaternion::from_axis_angle(&Vector3::y_axis(), yaw)),
+            Vector3::new(2.0, 0.75, 0.8),
+        )
+    }
+
+    #[test]
+    fn census_and_vehicle_figures_of_a_scripted_scene() {
+        // the camera drives 1 m per frame along z for 12 frames
+        let poses: Vec<Isometry3<f64>> = (0..12).map(|i| Isometry3::translation(0.0, 0.0, i as f64)).collect();
+        let mut labels = Vec::new();
+        for f in 0..12 {
+            let z = f as f64;
+            labels.push(car(f, 1, Vector3::new(4.0, 1.6, 25.0 - z))); // parked at world (4, 0.85, 25)
+            labels.push(car(f, 2, Vector3::new(-3.0, 1.6, 15.0))); // driving ahead at the camera's speed
+            let mut dc = car(f, -1, Vector3::zeros());
+            dc.kind = "DontCare".into();
+            dc.class = None;
+            dc.bbox = BBox::new(100.0, 150.0, 300.0, 250.0);
+            labels.push(dc);
+        }
+        let frames: Vec<usize> = (0..12).collect();
+        let heading = -std::f64::consts::FRAC_PI_2;
+        let parked = Vector3::new(4.0, 0.85, 25.0);
+        // the DontCare region's ray at 30 m: pixel (200, 200)
+        let in_dont_care = Vector3::new((200.0 - 620.0) / 720.0 * 30.0, (200.0 - 180.0) / 720.0 * 30.0, 30.0);
+        let objects = vec![
+            // the parked car, 0.5 m off and turned by 10°
+            ScoredInput {
+                id: 7,
+                class: 2,
+                ellipsoid: ellipsoid(parked + Vector3::new(0.5, 0.0, 0.0), heading + 10f64.to_radians()),
+                frames: frames.clone(),
+                dynamic: false,
+            },
+            // the same car again, 0.8 m off: a duplicate
+            ScoredInput {
+                id: 9,
+                class: 2,
+                ellipsoid: ellipsoid(parked + Vector3::new(0.0, 0.0, 0.8), heading),
+                frames: frames[..6].to_vec(),
+                dynamic: false,
+            },
+            // the car ahead mapped as static where it was in the middle of the drive
+            ScoredInput {
+                id: 3,
+                class: 2,
+                ellipsoid: ellipsoid(Vector3::new(-3.0, 0.85, 21.0), heading),
+                frames: (4..8).collect(),
+                dynamic: false,
+            },
+            // the car ahead, flagged dynamic
+            ScoredInput {
+                id: 4,
+                class: 2,
+                ellipsoid: ellipsoid(Vector3::new(-3.0, 0.85, 18.0), heading),
+                frames: (2..5).collect(),
+                dynamic: true,
+            },
+            ScoredInput {
+                id: 5,
+                class: 2,
+                ellipsoid: Ellipsoid::new(Isometry3::translation(in_dont_care.x, in_dont_care.y, in_dont_care.z), Vector3::new(1.0, 0.8, 1.0)),
+                frames: vec![0],
+                dynamic: false,
+            },
+            // junk on the road, far from any label
+            ScoredInput { id: 6, class: 2, ellipsoid: ellipsoid(Vector3::new(0.0, 1.0, 40.0), 0.0), frames: vec![0, 1], dynamic: false },
+        ];
+        let s = score_run(&labels, &poses, &G, &objects, &ScoreConfig::default());
+        let c = s.census;
+        assert_eq!(
+            (c.static_objects, c.matched, c.duplicate, c.moving, c.dont_care, c.nothing),
+            (5, 1, 1, 1, 1, 1),
+            "{}",
+            s.report()
+        );
+        assert_eq!((c.dynamic_objects, c.dynamic_on_moving), (1, 1));
+        let fate = |id: u64| s.objects.iter().find(|o| o.id == id).map(|o| o.fate);
+        assert_eq!(fate(7), Some(Fate::Matched));
+        assert_eq!(fate(9), Some(Fate::Duplicate));
+        assert_eq!(fate(3), Some(Fate::Moving));
+        assert_eq!(fate(5), Some(Fate::DontCare));
+        assert_eq!(fate(6), Some(Fate::Nothing));
+        // one static vehicle (track 1), found by object 7
+        let v = s.vehicles;
+        assert_eq!((v.vehicles, v.found), (1, 1));
+        assert!((v.e_trans - 0.5).abs() < 1e-9, "{}", v.e_trans);
+        assert!((v.e_yaw - 10.0).abs() < 1e-6, "{}", v.e_yaw);
+        assert_eq!(v.yaw_within, 1.0);
+        assert!(v.e_axe < 0.1 && v.iou2d > 0.3, "{v:?}");
+        let moving = s.tracks.iter().find(|t| t.track == 2).expect("track 2");
+        assert_eq!((moving.motion, moving.flagged.as_slice()), ("moving", &[4u64][..]));
+        // the JSON carries the same figures
+        let json = serde_json::to_value(&s).expect("serialises");
+        assert_eq!(json["census"]["duplicate"], 1);
+        assert_eq!(json["objects"][0]["fate"], "matched");
+    }
+}
