@@ -612,7 +612,7 @@ fn files_of_every_command() {
             &["q.tum:1", "quaternion is not unit"],
         ),
         case("trajectory-eval: empty", &[&"trajectory-eval", &empty, &gt], 1, &["empty.txt"]),
-        case("trajectory-eval: one pose", &[&"trajectory-eval", &one, &gt], 1, &["fewer than two poses"]),
+        case("trajectory-eval: one pose", &[&"trajectory-eval", &one, &gt], 1, &["fewer than two matched poses"]),
         case(
             "objects: NaN in a label",
             &[&"objects", &nan_label, &"--out", &d.join("x.json")],
@@ -644,9 +644,9 @@ fn files_of_every_command() {
             &["calib.txt", "P2"],
         ),
         case("objects: missing folder", &[&"objects", &d.join("nope"), &"--out", &d.join("x.json")], 1, &["nope"]),
-        case("eval: no sequences", &[&"eval", &no_labels], 1, &["no sequence folders with label_02.txt"]),
-        case("assoc kitti: no sequences", &[&"assoc", &"kitti", &no_labels], 1, &["no sequence folders"]),
-        case("detect: empty folder", &[&"detect", &no_labels, &"--out", &d.join("d.json")], 1, &["no PNG/JPG images"]),
+        case("eval: no sequences", &[&"eval", &no_labels], 1, &["is neither a sequence folder"]),
+        case("assoc kitti: no sequences", &[&"assoc", &"kitti", &no_labels], 1, &["is neither a sequence folder"]),
+        case("detect: empty folder", &[&"detect", &no_labels, &"--out", &d.join("d.json")], 1, &["nor a folder of PNG/JPG images"]),
     ]);
     check(cases);
     assert!(!d.join("x.json").exists() && !d.join("o").exists(), "failed commands write nothing");

@@ -10,9 +10,12 @@ pub mod zero_is_off {
         s.serialize_f64(v.unwrap_or(0.0))
     }
 
-    /// Read 0 (or less) as `None`.
+    /// Read 0 as `None`; a negative or non-finite number is an error.
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
         let v = f64::deserialize(d)?;
+        if !v.is_finite() || v < 0.0 {
+            return Err(serde::de::Error::custom(format!("{v}: must be 0 (off) or a positive finite number")));
+        }
         Ok((v > 0.0).then_some(v))
     }
 }
