@@ -139,7 +139,7 @@ fn stage_table(out: &RunOutput) -> Vec<(&'static str, f64, usize)> {
         ("detection (own thread)", |t| t.detection),
         ("ORB extraction", |t| t.extraction),
         ("stereo matching", |t| t.stereo),
-        ("tracking (match + PnP + BA2)", |t| t.tracking),
+        ("tracking (local map + PnP + refinement)", |t| t.tracking),
         ("optical flow", |t| t.flow),
         ("association", |t| t.association),
         ("local BA (keyframes, mapping thread)", |t| t.bundle_adjustment),
@@ -232,7 +232,12 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     let colour = seq.layout != Layout::Odometry;
     let first = read_image(&seq.left[0], colour).with_context(|| format!("first frame {}", seq.left[0].display()))?;
     let image = ImageSize::new(first.width as f64, first.height as f64);
-    let tracker = Box::new(StereoVo::new(rig, cfg.tracking)?);
+    let mut tracking = cfg.tracking;
+    if tracking.frame_period_s <= 0.0 {
+        let stamped: Vec<(usize, f64)> = (0..n.min(seq.times.len())).map(|i| (i, seq.times[i])).collect();
+        tracking.frame_period_s = frame_period(&stamped);
+    }
+    let tracker = Box::new(StereoVo::new(rig, tracking)?);
     let det = detector(a, &seq, image)?.map(|d| Box::new(ClassFilter(d)) as Box<dyn DetectionSource>);
     let pairs: Vec<(usize, PathBuf, PathBuf)> =
         (0..n).map(|i| (i, seq.left[i].clone(), seq.right[i].clone())).collect();
@@ -268,6 +273,38 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     Ok(Outcome { out, seq, elapsed: start.elapsed().as_secs_f64(), k, image, colour })
 }
 
+/// Seconds per step of the frame index (the tracker counts frame intervals by index differences): the
+/// median of Δtime / Δindex over consecutive `(index, time)` pairs; 0.1 s, KITTI's rate, when there
+/// are fewer than two or they are not increasing.
+fn frame_period(stamped: &[(usize, f64)]) -> f64 {
+    let mut d: Vec<f64> = stamped
+        .windows(2)
+        .filter(|w| w[1].0 > w[0].0)
+        .map(|w| (w[1].1 - w[0].1) / (w[1].0 - w[0].0) as f64)
+        .collect();
+    let m = median(&mut d);
+    if m.is_finite() && m > 0.0 {
+        m
+    } else {
+        0.1
+    }
+}
+
+/// `tracking.csv`: one row per input frame (frame, state, inliers, tracked map points, RMS
+/// reprojection error in pixels, tracking time in ms: extraction + stereo + tracking).
+fn write_tracking_csv(path: &std::path::Path, out: &RunOutput) -> anyhow::Result<()> {
+    use std::fmt::Write as _;
+    let mut text = String::from("frame,state,inliers,tracked_map_points,reprojection_rms_px,time_ms\n");
+    for r in &out.frames {
+        let (state, inliers) = r.state.map_or(("unreadable", 0), |s| (s.name(), s.inliers()));
+        let rms =
+            if r.reprojection_rms_px.is_finite() { format!("{:.3}", r.reprojection_rms_px) } else { String::new() };
+        let ms = r.times.extraction + r.times.stereo + r.times.tracking;
+        let _ = writeln!(text, "{},{state},{inliers},{},{rms},{ms:.2}", r.index, r.tracked_map_points);
+    }
+    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+}
+
 pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     let cfg = settings(a)?;
     if a.print_config {
@@ -277,6 +314,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     let Outcome { out, seq, elapsed, k, image, colour } = run_system(a, &cfg, false)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
     write_kitti_poses(a.out.join("trajectory.kitti.txt"), &out.poses)?;
+    write_tracking_csv(&a.out.join("tracking.csv"), &out)?;
     let m = out.poses.len().min(seq.times.len());
     write_tum(a.out.join("trajectory.tum.txt"), &seq.times[..m], &out.poses[..m])?;
     out.map.save(&a.out.join("map.json"))?;
@@ -293,6 +331,10 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     println!(
         "keyframes {}, lost {}, relocalised {}, new map segments {}, unreadable {}, detector errors {}, culled observations {}",
         c.keyframes, c.lost, c.relocalised, c.new_segments, c.unreadable, c.detector_errors, c.culled_observations
+    );
+    println!(
+        "tracking states: tracked {}, weak {}, relocalised {}, lost {}, predicted {}, unreadable {} (tracking.csv has one row per frame)",
+        c.tracked, c.weak, c.relocalised, c.lost, c.predicted, c.unreadable
     );
     let st = out.map.stats();
     let dets: usize = out.frames.iter().map(|f| f.detections.len()).sum();
@@ -317,7 +359,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     }
     let pictures = pictures(a, &seq, &out, k, image, colour)?;
     println!(
-        "\nwrote {}: trajectory.kitti.txt, trajectory.tum.txt, map.json, objects.json, {pictures}",
+        "\nwrote {}: trajectory.kitti.txt, trajectory.tum.txt, tracking.csv, map.json, objects.json, {pictures}",
         a.out.display()
     );
     Ok(())
@@ -741,6 +783,9 @@ pub fn stereo_check(a: &StereoCheckArgs) -> anyhow::Result<()> {
         let mut tracking = cfg.tracking;
         tracking.keep_disparity_pairs = usize::MAX;
         tracking.disparity_offset = applied;
+        // far points carry most of what the disparities say about an offset: the calibration tracks
+        // with their disparity at full weight (tracking.far_baselines off)
+        tracking.far_baselines = f64::INFINITY;
         let mut vo = StereoVo::new(rig, tracking)?;
         for &i in &readable {
             let (l, r) = read(i).with_context(|| format!("frame {i} became unreadable"))?;
