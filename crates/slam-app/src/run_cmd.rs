@@ -277,11 +277,8 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
 /// median of Δtime / Δindex over consecutive `(index, time)` pairs; 0.1 s, KITTI's rate, when there
 /// are fewer than two or they are not increasing.
 fn frame_period(stamped: &[(usize, f64)]) -> f64 {
-    let mut d: Vec<f64> = stamped
-        .windows(2)
-        .filter(|w| w[1].0 > w[0].0)
-        .map(|w| (w[1].1 - w[0].1) / (w[1].0 - w[0].0) as f64)
-        .collect();
+    let mut d: Vec<f64> =
+        stamped.windows(2).filter(|w| w[1].0 > w[0].0).map(|w| (w[1].1 - w[0].1) / (w[1].0 - w[0].0) as f64).collect();
     let m = median(&mut d);
     if m.is_finite() && m > 0.0 {
         m

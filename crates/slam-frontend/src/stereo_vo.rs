@@ -254,6 +254,13 @@ enum Route {
     Descriptors,
 }
 
+/// A pose found by PnP RANSAC (`curr_from_ref`) and its inlier matches (local-map point, keypoint).
+type Solved = (Isometry3<f64>, Vec<(usize, usize)>);
+
+/// What relocalisation found: the accepted candidate (refined pose, RANSAC inliers, route), and the
+/// first candidate pose whether accepted or not.
+type Relocalisation = (Option<(Refined, usize, Route)>, Option<Isometry3<f64>>);
+
 /// A refined pose: `curr_from_ref`, inlier matches (local-map point, keypoint), RMS reprojection error.
 struct Refined {
     pose: Isometry3<f64>,
@@ -749,7 +756,7 @@ impl StereoVo {
         frame: &Frame,
         matches: &[(usize, usize)],
         (ransac_px, iterations, min_inliers): (f32, i32, usize),
-    ) -> Result<Option<(Isometry3<f64>, Vec<(usize, usize)>)>, FrontendError> {
+    ) -> Result<Option<Solved>, FrontendError> {
         if matches.len() < min_inliers.max(6) {
             return Ok(None);
         }
@@ -945,7 +952,7 @@ impl StereoVo {
     /// `min_spread_cells` cells of a 4 × 4 grid; [`Support::Weak`] with at least `weak_inliers` over at
     /// least 3 cells; else rejected, as is any pose whose inliers' RMS error exceeds `max_rms_px`.
     pub fn support(config: &VoConfig, inliers: usize, cells: usize, rms_px: f64) -> Support {
-        if !(rms_px <= config.max_rms_px) || inliers < config.weak_inliers || cells < 3 {
+        if rms_px.is_nan() || rms_px > config.max_rms_px || inliers < config.weak_inliers || cells < 3 {
             Support::Rejected
         } else if inliers >= config.min_inliers && cells >= config.min_spread_cells {
             Support::Full
@@ -1086,7 +1093,7 @@ impl StereoVo {
         map: &LocalMap,
         frame: &Frame,
         accept: &dyn Fn(&Refined, Route) -> bool,
-    ) -> Result<(Option<(Refined, usize, Route)>, Option<Isometry3<f64>>), FrontendError> {
+    ) -> Result<Relocalisation, FrontendError> {
         let mut first = None;
         // each hypothesis of k − 1 dropped frames covers half a step either side of its prediction
         let (t1, r1) = motion_limits(&self.config, 1);
