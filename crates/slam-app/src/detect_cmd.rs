@@ -102,8 +102,25 @@ fn list_images(input: &Path) -> anyhow::Result<Vec<PathBuf>> {
     bail!("no PNG/JPG images in {} (nor in its image_2, image_02/data or image_0)", input.display())
 }
 
+/// The frame id of each image: the number in its file name (KITTI's `000042.png` is frame 42) when every
+/// name is one, so that the detection file lines up with ground truth and with `run` however frames are
+/// missing; else (arbitrary names) the position in name order, said on stdout.
+fn frame_ids(images: &[PathBuf]) -> Vec<usize> {
+    let ids: Option<Vec<usize>> = images.iter().map(|p| slam_dataset::kitti::odometry::frame_id(p)).collect();
+    match ids {
+        Some(ids) if ids.windows(2).all(|w| w[0] < w[1]) => ids,
+        _ => {
+            println!("image names are not all distinct frame numbers: frames are numbered by position in name order");
+            (0..images.len()).collect()
+        }
+    }
+}
+
 pub fn detect(a: &DetectArgs) -> anyhow::Result<()> {
-    let images = list_images(&a.input)?;
+    let mut images = list_images(&a.input)?;
+    // numeric names sort by their number (9.png before 10.png)
+    images.sort_by_key(|p| (slam_dataset::kitti::odometry::frame_id(p), p.clone()));
+    let ids = frame_ids(&images);
     let mut det = a.model.load()?;
     if let Some(o) = &a.overlays {
         std::fs::create_dir_all(o).with_context(|| format!("cannot create {}", o.display()))?;
@@ -115,7 +132,7 @@ pub fn detect(a: &DetectArgs) -> anyhow::Result<()> {
     );
     let mut file = DetectionFile::default();
     let (mut skipped, mut total) = (0usize, 0usize);
-    for (i, path) in images.iter().enumerate() {
+    for (&i, path) in ids.iter().zip(&images) {
         let img = match read_image(path, true) {
             Ok(img) => img,
             Err(e) => {

@@ -30,6 +30,10 @@ enum Command {
     /// Speed of the whole system on the shipped sequence: frames/s and per-stage medians without
     /// objects, with detections from a file, and with the shipped detector.
     RunBench(run_cmd::RunBenchArgs),
+    /// Tracking accuracy on every dev case in one table (odometry 06 at strides 1-4, raw drive 0005
+    /// against OXTS, and any --case PATH[:STRIDE]), without objects: ATE, drift, largest step error of
+    /// tracked frames, lost / relocalised, median frames/s.
+    TrackBench(run_cmd::TrackBenchArgs),
     /// ATE, drift and RPE of a trajectory file (KITTI or TUM) against ground truth.
     TrajectoryEval(run_cmd::TrajEvalArgs),
     /// Estimate the stereo rig's disparity offset (a rectification error that scales depth) from the
@@ -132,6 +136,7 @@ fn run() -> anyhow::Result<()> {
         Command::StereoCheck(a) => run_cmd::stereo_check(&a),
         Command::TrajectoryEval(a) => run_cmd::trajectory_eval(&a),
         Command::RunBench(a) => run_cmd::run_bench(&a),
+        Command::TrackBench(a) => run_cmd::track_bench(&a),
         Command::Assoc(cmd) => assoc_cmd::run(cmd),
         Command::OptimBench(a) => optim_cmd::run(&a),
         Command::Sim(a) => sim_cmd::run(&a),

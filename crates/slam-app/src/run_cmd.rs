@@ -9,7 +9,7 @@ use nalgebra::{Matrix2, Point3, Vector2};
 use slam_core::{geometry::Ellipse2, DetectionSource, Image};
 use slam_dataset::{
     detections::{DetectionFile, GroundTruthDetections, GroundTruthNoise},
-    kitti::stereo::{open_stereo, Layout, StereoSequence},
+    kitti::stereo::{open_stereo, FrameSelection, Layout, StereoSequence, TruthSource},
     trajectory::{write_kitti_poses, write_tum},
 };
 use slam_frontend::{draw_overlay, ellipse_outline, read_image, write_image, Overlay, StereoRig, StereoVo};
@@ -72,7 +72,14 @@ pub struct RunArgs {
     /// Run the detector on every n-th frame only (overrides system.detect_every)
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     detect_every: Option<u64>,
-    /// Process at most this many frames
+    /// Frame ids to play (the numbers in the image file names): A..B (A to B-1), A..=B, A.. or ..B.
+    /// Ground truth, labels and detections follow the ids, so they stay aligned.
+    #[arg(long, value_parser = parse_frame_range)]
+    frames: Option<FrameRange>,
+    /// Play every N-th frame id from the first selected one (N = 3 at 10 Hz looks like driving 3x as fast)
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    stride: u64,
+    /// Process at most this many frames (after --frames and --stride)
     #[arg(long)]
     max_frames: Option<usize>,
     /// Write overlay images (detections, projected ellipsoids with ids, trails) into <out>/overlays
@@ -86,6 +93,50 @@ pub struct RunArgs {
     overlay_format: String,
     #[command(flatten)]
     model: ModelArgs,
+}
+
+/// A range of frame ids given on the command line (`--frames`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameRange(Option<usize>, Option<usize>);
+
+fn parse_frame_range(text: &str) -> Result<FrameRange, String> {
+    FrameSelection::parse_range(text).map(|(a, b)| FrameRange(a, b))
+}
+
+impl RunArgs {
+    fn selection(&self) -> FrameSelection {
+        let FrameRange(first, end) = self.frames.unwrap_or(FrameRange(None, None));
+        FrameSelection { first, end, stride: self.stride as usize }
+    }
+}
+
+/// The frames a run plays: the sequence at `path` (default: the shipped odometry excerpt) with the
+/// selection and `max_frames` applied; the sequence's input warnings are logged.
+fn played_sequence(
+    path: Option<&PathBuf>,
+    sel: &FrameSelection,
+    max_frames: Option<usize>,
+) -> anyhow::Result<StereoSequence> {
+    let path = path.cloned().unwrap_or_else(|| crate::fixture("kitti_odom_06/sequences/06"));
+    let full = open_stereo(&path)?;
+    for w in &full.warnings {
+        tracing::warn!("{w}");
+    }
+    let mut seq = full.select(sel)?;
+    if let Some(n) = max_frames {
+        if n == 0 {
+            bail!("nothing to run: --max-frames 0");
+        }
+        seq.truncate(n);
+    }
+    Ok(seq)
+}
+
+/// Which frames a trajectory file holds, for the run's summary.
+fn played_ids(seq: &StereoSequence, sel: &FrameSelection) -> String {
+    let (first, last) = (seq.ids[0], seq.ids[seq.ids.len() - 1]);
+    let stride = if sel.stride > 1 { format!(" every {} ids", sel.stride) } else { String::new() };
+    format!("frame ids {first}..={last}{stride}")
 }
 
 /// COCO classes mapped as objects: person, bicycle, car, motorcycle, bus, truck.
@@ -210,37 +261,43 @@ fn settings(a: &RunArgs) -> anyhow::Result<RunConfig> {
 }
 
 fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outcome> {
-    let path = a.path.clone().unwrap_or_else(|| crate::fixture("kitti_odom_06/sequences/06"));
-    let seq = open_stereo(&path)?;
-    let n = a.max_frames.unwrap_or(usize::MAX).min(seq.left.len());
-    if n == 0 {
-        bail!("nothing to run: --max-frames 0");
-    }
+    let sel = a.selection();
+    let seq = played_sequence(a.path.as_ref(), &sel, a.max_frames)?;
+    let n = seq.len();
     let [fx, fy, cx, cy] = seq.intrinsics;
     let k = Intrinsics::new(fx, fy, cx, cy);
     let rig = StereoRig { k, baseline: seq.baseline };
     if !quiet {
         println!(
-            "quadric SLAM on {} ({:?} layout, {n} of {} frames, fx {fx:.1}, baseline {:.4} m, detector {:?})",
+            "quadric SLAM on {} ({:?} layout, {n} frames: {}, fx {fx:.1}, baseline {:.4} m, detector {:?})",
             seq.dir.display(),
             seq.layout,
-            seq.left.len(),
+            played_ids(&seq, &sel),
             seq.baseline,
             a.detector
         );
+        if !(seq.gaps.is_empty() && seq.one_camera.is_empty()) {
+            println!(
+                "input: {} frame(s) missing in both cameras (skipped, ids kept), {} with one image missing (played as unreadable); see the warnings",
+                seq.gaps.len(),
+                seq.one_camera.len()
+            );
+        }
     }
     let colour = seq.layout != Layout::Odometry;
-    let first = read_image(&seq.left[0], colour).with_context(|| format!("first frame {}", seq.left[0].display()))?;
+    // the image size comes from the first frame whose left image exists
+    let first_left = seq.left.iter().find(|p| p.is_file()).unwrap_or(&seq.left[0]);
+    let first = read_image(first_left, colour).with_context(|| format!("first frame {}", first_left.display()))?;
     let image = ImageSize::new(first.width as f64, first.height as f64);
     let mut tracking = cfg.tracking;
     if tracking.frame_period_s <= 0.0 {
-        let stamped: Vec<(usize, f64)> = (0..n.min(seq.times.len())).map(|i| (i, seq.times[i])).collect();
+        let stamped: Vec<(usize, f64)> = (0..n.min(seq.times.len())).map(|i| (seq.ids[i], seq.times[i])).collect();
         tracking.frame_period_s = frame_period(&stamped);
     }
     let tracker = Box::new(StereoVo::new(rig, tracking)?);
     let det = detector(a, &seq, image)?.map(|d| Box::new(ClassFilter(d)) as Box<dyn DetectionSource>);
     let pairs: Vec<(usize, PathBuf, PathBuf)> =
-        (0..n).map(|i| (i, seq.left[i].clone(), seq.right[i].clone())).collect();
+        (0..n).map(|k| (seq.ids[k], seq.left[k].clone(), seq.right[k].clone())).collect();
     let frames = Box::new(pairs.into_iter().map(move |(i, l, r)| {
         let images = read_image(&l, colour)
             .and_then(|li| read_image(&r, colour).map(|ri| (li, ri)))
@@ -310,10 +367,10 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     }
     let Outcome { out, seq, elapsed, k, image, colour } = run_system(a, &cfg, false)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+    // one pose per played frame, in id order; TUM lines carry the frames' own times
     write_kitti_poses(a.out.join("trajectory.kitti.txt"), &out.poses)?;
     write_tracking_csv(&a.out.join("tracking.csv"), &out)?;
-    let m = out.poses.len().min(seq.times.len());
-    write_tum(a.out.join("trajectory.tum.txt"), &seq.times[..m], &out.poses[..m])?;
+    write_tum(a.out.join("trajectory.tum.txt"), &seq.times, &out.poses)?;
     out.map.save(&a.out.join("map.json"))?;
     let objects: Vec<&MappedObject> = out.objects.iter().collect();
     slam_pipeline::objects::write_object_map(&a.out.join("objects.json"), &objects)
@@ -343,8 +400,13 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     for (name, ms, count) in stage_table(&out) {
         println!("| {name} | {ms:.1} | {count} |");
     }
-    if let Some(gt) = &seq.ground_truth {
-        if let Some(e) = trajectory_errors(&out.poses, gt, &[10.0, 20.0, 40.0]) {
+    if let Some(gt) = seq.truth_from_first() {
+        if let Some(e) = trajectory_errors(&out.poses, &gt, &[10.0, 20.0, 40.0]) {
+            if let Some(TruthSource::Oxts { median_pos_accuracy_m }) = seq.truth_source {
+                println!(
+                    "\nground truth from the drive's OXTS packets (differential GPS + IMU; median position accuracy {median_pos_accuracy_m:.2} m from the packets' pos_accuracy): position errors below that are not meaningful"
+                );
+            }
             println!(
                 "\nground truth: path {:.1} m over {} frames; ATE {:.3} m (aligned {:.3} m); end-point drift {:.2} %; scale {:.4}",
                 e.path_m, e.frames, e.ate_m, e.ate_aligned_m, e.end_drift_pct, e.scale
@@ -356,8 +418,9 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     }
     let pictures = pictures(a, &seq, &out, k, image, colour)?;
     println!(
-        "\nwrote {}: trajectory.kitti.txt, trajectory.tum.txt, tracking.csv, map.json, objects.json, {pictures}",
-        a.out.display()
+        "\nwrote {}: trajectory.kitti.txt (one line per played frame), trajectory.tum.txt (frame times), tracking.csv (one row per played frame), map.json, objects.json, {pictures}; {}",
+        a.out.display(),
+        played_ids(&seq, &a.selection())
     );
     Ok(())
 }
@@ -411,7 +474,7 @@ pub fn run_bench(b: &RunBenchArgs) -> anyhow::Result<()> {
             for (k, (_, ms, _)) in stage_table(&o.out).into_iter().enumerate() {
                 stages[k].push(ms);
             }
-            if let Some(e) = o.seq.ground_truth.as_ref().and_then(|g| trajectory_errors(&o.out.poses, g, &[])) {
+            if let Some(e) = o.seq.truth_from_first().and_then(|g| trajectory_errors(&o.out.poses, &g, &[])) {
                 ate.push(e.ate_m);
             }
             eprintln!("{name}: run {} of {}: {:.1} frames/s", r + 1, b.repeat.max(1), fps[fps.len() - 1]);
@@ -468,7 +531,7 @@ fn pictures(
     image: ImageSize,
     colour: bool,
 ) -> anyhow::Result<String> {
-    map_picture(&out.map, &out.poses, seq.ground_truth.as_deref(), &a.out)?;
+    map_picture(&out.map, &out.poses, seq.truth_from_first().as_deref(), &a.out)?;
     let mut written = "map.svg, map.png".to_string();
     if !a.overlays {
         return Ok(written);
@@ -480,7 +543,8 @@ fn pictures(
         if i as u64 % a.overlay_every != 0 || rec.state.is_none() {
             continue;
         }
-        let img: Image = match read_image(&seq.left[rec.index], colour) {
+        // records are in input order: entry i of the played sequence is frame id rec.index
+        let img: Image = match read_image(&seq.left[i], colour) {
             Ok(img) => img,
             Err(e) => {
                 tracing::warn!("overlay of frame {}: {e}", rec.index);
@@ -753,7 +817,10 @@ pub fn stereo_check(a: &StereoCheckArgs) -> anyhow::Result<()> {
     let [fx, fy, cx, cy] = seq.intrinsics;
     let rig = StereoRig { k: Intrinsics::new(fx, fy, cx, cy), baseline: seq.baseline };
     let colour = seq.layout != Layout::Odometry;
-    let n = a.frames.min(seq.left.len());
+    let n = a.frames.min(seq.len());
+    for w in &seq.warnings {
+        tracing::warn!("{w}");
+    }
     // images are read again in every round rather than held: a whole sequence would not fit
     let read =
         |i: usize| read_image(&seq.left[i], colour).and_then(|l| read_image(&seq.right[i], colour).map(|r| (l, r)));
@@ -761,7 +828,7 @@ pub fn stereo_check(a: &StereoCheckArgs) -> anyhow::Result<()> {
         .filter(|&i| match read(i) {
             Ok(_) => true,
             Err(e) => {
-                tracing::warn!(frame = i, "skipped: {e}");
+                tracing::warn!(frame = seq.ids[i], "skipped: {e}");
                 false
             }
         })
@@ -786,7 +853,7 @@ pub fn stereo_check(a: &StereoCheckArgs) -> anyhow::Result<()> {
         let mut vo = StereoVo::new(rig, tracking)?;
         for &i in &readable {
             let (l, r) = read(i).with_context(|| format!("frame {i} became unreadable"))?;
-            vo.process(i, &l, &r, &[])?;
+            vo.process(seq.ids[i], &l, &r, &[])?;
         }
         let pairs = vo.disparity_pairs();
         let Some(e) = slam_frontend::disparity::estimate_disparity_offset(&rig, pairs, (-a.range, a.range), a.step)
@@ -816,5 +883,120 @@ pub fn stereo_check(a: &StereoCheckArgs) -> anyhow::Result<()> {
         "estimated rig disparity offset: {applied:+.3} px (tracking.disparity_offset); without it, depths at 20 m err by {:+.2} %",
         100.0 * applied / (fx * seq.baseline / 20.0)
     );
+    Ok(())
+}
+
+#[derive(Args, Debug)]
+pub struct TrackBenchArgs {
+    /// Another KITTI stereo sequence as a case, PATH or PATH:STRIDE (repeatable): e.g. a held-out drive
+    #[arg(long = "case")]
+    cases: Vec<String>,
+    /// Only the --case sequences, not the shipped dev cases
+    #[arg(long)]
+    only_cases: bool,
+    /// Settings file used for every case (TOML, as for `run --config`)
+    #[arg(long)]
+    config: Option<PathBuf>,
+}
+
+/// One row of `track-bench`.
+struct BenchCase {
+    name: String,
+    path: PathBuf,
+    stride: u64,
+}
+
+fn parse_case(text: &str) -> anyhow::Result<BenchCase> {
+    let (path, stride) = match text.rsplit_once(':') {
+        Some((p, s)) if !p.is_empty() && s.chars().all(|c| c.is_ascii_digit()) && !s.is_empty() => {
+            let stride: u64 = s.parse().with_context(|| format!("--case {text}: stride '{s}'"))?;
+            if stride == 0 {
+                bail!("--case {text}: the stride must be at least 1");
+            }
+            (p, stride)
+        }
+        _ => (text, 1),
+    };
+    Ok(BenchCase { name: format!("{path}, stride {stride}"), path: PathBuf::from(path), stride })
+}
+
+/// `slam-app track-bench`: the tracking dev table of issue 14 in one command, every case with
+/// `--detector none`. Accuracy figures are deterministic; frames/s depends on the machine's load.
+pub fn track_bench(b: &TrackBenchArgs) -> anyhow::Result<()> {
+    #[derive(clap::Parser)]
+    struct Wrap {
+        #[command(flatten)]
+        run: RunArgs,
+    }
+    use clap::Parser;
+    let mut cases = Vec::new();
+    if !b.only_cases {
+        let odo = crate::fixture("kitti_odom_06/sequences/06");
+        for stride in 1..=4 {
+            cases.push(BenchCase {
+                name: format!("odometry 06, frames 0-50, stride {stride}"),
+                path: odo.clone(),
+                stride,
+            });
+        }
+        let raw = crate::fixture("kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync");
+        cases.push(BenchCase { name: "raw drive 0005, frames 0-90 (vs OXTS)".into(), path: raw, stride: 1 });
+    }
+    for c in &b.cases {
+        cases.push(parse_case(c)?);
+    }
+    if cases.is_empty() {
+        bail!("no cases: --only-cases needs at least one --case PATH[:STRIDE]");
+    }
+    println!("| case | frames | ATE m | ATE aligned m | end drift % | largest step error m (frame), tracked frames | lost / relocalised | median frames/s |");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|");
+    let mut notes = Vec::new();
+    for c in &cases {
+        let path = c.path.to_string_lossy().to_string();
+        let stride = c.stride.to_string();
+        let mut argv = vec!["run", path.as_str(), "--detector", "none", "--stride", stride.as_str()];
+        let config = b.config.as_ref().map(|p| p.to_string_lossy().to_string());
+        if let Some(cfg) = &config {
+            argv.extend(["--config", cfg.as_str()]);
+        }
+        let a = Wrap::try_parse_from(argv)?.run;
+        let cfg = settings(&a)?;
+        let o = run_system(&a, &cfg, true).with_context(|| format!("case {}", c.name))?;
+        let (out, seq) = (&o.out, &o.seq);
+        let truth = seq.truth_from_first();
+        let errors = truth.as_ref().and_then(|g| trajectory_errors(&out.poses, g, &[]));
+        // only frames the tracker marked "tracked" (not initialised, lost, relocalised or any weaker state)
+        let tracked: Vec<bool> =
+            out.frames.iter().map(|f| matches!(f.state, Some(slam_core::TrackState::Tracked { .. }))).collect();
+        let step = truth.as_ref().and_then(|g| slam_pipeline::eval::largest_step_error(&out.poses, g, &tracked));
+        let cell = |v: Option<f64>, digits: usize| v.map_or("–".to_string(), |v| format!("{v:.digits$}"));
+        println!(
+            "| {} | {} | {} | {} | {} | {} | {} / {} | {:.1} |",
+            c.name,
+            out.frames.len(),
+            cell(errors.as_ref().map(|e| e.ate_m), 3),
+            cell(errors.as_ref().map(|e| e.ate_aligned_m), 3),
+            cell(errors.as_ref().map(|e| e.end_drift_pct), 2),
+            step.map_or("–".to_string(), |(e, k)| format!("{e:.3} ({})", seq.ids[k])),
+            out.counts.lost,
+            out.counts.relocalised,
+            median_fps(out)
+        );
+        if let Some(TruthSource::Oxts { median_pos_accuracy_m }) = seq.truth_source {
+            notes.push(format!(
+                "{}: ground truth from OXTS (differential GPS + IMU), median pos_accuracy {median_pos_accuracy_m:.2} m: errors below that are not meaningful.",
+                c.name
+            ));
+        }
+        if truth.is_none() {
+            notes.push(format!("{}: no ground truth, errors not computed.", c.name));
+        }
+    }
+    println!(
+        "\nATE: RMS position error, both trajectories starting at the identity (\"aligned\": after the best rigid alignment). Step error: |t(est step) - t(true step)| over steps ending at a frame marked tracked; the frame id in brackets. Frames/s: 1000 / median interval between frames (machine load matters; accuracy figures are deterministic)."
+    );
+    for n in notes {
+        println!("{n}");
+    }
     Ok(())
 }

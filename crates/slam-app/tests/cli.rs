@@ -86,7 +86,8 @@ fn detect_writes_json_and_overlays() {
         .expect("runs");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let file = slam_dataset::detections::DetectionFile::read(out.join("d.json")).expect("valid detection file");
-    assert_eq!(file.frames.len(), 4);
+    // frames are keyed by the number in their file names (this excerpt holds frames 7, 14, 21, 31)
+    assert_eq!(file.frames.keys().copied().collect::<Vec<_>>(), vec![7, 14, 21, 31]);
     assert_eq!(std::fs::read_dir(out.join("ov")).expect("overlays").count(), 4);
     let bad = app().args(["detect", "/no/such/folder"]).output().expect("runs");
     assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("/no/such/folder"));
@@ -372,7 +373,7 @@ fn run_on_a_tracking_layout_with_label_boxes() {
         .expect("runs");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8_lossy(&o.stdout);
-    assert!(text.contains("Tracking layout, 12 of 12 frames"), "{text}");
+    assert!(text.contains("Tracking layout, 12 frames: frame ids 0..=11"), "{text}");
     assert!(text.contains("from 12 detections"), "one Car box per frame, DontCare dropped: {text}");
     assert!(out.join("objects.json").is_file() && out.join("map.json").is_file());
 }
@@ -562,4 +563,194 @@ fn replaced_and_black_frames_are_lost_and_the_next_relocalise() {
         let z: f64 = l.split_whitespace().nth(11).and_then(|v| v.parse().ok()).expect("z");
         assert!((z - gt[i]).abs() < 0.5, "frame {i}: z {z:.2} m vs ground truth {:.2} m", gt[i]);
     }
+}
+
+/// A copy of the shipped odometry excerpt holding source frame `source[k]` as frame id `ids[k]` in both
+/// cameras (and the matching lines of `poses/06.txt`, and a `times.txt` of `0.1037 · source id`, so
+/// every line says which source frame it is), with `lines` lines of each per-frame file.
+fn odometry_copy(name: &str, frames: &[(usize, usize)], lines: usize) -> std::path::PathBuf {
+    let src = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06"));
+    let dst = std::env::temp_dir().join(format!("slam-app-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dst);
+    let seq = dst.join("sequences/06");
+    for d in ["image_0", "image_1"] {
+        std::fs::create_dir_all(seq.join(d)).expect("dir");
+        for &(id, source) in frames {
+            std::fs::copy(
+                src.join("sequences/06").join(d).join(format!("{source:06}.png")),
+                seq.join(d).join(format!("{id:06}.png")),
+            )
+            .expect("copy");
+        }
+    }
+    std::fs::copy(src.join("sequences/06/calib.txt"), seq.join("calib.txt")).expect("calib");
+    let gt: Vec<String> =
+        std::fs::read_to_string(src.join("poses/06.txt")).expect("gt").lines().map(String::from).collect();
+    let mut source_of = vec![0; lines];
+    for &(id, source) in frames {
+        if id < lines {
+            source_of[id] = source;
+        }
+    }
+    let poses: String = source_of.iter().map(|&s| format!("{}\n", gt[s])).collect();
+    let times: String = source_of.iter().map(|&s| format!("{:.6}\n", 0.1037 * s as f64)).collect();
+    std::fs::create_dir_all(dst.join("poses")).expect("dir");
+    std::fs::write(dst.join("poses/06.txt"), poses).expect("poses");
+    std::fs::write(seq.join("times.txt"), times).expect("times");
+    seq
+}
+
+fn tum_times(dir: &std::path::Path) -> Vec<f64> {
+    std::fs::read_to_string(dir.join("trajectory.tum.txt"))
+        .expect("tum")
+        .lines()
+        .map(|l| l.split_whitespace().next().and_then(|t| t.parse().ok()).expect("time"))
+        .collect()
+}
+
+#[test]
+fn frames_and_stride_keep_ids_and_ground_truth_aligned() {
+    // frames 10..=30, every 2nd id, of a copy with times: the same run as a copy that holds only those
+    // frames under the ids 0..=10; ids, times and ground truth follow the file names
+    let ids: Vec<usize> = (10..=30).step_by(2).collect();
+    let full = odometry_copy("select", &(0..=30).map(|i| (i, i)).collect::<Vec<_>>(), 31);
+    let packed = odometry_copy("packed", &ids.iter().enumerate().map(|(k, &i)| (k, i)).collect::<Vec<_>>(), ids.len());
+    let out = full.parent().and_then(|p| p.parent()).expect("root").join("out");
+    let run = |seq: &std::path::Path, extra: &[&str], to: &str| {
+        let o = app()
+            .args(["run", "--detector", "none"])
+            .arg(seq)
+            .args(extra)
+            .arg("--out")
+            .arg(out.join(to))
+            .output()
+            .expect("runs");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).to_string()
+    };
+    let a = run(&full, &["--frames", "10..=30", "--stride", "2"], "selected");
+    let b = run(&packed, &[], "packed");
+    assert!(a.contains("11 frames: frame ids 10..=30 every 2 ids"), "{a}");
+    let kitti = |to: &str| std::fs::read_to_string(out.join(to).join("trajectory.kitti.txt")).expect("kitti");
+    assert_eq!(kitti("selected"), kitti("packed"), "the selection tracks exactly the frames it names");
+    assert_eq!(kitti("selected").lines().count(), 11);
+    for key in ["ATE ", "(aligned ", "drift "] {
+        assert_eq!(number_after(&a, key), number_after(&b, key), "{key}\n{a}\n{b}");
+    }
+    // TUM lines carry the played frames' own times (times.txt line = frame id)
+    let t = tum_times(&out.join("selected"));
+    assert_eq!(t.len(), 11);
+    for (t, id) in t.iter().zip(&ids) {
+        assert!((t - 0.1037 * *id as f64).abs() < 1e-6, "{t} for frame {id}");
+    }
+    // the map's trajectory names the frame ids
+    let map: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("selected/map.json")).expect("map")).expect("json");
+    let frames: Vec<u64> =
+        map["trajectory"].as_array().expect("trajectory").iter().map(|f| f["frame"].as_u64().expect("id")).collect();
+    assert_eq!(frames, ids.iter().map(|&i| i as u64).collect::<Vec<_>>());
+    // a selection with no frame, and a malformed range, are errors that say why
+    let o = app().args(["run", "--detector", "none", "--frames", "40..60"]).arg(&full).output().expect("runs");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("no frame in frames 40..=59") && err.contains("0..=30"), "{err}");
+    let o = app().args(["run", "--frames", "30..10"]).output().expect("runs");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("30..10"), "{err}");
+}
+
+#[test]
+fn missing_frames_keep_the_ids_of_the_rest() {
+    // frames 0..=24 with frame 12 missing in both cameras: skipped, the rest keep their ids
+    let frames: Vec<(usize, usize)> = (0..=24).filter(|&i| i != 12).map(|i| (i, i)).collect();
+    let seq = odometry_copy("gap", &frames, 25);
+    let root = seq.parent().and_then(|p| p.parent()).expect("root").to_path_buf();
+    let run = |seq: &std::path::Path, extra: &[&str], to: &str| {
+        app()
+            .args(["run", "--detector", "none"])
+            .arg(seq)
+            .args(extra)
+            .arg("--out")
+            .arg(root.join(to))
+            .output()
+            .expect("runs")
+    };
+    let o = run(&seq, &[], "gap");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout).to_string();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        text.contains("1 frame(s) missing in both cameras (skipped, ids kept), 0 with one image missing"),
+        "{text}"
+    );
+    assert!(err.contains("frame 12 missing in both cameras"), "{err}");
+    // 24 frames played, each with its own time; frame 12's time is absent, not shifted onto frame 13
+    let t = tum_times(&root.join("gap"));
+    assert_eq!(t.len(), 24);
+    assert!(t.iter().zip(&frames).all(|(t, &(i, _))| (t - 0.1037 * i as f64).abs() < 1e-6), "{t:?}");
+    // the error against ground truth is about that of the same frames without the gap (skipping a frame
+    // makes one step twice as long to track: about 0.1 m more here), and far from what the estimate
+    // would show if its poses were paired with ground truth by position (a shift by one frame, 1.2 m,
+    // after frame 12)
+    let whole = odometry_copy("nogap", &(0..=24).map(|i| (i, i)).collect::<Vec<_>>(), 25);
+    let o2 = run(&whole, &[], "nogap");
+    assert!(o2.status.success(), "{}", String::from_utf8_lossy(&o2.stderr));
+    let base = String::from_utf8_lossy(&o2.stdout);
+    let (ate, ate0) = (number_after(&text, "ATE "), number_after(&base, "ATE "));
+    assert!((ate - ate0).abs() < 0.15, "ATE {ate} with the gap, {ate0} without\n{text}\n{base}");
+    let position = |line: &str| -> [f64; 3] {
+        let v: Vec<f64> = line.split_whitespace().map(|x| x.parse().expect("number")).collect();
+        [v[3], v[7], v[11]]
+    };
+    let est: Vec<[f64; 3]> =
+        std::fs::read_to_string(root.join("gap/trajectory.kitti.txt")).expect("kitti").lines().map(position).collect();
+    let gt: Vec<[f64; 3]> =
+        std::fs::read_to_string(root.join("poses/06.txt")).expect("gt").lines().map(position).collect();
+    let rms = |pairs: &[([f64; 3], [f64; 3])]| {
+        let s: f64 = pairs.iter().map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>()).sum();
+        (s / pairs.len() as f64).sqrt()
+    };
+    let by_id: Vec<_> = est.iter().zip(&frames).map(|(e, &(id, _))| (*e, gt[id])).collect();
+    let by_position: Vec<_> = est.iter().zip(&gt).map(|(e, g)| (*e, *g)).collect();
+    assert!((rms(&by_id) - ate).abs() < 1e-3, "{} vs {ate}", rms(&by_id));
+    assert!(rms(&by_position) > 2.0 * ate, "shifted {} vs {ate}", rms(&by_position));
+    // one camera missing: the frame is played as unreadable (previous pose kept), its id kept
+    std::fs::remove_file(seq.join("image_1/000018.png")).expect("rm");
+    let o = run(&seq, &["--frames", "14..=22"], "one");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("image_1/000018.png is missing") && err.contains("frame=18"), "{err}");
+    assert_eq!(number_after(&text, "unreadable ") as usize, 1, "{text}");
+    let t = tum_times(&root.join("one"));
+    assert_eq!(t.len(), 9);
+    assert!((t[4] - 0.1037 * 18.0).abs() < 1e-6, "{t:?}");
+    // a times.txt shorter than the frames is an error naming it, not a truncated TUM file
+    std::fs::write(seq.join("times.txt"), "0.0\n0.1\n0.2\n").expect("times");
+    let o = run(&seq, &[], "short");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("times.txt") && err.contains("3 times") && err.contains("frame 24"),
+        "{err}"
+    );
+    assert!(!root.join("short/trajectory.tum.txt").exists());
+}
+
+#[test]
+fn run_on_a_raw_drive_prints_errors_against_oxts() {
+    let drive = "fixtures/kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync";
+    let out = std::env::temp_dir().join(format!("slam-app-raw-{}", std::process::id()));
+    let o = app()
+        .args(["run", drive, "--detector", "none", "--frames", "0..=40", "--out"])
+        .arg(&out)
+        .output()
+        .expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("differential GPS") && text.contains("not meaningful"), "{text}");
+    let acc = number_after(&text, "median position accuracy ");
+    assert!((0.3..0.6).contains(&acc), "{text}");
+    // 41 frames of slow driving (about 14 m): the run tracks them with an error of the GPS's order
+    assert_eq!(number_after(&text, "over ") as usize, 41, "{text}");
+    assert!((10.0..20.0).contains(&number_after(&text, "path ")), "{text}");
+    assert!(number_after(&text, "(aligned ") < 1.0, "{text}");
 }

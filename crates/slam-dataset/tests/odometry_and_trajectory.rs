@@ -46,9 +46,16 @@ fn odometry_layout_with_partial_calib() {
     let s = OdometrySequence::open(&seq).expect("opens");
     assert!((s.times[1] - 0.1036).abs() < 1e-12);
     assert_eq!(s.ground_truth.as_ref().map(|g| g.len()), Some(3));
-    // mismatched image counts and a malformed calib are errors naming the place
+    // a right image missing keeps the frame (played as unreadable); no right image at all is an error
     std::fs::remove_file(seq.join("image_1/000002.png")).expect("rm");
-    assert!(matches!(OdometrySequence::open(&seq), Err(DatasetError::Invalid { .. })));
+    let s = OdometrySequence::open(&seq).expect("opens");
+    assert_eq!((s.ids.len(), s.one_camera.clone()), (3, vec![2]));
+    for i in 0..2 {
+        std::fs::remove_file(seq.join(format!("image_1/{i:06}.png"))).expect("rm");
+    }
+    let e = OdometrySequence::open(&seq).expect_err("no pair");
+    assert!(matches!(&e, DatasetError::Invalid { .. }) && e.to_string().contains("no frame has both"), "{e}");
+    // a malformed calib is an error
     std::fs::write(seq.join("calib.txt"), "P0: 1 2 3\n").expect("calib");
     assert!(OdometrySequence::open(&seq).is_err());
 }

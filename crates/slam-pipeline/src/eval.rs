@@ -110,9 +110,42 @@ pub fn trajectory_errors(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], lengths:
     })
 }
 
+/// The largest translation error of one frame-to-frame step, `|t(est[k−1]⁻¹·est[k]) − t(gt[k−1]⁻¹·gt[k])|`,
+/// over the steps `k ≥ 1` whose end frame is `counted[k]` (e.g. frames the tracker marked tracked), with
+/// that `k`; `None` when no step counts.
+pub fn largest_step_error(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], counted: &[bool]) -> Option<(f64, usize)> {
+    let n = est.len().min(gt.len()).min(counted.len());
+    (1..n)
+        .filter(|&k| counted[k])
+        .map(|k| {
+            let e = (est[k - 1].inverse() * est[k]).translation.vector;
+            let g = (gt[k - 1].inverse() * gt[k]).translation.vector;
+            ((e - g).norm(), k)
+        })
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_largest_step_error_counts_only_the_marked_frames() {
+        let gt = straight(6, 1.0);
+        // a 0.5 m jump into frame 3 that persists: only the step into frame 3 is wrong (ATE would
+        // blame every frame after it)
+        let est: Vec<Isometry3<f64>> = gt
+            .iter()
+            .enumerate()
+            .map(|(k, g)| if k >= 3 { Isometry3::translation(0.0, 0.0, 0.5) * g } else { *g })
+            .collect();
+        let (e, k) = largest_step_error(&est, &gt, &[true; 6]).expect("steps");
+        assert!((e - 0.5).abs() < 1e-12 && k == 3, "{e} {k}");
+        // frame 3 not counted: the other steps are right
+        let (e, k) = largest_step_error(&est, &gt, &[true, true, true, false, true, true]).expect("steps");
+        assert!(e < 1e-12 && k != 3, "{e} {k}");
+        assert!(largest_step_error(&est, &gt, &[true, false, false, false, false, false]).is_none());
+    }
 
     fn straight(n: usize, step: f64) -> Vec<Isometry3<f64>> {
         (0..n).map(|i| Isometry3::translation(0.0, 0.0, step * i as f64)).collect()

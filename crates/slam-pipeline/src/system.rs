@@ -14,9 +14,14 @@
 //!   map only through the mapper's replies (keyframe corrections, fitted objects); `on_frame` observers
 //!   get per-frame records, and the final map is handed over when the run ends. No locks are shared.
 //!
-//! Determinism: the tracker applies the mapper's reply for a keyframe made at frame `f` just before it
-//! tracks frame `f + correction_lag` (waiting for it if need be), never "whenever it arrives", so a run
-//! gives the same output however the threads are scheduled.
+//! Determinism: the tracker applies the mapper's reply for a keyframe made at the `k`-th input frame just
+//! before it tracks the `(k + correction_lag)`-th (waiting for it if need be), never "whenever it
+//! arrives", so a run gives the same output however the threads are scheduled.
+//!
+//! Frame identity: [`FrameInput::index`] is the frame's id in its sequence (the number in the file
+//! names), not its position: records, the map's trajectory and keyframes, and the detector's `frame`
+//! argument all carry that id, so a run over a subset or a sequence with gaps stays aligned with
+//! ground truth, labels and detection files.
 
 use std::{collections::VecDeque, time::Instant};
 
@@ -43,9 +48,9 @@ pub struct SystemConfig {
     pub objects: MapperConfig,
     /// Texture planes.
     pub texture: TextureConfig,
-    /// Frames between a keyframe and the application of the mapper's reply to it. Default 2.
+    /// Input frames between a keyframe and the application of the mapper's reply to it. Default 2.
     pub correction_lag: usize,
-    /// Run the detector on every n-th frame (others get no boxes). Default 1.
+    /// Run the detector on frames whose id is a multiple of n (others get no boxes). Default 1.
     pub detect_every: usize,
     /// Keep keypoints of moving objects out of tracking. Default on.
     pub exclude_moving: bool,
@@ -75,7 +80,7 @@ impl Default for SystemConfig {
 /// One input frame: its stereo pair, or why it could not be read.
 #[derive(Debug)]
 pub struct FrameInput {
-    /// Frame index in the sequence.
+    /// Frame id in the sequence (the number in the file names), increasing; not a position.
     pub index: usize,
     /// Left and right images, or the reason they are missing.
     pub images: Result<(Image, Image), String>,
@@ -357,8 +362,10 @@ pub fn run(
         let mut last_done = Instant::now();
         for (input, dets, det_ms) in det_rx {
             let i = input.index;
-            while let Some(&(kf_frame, rec)) = pending.front() {
-                if kf_frame + config.correction_lag > i {
+            while let Some(&(_, rec)) = pending.front() {
+                // counted in played frames (records), not frame ids: with a stride or gaps in the ids the
+                // lag stays the same number of tracked frames
+                if rec + config.correction_lag > records.len() {
                     break;
                 }
                 let reply = reply_rx.recv().map_err(|_| SystemError::Thread("local mapping"))?;

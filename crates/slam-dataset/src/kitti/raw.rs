@@ -67,6 +67,20 @@ pub fn oxts_poses(packets: &[OxtsPacket]) -> Vec<Isometry3<f64>> {
     packets.iter().map(|p| origin_inv * absolute(p)).collect()
 }
 
+/// Index of `pos_accuracy` (metres, the receiver's position accuracy) among an OXTS packet's 30 values.
+pub const OXTS_POS_ACCURACY: usize = 23;
+
+/// Poses of the rectified camera 0 (world = the first packet's camera, camera-to-world) from OXTS
+/// packets, as the KITTI devkit chains them: IMU poses of [`oxts_poses`] (Mercator with the first
+/// packet's latitude as scale), then IMU → Velodyne (`calib_imu_to_velo`) → camera 0
+/// (`calib_velo_to_cam`) → rectified camera 0 (`R_rect_00`):
+/// `T_w←cam(i) = C · T_imu₀←imu(i) · C⁻¹` with `C = T_rect←velo · T_velo←imu`.
+pub fn camera_poses_from_oxts(packets: &[OxtsPacket], calib: &RawCalib) -> Vec<Isometry3<f64>> {
+    let cam_from_imu = calib.rect_from_velo() * calib.velo_from_imu;
+    let imu_from_cam = cam_from_imu.inverse();
+    oxts_poses(packets).into_iter().map(|p| cam_from_imu * p * imu_from_cam).collect()
+}
+
 /// Read a KITTI `timestamps.txt` (`YYYY-MM-DD HH:MM:SS.fffffffff` per line) as seconds since the first
 /// line (midnight crossings are handled; dates are otherwise ignored).
 pub fn read_timestamps(path: impl AsRef<Path>) -> Result<Vec<f64>, DatasetError> {

@@ -8,8 +8,8 @@ use nalgebra::{Isometry3, Matrix3x4};
 use crate::{
     kitti::{
         calib::Calib,
-        odometry::{list_images, nominal_times, OdometrySequence},
-        raw::read_timestamps,
+        odometry::{nominal_times, pair_frames, values_of_ids, OdometrySequence},
+        raw::{camera_poses_from_oxts, read_oxts_packet, read_timestamps, RawCalib, OXTS_POS_ACCURACY},
         tracking::{read_tracking_labels, TrackingLabel},
     },
     DatasetError,
@@ -26,27 +26,184 @@ pub enum Layout {
     Tracking,
 }
 
-/// A rectified stereo sequence, images listed (not decoded).
+/// Where a sequence's ground-truth poses come from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TruthSource {
+    /// The odometry benchmark's `poses/NN.txt`.
+    PosesFile,
+    /// A raw drive's OXTS packets (GPS/IMU), converted as the KITTI devkit does.
+    Oxts {
+        /// Median of the packets' `pos_accuracy`, metres: the GPS position accuracy, below which
+        /// position errors against this ground truth are not meaningful.
+        median_pos_accuracy_m: f64,
+    },
+}
+
+/// A rectified stereo sequence, images listed (not decoded). Every per-frame vector has one entry per
+/// frame, in frame-id order; `ids` says which frame each entry is (the number in the file names), so
+/// ground truth, times, labels and detections stay aligned however frames are missing or selected.
 #[derive(Debug, Clone)]
 pub struct StereoSequence {
     /// Layout recognised.
     pub layout: Layout,
     /// The folder that was opened.
     pub dir: PathBuf,
-    /// Left images, sorted.
+    /// Frame id of each entry, increasing.
+    pub ids: Vec<usize>,
+    /// Left image of each entry (for a frame whose left image is missing: the path it should have, so
+    /// reading it fails and the frame is played as unreadable).
     pub left: Vec<PathBuf>,
-    /// Right images, sorted, as many as left.
+    /// Right image of each entry (same rule).
     pub right: Vec<PathBuf>,
     /// Intrinsics `[fx, fy, cx, cy]` of the rectified pair.
     pub intrinsics: [f64; 4],
     /// Baseline, metres.
     pub baseline: f64,
-    /// Frame times, seconds from the first.
+    /// Frame time of each entry, seconds (the time file's line `id`, else `0.1 · id`).
     pub times: Vec<f64>,
-    /// Ground-truth poses of the left camera (world = first frame), when the layout has them.
+    /// Ground-truth pose of the left camera of each entry (camera-to-world, world = the sequence's
+    /// frame 0 or first packet), when the layout has them and they cover every frame.
     pub ground_truth: Option<Vec<Isometry3<f64>>>,
-    /// Object labels (tracking layout), when present.
+    /// Where `ground_truth` came from.
+    pub truth_source: Option<TruthSource>,
+    /// Object labels (tracking layout), when present; `frame` is the frame id.
     pub labels: Option<Vec<TrackingLabel>>,
+    /// Frame ids missing in both cameras between the first and the last frame (skipped, ids kept).
+    pub gaps: Vec<usize>,
+    /// Frame ids with one image missing (kept, played as unreadable).
+    pub one_camera: Vec<usize>,
+    /// What was odd about the input and how it was handled, one sentence each (the caller logs them and
+    /// prints their count).
+    pub warnings: Vec<String>,
+}
+
+/// Which frames to play: ids in `[first, end)` (either side open), every `stride`-th id from the
+/// first. Ids come from the file names, so a selection keeps ground truth and output aligned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameSelection {
+    /// First frame id (default: the sequence's first).
+    pub first: Option<usize>,
+    /// One past the last frame id (default: after the sequence's last).
+    pub end: Option<usize>,
+    /// Every `stride`-th frame id, counted from `first` (1 = every frame).
+    pub stride: usize,
+}
+
+impl Default for FrameSelection {
+    fn default() -> Self {
+        Self { first: None, end: None, stride: 1 }
+    }
+}
+
+impl FrameSelection {
+    /// Parse a range of frame ids as Rust writes them: `A..B` (A to B − 1), `A..=B` (A to B), `A..`,
+    /// `..B`, `..=B`, or a single id `A`.
+    pub fn parse_range(text: &str) -> Result<(Option<usize>, Option<usize>), String> {
+        let t = text.trim();
+        let num = |s: &str| -> Result<Option<usize>, String> {
+            let s = s.trim();
+            if s.is_empty() {
+                return Ok(None);
+            }
+            s.parse::<usize>().map(Some).map_err(|_| {
+                format!("'{text}': '{s}' is not a frame id (a whole number ≥ 0); write A..B, A..=B, A.. or ..B")
+            })
+        };
+        let (first, end) = if let Some((a, b)) = t.split_once("..=") {
+            let b = num(b)?.ok_or_else(|| format!("'{text}': ..= needs a last frame id"))?;
+            (num(a)?, Some(b + 1))
+        } else if let Some((a, b)) = t.split_once("..") {
+            (num(a)?, num(b)?)
+        } else {
+            let a = num(t)?.ok_or_else(|| format!("'{text}': empty frame range"))?;
+            (Some(a), Some(a + 1))
+        };
+        if let (Some(a), Some(b)) = (first, end) {
+            if b <= a {
+                return Err(format!("'{text}' holds no frame: the end must be after the start"));
+            }
+        }
+        Ok((first, end))
+    }
+
+    fn keeps(&self, first: usize, id: usize) -> bool {
+        id >= first && self.end.is_none_or(|e| id < e) && (id - first) % self.stride.max(1) == 0
+    }
+
+    /// How this selection reads, e.g. `frames 0..=50, every 3rd`.
+    pub fn describe(&self) -> String {
+        let range = match (self.first, self.end) {
+            (None, None) => "all frames".to_string(),
+            (a, Some(e)) => format!("frames {}..={}", a.unwrap_or(0), e - 1),
+            (Some(a), None) => format!("frames {a}.."),
+        };
+        if self.stride > 1 {
+            format!("{range}, every frame id {} apart", self.stride)
+        } else {
+            range
+        }
+    }
+}
+
+impl StereoSequence {
+    /// Number of entries.
+    pub fn len(&self) -> usize {
+        self.ids.len()
+    }
+
+    /// True without entries (never for an opened sequence).
+    pub fn is_empty(&self) -> bool {
+        self.ids.is_empty()
+    }
+
+    /// The entries a selection keeps (ids, times, images, ground truth and the gap lists alike); an
+    /// error naming the folder when it keeps none.
+    pub fn select(&self, sel: &FrameSelection) -> Result<StereoSequence, DatasetError> {
+        let first = sel.first.unwrap_or_else(|| self.ids.first().copied().unwrap_or(0));
+        let keep: Vec<usize> = (0..self.ids.len()).filter(|&k| sel.keeps(first, self.ids[k])).collect();
+        if keep.is_empty() {
+            let (a, b) = (self.ids.first().copied().unwrap_or(0), self.ids.last().copied().unwrap_or(0));
+            return Err(DatasetError::Invalid {
+                path: self.dir.clone(),
+                message: format!("no frame in {} (this sequence has frames {a}..={b})", sel.describe()),
+            });
+        }
+        let pick = |v: &[PathBuf]| keep.iter().map(|&k| v[k].clone()).collect::<Vec<_>>();
+        let last = self.ids[keep[keep.len() - 1]];
+        let within = |v: &[usize]| v.iter().copied().filter(|&id| id >= first && id <= last).collect::<Vec<_>>();
+        Ok(StereoSequence {
+            ids: keep.iter().map(|&k| self.ids[k]).collect(),
+            left: pick(&self.left),
+            right: pick(&self.right),
+            times: keep.iter().map(|&k| self.times[k]).collect(),
+            ground_truth: self.ground_truth.as_ref().map(|g| keep.iter().map(|&k| g[k]).collect()),
+            gaps: within(&self.gaps),
+            one_camera: within(&self.one_camera).into_iter().filter(|id| sel.keeps(first, *id)).collect(),
+            ..self.clone()
+        })
+    }
+
+    /// Keep the first `n` entries.
+    pub fn truncate(&mut self, n: usize) {
+        self.ids.truncate(n);
+        self.left.truncate(n);
+        self.right.truncate(n);
+        self.times.truncate(n);
+        if let Some(g) = &mut self.ground_truth {
+            g.truncate(n);
+        }
+        if let Some(&last) = self.ids.last() {
+            self.gaps.retain(|&id| id <= last);
+            self.one_camera.retain(|&id| id <= last);
+        }
+    }
+
+    /// Ground truth expressed in the first entry's camera frame (where a run's trajectory starts).
+    pub fn truth_from_first(&self) -> Option<Vec<Isometry3<f64>>> {
+        let g = self.ground_truth.as_ref()?;
+        let origin = g.first()?.inverse();
+        Some(g.iter().map(|p| origin * p).collect())
+    }
 }
 
 fn pair_from(
@@ -67,35 +224,66 @@ fn pair_from(
     Ok(([fx, pl[(1, 1)], pl[(0, 2)], pl[(1, 2)]], baseline))
 }
 
-fn same_count(dir: &Path, left: &[PathBuf], right: &[PathBuf]) -> Result<(), DatasetError> {
-    if left.len() != right.len() {
-        return Err(DatasetError::Invalid {
-            path: dir.to_path_buf(),
-            message: format!("{} left images but {} right images", left.len(), right.len()),
-        });
-    }
-    if left.is_empty() {
-        return Err(DatasetError::Invalid { path: dir.to_path_buf(), message: "no PNG images".into() });
-    }
-    Ok(())
-}
-
 fn open_odometry(dir: &Path) -> Result<StereoSequence, DatasetError> {
     let seq = OdometrySequence::open(dir)?;
     let calib = dir.join("calib.txt");
     let (intrinsics, baseline) = pair_from(Layout::Odometry, dir, &seq.p0, &seq.p1, &calib)?;
-    same_count(dir, &seq.left, &seq.right)?;
     Ok(StereoSequence {
         layout: Layout::Odometry,
         dir: dir.to_path_buf(),
+        ids: seq.ids,
         left: seq.left,
         right: seq.right,
         intrinsics,
         baseline,
         times: seq.times,
+        truth_source: seq.ground_truth.as_ref().map(|_| TruthSource::PosesFile),
         ground_truth: seq.ground_truth,
         labels: None,
+        gaps: seq.gaps,
+        one_camera: seq.one_camera,
+        warnings: seq.warnings,
     })
+}
+
+/// Camera poses of every entry and the median GPS position accuracy, metres.
+type RawTruth = (Vec<Isometry3<f64>>, f64);
+
+/// Camera-0 ground truth of a raw drive's frames from `oxts/data/<id>.txt` and the date's calibration;
+/// `Ok(None)` (with a warning) when the drive has no `oxts/` or a packet or calibration file is missing.
+fn raw_truth(
+    drive: &Path,
+    date: &Path,
+    left: &[PathBuf],
+    ids: &[usize],
+    warnings: &mut Vec<String>,
+) -> Result<Option<RawTruth>, DatasetError> {
+    let oxts = drive.join("oxts").join("data");
+    if !oxts.is_dir() {
+        return Ok(None);
+    }
+    for f in ["calib_imu_to_velo.txt", "calib_velo_to_cam.txt"] {
+        if !date.join(f).is_file() {
+            warnings.push(format!("no ground truth: {} is missing (needed with oxts/)", date.join(f).display()));
+            return Ok(None);
+        }
+    }
+    let calib = RawCalib::read(date)?;
+    let mut packets = Vec::with_capacity(ids.len());
+    for (img, &id) in left.iter().zip(ids) {
+        // the packet of a frame has the image's file stem (`0000000042.txt`)
+        let name = img.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
+        let path = oxts.join(format!("{name}.txt"));
+        if !path.is_file() {
+            warnings.push(format!("no ground truth: the OXTS packet of frame {id} ({}) is missing", path.display()));
+            return Ok(None);
+        }
+        packets.push(read_oxts_packet(&path)?);
+    }
+    let mut acc: Vec<f64> = packets.iter().map(|p| p.values[OXTS_POS_ACCURACY]).collect();
+    acc.sort_by(|a, b| a.total_cmp(b));
+    let median = acc[acc.len() / 2];
+    Ok(Some((camera_poses_from_oxts(&packets, &calib), median)))
 }
 
 fn open_raw(dir: &Path) -> Result<StereoSequence, DatasetError> {
@@ -103,28 +291,55 @@ fn open_raw(dir: &Path) -> Result<StereoSequence, DatasetError> {
     let calib_path = date.join("calib_cam_to_cam.txt");
     let calib = Calib::read(&calib_path)?;
     // prefer the grey pair (00/01) when present: better stereo texture
-    let (l, r, pl, pr) = if dir.join("image_00/data").is_dir() && dir.join("image_01/data").is_dir() {
+    let grey = dir.join("image_00/data").is_dir() && dir.join("image_01/data").is_dir();
+    let (l, r, pl, pr) = if grey {
         ("image_00", "image_01", "P_rect_00", "P_rect_01")
     } else {
         ("image_02", "image_03", "P_rect_02", "P_rect_03")
     };
     let (intrinsics, baseline) =
         pair_from(Layout::Raw, dir, &calib.matrix3x4(pl)?, &calib.matrix3x4(pr)?, &calib_path)?;
-    let left = list_images(&dir.join(l).join("data"))?;
-    let right = list_images(&dir.join(r).join("data"))?;
-    same_count(dir, &left, &right)?;
+    let pairs = pair_frames(&dir.join(l).join("data"), &dir.join(r).join("data"))?;
+    let mut warnings = pairs.warnings;
     let ts = dir.join(l).join("timestamps.txt");
-    let times = if ts.exists() { read_timestamps(&ts)? } else { nominal_times(left.len()) };
+    // a drive's timestamps.txt covers the whole drive: take the lines of the frames present
+    let times = if ts.exists() {
+        values_of_ids(&read_timestamps(&ts)?, &pairs.ids, &ts, "timestamps")?
+    } else {
+        nominal_times(&pairs.ids)
+    };
+    let truth = raw_truth(dir, date, &pairs.left, &pairs.ids, &mut warnings)?;
+    // the OXTS poses are of rectified camera 0; with the colour pair the left camera is camera 2, whose
+    // rectified frame differs from camera 0's by a translation only
+    let truth = match truth {
+        Some((g, acc)) if !grey => {
+            // camera 2's centre in rectified camera 0: t = K⁻¹ · P_rect_02[:, 3]
+            let p2 = calib.matrix3x4("P_rect_02")?;
+            let k = p2.fixed_view::<3, 3>(0, 0).into_owned();
+            let offset = k.try_inverse().map(|ki| ki * p2.column(3)).ok_or_else(|| DatasetError::Invalid {
+                path: calib_path.clone(),
+                message: "P_rect_02 has a singular K".into(),
+            })?;
+            let cam0_from_cam2 = Isometry3::translation(-offset.x, -offset.y, -offset.z);
+            Some((g.iter().map(|p| cam0_from_cam2.inverse() * p * cam0_from_cam2).collect(), acc))
+        }
+        other => other,
+    };
     Ok(StereoSequence {
         layout: Layout::Raw,
         dir: dir.to_path_buf(),
-        left,
-        right,
+        ids: pairs.ids,
+        left: pairs.left,
+        right: pairs.right,
         intrinsics,
         baseline,
         times,
-        ground_truth: None,
+        truth_source: truth.as_ref().map(|t| TruthSource::Oxts { median_pos_accuracy_m: t.1 }),
+        ground_truth: truth.map(|t| t.0),
         labels: None,
+        gaps: pairs.gaps,
+        one_camera: pairs.one_camera,
+        warnings,
     })
 }
 
@@ -133,23 +348,26 @@ fn open_tracking(training: &Path, seq: &str) -> Result<StereoSequence, DatasetEr
     let calib = Calib::read(&calib_path)?;
     let (intrinsics, baseline) =
         pair_from(Layout::Tracking, training, &calib.matrix3x4("P2")?, &calib.matrix3x4("P3")?, &calib_path)?;
-    let left = list_images(&training.join("image_02").join(seq))?;
-    let right = list_images(&training.join("image_03").join(seq))?;
     let dir = training.join("image_02").join(seq);
-    same_count(&dir, &left, &right)?;
+    let pairs = pair_frames(&dir, &training.join("image_03").join(seq))?;
     let label_path = training.join("label_02").join(format!("{seq}.txt"));
     let labels = if label_path.exists() { Some(read_tracking_labels(&label_path)?) } else { None };
-    let times = nominal_times(left.len());
+    let times = nominal_times(&pairs.ids);
     Ok(StereoSequence {
         layout: Layout::Tracking,
         dir,
-        left,
-        right,
+        ids: pairs.ids,
+        left: pairs.left,
+        right: pairs.right,
         intrinsics,
         baseline,
         times,
         ground_truth: None,
+        truth_source: None,
         labels,
+        gaps: pairs.gaps,
+        one_camera: pairs.one_camera,
+        warnings: pairs.warnings,
     })
 }
 
@@ -226,6 +444,76 @@ mod tests {
     }
 
     #[test]
+    fn frame_ranges_parse_as_rust_writes_them() {
+        let p = FrameSelection::parse_range;
+        assert_eq!(p("10..20"), Ok((Some(10), Some(20))));
+        assert_eq!(p("10..=20"), Ok((Some(10), Some(21))));
+        assert_eq!(p("5.."), Ok((Some(5), None)));
+        assert_eq!(p("..=7"), Ok((None, Some(8))));
+        assert_eq!(p("3"), Ok((Some(3), Some(4))));
+        for bad in ["20..10", "5..5", "a..3", "-1..4", "..=", "", "1.5..3"] {
+            assert!(p(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_selection_keeps_ids_times_and_truth_together() {
+        let root = std::env::temp_dir().join(format!("stereo-select-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let seq = root.join("sequences/00");
+        touch_images(&seq.join("image_0"), 12);
+        touch_images(&seq.join("image_1"), 12);
+        std::fs::write(seq.join("calib.txt"), format!("P0: {}\nP1: {}\n", p(0.0), p(-378.0))).expect("calib");
+        // frame 5 missing in both cameras: a gap, the others keep their ids
+        for d in ["image_0", "image_1"] {
+            std::fs::remove_file(seq.join(d).join("000005.png")).expect("rm");
+        }
+        let times: String = (0..20).map(|i| format!("{}\n", 0.25 * i as f64)).collect();
+        std::fs::write(seq.join("times.txt"), times).expect("times");
+        std::fs::create_dir_all(root.join("poses")).expect("dir");
+        let poses: String = (0..12).map(|i| format!("1 0 0 0 0 1 0 0 0 0 1 {i}\n")).collect();
+        std::fs::write(root.join("poses/00.txt"), poses).expect("poses");
+        let s = open_stereo(&seq).expect("opens");
+        assert_eq!(s.ids, vec![0, 1, 2, 3, 4, 6, 7, 8, 9, 10, 11]);
+        assert_eq!(s.gaps, vec![5]);
+        assert!(s.warnings.iter().any(|w| w.contains("frame 5 missing in both cameras")), "{:?}", s.warnings);
+        let z = |s: &StereoSequence| -> Vec<f64> {
+            s.ground_truth.as_ref().expect("truth").iter().map(|g| g.translation.vector.z).collect()
+        };
+        // every entry's time and ground truth are those of its id, not of its position
+        for (k, &id) in s.ids.iter().enumerate() {
+            assert_eq!((s.times[k], z(&s)[k]), (0.25 * id as f64, id as f64));
+            assert!(s.left[k].ends_with(format!("{id:06}.png")) && s.right[k].ends_with(format!("{id:06}.png")));
+        }
+        // 3..=10 every 2nd id: 3, (5 is a gap), 7, 9
+        let (first, end) = FrameSelection::parse_range("3..=10").expect("range");
+        let sub = s.select(&FrameSelection { first, end, stride: 2 }).expect("selects");
+        assert_eq!(sub.ids, vec![3, 7, 9]);
+        assert_eq!(z(&sub), vec![3.0, 7.0, 9.0]);
+        assert_eq!(sub.times, vec![0.75, 1.75, 2.25]);
+        assert_eq!(sub.gaps, vec![5]);
+        let rebased: Vec<f64> = sub.truth_from_first().expect("truth").iter().map(|g| g.translation.vector.z).collect();
+        assert_eq!(rebased, vec![0.0, 4.0, 6.0]);
+        let e = s.select(&FrameSelection { first: Some(40), end: None, stride: 1 }).expect_err("empty").to_string();
+        assert!(e.contains("no frame in frames 40..") && e.contains("0..=11"), "{e}");
+        // a time file shorter than the frames is an error naming it and both counts
+        std::fs::write(seq.join("times.txt"), "0.0\n0.1\n0.2\n").expect("times");
+        let e = open_stereo(&seq).expect_err("short times").to_string();
+        assert!(e.contains("times.txt") && e.contains("3 times") && e.contains("frame 11"), "{e}");
+        // a poses file shorter than the frames: no ground truth, with a warning naming the file
+        std::fs::remove_file(seq.join("times.txt")).expect("rm");
+        std::fs::write(root.join("poses/00.txt"), "1 0 0 0 0 1 0 0 0 0 1 0\n").expect("poses");
+        let s = open_stereo(&seq).expect("opens");
+        assert!(s.ground_truth.is_none() && s.truth_source.is_none());
+        assert!(
+            s.warnings.iter().any(|w| w.starts_with("no ground truth") && w.contains("00.txt")),
+            "{:?}",
+            s.warnings
+        );
+        std::fs::remove_dir_all(&root).ok();
+    }
+
+    #[test]
     fn recognises_the_three_layouts() {
         let root = std::env::temp_dir().join(format!("stereo-layouts-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&root);
@@ -260,10 +548,17 @@ mod tests {
         let s = open_stereo(tr.join("image_02/0003")).expect("tracking");
         assert_eq!((s.layout, s.left.len(), s.labels.is_none()), (Layout::Tracking, 2, true));
         assert_eq!(open_stereo(&tr).expect("training root").layout, Layout::Tracking);
-        // mismatched counts and unknown folders are errors naming the folder
+        // a frame with one image is kept (played as unreadable) and named in a warning
         touch_images(&odo.join("image_1"), 4);
-        let e = open_stereo(&odo).expect_err("mismatch").to_string();
-        assert!(e.contains("3 left images but 4 right images"), "{e}");
+        let s = open_stereo(&odo).expect("one-sided frame");
+        assert_eq!((s.ids.clone(), s.one_camera.clone()), (vec![0, 1, 2, 3], vec![3]));
+        assert_eq!(s.left[3], odo.join("image_0/000003.png"));
+        assert!(
+            s.warnings.iter().any(|w| w.contains("frame 3") && w.contains("image_0/000003.png")),
+            "{:?}",
+            s.warnings
+        );
+        // unknown folders are errors naming the folder
         let e =
             open_stereo(root.join("2011_09_26/2011_09_26_drive_0001_sync/image_02")).expect_err("unknown").to_string();
         assert!(e.contains("not a KITTI stereo sequence"), "{e}");
