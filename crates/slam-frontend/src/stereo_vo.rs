@@ -283,8 +283,8 @@ pub enum Support {
 /// constant-velocity prediction after `frames` frame periods of `period_s`, for a vehicle whose
 /// acceleration is at most `max_acceleration` and angular acceleration `max_angular_acceleration`,
 /// with the velocity estimate off by up to `step_tolerance_m` / `rotation_tolerance_rad` per frame.
-pub fn motion_limits(config: &VoConfig, frames: usize) -> (f64, f64) {
-    let n = frames.max(1) as f64;
+pub fn motion_limits(config: &VoConfig, frames: f64) -> (f64, f64) {
+    let n = frames.max(1.0);
     let t = n * config.period();
     (
         0.5 * config.max_acceleration * t * t + n * config.step_tolerance_m,
@@ -300,7 +300,7 @@ pub fn motion_consistent(
     pose: &Isometry3<f64>,
     predicted: &Isometry3<f64>,
     last: &Isometry3<f64>,
-    frames: usize,
+    frames: f64,
     velocity_known: bool,
 ) -> bool {
     if velocity_known {
@@ -308,7 +308,7 @@ pub fn motion_consistent(
         let d = predicted.inverse() * pose;
         d.translation.vector.norm() <= t_lim && d.rotation.angle() <= r_lim
     } else {
-        let t = frames.max(1) as f64 * config.period();
+        let t = frames.max(1.0) * config.period();
         let d = last.inverse() * pose;
         d.translation.vector.norm() <= config.max_speed * t
     }
@@ -330,6 +330,8 @@ pub struct StereoVo {
     kf_from_measured: Isometry3<f64>,
     /// Frames since the last measured pose (1: the previous frame was measured).
     since_measured: usize,
+    /// Frame-id steps the velocity was measured over (2 when every 2nd frame is played).
+    velocity_gap: usize,
     /// Frame intervals between the last processed frame and the current one (frames the pipeline
     /// could not read count).
     gap: usize,
@@ -488,6 +490,12 @@ fn extract(orb: &mut core::Ptr<features2d::ORB>, img: &Mat) -> Result<Features, 
     Ok(f)
 }
 
+/// `step` applied `r` times (a fraction of it for the fractional part).
+fn scaled(step: &Isometry3<f64>, r: f64) -> Isometry3<f64> {
+    let whole = r.max(0.0).floor();
+    repeat(step, whole as usize) * Isometry3::identity().lerp_slerp(step, r.max(0.0) - whole)
+}
+
 /// `step` applied `k` times.
 fn repeat(step: &Isometry3<f64>, k: usize) -> Isometry3<f64> {
     (0..k).fold(Isometry3::identity(), |acc, _| acc * step)
@@ -547,6 +555,7 @@ impl StereoVo {
             kf_from_last: Isometry3::identity(),
             kf_from_measured: Isometry3::identity(),
             since_measured: 1,
+            velocity_gap: 1,
             gap: 1,
             last_index: 0,
             measured_index: 0,
@@ -1096,10 +1105,10 @@ impl StereoVo {
     ) -> Result<Relocalisation, FrontendError> {
         let mut first = None;
         // each hypothesis of k − 1 dropped frames covers half a step either side of its prediction
-        let (t1, r1) = motion_limits(&self.config, 1);
+        let (t1, r1) = motion_limits(&self.step_config(), 1.0);
         let bounds = (t1 + 0.5 * self.velocity.translation.vector.norm(), r1 + 0.5 * self.velocity.rotation.angle());
         for k in 2usize..=16 {
-            let guess = (self.kf_from_last * repeat(&self.velocity, self.gap - 1 + k)).inverse();
+            let guess = (self.kf_from_last * scaled(&self.velocity, self.steps(self.gap) - 1.0 + k as f64)).inverse();
             if let Some((r, n)) = self.track_from(map, frame, &guess, bounds)? {
                 tracing::debug!(steps = k, inliers = r.inliers.len(), "relocalisation along the motion");
                 first.get_or_insert(r.pose);
@@ -1144,6 +1153,16 @@ impl StereoVo {
         Ok((None, first))
     }
 
+    /// Frame-id steps as velocity steps (the velocity was measured over `velocity_gap` ids), at least 1.
+    fn steps(&self, ids: usize) -> f64 {
+        ids.max(1) as f64 / self.velocity_gap.max(1) as f64
+    }
+
+    /// The settings with the frame period of one velocity step.
+    fn step_config(&self) -> VoConfig {
+        VoConfig { frame_period_s: self.config.period() * self.velocity_gap.max(1) as f64, ..self.config }
+    }
+
     /// Whether a refined pose (`curr_from_ref`) found by `route` is accepted: its support, and its
     /// consistency with the motion model over the frames since the last measured pose.
     fn judge(&self, r: &Refined, route: Route, frame: &Frame) -> Support {
@@ -1154,12 +1173,21 @@ impl StereoVo {
             return support;
         }
         let (steps, frames) = match route {
-            Route::Along(k) => (self.gap - 1 + k, self.since_measured - 1 + k),
-            _ => (self.gap, self.since_measured),
+            Route::Along(k) => {
+                (self.steps(self.gap) - 1.0 + k as f64, self.steps(self.since_measured) - 1.0 + k as f64)
+            }
+            _ => (self.steps(self.gap), self.steps(self.since_measured)),
         };
-        let predicted = self.kf_from_last * repeat(&self.velocity, steps);
+        let predicted = self.kf_from_last * scaled(&self.velocity, steps);
         let pose = r.pose.inverse();
-        if motion_consistent(&self.config, &pose, &predicted, &self.kf_from_measured, frames, self.velocity_known) {
+        if motion_consistent(
+            &self.step_config(),
+            &pose,
+            &predicted,
+            &self.kf_from_measured,
+            frames,
+            self.velocity_known,
+        ) {
             support
         } else {
             let d = predicted.inverse() * pose;
@@ -1211,6 +1239,7 @@ impl StereoVo {
             (self.last_index, self.measured_index, self.failed) = (frame_index, frame_index, false);
             self.velocity_known = false;
             self.velocity = Isometry3::identity();
+            self.velocity_gap = 1;
             return Ok(TrackedFrame {
                 world_from_camera: Isometry3::identity(),
                 reference: (kf.id, Isometry3::identity()),
@@ -1230,9 +1259,9 @@ impl StereoVo {
         self.since_measured = frame_index.saturating_sub(self.measured_index).max(1);
         self.last_index = frame_index;
         let n = self.since_measured;
-        let predicted = (self.kf_from_last * repeat(&self.velocity, self.gap)).inverse(); // curr ← keyframe
+        let predicted = (self.kf_from_last * scaled(&self.velocity, self.steps(self.gap))).inverse(); // curr ← keyframe
         let bounds = if self.velocity_known {
-            motion_limits(&self.config, n)
+            motion_limits(&self.step_config(), self.steps(n))
         } else {
             (self.config.max_speed * n as f64 * self.config.period(), 0.1)
         };
@@ -1281,9 +1310,10 @@ impl StereoVo {
         let carried: Vec<(PointId, usize)> =
             refined.as_ref().map(|r| r.inliers.iter().map(|&(i, c)| (map.ids[i], c)).collect()).unwrap_or_default();
         if let Some(r) = &refined {
-            if matches!(state, TrackState::Tracked { .. } | TrackState::Weak { .. }) && n == 1 {
+            if matches!(state, TrackState::Tracked { .. } | TrackState::Weak { .. }) && n == self.gap {
                 self.velocity = self.kf_from_last.inverse() * kf_from_curr;
                 self.velocity_known = true;
+                self.velocity_gap = self.gap;
             }
             if matches!(state, TrackState::Tracked { .. }) && self.pairs.len() < self.config.keep_disparity_pairs {
                 let (a, b): (Vec<[f64; 3]>, Vec<[f64; 3]>) = r
@@ -1741,24 +1771,26 @@ mod tests {
             let predicted = last * Isometry3::translation(0.0, 0.0, 15.0 * period);
             // hard braking (0.9 g) during the frame: accepted
             let braking = predicted * Isometry3::translation(0.0, 0.0, -0.5 * 9.0 * period * period);
-            assert!(motion_consistent(&config, &braking, &predicted, &last, 1, true), "{period}");
+            assert!(motion_consistent(&config, &braking, &predicted, &last, 1.0, true), "{period}");
             // a 5 m jump in any direction: rejected
             for d in [Vector3::new(0.0, 0.0, 5.0), Vector3::new(5.0, 0.0, 0.0), Vector3::new(3.0, 0.0, -4.0)] {
                 let jump = Isometry3::translation(d.x, d.y, d.z) * predicted;
-                assert!(!motion_consistent(&config, &jump, &predicted, &last, 1, true), "{period} {d}");
+                assert!(!motion_consistent(&config, &jump, &predicted, &last, 1.0, true), "{period} {d}");
             }
             // a 20° turn within one frame: rejected
             let turn = predicted * Isometry3::rotation(Vector3::new(0.0, 20f64.to_radians(), 0.0));
-            assert!(!motion_consistent(&config, &turn, &predicted, &last, 1, true), "{period}");
+            assert!(!motion_consistent(&config, &turn, &predicted, &last, 1.0, true), "{period}");
             // while the velocity is unknown only the speed limit (50 m/s) applies
             let fast = last * Isometry3::translation(0.0, 0.0, 40.0 * period);
             let too_fast = last * Isometry3::translation(0.0, 0.0, 60.0 * period);
-            assert!(motion_consistent(&config, &fast, &last, &last, 1, false));
-            assert!(!motion_consistent(&config, &too_fast, &last, &last, 1, false));
+            assert!(motion_consistent(&config, &fast, &last, &last, 1.0, false));
+            assert!(!motion_consistent(&config, &too_fast, &last, &last, 1.0, false));
         }
         // the limits grow with the frames since the last measured pose
         let c = VoConfig::default();
-        assert!(motion_limits(&c, 3).0 > motion_limits(&c, 1).0 && motion_limits(&c, 3).1 > motion_limits(&c, 1).1);
+        assert!(
+            motion_limits(&c, 3.0).0 > motion_limits(&c, 1.0).0 && motion_limits(&c, 3.0).1 > motion_limits(&c, 1.0).1
+        );
     }
 
     #[test]
