@@ -2,7 +2,6 @@
 
 use std::{collections::BTreeMap, path::PathBuf};
 
-use anyhow::Context;
 use clap::{Args, Subcommand};
 use slam_assoc::{
     eval::{run as run_sim, simulate, IdSwitchCounter, Lcg, MotCounts, SimConfig},
@@ -57,6 +56,8 @@ fn associators() -> [(&'static str, Make); 2] {
 }
 
 fn sim(a: &SimArgs) -> anyhow::Result<()> {
+    crate::validate::count("--scenes", a.scenes as usize, 1, 100_000)?;
+    crate::validate::count("--frames", a.frames, 1, 1_000_000)?;
     let variants = [
         ("masks, 5-12 px/frame", SimConfig { frames: a.frames, ..SimConfig::default() }),
         ("boxes only", SimConfig { frames: a.frames, masks: false, ..SimConfig::default() }),
@@ -104,6 +105,10 @@ const CONDITIONS: [Condition; 3] = [
 ];
 
 fn kitti(a: &KittiArgs) -> anyhow::Result<()> {
+    if let Some(p) = &a.csv {
+        // checked writable before the study runs
+        drop(crate::output::AtomicFile::new(p)?);
+    }
     let dir = a.dir.clone().unwrap_or_else(|| crate::fixture("kitti_tracking"));
     let seqs = crate::tracking_sequences(&dir)?;
     println!("KITTI tracking labels as detections ({} sequences in {}), seed {}", seqs.len(), dir.display(), a.seed);
@@ -179,7 +184,7 @@ fn kitti(a: &KittiArgs) -> anyhow::Result<()> {
     }
     println!("{row}");
     if let Some(path) = &a.csv {
-        std::fs::write(path, csv).with_context(|| format!("cannot write {}", path.display()))?;
+        crate::output::write_file(path, csv.as_bytes())?;
         println!("CSV written to {}", path.display());
     }
     Ok(())

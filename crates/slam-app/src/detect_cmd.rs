@@ -48,7 +48,23 @@ pub struct ModelArgs {
 }
 
 impl ModelArgs {
+    /// Range checks of the model options (before any model is loaded).
+    pub(crate) fn check(&self) -> anyhow::Result<()> {
+        use crate::validate::{count, number, Range, MAX_INPUT_SIZE};
+        if self.input_size < 32 || self.input_size > MAX_INPUT_SIZE || self.input_size % 32 != 0 {
+            bail!(
+                "--input-size {}: must be a multiple of 32 in [32, {MAX_INPUT_SIZE}] (memory grows with its square)",
+                self.input_size
+            );
+        }
+        // more tiles than 16 across a KITTI frame would be narrower than the objects they should hold
+        count("--tiles", self.tiles as usize, 1, 16)?;
+        number("--score", self.score as f64, Range::closed(0.0, 1.0), "")?;
+        Ok(())
+    }
+
     pub(crate) fn load(&self) -> anyhow::Result<DnnDetector> {
+        self.check()?;
         let config = DetectorConfig {
             input_size: self.input_size,
             mode: match self.mode {
@@ -116,15 +132,26 @@ fn frame_ids(images: &[PathBuf]) -> Vec<usize> {
     }
 }
 
+/// Overlay files `detect` writes (a folder written before the marker file existed may be replaced when it
+/// holds only these).
+fn overlay_name(name: &str) -> bool {
+    name.ends_with(".png")
+}
+
 pub fn detect(a: &DetectArgs) -> anyhow::Result<()> {
     let mut images = list_images(&a.input)?;
     // numeric names sort by their number (9.png before 10.png)
     images.sort_by_key(|p| (slam_dataset::kitti::odometry::frame_id(p), p.clone()));
     let ids = frame_ids(&images);
+    a.model.check()?;
+    // both outputs are checked writable before the first image, and put in place whole at the end
+    let json = crate::output::AtomicFile::new(&a.out)?;
+    let overlays = a
+        .overlays
+        .as_ref()
+        .map(|o| crate::output::OutputDir::create(o, "--overlays", "detect", overlay_name))
+        .transpose()?;
     let mut det = a.model.load()?;
-    if let Some(o) = &a.overlays {
-        std::fs::create_dir_all(o).with_context(|| format!("cannot create {}", o.display()))?;
-    }
     let bar = indicatif::ProgressBar::new(images.len() as u64);
     bar.set_style(
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames {per_sec} eta {eta}")
@@ -145,7 +172,7 @@ pub fn detect(a: &DetectArgs) -> anyhow::Result<()> {
         file.image_size.get_or_insert([img.width, img.height]);
         let d = det.detect(i, Some(&img)).with_context(|| format!("detecting in {}", path.display()))?;
         total += d.len();
-        if let Some(o) = &a.overlays {
+        if let Some(o) = overlays.as_ref().map(|o| o.path()) {
             let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| format!("{i:06}"));
             write_image(o.join(format!("{name}.png")), &draw_detections(&img, &d, |c| classes::name(c).to_string())?)?;
         }
@@ -153,10 +180,10 @@ pub fn detect(a: &DetectArgs) -> anyhow::Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    if let Some(p) = a.out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(p).with_context(|| format!("cannot create {}", p.display()))?;
+    json.write_with(|tmp| file.write(tmp).map_err(anyhow::Error::from))?;
+    if let Some(o) = overlays {
+        o.commit()?;
     }
-    file.write(&a.out)?;
     println!(
         "{} frames, {total} detections, {skipped} unreadable frames skipped; wrote {}",
         images.len(),

@@ -3,11 +3,14 @@
 mod assoc_cmd;
 mod config;
 mod detect_cmd;
+mod guard;
 mod objects_cmd;
 mod optim_cmd;
+mod output;
 mod plot;
 mod run_cmd;
 mod sim_cmd;
+mod validate;
 
 use std::{io::IsTerminal, path::PathBuf};
 
@@ -90,6 +93,10 @@ pub(crate) fn tracking_sequences(dir: &std::path::Path) -> anyhow::Result<Vec<Pa
 fn main() -> std::process::ExitCode {
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) if e.downcast_ref::<output::Interrupted>().is_some() => {
+            eprintln!("interrupted: {e}");
+            std::process::ExitCode::from(130)
+        }
         Err(e) => {
             // the whole chain, without a backtrace (errors here are about the user's input); a cause
             // that its parent's message already quotes is not repeated

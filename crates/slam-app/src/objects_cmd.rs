@@ -59,6 +59,21 @@ pub enum Shape {
     Cuboid,
 }
 
+impl InputArgs {
+    /// Range checks (before any file is read).
+    fn check(&self) -> anyhow::Result<()> {
+        use crate::validate::{count, number, Range};
+        number("--noise", self.noise, Range::closed(0.0, 1.0), "(σ as a share of the box size)")?;
+        number("--dropout", self.dropout, Range::closed(0.0, 1.0), "(a probability)")?;
+        number("--min-parallax-deg", self.min_parallax_deg, Range::closed(0.0, 90.0), "degrees")?;
+        number("--dynamic-prior-sigmas", self.dynamic_prior_sigmas, Range::closed(0.0, 1.0e6), "(0: off)")?;
+        if let Some(n) = self.without_parallax_after {
+            count("--without-parallax-after", n, 1, usize::MAX)?;
+        }
+        Ok(())
+    }
+}
+
 impl Shape {
     pub(crate) fn shape(self) -> slam_optim::object::BoxShape {
         match self {
@@ -180,6 +195,8 @@ fn run(seq: &Sequence, input: &InputArgs) -> (ObjectMapper, BTreeMap<(usize, usi
 }
 
 pub fn objects(a: &ObjectsArgs) -> anyhow::Result<()> {
+    a.input.check()?;
+    let out = crate::output::AtomicFile::new(&a.out)?;
     let seq = load(
         a.labels.clone().unwrap_or_else(|| a.dir.join("label_02.txt")),
         a.poses.clone().unwrap_or_else(|| a.dir.join("poses_orbslam3.txt")),
@@ -187,10 +204,7 @@ pub fn objects(a: &ObjectsArgs) -> anyhow::Result<()> {
     )?;
     let (mapper, _) = run(&seq, &a.input);
     let objs: Vec<_> = mapper.objects().collect();
-    if let Some(p) = a.out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(p).with_context(|| format!("cannot create {}", p.display()))?;
-    }
-    write_object_map(&a.out, &objs).with_context(|| format!("cannot write {}", a.out.display()))?;
+    out.write_with(|tmp| write_object_map(tmp, &objs).map_err(anyhow::Error::from))?;
     let with = objs.iter().filter(|o| o.ellipsoid.is_some()).count();
     let dynamic = objs.iter().filter(|o| o.ellipsoid.is_some() && o.dynamic).count();
     println!(
@@ -347,6 +361,19 @@ struct Row {
 }
 
 pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
+    use crate::validate::{count, number, Range};
+    a.input.check()?;
+    count("--min-frames", a.min_frames, 1, usize::MAX)?;
+    number("--static-m", a.static_m, Range::closed(0.0, 1000.0), "m")?;
+    number("--moving-m", a.moving_m, Range::above(0.0, 1000.0), "m")?;
+    if a.static_m > a.moving_m {
+        bail!(
+            "--static-m {} exceeds --moving-m {}: a vehicle would count as static and moving",
+            a.static_m,
+            a.moving_m
+        );
+    }
+    let csv_out = a.csv.as_deref().map(crate::output::AtomicFile::new).transpose()?;
     let dir = a.dir.clone().unwrap_or_else(|| crate::fixture("kitti_tracking"));
     let seqs = crate::tracking_sequences(&dir)?;
     println!(
@@ -561,8 +588,8 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
          objects by bearings (docs/objects.md)"
     );
     println!("paper (its KITTI raw drives): success 0.602, IoU2D 0.730, e_trans 2.128 m, e_axe 0.642 m");
-    if let Some(p) = &a.csv {
-        std::fs::write(p, csv).with_context(|| format!("cannot write {}", p.display()))?;
+    if let Some(f) = csv_out {
+        f.write_with(|tmp| std::fs::write(tmp, csv).map_err(anyhow::Error::from))?;
     }
     Ok(())
 }

@@ -112,6 +112,13 @@ fn load(dir: &std::path::Path, a: &Anchor) -> anyhow::Result<(Problem, Levenberg
 }
 
 pub fn run(args: &OptimBenchArgs) -> anyhow::Result<()> {
+    crate::validate::count("--reps", args.reps, 1, 1000)?;
+    if let Some(o) = &args.only {
+        if !ANCHORS.iter().any(|a| a.name.contains(o.as_str())) {
+            let names: Vec<&str> = ANCHORS.iter().map(|a| a.name).collect();
+            anyhow::bail!("--only {o:?} matches no problem (problems: {})", names.join(", "));
+        }
+    }
     let dir = args.data.clone().unwrap_or_else(|| crate::fixture("optim"));
     println!("Optimiser benchmark on {} ({} timed runs each, median; single thread)", dir.display(), args.reps);
     println!(

@@ -142,14 +142,34 @@ fn played_ids(seq: &StereoSequence, sel: &FrameSelection) -> String {
 /// COCO classes mapped as objects: person, bicycle, car, motorcycle, bus, truck.
 const OBJECT_CLASSES: [u16; 6] = [0, 1, 2, 3, 5, 7];
 
-fn detector(a: &RunArgs, seq: &StereoSequence, image: ImageSize) -> anyhow::Result<Option<Box<dyn DetectionSource>>> {
+/// The detection source of a run; `notes` collects reports of detections no frame of the run uses.
+fn detector(
+    a: &RunArgs,
+    seq: &StereoSequence,
+    image: ImageSize,
+    notes: &mut Vec<String>,
+) -> anyhow::Result<Option<Box<dyn DetectionSource>>> {
     Ok(match a.detector {
         DetectorKind::None => None,
         // the mapped classes are kept by `ClassFilter`, for every source alike
         DetectorKind::Dnn => Some(Box::new(a.model.load().context("loading the detector")?)),
         DetectorKind::File => {
             let path = a.detections.as_ref().context("--detector file needs --detections <file.json>")?;
-            Some(Box::new(DetectionFile::read(path)?))
+            let file = DetectionFile::read(path)?;
+            if let Some([w, h]) = file.image_size {
+                if (w as f64, h as f64) != (image.width, image.height) {
+                    bail!(
+                        "{}: detections for {w}×{h} images, but {} is {}×{}",
+                        path.display(),
+                        seq.left.iter().find(|p| p.is_file()).unwrap_or(&seq.left[0]).display(),
+                        image.width,
+                        image.height
+                    );
+                }
+            }
+            let per_frame = file.frames.iter().map(|(&f, d)| (f, d.len()));
+            notes.extend(crate::guard::unused_frames(&path.display().to_string(), per_frame, &seq.ids));
+            Some(Box::new(file))
         }
         DetectorKind::Labels => {
             let labels = seq.labels.as_ref().with_context(|| {
@@ -161,6 +181,8 @@ fn detector(a: &RunArgs, seq: &StereoSequence, image: ImageSize) -> anyhow::Resu
                     truth.entry(l.frame).or_default().push(slam_core::Detection::new(c, 1.0, l.bbox));
                 }
             }
+            let per_frame = truth.iter().map(|(&f, d)| (f, d.len()));
+            notes.extend(crate::guard::unused_frames("labels", per_frame, &seq.ids));
             let noise = GroundTruthNoise { box_sigma: a.label_noise, ..GroundTruthNoise::default() };
             Some(Box::new(GroundTruthDetections::new(truth, noise, [image.width, image.height])))
         }
@@ -220,6 +242,9 @@ struct Outcome {
     k: Intrinsics,
     image: ImageSize,
     colour: bool,
+    /// What the detection guard changed, and reports of detections no frame used.
+    detections: Option<std::sync::Arc<crate::guard::DetectionCounts>>,
+    notes: Vec<String>,
 }
 
 /// Keeps the detections of the mapped classes only.
@@ -244,6 +269,12 @@ impl DetectionSource for ClassFilter {
 }
 
 fn settings(a: &RunArgs) -> anyhow::Result<RunConfig> {
+    use crate::validate::{count, number, Range};
+    number("--label-noise", a.label_noise, Range::closed(0.0, 1.0), "(σ as a share of the box size)")?;
+    if let Some(n) = a.max_frames {
+        count("--max-frames", n, 1, usize::MAX)?;
+    }
+    a.model.check()?;
     let mut cfg = match &a.config {
         Some(p) => RunConfig::read(p)?,
         None => RunConfig::default(),
@@ -264,6 +295,12 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     let sel = a.selection();
     let seq = played_sequence(a.path.as_ref(), &sel, a.max_frames)?;
     let n = seq.len();
+    // sizes and calibration are checked before the first frame: a right camera of another size would
+    // make every frame unreadable
+    let (l0, r0) = crate::validate::first_pair(&seq.left, &seq.right)?;
+    let size = crate::validate::stereo_pair(l0, r0)?;
+    crate::validate::calibration(&calibration_file(&seq), seq.intrinsics, seq.baseline, l0, size)?;
+    crate::validate::declared_size(&calibration_file(&seq), l0, size)?;
     let [fx, fy, cx, cy] = seq.intrinsics;
     let k = Intrinsics::new(fx, fy, cx, cy);
     let rig = StereoRig { k, baseline: seq.baseline };
@@ -295,16 +332,48 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
         tracking.frame_period_s = frame_period(&stamped);
     }
     let tracker = Box::new(StereoVo::new(rig, tracking)?);
-    let det = detector(a, &seq, image)?.map(|d| Box::new(ClassFilter(d)) as Box<dyn DetectionSource>);
+    let mut notes = Vec::new();
+    let mut counts = None;
+    let det = detector(a, &seq, image, &mut notes)?.map(|d| {
+        let (g, c) = crate::guard::DetectionGuard::new(
+            Box::new(ClassFilter(d)),
+            [image.width, image.height],
+            cfg.system.max_detections,
+        );
+        counts = Some(c);
+        Box::new(g) as Box<dyn DetectionSource>
+    });
+    for note in &notes {
+        tracing::warn!("{note}");
+    }
     let pairs: Vec<(usize, PathBuf, PathBuf)> =
         (0..n).map(|k| (seq.ids[k], seq.left[k].clone(), seq.right[k].clone())).collect();
-    let frames = Box::new(pairs.into_iter().map(move |(i, l, r)| {
+    let first_size = (first.width, first.height);
+    // Ctrl-C ends the input: the system finishes the frames it has, and the caller discards the run
+    let frames = Box::new(pairs.into_iter().take_while(|_| !crate::output::interrupted()).map(move |(i, l, r)| {
         let images = read_image(&l, colour)
             .and_then(|li| read_image(&r, colour).map(|ri| (li, ri)))
             .map_err(|e| e.to_string())
             .and_then(|(li, ri)| {
                 if (li.width, li.height) != (ri.width, ri.height) {
-                    Err(format!("left {}×{} and right {}×{} differ", li.width, li.height, ri.width, ri.height))
+                    Err(format!(
+                        "left {} is {}×{}, right {} is {}×{}",
+                        l.display(),
+                        li.width,
+                        li.height,
+                        r.display(),
+                        ri.width,
+                        ri.height
+                    ))
+                } else if (li.width, li.height) != first_size {
+                    Err(format!(
+                        "{} is {}×{}, the sequence's first frame {}×{}",
+                        l.display(),
+                        li.width,
+                        li.height,
+                        first_size.0,
+                        first_size.1
+                    ))
                 } else {
                     Ok((li, ri))
                 }
@@ -327,7 +396,34 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     sys.objects.method = a.method.fit();
     let out = system::run(frames, tracker, det, k, seq.baseline, &sys, &mut on_frame)?;
     bar.finish_and_clear();
-    Ok(Outcome { out, seq, elapsed: start.elapsed().as_secs_f64(), k, image, colour })
+    Ok(Outcome { out, seq, elapsed: start.elapsed().as_secs_f64(), k, image, colour, detections: counts, notes })
+}
+
+/// The calibration file a sequence's intrinsics came from (for messages).
+fn calibration_file(seq: &StereoSequence) -> PathBuf {
+    match seq.layout {
+        Layout::Odometry => seq.dir.join("calib.txt"),
+        Layout::Raw => seq.dir.parent().unwrap_or(&seq.dir).join("calib_cam_to_cam.txt"),
+        Layout::Tracking => {
+            let name = seq.dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+            seq.dir.parent().and_then(|p| p.parent()).unwrap_or(&seq.dir).join("calib").join(format!("{name}.txt"))
+        }
+    }
+}
+
+/// The entries `slam-app run` writes into its output folder (a folder written before the marker file
+/// existed may be replaced when it holds only these).
+fn run_output_name(name: &str) -> bool {
+    matches!(
+        name,
+        "trajectory.kitti.txt"
+            | "trajectory.tum.txt"
+            | "map.json"
+            | "objects.json"
+            | "map.svg"
+            | "map.png"
+            | "overlays"
+    ) || name.ends_with(".tmp")
 }
 
 /// Seconds per step of the frame index (the tracker counts frame intervals by index differences): the
@@ -365,15 +461,30 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
         print!("{}", cfg.to_toml());
         return Ok(());
     }
-    let Outcome { out, seq, elapsed, k, image, colour } = run_system(a, &cfg, false)?;
-    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+    // the output folder is written beside the old one and swapped in at the end; checked writable now
+    crate::output::catch_interrupt();
+    let dir = crate::output::OutputDir::create(&a.out, "--out", "run", run_output_name)?;
+    let outcome = run_system(a, &cfg, false);
+    let stop = |done: usize| {
+        let kept = if dir.target().exists() {
+            format!("{} keeps the previous run unchanged", a.out.display())
+        } else {
+            format!("{} was not created", a.out.display())
+        };
+        crate::output::Interrupted(format!("Ctrl-C after {done} frames: nothing written, {kept}"))
+    };
+    if crate::output::interrupted() {
+        return Err(stop(outcome.as_ref().map_or(0, |o| o.out.counts.frames)).into());
+    }
+    let Outcome { out, seq, elapsed, k, image, colour, detections, notes } = outcome?;
+    let w = dir.path();
     // one pose per played frame, in id order; TUM lines carry the frames' own times
-    write_kitti_poses(a.out.join("trajectory.kitti.txt"), &out.poses)?;
-    write_tracking_csv(&a.out.join("tracking.csv"), &out)?;
-    write_tum(a.out.join("trajectory.tum.txt"), &seq.times, &out.poses)?;
-    out.map.save(&a.out.join("map.json"))?;
+    write_kitti_poses(w.join("trajectory.kitti.txt"), &out.poses)?;
+    write_tum(w.join("trajectory.tum.txt"), &seq.times, &out.poses)?;
+    write_tracking_csv(&w.join("tracking.csv"), &out)?;
+    out.map.save(&w.join("map.json"))?;
     let objects: Vec<&MappedObject> = out.objects.iter().collect();
-    slam_pipeline::objects::write_object_map(&a.out.join("objects.json"), &objects)
+    slam_pipeline::objects::write_object_map(&w.join("objects.json"), &objects)
         .with_context(|| format!("writing {}", a.out.join("objects.json").display()))?;
     let c = out.counts;
     println!(
@@ -416,7 +527,17 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
             }
         }
     }
-    let pictures = pictures(a, &seq, &out, k, image, colour)?;
+    if let Some(d) = &detections {
+        println!("{}", d.summary(cfg.system.max_detections));
+    }
+    for note in &notes {
+        println!("unused detections: {note}");
+    }
+    let pictures = pictures(a, w, &seq, &out, k, image, colour)?;
+    if crate::output::interrupted() {
+        return Err(stop(out.counts.frames).into());
+    }
+    dir.commit()?;
     println!(
         "\nwrote {}: trajectory.kitti.txt (one line per played frame), trajectory.tum.txt (frame times), tracking.csv (one row per played frame), map.json, objects.json, {pictures}; {}",
         a.out.display(),
@@ -525,18 +646,19 @@ fn map_picture(
 
 fn pictures(
     a: &RunArgs,
+    out_dir: &std::path::Path,
     seq: &StereoSequence,
     out: &RunOutput,
     k: Intrinsics,
     image: ImageSize,
     colour: bool,
 ) -> anyhow::Result<String> {
-    map_picture(&out.map, &out.poses, seq.truth_from_first().as_deref(), &a.out)?;
+    map_picture(&out.map, &out.poses, seq.truth_from_first().as_deref(), out_dir)?;
     let mut written = "map.svg, map.png".to_string();
     if !a.overlays {
         return Ok(written);
     }
-    let dir = a.out.join("overlays");
+    let dir = out_dir.join("overlays");
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let mut count = 0;
     for (i, rec) in out.frames.iter().enumerate() {
@@ -681,8 +803,8 @@ pub fn map(a: &MapArgs) -> anyhow::Result<()> {
         println!("wrote {}", p.display());
     }
     if let Some(dir) = &a.picture {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-        for f in map_picture(&map, &poses, None, dir)? {
+        // each picture is written whole (beside its final name, then renamed): the folder may hold other files
+        for f in crate::output::write_files_into(dir, |tmp| map_picture(&map, &poses, None, tmp).map(|_| ()))? {
             println!("wrote {}", f.display());
         }
     }
@@ -802,18 +924,25 @@ pub fn stereo_check(a: &StereoCheckArgs) -> anyhow::Result<()> {
     if a.frames < 2 {
         bail!("--frames must be at least 2 (got {})", a.frames);
     }
-    if !(a.range > 0.0 && a.step > 0.0 && a.step <= a.range) {
-        bail!("need 0 < --step <= --range (got step {}, range {})", a.step, a.range);
-    }
-    if a.rounds == 0 {
-        bail!("--rounds must be at least 1");
-    }
+    use crate::validate::{count, number, Range};
+    // a rectification error of more than 10 px is a wrong calibration, not an offset to estimate
+    number("--range", a.range, Range::above(0.0, 10.0), "px")?;
+    number(
+        "--step",
+        a.step,
+        Range::above(a.range / 10_000.0, a.range),
+        "px (at most --range, at least --range / 10000)",
+    )?;
+    count("--rounds", a.rounds, 1, 100)?;
     let cfg = match &a.config {
         Some(p) => RunConfig::read(p)?,
         None => RunConfig::default(),
     };
     let path = a.path.clone().unwrap_or_else(|| crate::fixture("kitti_odom_06/sequences/06"));
     let seq = open_stereo(&path)?;
+    let (l0, r0) = crate::validate::first_pair(&seq.left, &seq.right)?;
+    let size = crate::validate::stereo_pair(l0, r0)?;
+    crate::validate::calibration(&calibration_file(&seq), seq.intrinsics, seq.baseline, l0, size)?;
     let [fx, fy, cx, cy] = seq.intrinsics;
     let rig = StereoRig { k: Intrinsics::new(fx, fy, cx, cy), baseline: seq.baseline };
     let colour = seq.layout != Layout::Odometry;

@@ -33,7 +33,19 @@ fn fmt(x: f64, prec: usize) -> String {
     }
 }
 
+/// Entries `sim` writes into its output folder (a folder written before the marker file existed may be
+/// replaced when it holds only these).
+fn sim_output_name(name: &str) -> bool {
+    name == "simulation.csv"
+        || (name.starts_with("sim_") && (name.ends_with(".svg") || name.ends_with(".png")))
+        || name.ends_with(".tmp")
+}
+
 pub fn run(a: &SimArgs) -> anyhow::Result<()> {
+    crate::validate::count("--objects", a.objects as usize, 1, 100_000)?;
+    crate::validate::count("--noise-seeds", a.noise_seeds as usize, 1, 100_000)?;
+    // written beside the old folder and swapped in at the end; checked writable before the sweep
+    let dir = crate::output::OutputDir::create(&a.out, "--out", "sim", sim_output_name)?;
     let config = SweepConfig { seed: a.seed, objects: a.objects, noise_seeds: a.noise_seeds, ..SweepConfig::default() };
     println!(
         "Simulation study: master seed {} ({} objects x {} noise seeds = {} trials per cell)",
@@ -78,17 +90,22 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
             println!("{:<9} {:<12} {row}", g.name(), k.name());
         }
     }
-    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
-    let csv_path = a.out.join("simulation.csv");
-    write_csv(&cells, &csv_path)?;
-    println!("\n{} cells in {:.1} s; CSV: {}", cells.len(), elapsed.as_secs_f64(), csv_path.display());
+    write_csv(&cells, &dir.path().join("simulation.csv"))?;
+    let mut plots = Vec::new();
     if !a.no_plots {
         for &g in &config.geometries {
-            let files = crate::plot::simulation_figure(&cells, g, &config.noise, &config.methods, &a.out)?;
-            for f in files {
-                println!("plot: {}", f.display());
-            }
+            plots.extend(crate::plot::simulation_figure(&cells, g, &config.noise, &config.methods, dir.path())?);
         }
+    }
+    dir.commit()?;
+    println!(
+        "\n{} cells in {:.1} s; CSV: {}",
+        cells.len(),
+        elapsed.as_secs_f64(),
+        a.out.join("simulation.csv").display()
+    );
+    for f in plots {
+        println!("plot: {}", a.out.join(f.file_name().unwrap_or_default()).display());
     }
     Ok(())
 }

@@ -165,6 +165,17 @@ pub enum MapError {
         /// What is wrong (with line and column for JSON syntax errors).
         message: String,
     },
+    /// A value that cannot be right: not finite, a zero or non-unit quaternion, an id that refers to
+    /// nothing.
+    #[error("{path}: {field}: {message}")]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// Where, e.g. `keyframes.12.pose`.
+        field: String,
+        /// What is wrong.
+        message: String,
+    },
     /// A map of another version.
     #[error("{path}: map format version {found}, this build reads versions 1 to {MAP_VERSION}")]
     Version {
@@ -262,7 +273,88 @@ impl Map {
         if header.version != MAP_VERSION && header.version != 1 {
             return Err(MapError::Version { path: path.to_path_buf(), found: header.version });
         }
-        serde_json::from_str(&text).map_err(fmt)
+        let map: Self = serde_json::from_str(&text).map_err(fmt)?;
+        map.check().map_err(|(field, message)| MapError::Invalid { path: path.to_path_buf(), field, message })?;
+        Ok(map)
+    }
+
+    /// Consistency of a map: every number finite (a right column may be absent), quaternions of unit
+    /// length, rotations orthonormal, semi-axes positive, every id referring to something, frames in
+    /// increasing order. Returns the first offending field and what is wrong with it.
+    pub fn check(&self) -> Result<(), (String, String)> {
+        fn pose(field: String, p: &PoseArray) -> Result<(), (String, String)> {
+            if !p.iter().all(|v| v.is_finite()) {
+                return Err((field, format!("not finite: {p:?}")));
+            }
+            let n = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]).sqrt();
+            // written maps hold unit quaternions to 1e-15; 1e-3 allows values rounded by hand
+            if (n - 1.0).abs() > 1e-3 {
+                let what = if n == 0.0 { "zero quaternion".to_string() } else { format!("quaternion of length {n}") };
+                return Err((field, format!("{what} (expected unit length)")));
+            }
+            Ok(())
+        }
+        for (id, k) in &self.keyframes {
+            pose(format!("keyframes.{id}.pose"), &k.pose)?;
+            if let Some(p) = k.parent {
+                if !self.keyframes.contains_key(&p) {
+                    return Err((format!("keyframes.{id}.parent"), format!("keyframe {p} does not exist")));
+                }
+            }
+            for (i, (pid, o)) in k.observations.iter().enumerate() {
+                let field = format!("keyframes.{id}.observations[{i}]");
+                if !self.points.contains_key(pid) {
+                    return Err((field, format!("point {pid} does not exist")));
+                }
+                if !(o[0].is_finite() && o[1].is_finite() && !o[2].is_infinite()) {
+                    return Err((field, format!("not finite: {o:?}")));
+                }
+            }
+        }
+        for (id, p) in &self.points {
+            if !p.position.iter().all(|v| v.is_finite()) {
+                return Err((format!("points.{id}.position"), format!("not finite: {:?}", p.position)));
+            }
+            if let Some(k) = p.observed_by.iter().find(|k| !self.keyframes.contains_key(k)) {
+                return Err((format!("points.{id}.observed_by"), format!("keyframe {k} does not exist")));
+            }
+        }
+        let mut ids = std::collections::BTreeSet::new();
+        for (i, o) in self.objects.iter().enumerate() {
+            let at = |f: &str| format!("objects[{i}].{f}");
+            if !ids.insert(o.id) {
+                return Err((at("id"), format!("id {} appears twice", o.id)));
+            }
+            if !o.center.iter().chain(&o.rotation).all(|v| v.is_finite()) {
+                return Err((at("center/rotation"), "not finite".into()));
+            }
+            if !o.semi_axes.iter().all(|a| a.is_finite() && *a > 0.0) {
+                return Err((at("semi_axes"), format!("must be positive and finite: {:?}", o.semi_axes)));
+            }
+            let r = nalgebra::Matrix3::from_row_slice(&o.rotation);
+            let err = (r * r.transpose() - nalgebra::Matrix3::identity()).abs().max();
+            if err > 1e-3 || r.determinant() < 0.0 {
+                return Err((
+                    at("rotation"),
+                    format!("not a rotation (|R Rᵀ − I| = {err:.2e}, det {:.3})", r.determinant()),
+                ));
+            }
+        }
+        let mut last = None;
+        for (i, f) in self.trajectory.iter().enumerate() {
+            if !self.keyframes.contains_key(&f.keyframe) {
+                return Err((format!("trajectory[{i}].keyframe"), format!("keyframe {} does not exist", f.keyframe)));
+            }
+            pose(format!("trajectory[{i}].relative"), &f.relative)?;
+            if last.is_some_and(|l| f.frame <= l) {
+                return Err((
+                    format!("trajectory[{i}].frame"),
+                    format!("frame {} after frame {}", f.frame, last.unwrap_or(0)),
+                ));
+            }
+            last = Some(f.frame);
+        }
+        Ok(())
     }
 
     /// Export the map points as an ASCII PLY point cloud (atomically).
@@ -369,6 +461,97 @@ mod tests {
         assert!(e.contains("broken.json") && e.contains("line 2"), "{e}");
         let e = Map::load(&dir.join("missing.json")).expect_err("missing").to_string();
         assert!(e.contains("missing.json"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// Bad-input suite, map files: each corruption is refused on load with the file and the field named.
+    #[test]
+    fn load_refuses_inconsistent_maps_naming_file_and_field() {
+        let dir = std::env::temp_dir().join(format!("map-invalid-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("tmp dir");
+        type Corrupt = fn(&mut Map);
+        let cases: [(&str, Corrupt, &str, &str); 12] = [
+            (
+                "zero-quaternion",
+                |m| m.keyframes.get_mut(&1).expect("kf").pose[..4].fill(0.0),
+                "keyframes.1.pose",
+                "zero quaternion",
+            ),
+            (
+                "long-quaternion",
+                |m| m.keyframes.get_mut(&1).expect("kf").pose[3] = 2.0,
+                "keyframes.1.pose",
+                "quaternion of length",
+            ),
+            (
+                "missing-parent",
+                |m| m.keyframes.get_mut(&1).expect("kf").parent = Some(9),
+                "keyframes.1.parent",
+                "keyframe 9 does not exist",
+            ),
+            (
+                "missing-point",
+                |m| m.keyframes.get_mut(&0).expect("kf").observations[0].0 = 8,
+                "keyframes.0.observations[0]",
+                "point 8 does not exist",
+            ),
+            (
+                "point-observer",
+                |m| m.points.get_mut(&7).expect("pt").observed_by.push(5),
+                "points.7.observed_by",
+                "keyframe 5 does not exist",
+            ),
+            (
+                "trajectory-keyframe",
+                |m| m.trajectory[1].keyframe = 4,
+                "trajectory[1].keyframe",
+                "keyframe 4 does not exist",
+            ),
+            ("trajectory-order", |m| m.trajectory[1].frame = 0, "trajectory[1].frame", "frame 0 after frame 0"),
+            (
+                "trajectory-quaternion",
+                |m| m.trajectory[0].relative[..4].fill(0.0),
+                "trajectory[0].relative",
+                "zero quaternion",
+            ),
+            ("object-axes", |m| m.objects[0].semi_axes[1] = -1.0, "objects[0].semi_axes", "must be positive"),
+            ("object-rotation", |m| m.objects[0].rotation[0] = 3.0, "objects[0].rotation", "not a rotation"),
+            (
+                "object-twice",
+                |m| {
+                    let o = m.objects[0].clone();
+                    m.objects.push(o)
+                },
+                "objects[1].id",
+                "appears twice",
+            ),
+            ("object-mirror", |m| m.objects[0].rotation[0] = -1.0, "objects[0].rotation", "det -1"),
+        ];
+        for (name, corrupt, field, what) in cases {
+            let mut m = sample();
+            m.objects.push(MapObject {
+                id: 3,
+                class: 2,
+                center: [1.0, 0.0, 9.0],
+                semi_axes: [2.0, 0.8, 1.0],
+                rotation: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+                frames: vec![0, 1],
+                dynamic: false,
+                points: vec![7],
+            });
+            m.check().expect("the sample is consistent");
+            corrupt(&mut m);
+            let path = dir.join(format!("{name}.json"));
+            std::fs::write(&path, serde_json::to_string(&m).expect("json")).expect("write");
+            let e = Map::load(&path).expect_err(name).to_string();
+            assert!(e.contains(&format!("{name}.json: {field}: ")) && e.contains(what), "{name}: {e}");
+        }
+        // JSON has no NaN: a non-number where a number belongs is a format error with its line
+        let path = dir.join("nan.json");
+        let text = serde_json::to_string_pretty(&sample()).expect("json").replacen("0.5,", "NaN,", 1);
+        std::fs::write(&path, text).expect("write");
+        let e = Map::load(&path).expect_err("NaN").to_string();
+        assert!(e.contains("nan.json") && e.contains("line"), "{e}");
         std::fs::remove_dir_all(&dir).ok();
     }
 }

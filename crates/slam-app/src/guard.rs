@@ -1,0 +1,233 @@
+//! Bounds on what a detection source hands the system: boxes clipped to the image (refused when nothing
+//! of them is inside), at most `max` per frame (the highest scores), every change counted; and reports of
+//! detections that no frame of the run will use.
+
+use std::sync::{
+    atomic::{AtomicUsize, Ordering},
+    Arc,
+};
+
+use slam_core::{geometry::BBox, DetectError, Detection, DetectionSource, Image};
+
+/// What the guard changed, over a run.
+#[derive(Debug, Default)]
+pub struct DetectionCounts {
+    /// Boxes reaching past the image border, clipped to it.
+    pub clipped: AtomicUsize,
+    /// Boxes with nothing inside the image (or non-finite), refused.
+    pub outside: AtomicUsize,
+    /// Boxes over the per-frame limit, dropped (lowest scores first).
+    pub over_limit: AtomicUsize,
+    /// Frames that hit the limit.
+    pub frames_limited: AtomicUsize,
+}
+
+impl DetectionCounts {
+    /// One line for the run's summary.
+    pub fn summary(&self, max: usize) -> String {
+        let get = |a: &AtomicUsize| a.load(Ordering::Relaxed);
+        format!(
+            "detection bounds: {} boxes clipped to the image, {} refused (outside the image), {} dropped over the \
+             limit of {max} per frame (in {} frames)",
+            get(&self.clipped),
+            get(&self.outside),
+            get(&self.over_limit),
+            get(&self.frames_limited)
+        )
+    }
+}
+
+/// Clip `b` to a `w × h` image: `None` when less than a pixel of it is inside (or it is not finite), else
+/// the clipped box and whether it changed.
+pub fn clip(b: BBox, w: f64, h: f64) -> Option<(BBox, bool)> {
+    let a = b.to_array();
+    if !a.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let c = BBox::new(b.xmin.clamp(0.0, w), b.ymin.clamp(0.0, h), b.xmax.clamp(0.0, w), b.ymax.clamp(0.0, h));
+    if c.width() < 1.0 || c.height() < 1.0 {
+        return None;
+    }
+    Some((c, c != b))
+}
+
+/// Keep the `max` highest-scored detections (ties: the earlier one), in their original order; returns how
+/// many were dropped.
+pub fn limit(dets: &mut Vec<Detection>, max: usize) -> usize {
+    if dets.len() <= max {
+        return 0;
+    }
+    let mut order: Vec<usize> = (0..dets.len()).collect();
+    order.sort_by(|&i, &j| dets[j].score.total_cmp(&dets[i].score).then(i.cmp(&j)));
+    let mut keep = vec![false; dets.len()];
+    for &i in &order[..max] {
+        keep[i] = true;
+    }
+    let dropped = dets.len() - max;
+    let mut k = keep.into_iter();
+    dets.retain(|_| k.next().unwrap_or(false));
+    dropped
+}
+
+/// A detection source with its output bounded (see the module).
+pub struct DetectionGuard {
+    inner: Box<dyn DetectionSource>,
+    size: [f64; 2],
+    max: usize,
+    counts: Arc<DetectionCounts>,
+}
+
+impl DetectionGuard {
+    /// Wrap `inner` for images of `size = [width, height]`, at most `max` detections per frame.
+    pub fn new(inner: Box<dyn DetectionSource>, size: [f64; 2], max: usize) -> (Self, Arc<DetectionCounts>) {
+        let counts = Arc::new(DetectionCounts::default());
+        (Self { inner, size, max, counts: counts.clone() }, counts)
+    }
+}
+
+impl DetectionSource for DetectionGuard {
+    fn name(&self) -> &str {
+        self.inner.name()
+    }
+    fn needs_image(&self) -> bool {
+        self.inner.needs_image()
+    }
+    fn detect(&mut self, frame: usize, image: Option<&Image>) -> Result<Vec<Detection>, DetectError> {
+        let raw = self.inner.detect(frame, image)?;
+        let [w, h] = self.size;
+        let (mut clipped, mut outside) = (0, 0);
+        let mut dets = Vec::with_capacity(raw.len());
+        for mut d in raw {
+            match clip(d.bbox, w, h) {
+                None => outside += 1,
+                Some((b, changed)) => {
+                    clipped += changed as usize;
+                    d.bbox = b;
+                    dets.push(d);
+                }
+            }
+        }
+        let dropped = limit(&mut dets, self.max);
+        if clipped + outside + dropped > 0 {
+            tracing::debug!(frame, clipped, outside, dropped, "detections bounded");
+        }
+        self.counts.clipped.fetch_add(clipped, Ordering::Relaxed);
+        self.counts.outside.fetch_add(outside, Ordering::Relaxed);
+        self.counts.over_limit.fetch_add(dropped, Ordering::Relaxed);
+        self.counts.frames_limited.fetch_add((dropped > 0) as usize, Ordering::Relaxed);
+        Ok(dets)
+    }
+}
+
+/// Detections of frames the run does not play: `per_frame` is (frame id, boxes) of a source, `played` the
+/// frame ids played (increasing). `None` when every frame with boxes is played.
+pub fn unused_frames(
+    source: &str,
+    per_frame: impl Iterator<Item = (usize, usize)>,
+    played: &[usize],
+) -> Option<String> {
+    let (Some(&first), Some(&last)) = (played.first(), played.last()) else { return None };
+    let (mut after, mut after_boxes, mut other, mut other_boxes) = (Vec::new(), 0, 0, 0);
+    for (f, n) in per_frame {
+        if f > last {
+            after.push(f);
+            after_boxes += n;
+        } else if played.binary_search(&f).is_err() {
+            other += 1;
+            other_boxes += n;
+        }
+    }
+    let mut parts = Vec::new();
+    if !after.is_empty() {
+        after.sort_unstable();
+        parts.push(format!(
+            "{} frames ({after_boxes} boxes) lie after the last frame played, {last} (first: frame {}), not used",
+            after.len(),
+            after[0]
+        ));
+    }
+    if other > 0 {
+        parts.push(format!(
+            "{other} frames ({other_boxes} boxes) within ids {first}..={last} are not played (missing images or \
+             --frames/--stride), not used"
+        ));
+    }
+    (!parts.is_empty()).then(|| format!("{source}: {}", parts.join("; ")))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use slam_core::ClassId;
+
+    fn det(score: f64, b: [f64; 4]) -> Detection {
+        Detection::new(ClassId(2), score, BBox::from_array(b))
+    }
+
+    #[test]
+    fn boxes_are_clipped_or_refused() {
+        let inside = BBox::new(10.0, 10.0, 50.0, 40.0);
+        assert_eq!(clip(inside, 100.0, 50.0), Some((inside, false)));
+        let (c, changed) = clip(BBox::new(-20.0, 10.0, 50.0, 80.0), 100.0, 50.0).expect("overlaps");
+        assert!(changed && c == BBox::new(0.0, 10.0, 50.0, 50.0), "{c:?}");
+        assert_eq!(clip(BBox::new(5000.0, 10.0, 5100.0, 40.0), 100.0, 50.0), None);
+        assert_eq!(clip(BBox::new(-100.0, -90.0, -50.0, -40.0), 100.0, 50.0), None);
+        assert_eq!(clip(BBox::new(99.5, 10.0, 300.0, 40.0), 100.0, 50.0), None, "half a pixel inside");
+        assert_eq!(clip(BBox::new(f64::NAN, 10.0, 30.0, 40.0), 100.0, 50.0), None);
+    }
+
+    #[test]
+    fn the_limit_keeps_the_best_scores_in_their_order() {
+        let mut d: Vec<Detection> =
+            [0.3, 0.9, 0.5, 0.9, 0.1].iter().enumerate().map(|(i, &s)| det(s, [i as f64, 0.0, 10.0, 10.0])).collect();
+        assert_eq!(limit(&mut d, 3), 2);
+        let kept: Vec<(f64, f64)> = d.iter().map(|d| (d.score, d.bbox.xmin)).collect();
+        assert_eq!(kept, [(0.9, 1.0), (0.5, 2.0), (0.9, 3.0)]);
+        let before = d.clone();
+        assert_eq!(limit(&mut d, 3), 0);
+        assert_eq!(d, before, "under the limit nothing changes");
+    }
+
+    struct Fixed(Vec<Detection>);
+    impl DetectionSource for Fixed {
+        fn name(&self) -> &str {
+            "fixed"
+        }
+        fn needs_image(&self) -> bool {
+            false
+        }
+        fn detect(&mut self, _: usize, _: Option<&Image>) -> Result<Vec<Detection>, DetectError> {
+            Ok(self.0.clone())
+        }
+    }
+
+    #[test]
+    fn the_guard_counts_what_it_changed() {
+        let mut boxes = vec![det(0.8, [10.0, 10.0, 50.0, 40.0]), det(0.7, [-5.0, 0.0, 20.0, 20.0])];
+        boxes.push(det(0.9, [2000.0, 10.0, 2100.0, 40.0]));
+        boxes.extend((0..5).map(|i| det(0.1, [i as f64, 0.0, 30.0, 30.0])));
+        let (mut g, counts) = DetectionGuard::new(Box::new(Fixed(boxes)), [1242.0, 375.0], 4);
+        let out = g.detect(0, None).expect("detects");
+        assert_eq!(out.len(), 4);
+        assert_eq!(out[0].score, 0.8);
+        assert_eq!(out[1].bbox.xmin, 0.0);
+        let s = counts.summary(4);
+        assert!(
+            s.contains("1 boxes clipped")
+                && s.contains("1 refused")
+                && s.contains("3 dropped")
+                && s.contains("in 1 frames"),
+            "{s}"
+        );
+    }
+
+    #[test]
+    fn unused_frames_are_reported() {
+        assert_eq!(unused_frames("f", [(0, 3), (4, 1)].into_iter(), &[0, 1, 2, 3, 4]), None);
+        assert_eq!(unused_frames("f", [(0, 3)].into_iter(), &[]), None);
+        let m =
+            unused_frames("f.json", [(0, 3), (7, 2), (9, 1), (2, 5)].into_iter(), &[0, 1, 3, 4, 5]).expect("reported");
+        assert!(m.contains("2 frames (3 boxes) lie after the last frame played, 5 (first: frame 7)"), "{m}");
+        assert!(m.contains("1 frames (5 boxes) within ids 0..=5 are not played"), "{m}");
+    }
+}
