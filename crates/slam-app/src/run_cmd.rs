@@ -262,7 +262,7 @@ fn stage_table(out: &RunOutput) -> Vec<(&'static str, f64, usize)> {
         ("detection (own thread)", |t| t.detection),
         ("ORB extraction", |t| t.extraction),
         ("stereo matching", |t| t.stereo),
-        ("tracking (match + PnP + BA2)", |t| t.tracking),
+        ("tracking (local map + PnP + refinement)", |t| t.tracking),
         ("optical flow", |t| t.flow),
         ("association", |t| t.association),
         ("local BA (keyframes, mapping thread)", |t| t.bundle_adjustment),
@@ -386,8 +386,13 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     let first_left = seq.left.iter().find(|p| p.is_file()).unwrap_or(&seq.left[0]);
     let first = read_image(first_left, colour).with_context(|| format!("first frame {}", first_left.display()))?;
     let image = ImageSize::new(first.width as f64, first.height as f64);
+    let mut tracking = cfg.tracking;
+    if tracking.frame_period_s <= 0.0 {
+        let stamped: Vec<(usize, f64)> = (0..n.min(seq.times.len())).map(|i| (seq.ids[i], seq.times[i])).collect();
+        tracking.frame_period_s = frame_period(&stamped);
+    }
     let optimizer = a.optimizer.build();
-    let tracker = Box::new(StereoVo::new(rig, cfg.tracking, optimizer.clone())?);
+    let tracker = Box::new(StereoVo::new(rig, tracking, optimizer.clone())?);
     let labels = match (&a.labels, &seq.labels) {
         (Some(p), _) => Some(read_tracking_labels(p)?),
         (None, Some(l)) => Some(l.clone()),
@@ -491,6 +496,35 @@ fn run_output_name(name: &str) -> bool {
     ) || name.ends_with(".tmp")
 }
 
+/// Seconds per step of the frame index (the tracker counts frame intervals by index differences): the
+/// median of Δtime / Δindex over consecutive `(index, time)` pairs; 0.1 s, KITTI's rate, when there
+/// are fewer than two or they are not increasing.
+fn frame_period(stamped: &[(usize, f64)]) -> f64 {
+    let mut d: Vec<f64> =
+        stamped.windows(2).filter(|w| w[1].0 > w[0].0).map(|w| (w[1].1 - w[0].1) / (w[1].0 - w[0].0) as f64).collect();
+    let m = median(&mut d);
+    if m.is_finite() && m > 0.0 {
+        m
+    } else {
+        0.1
+    }
+}
+
+/// `tracking.csv`: one row per input frame (frame, state, inliers, tracked map points, RMS
+/// reprojection error in pixels, tracking time in ms: extraction + stereo + tracking).
+fn write_tracking_csv(path: &std::path::Path, out: &RunOutput) -> anyhow::Result<()> {
+    use std::fmt::Write as _;
+    let mut text = String::from("frame,state,inliers,tracked_map_points,reprojection_rms_px,time_ms\n");
+    for r in &out.frames {
+        let (state, inliers) = r.state.map_or(("unreadable", 0), |s| (s.name(), s.inliers()));
+        let rms =
+            if r.reprojection_rms_px.is_finite() { format!("{:.3}", r.reprojection_rms_px) } else { String::new() };
+        let ms = r.times.extraction + r.times.stereo + r.times.tracking;
+        let _ = writeln!(text, "{},{state},{inliers},{},{rms},{ms:.2}", r.index, r.tracked_map_points);
+    }
+    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+}
+
 pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     let cfg = settings(a)?;
     if a.print_config {
@@ -518,6 +552,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     // one pose per played frame, in id order; TUM lines carry the frames' own times
     write_kitti_poses(w.join("trajectory.kitti.txt"), &out.poses)?;
     write_tum(w.join("trajectory.tum.txt"), &seq.times, &out.poses)?;
+    write_tracking_csv(&w.join("tracking.csv"), &out)?;
     out.map.save(&w.join("map.json"))?;
     let objects: Vec<&MappedObject> = out.objects.iter().collect();
     slam_pipeline::objects::write_object_map_in(&w.join("objects.json"), &objects, slam_pipeline::map::MAP_WORLD)
@@ -532,6 +567,10 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     println!(
         "keyframes {}, lost {}, relocalised {}, new map segments {}, unreadable {}, detector errors {}, culled observations {}, duplicate or part boxes suppressed {}",
         c.keyframes, c.lost, c.relocalised, c.new_segments, c.unreadable, c.detector_errors, c.culled_observations, c.suppressed_boxes
+    );
+    println!(
+        "tracking states: tracked {}, weak {}, relocalised {}, lost {}, predicted {}, unreadable {} (tracking.csv has one row per frame)",
+        c.tracked, c.weak, c.relocalised, c.lost, c.predicted, c.unreadable
     );
     let st = out.map.stats();
     let dets: usize = out.frames.iter().map(|f| f.detections.len()).sum();
@@ -592,7 +631,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     }
     dir.commit()?;
     println!(
-        "\nwrote {}: trajectory.kitti.txt (one line per played frame), trajectory.tum.txt (frame times), map.json, objects.json, camera.json, {scored}{pictures}; {}",
+        "\nwrote {}: trajectory.kitti.txt (one line per played frame), trajectory.tum.txt (frame times), tracking.csv (one row per played frame), map.json, objects.json, camera.json, {scored}{pictures}; {}",
         a.out.display(),
         played_ids(&seq, &a.selection())
     );
@@ -1147,6 +1186,9 @@ pub fn stereo_check(a: &StereoCheckArgs) -> anyhow::Result<()> {
         let mut tracking = cfg.tracking;
         tracking.keep_disparity_pairs = usize::MAX;
         tracking.disparity_offset = applied;
+        // far points carry most of what the disparities say about an offset: the calibration tracks
+        // with their disparity at full weight (tracking.far_baselines off)
+        tracking.far_baselines = f64::INFINITY;
         let optimizer = crate::optimizer_choice::OptimizerKind::default().build();
         let mut vo = StereoVo::new(rig, tracking, optimizer.clone())?;
         for &i in &readable {

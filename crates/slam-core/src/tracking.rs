@@ -57,23 +57,66 @@ pub struct KeyframeData {
 }
 
 /// Tracking outcome of a frame.
+///
+/// Only [`Initialised`](Self::Initialised), [`Tracked`](Self::Tracked), [`Weak`](Self::Weak) and
+/// [`Relocalised`](Self::Relocalised) frames carry a measured pose ([`TrackState::is_measured`]); a
+/// [`Predicted`](Self::Predicted) or [`Lost`](Self::Lost) frame's pose is the motion model's prediction,
+/// written so that every input frame has a pose, and marked as such.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TrackState {
     /// First frame of a map segment (the world origin for the first segment).
     Initialised,
-    /// Tracked against the reference keyframe.
+    /// Tracked against the local map with full support.
     Tracked {
-        /// PnP inliers.
+        /// Inliers of the final pose refinement.
         inliers: usize,
     },
-    /// Tracking failed: the pose is the motion-model prediction.
+    /// Tracked and accepted, but with less support than a tracked frame (fewer inliers, or inliers
+    /// crowded into a small part of the image): the pose is used, and a keyframe is taken.
+    Weak {
+        /// Inliers of the final pose refinement.
+        inliers: usize,
+    },
+    /// A pose was measured but failed the sanity checks (support or consistency with the motion model),
+    /// so it was rejected: the pose is the motion-model prediction.
+    Predicted,
+    /// Tracking and relocalisation failed: the pose is the motion-model prediction.
     Lost,
-    /// Tracking was lost and then recovered by relocalisation against the reference keyframe with a
-    /// wide search.
+    /// Tracking failed on the previous frame(s) and was recovered by relocalisation against the map's
+    /// keyframes.
     Relocalised {
-        /// PnP inliers.
+        /// Inliers of the final pose refinement.
         inliers: usize,
     },
+}
+
+impl TrackState {
+    /// Name used in `tracking.csv` and the map's trajectory.
+    pub fn name(&self) -> &'static str {
+        match self {
+            TrackState::Initialised => "initialised",
+            TrackState::Tracked { .. } => "tracked",
+            TrackState::Weak { .. } => "weak",
+            TrackState::Predicted => "predicted",
+            TrackState::Lost => "lost",
+            TrackState::Relocalised { .. } => "relocalised",
+        }
+    }
+
+    /// Whether the pose was measured from the images (and accepted), rather than predicted.
+    pub fn is_measured(&self) -> bool {
+        !matches!(self, TrackState::Predicted | TrackState::Lost)
+    }
+
+    /// Inliers of the accepted pose (0 when none was accepted).
+    pub fn inliers(&self) -> usize {
+        match self {
+            TrackState::Tracked { inliers } | TrackState::Weak { inliers } | TrackState::Relocalised { inliers } => {
+                *inliers
+            }
+            _ => 0,
+        }
+    }
 }
 
 /// Per-stage time of one frame, milliseconds.
@@ -99,6 +142,12 @@ pub struct TrackedFrame {
     pub state: TrackState,
     /// Stereo points found in this frame.
     pub stereo_points: usize,
+    /// Map points matched in this frame and kept by the pose refinement (reference keyframe and local
+    /// map together; 0 when no pose was accepted).
+    pub tracked_map_points: usize,
+    /// RMS reprojection error of those points in the left image at the accepted pose, pixels (NaN when
+    /// no pose was accepted).
+    pub reprojection_rms_px: f64,
     /// Set when this frame became a keyframe.
     pub keyframe: Option<KeyframeData>,
     /// Stage timings.

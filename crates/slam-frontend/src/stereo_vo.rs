@@ -1,10 +1,14 @@
-//! Stereo visual odometry: ORB features on both images, stereo matching along rectified rows, guided
-//! frame-to-frame matching under a constant-velocity prediction, PnP RANSAC, and a motion-only
-//! refinement with the optimiser's reprojection factor (Huber).
+//! Stereo visual odometry against a local map: ORB features on both images, stereo matching along
+//! rectified rows (mutual best, sub-pixel), the map points of the reference keyframe and its covisible
+//! keyframes projected with a constant-velocity prediction into windows sized by the prediction's
+//! uncertainty, PnP RANSAC, a second search at the found pose, and a robust pose refinement with staged
+//! outlier rejection (keyframes fixed, points free with their keyframe observations). Every pose is
+//! checked for support and for consistency with a vehicle's motion before it is accepted
+//! ([`TrackState`]); relocalisation against the keyframes when tracking fails.
 //!
-//! This is the tracking core of the front end; local bundle adjustment, keyframes and relocalisation
-//! against a map build on it.
+//! The thresholds and why they hold beyond one sequence are in `docs/system.md` ("Tracking").
 
+use std::collections::{HashMap, HashSet, VecDeque};
 use std::time::Instant;
 
 use nalgebra::{Isometry3, Matrix3, Vector3};
@@ -43,27 +47,57 @@ pub struct VoConfig {
     pub row_tolerance: f64,
     /// Depth range kept, metres (nearest, farthest).
     pub depth_range: (f64, f64),
-    /// Largest Hamming distance of a frame-to-frame match.
+    /// Largest Hamming distance of a map-point match.
     pub track_hamming: u32,
-    /// Search radius around the predicted position, pixels.
+    /// Largest search window around a predicted position, pixels (the window of each point is sized by
+    /// the prediction's uncertainty, [`VoConfig::max_acceleration`] and below, up to this).
     pub search_radius: f64,
     /// PnP RANSAC reprojection threshold, pixels.
     pub ransac_px: f32,
-    /// Fewest PnP inliers for a tracked frame.
+    /// Fewest inliers of a tracked frame.
     pub min_inliers: usize,
-    /// A new keyframe is taken when the inliers against the current keyframe fall below this fraction of
-    /// the inliers of the first frame tracked against it.
+    /// Fewest inliers of an accepted pose: between this and `min_inliers` the frame is weak.
+    pub weak_inliers: usize,
+    /// Fewest cells of a 4 × 4 grid over the image holding inliers for a tracked frame (fewer but at
+    /// least 3: weak; fewer than 3: the pose is rejected).
+    pub min_spread_cells: usize,
+    /// Largest RMS reprojection error of the inliers of an accepted pose, pixels.
+    pub max_rms_px: f64,
+    /// Time between input frames, seconds; 0: 0.1 s, KITTI's rate (`slam-app run` sets it from the
+    /// sequence's time stamps when the settings leave it at 0).
+    pub frame_period_s: f64,
+    /// Largest acceleration of the vehicle, m/s² (tyre grip: about 1 g).
+    pub max_acceleration: f64,
+    /// Largest angular acceleration of the vehicle, rad/s².
+    pub max_angular_acceleration: f64,
+    /// Largest speed, m/s (used while the velocity is unknown: the first step of a map segment).
+    pub max_speed: f64,
+    /// Allowed error of the velocity estimate, metres per frame (two per-step error budgets).
+    pub step_tolerance_m: f64,
+    /// Allowed error of the angular-velocity estimate, radians per frame.
+    pub rotation_tolerance_rad: f64,
+    /// Points farther than this many baselines have their disparity (right-image) residual
+    /// down-weighted in proportion to depth.
+    pub far_baselines: f64,
+    /// Lost for longer than this (seconds): a new map segment starts.
+    pub max_lost_s: f64,
+    /// A new keyframe is taken when the tracked map points fall below this fraction of those tracked
+    /// in the first frame after the current keyframe.
     pub keyframe_inlier_ratio: f64,
     /// ... or when this many frames have been tracked against it.
     pub keyframe_max_gap: usize,
+    /// ... or when fewer than this share of the reference keyframe's points are tracked (its overlap
+    /// with the frame; in fast motion it falls by half or more per frame).
+    pub keyframe_overlap: f64,
     /// Most keypoints followed by optical flow per detection box (association cue).
     pub flow_points_per_region: usize,
-    /// Older keyframes (besides the reference) whose points are searched in each tracked frame (the
-    /// local map), so that a new keyframe's points keep the ids of the map points they re-observe
-    /// (longer tracks for local BA). Default 0: on the shipped sequence it did not pay (docs/system.md).
+    /// Keyframes before the reference whose map points form the local map (those sharing at least
+    /// 10 map points with the reference: its covisible keyframes).
     pub local_keyframes: usize,
-    /// Search radius of local-map points around their projection, pixels.
+    /// Search radius of the second search at the found pose, pixels at pyramid level 0.
     pub local_radius: f64,
+    /// Keyframes kept for relocalisation (newest first).
+    pub relocalisation_keyframes: usize,
     /// Added to every measured disparity, pixels: a correction of the rig's rectification (see
     /// [`crate::disparity`]; `slam-app stereo-check` estimates it from a sequence's images). Default 0.
     pub disparity_offset: f64,
@@ -80,6 +114,17 @@ pub struct VoConfig {
     pub keep_disparity_pairs: usize,
 }
 
+impl VoConfig {
+    /// The time between frames, seconds ([`VoConfig::frame_period_s`], or 0.1 s when that is 0).
+    pub fn period(&self) -> f64 {
+        if self.frame_period_s > 0.0 {
+            self.frame_period_s
+        } else {
+            0.1
+        }
+    }
+}
+
 impl Default for VoConfig {
     fn default() -> Self {
         Self {
@@ -88,14 +133,27 @@ impl Default for VoConfig {
             row_tolerance: 2.0,
             depth_range: (1.0, 80.0),
             track_hamming: 60,
-            search_radius: 40.0,
+            search_radius: 160.0,
             ransac_px: 2.0,
             min_inliers: 30,
+            weak_inliers: 15,
+            min_spread_cells: 5,
+            max_rms_px: 2.0,
+            frame_period_s: 0.0,
+            max_acceleration: 10.0,
+            max_angular_acceleration: 2.0,
+            max_speed: 50.0,
+            step_tolerance_m: 0.3,
+            rotation_tolerance_rad: 0.02,
+            far_baselines: 40.0,
+            max_lost_s: 0.5,
             keyframe_inlier_ratio: 0.5,
             keyframe_max_gap: 4,
+            keyframe_overlap: 0.3,
             flow_points_per_region: 40,
-            local_keyframes: 0,
-            local_radius: 8.0,
+            local_keyframes: 4,
+            local_radius: 4.0,
+            relocalisation_keyframes: 8,
             disparity_offset: 0.0,
             triangulate: false,
             triangulate_parallax_deg: 3.0,
@@ -118,9 +176,25 @@ struct Frame {
     /// All left keypoints and their descriptors (triangulation of keypoints without a stereo match).
     keypoints: Vec<(f64, f64)>,
     keypoint_desc: Vec<[u8; 32]>,
+    /// Pyramid level and orientation (degrees) of each left keypoint.
+    octave: Vec<i32>,
+    angle: Vec<f32>,
 }
 
-/// The keyframe frames are tracked against.
+impl Frame {
+    /// The keypoint of each point.
+    fn point_keypoints(&self) -> Vec<usize> {
+        let mut of = vec![usize::MAX; self.points.len()];
+        for (kp, q) in self.of_keypoint.iter().enumerate() {
+            if let Some(q) = q {
+                of[*q] = kp;
+            }
+        }
+        of
+    }
+}
+
+/// A keyframe.
 struct Reference {
     frame: Frame,
     id: KeyframeId,
@@ -129,24 +203,153 @@ struct Reference {
     parent: Option<(KeyframeId, Isometry3<f64>)>,
 }
 
-/// Stereo visual odometry against the last keyframe, with keyframe corrections from a mapper.
+/// Map points of the reference keyframe and its covisible keyframes, in the reference's frame.
+#[derive(Default)]
+struct LocalMap {
+    ids: Vec<PointId>,
+    points: Vec<Vector3<f64>>,
+    desc: Vec<[u8; 32]>,
+    octave: Vec<i32>,
+    angle: Vec<f32>,
+    /// Observations of each point: (keyframe slot, `[u_l, v, u_r]`).
+    views: Vec<Vec<(usize, [f64; 3])>>,
+    /// `reference_from_keyframe` of each slot (slot 0: the reference).
+    poses: Vec<Isometry3<f64>>,
+}
+
+impl LocalMap {
+    fn add_keyframe(&mut self, kf: &Reference, ref_from_kf: Isometry3<f64>, index: &mut HashMap<PointId, usize>) {
+        let slot = self.poses.len();
+        self.poses.push(ref_from_kf);
+        let kps = kf.frame.point_keypoints();
+        for (q, &id) in kf.frame.ids.iter().enumerate() {
+            if !kf.frame.valid[q] {
+                continue;
+            }
+            let o = kf.frame.obs[q];
+            if let Some(&i) = index.get(&id) {
+                self.views[i].push((slot, o));
+                continue;
+            }
+            index.insert(id, self.ids.len());
+            self.ids.push(id);
+            self.points.push((ref_from_kf * nalgebra::Point3::from(kf.frame.points[q])).coords);
+            self.desc.push(kf.frame.desc[q]);
+            let kp = kps[q];
+            self.octave.push(kf.frame.octave.get(kp).copied().unwrap_or(0));
+            self.angle.push(kf.frame.angle.get(kp).copied().unwrap_or(0.0));
+            self.views.push(vec![(slot, o)]);
+        }
+    }
+}
+
+/// How a pose was found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Route {
+    /// Constant-velocity prediction (or the wider search around it).
+    Motion,
+    /// Relocalisation along the motion, `k` frame intervals ahead (dropped frames).
+    Along(usize),
+    /// Relocalisation by descriptors alone.
+    Descriptors,
+}
+
+/// A pose found by PnP RANSAC (`curr_from_ref`) and its inlier matches (local-map point, keypoint).
+type Solved = (Isometry3<f64>, Vec<(usize, usize)>);
+
+/// What relocalisation found: the accepted candidate (refined pose, RANSAC inliers, route), and the
+/// first candidate pose whether accepted or not.
+type Relocalisation = (Option<(Refined, usize, Route)>, Option<Isometry3<f64>>);
+
+/// A refined pose: `curr_from_ref`, inlier matches (local-map point, keypoint), RMS reprojection error.
+struct Refined {
+    pose: Isometry3<f64>,
+    inliers: Vec<(usize, usize)>,
+    rms: f64,
+}
+
+/// Support of a pose: what [`StereoVo::support`] found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Support {
+    /// Enough inliers, spread over the image, small reprojection error.
+    Full,
+    /// Accepted, but weaker.
+    Weak,
+    /// Not enough to accept the pose.
+    Rejected,
+}
+
+/// The motion-model limits of a frame's pose: how far (metres, radians) it may lie from the
+/// constant-velocity prediction after `frames` frame periods of `period_s`, for a vehicle whose
+/// acceleration is at most `max_acceleration` and angular acceleration `max_angular_acceleration`,
+/// with the velocity estimate off by up to `step_tolerance_m` / `rotation_tolerance_rad` per frame.
+pub fn motion_limits(config: &VoConfig, frames: f64) -> (f64, f64) {
+    let n = frames.max(1.0);
+    let t = n * config.period();
+    (
+        0.5 * config.max_acceleration * t * t + n * config.step_tolerance_m,
+        0.5 * config.max_angular_acceleration * t * t + n * config.rotation_tolerance_rad,
+    )
+}
+
+/// Whether `pose` (any frame's pose in a common frame) is consistent with `predicted` after `frames`
+/// frame periods ([`motion_limits`]); with `velocity_known` false only the speed limit applies to the
+/// step from `last` (the last measured pose).
+pub fn motion_consistent(
+    config: &VoConfig,
+    pose: &Isometry3<f64>,
+    predicted: &Isometry3<f64>,
+    last: &Isometry3<f64>,
+    frames: f64,
+    velocity_known: bool,
+) -> bool {
+    if velocity_known {
+        let (t_lim, r_lim) = motion_limits(config, frames);
+        let d = predicted.inverse() * pose;
+        d.translation.vector.norm() <= t_lim && d.rotation.angle() <= r_lim
+    } else {
+        let t = frames.max(1.0) * config.period();
+        let d = last.inverse() * pose;
+        d.translation.vector.norm() <= config.max_speed * t
+    }
+}
+
+/// Stereo visual odometry against a local map, with keyframe corrections from a mapper.
 pub struct StereoVo {
     orb: core::Ptr<features2d::ORB>,
     rig: StereoRig,
     config: VoConfig,
     reference: Option<Reference>,
-    /// Older keyframes of the segment, newest first (the local map).
-    local: std::collections::VecDeque<Reference>,
+    /// Older keyframes of the segment, newest first (local map and relocalisation).
+    local: VecDeque<Reference>,
     next_keyframe: KeyframeId,
     next_point: PointId,
-    /// Pose of the last processed frame in the reference keyframe.
+    /// Pose of the last processed frame in the reference keyframe (measured or predicted).
     kf_from_last: Isometry3<f64>,
-    /// Inliers of the first frame tracked against the keyframe.
+    /// Pose of the last frame with a measured pose, in the reference keyframe.
+    kf_from_measured: Isometry3<f64>,
+    /// Frames since the last measured pose (1: the previous frame was measured).
+    since_measured: usize,
+    /// Frame-id steps the velocity was measured over (2 when every 2nd frame is played).
+    velocity_gap: usize,
+    /// Frame intervals between the last processed frame and the current one (frames the pipeline
+    /// could not read count).
+    gap: usize,
+    /// Index of the last processed frame and of the last frame with a measured pose.
+    last_index: usize,
+    measured_index: usize,
+    /// Whether a frame failed (lost or predicted) since the last measured pose.
+    failed: bool,
+    /// Whether `velocity` was measured (two consecutive measured frames in this segment).
+    velocity_known: bool,
+    /// Tracked map points of the first frame tracked against the keyframe.
     kf_inliers: Option<usize>,
     /// Frames tracked against the keyframe.
     since_kf: usize,
     /// `T_last←curr` of the last step (constant-velocity model).
     velocity: Isometry3<f64>,
+    /// Image size (width, height), pixels.
+    image_size: (f64, f64),
     /// Grey left images and left keypoints of the previous and current frame (optical flow).
     grey: [Option<Mat>; 2],
     keypoints: [Vec<(f64, f64)>; 2],
@@ -243,18 +446,37 @@ impl BestTwo {
     }
 }
 
-/// A solved pose (current from reference) and its inlier matches (reference point, current keypoint).
-type Solved = (Isometry3<f64>, Vec<(usize, usize)>);
+/// Keypoints: positions, 256-bit ORB descriptors, pyramid levels, orientations (degrees).
+struct Features {
+    points: Vec<(f64, f64)>,
+    desc: Vec<[u8; 32]>,
+    octave: Vec<i32>,
+    angle: Vec<f32>,
+}
 
-/// Keypoint positions and their 256-bit ORB descriptors.
-type Features = (Vec<(f64, f64)>, Vec<[u8; 32]>);
+impl Features {
+    fn retain(&mut self, keep: &[bool]) {
+        let mut k = keep.iter();
+        self.points.retain(|_| *k.next().unwrap_or(&true));
+        let mut k = keep.iter();
+        self.desc.retain(|_| *k.next().unwrap_or(&true));
+        let mut k = keep.iter();
+        self.octave.retain(|_| *k.next().unwrap_or(&true));
+        let mut k = keep.iter();
+        self.angle.retain(|_| *k.next().unwrap_or(&true));
+    }
+}
 
 fn extract(orb: &mut core::Ptr<features2d::ORB>, img: &Mat) -> Result<Features, FrontendError> {
     let mut kps = core::Vector::<core::KeyPoint>::new();
     let mut desc = Mat::default();
     orb.detect_and_compute(img, &core::no_array(), &mut kps, &mut desc, false)?;
-    let mut pts = Vec::with_capacity(kps.len());
-    let mut ds = Vec::with_capacity(kps.len());
+    let mut f = Features {
+        points: Vec::with_capacity(kps.len()),
+        desc: Vec::with_capacity(kps.len()),
+        octave: Vec::with_capacity(kps.len()),
+        angle: Vec::with_capacity(kps.len()),
+    };
     for (i, kp) in kps.iter().enumerate() {
         let row = desc.at_row::<u8>(i as i32)?;
         if row.len() != 32 {
@@ -262,10 +484,52 @@ fn extract(orb: &mut core::Ptr<features2d::ORB>, img: &Mat) -> Result<Features, 
         }
         let mut d = [0u8; 32];
         d.copy_from_slice(row);
-        pts.push((kp.pt().x as f64, kp.pt().y as f64));
-        ds.push(d);
+        f.points.push((kp.pt().x as f64, kp.pt().y as f64));
+        f.desc.push(d);
+        f.octave.push(kp.octave());
+        f.angle.push(kp.angle());
     }
-    Ok((pts, ds))
+    Ok(f)
+}
+
+/// `step` applied `r` times (a fraction of it for the fractional part).
+fn scaled(step: &Isometry3<f64>, r: f64) -> Isometry3<f64> {
+    let whole = r.max(0.0).floor();
+    repeat(step, whole as usize) * Isometry3::identity().lerp_slerp(step, r.max(0.0) - whole)
+}
+
+/// `step` applied `k` times.
+fn repeat(step: &Isometry3<f64>, k: usize) -> Isometry3<f64> {
+    (0..k).fold(Isometry3::identity(), |acc, _| acc * step)
+}
+
+/// Keeps the matches whose keypoint orientation changes agree with the bulk: a histogram of the
+/// changes in 12° bins, matches in the three fullest bins kept (the second and third only when they
+/// hold at least a tenth of the fullest). The image of a rigid scene turns as a whole.
+fn orientation_filter(matches: Vec<(usize, usize, f32)>) -> Vec<(usize, usize)> {
+    const BINS: usize = 30;
+    let bin = |d: f32| (((d.rem_euclid(360.0)) / 360.0 * BINS as f32) as usize).min(BINS - 1);
+    let mut hist = [0usize; BINS];
+    for m in &matches {
+        hist[bin(m.2)] += 1;
+    }
+    let mut order: Vec<usize> = (0..BINS).collect();
+    order.sort_by(|a, b| hist[*b].cmp(&hist[*a]).then(a.cmp(b)));
+    let max = hist[order[0]];
+    let keep: Vec<usize> =
+        order.iter().take(3).enumerate().filter(|(r, &b)| *r == 0 || hist[b] * 10 >= max).map(|(_, &b)| b).collect();
+    matches.into_iter().filter(|m| keep.contains(&bin(m.2))).map(|m| (m.0, m.1)).collect()
+}
+
+/// Occupied cells of a 4 × 4 grid over a `width` × `height` image.
+fn spread_cells(points: impl Iterator<Item = (f64, f64)>, (width, height): (f64, f64)) -> usize {
+    let mut cells = [false; 16];
+    for (u, v) in points {
+        let i = ((u / width * 4.0).floor().clamp(0.0, 3.0)) as usize;
+        let j = ((v / height * 4.0).floor().clamp(0.0, 3.0)) as usize;
+        cells[4 * j + i] = true;
+    }
+    cells.iter().filter(|c| **c).count()
 }
 
 impl StereoVo {
@@ -287,13 +551,22 @@ impl StereoVo {
             rig,
             config,
             reference: None,
-            local: std::collections::VecDeque::new(),
+            local: VecDeque::new(),
             next_keyframe: 0,
             next_point: 0,
             kf_from_last: Isometry3::identity(),
+            kf_from_measured: Isometry3::identity(),
+            since_measured: 1,
+            velocity_gap: 1,
+            gap: 1,
+            last_index: 0,
+            measured_index: 0,
+            failed: false,
+            velocity_known: false,
             kf_inliers: None,
             since_kf: 0,
             velocity: Isometry3::identity(),
+            image_size: (1.0, 1.0),
             grey: [None, None],
             keypoints: [Vec::new(), Vec::new()],
             pairs: Vec::new(),
@@ -301,43 +574,54 @@ impl StereoVo {
         })
     }
 
-    /// Stereo points of the left keypoints: (left pixel, camera-frame point, descriptor).
-    fn stereo(
-        &self,
-        left: &[(f64, f64)],
-        ld: &[[u8; 32]],
-        right: &[(f64, f64)],
-        rd: &[[u8; 32]],
-        grey: (&GreyView<'_>, &GreyView<'_>),
-    ) -> Frame {
+    /// Stereo points of the left keypoints: each left keypoint is matched along its row, kept when the
+    /// right keypoint's best left match along the row is that keypoint too (left-right consistency),
+    /// and its disparity is refined to sub-pixel by block matching.
+    fn stereo(&self, left: &Features, right: &Features, grey: (&GreyView<'_>, &GreyView<'_>)) -> Frame {
         let k = &self.rig.k;
-        let rows = right.iter().map(|p| p.1 as usize).max().unwrap_or(0) + 1;
+        let rows = right.points.iter().map(|p| p.1.max(0.0) as usize).max().unwrap_or(0) + 1;
         let mut by_row: Vec<Vec<usize>> = vec![Vec::new(); rows + 3];
-        for (i, p) in right.iter().enumerate() {
-            by_row[p.1 as usize].push(i);
+        for (i, p) in right.points.iter().enumerate() {
+            by_row[p.1.max(0.0) as usize].push(i);
         }
         let tol = self.config.row_tolerance;
-        let mut points = Vec::new();
-        let mut desc = Vec::new();
-        let mut obs = Vec::new();
-        let mut of_keypoint = vec![None; left.len()];
-        for (i, &(u, v)) in left.iter().enumerate() {
+        // best left keypoint of each right keypoint: (distance, left index)
+        let mut right_best = vec![(u32::MAX, usize::MAX); right.points.len()];
+        let mut winners = Vec::new();
+        for (i, &(u, v)) in left.points.iter().enumerate() {
             let last = by_row.len() - 1;
             let (lo, hi) =
                 ((((v - tol).floor().max(0.0)) as usize).min(last), ((v + tol).ceil().max(0.0) as usize).min(last));
             let mut two = BestTwo::new();
             for row in &by_row[lo..=hi] {
                 for &j in row {
-                    let (ur, vr) = right[j];
+                    let (ur, vr) = right.points[j];
                     let d = u - ur;
                     if (vr - v).abs() > tol || d <= 0.0 || d > 300.0 {
                         continue;
                     }
-                    two.offer(hamming(&ld[i], &rd[j]), j);
+                    let h = hamming(&left.desc[i], &right.desc[j]);
+                    two.offer(h, j);
+                    if h < right_best[j].0 {
+                        right_best[j] = (h, i);
+                    }
                 }
             }
-            let Some(arg) = two.winner(self.config.stereo_hamming, true) else { continue };
-            let disparity = refine_disparity(grey.0, grey.1, u, v, right[arg].0).unwrap_or(u - right[arg].0)
+            if let Some(arg) = two.winner(self.config.stereo_hamming, true) {
+                winners.push((i, arg));
+            }
+        }
+        let mut points = Vec::new();
+        let mut desc = Vec::new();
+        let mut obs = Vec::new();
+        let mut of_keypoint = vec![None; left.points.len()];
+        for (i, arg) in winners {
+            if right_best[arg].1 != i {
+                continue;
+            }
+            let (u, v) = left.points[i];
+            let disparity = refine_disparity(grey.0, grey.1, u, v, right.points[arg].0)
+                .unwrap_or(u - right.points[arg].0)
                 + self.config.disparity_offset;
             let z = k.fx * self.rig.baseline / disparity;
             if z < self.config.depth_range.0 || z > self.config.depth_range.1 {
@@ -345,7 +629,7 @@ impl StereoVo {
             }
             of_keypoint[i] = Some(points.len());
             points.push(Vector3::new((u - k.cx) * z / k.fx, (v - k.cy) * z / k.fy, z));
-            desc.push(ld[i]);
+            desc.push(left.desc[i]);
             obs.push([u, v, u - disparity]);
         }
         let n = points.len();
@@ -356,79 +640,385 @@ impl StereoVo {
             of_keypoint,
             ids: vec![0; n],
             valid: vec![true; n],
-            keypoints: left.to_vec(),
-            keypoint_desc: ld.to_vec(),
+            keypoints: left.points.clone(),
+            keypoint_desc: left.desc.clone(),
+            octave: left.octave.clone(),
+            angle: left.angle.clone(),
         }
     }
 
-    /// Match the previous frame's points into the current left keypoints around their predicted pixels.
-    fn guided_match(
+    /// The local map: the reference keyframe's points and those of the older keyframes that share at
+    /// least 10 map points with it (its covisible keyframes), up to `local_keyframes` of them.
+    fn local_map(&self) -> LocalMap {
+        let mut map = LocalMap::default();
+        let Some(r) = &self.reference else { return map };
+        let mut index = HashMap::new();
+        map.add_keyframe(r, Isometry3::identity(), &mut index);
+        let ref_ids: HashSet<PointId> = r.frame.ids.iter().copied().collect();
+        let ref_from_world = r.world_from_kf.inverse();
+        for kf in self.local.iter().take(self.config.local_keyframes) {
+            let shared =
+                kf.frame.ids.iter().zip(&kf.frame.valid).filter(|(id, ok)| **ok && ref_ids.contains(id)).count();
+            if shared >= 10 {
+                map.add_keyframe(kf, ref_from_world * kf.world_from_kf, &mut index);
+            }
+        }
+        map
+    }
+
+    /// Search window of a point at `c` (current camera frame) of pyramid level `octave`, when the
+    /// predicted pose may be off by `sigma_t` metres and `sigma_r` radians: the image motion those
+    /// errors cause at that depth and offset from the axis, plus the keypoint's own scale.
+    fn window(&self, c: &Vector3<f64>, octave: i32, (sigma_t, sigma_r): (f64, f64)) -> f64 {
+        let f = self.rig.k.fx;
+        let off = (c.x.abs() + c.y.abs()) / c.z;
+        let r = 3.0 * 1.2f64.powi(octave) + f * (sigma_r + sigma_t * (1.0 + off) / c.z);
+        r.min(self.config.search_radius)
+    }
+
+    /// Project the local map's points (not yet matched: `skip`) with `curr_from_ref` and match each to
+    /// the keypoints (not yet `taken`) within its window: smallest Hamming distance under
+    /// `track_hamming`, ratio test, each keypoint to its closest point, then the orientation check.
+    fn search(
         &self,
-        prev: &Frame,
-        curr_from_prev: &Isometry3<f64>,
-        left: &[(f64, f64)],
-        ld: &[[u8; 32]],
-        radius: f64,
+        map: &LocalMap,
+        curr_from_ref: &Isometry3<f64>,
+        frame: &Frame,
+        window: &dyn Fn(&Vector3<f64>, i32) -> f64,
+        skip: &[bool],
+        taken: &[bool],
     ) -> Vec<(usize, usize)> {
         let k = &self.rig.k;
         let cell = 32.0;
-        let mut grid: std::collections::HashMap<(i64, i64), Vec<usize>> = std::collections::HashMap::new();
-        for (i, p) in left.iter().enumerate() {
-            grid.entry(((p.0 / cell) as i64, (p.1 / cell) as i64)).or_default().push(i);
+        let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
+        for (i, p) in frame.keypoints.iter().enumerate() {
+            if !taken[i] {
+                grid.entry(((p.0 / cell).floor() as i64, (p.1 / cell).floor() as i64)).or_default().push(i);
+            }
         }
-        let r = (radius / cell).ceil() as i64;
-        let mut used = vec![false; left.len()];
-        let mut out = Vec::new();
-        for (pi, x) in prev.points.iter().enumerate() {
-            if !prev.valid[pi] {
+        let mut found: Vec<(u32, usize, usize)> = Vec::new();
+        for (i, x) in map.points.iter().enumerate() {
+            if skip[i] {
                 continue;
             }
-            let c = curr_from_prev * nalgebra::Point3::from(*x);
+            let c = curr_from_ref * nalgebra::Point3::from(*x);
             if c.z <= 0.1 {
                 continue;
             }
             let (u, v) = (k.fx * c.x / c.z + k.cx, k.fy * c.y / c.z + k.cy);
-            let (gx, gy) = ((u / cell) as i64, (v / cell) as i64);
+            if u < -cell || v < -cell || u > self.image_size.0 + cell || v > self.image_size.1 + cell {
+                continue;
+            }
+            let radius = window(&c.coords, map.octave[i]);
+            let r = (radius / cell).ceil() as i64;
+            let (gx, gy) = ((u / cell).floor() as i64, (v / cell).floor() as i64);
             let mut two = BestTwo::new();
             for dx in -r..=r {
                 for dy in -r..=r {
                     let Some(cands) = grid.get(&(gx + dx, gy + dy)) else { continue };
                     for &j in cands {
-                        let (uj, vj) = left[j];
-                        if (uj - u).powi(2) + (vj - v).powi(2) > radius * radius {
-                            continue;
+                        let (uj, vj) = frame.keypoints[j];
+                        if (uj - u).powi(2) + (vj - v).powi(2) <= radius * radius {
+                            two.offer(hamming(&map.desc[i], &frame.keypoint_desc[j]), j);
                         }
-                        two.offer(hamming(&prev.desc[pi], &ld[j]), j);
                     }
                 }
             }
-            if let Some(arg) = two.winner(self.config.track_hamming, false).filter(|&a| !used[a]) {
-                used[arg] = true;
-                out.push((pi, arg));
+            if let Some(j) = two.winner(self.config.track_hamming, false) {
+                found.push((two.best, i, j));
             }
         }
+        Self::assign(found, map, frame)
+    }
+
+    /// Each keypoint to the point closest in descriptor distance, then the orientation check.
+    fn assign(mut found: Vec<(u32, usize, usize)>, map: &LocalMap, frame: &Frame) -> Vec<(usize, usize)> {
+        found.sort_unstable();
+        let mut used = HashSet::new();
+        let kept: Vec<(usize, usize, f32)> = found
+            .into_iter()
+            .filter(|&(_, _, j)| used.insert(j))
+            .map(|(_, i, j)| (i, j, frame.angle[j] - map.angle[i]))
+            .collect();
+        let mut out = orientation_filter(kept);
+        out.sort_unstable();
         out
     }
 
-    /// Brute-force descriptor matching of the reference points against all keypoints (ratio test):
-    /// relocalisation when the motion model gives no usable prediction.
-    fn match_all(&self, prev: &Frame, ld: &[[u8; 32]]) -> Vec<(usize, usize)> {
-        let mut used = vec![false; ld.len()];
-        let mut out = Vec::new();
-        for (pi, d) in prev.desc.iter().enumerate() {
-            if !prev.valid[pi] {
-                continue;
-            }
+    /// Brute-force descriptor matching of the map's points against all keypoints (Hamming ≤ 64, ratio
+    /// test, orientation check): relocalisation when there is no usable prediction.
+    fn match_all(&self, map: &LocalMap, frame: &Frame) -> Vec<(usize, usize)> {
+        let mut found = Vec::new();
+        for (i, d) in map.desc.iter().enumerate() {
             let mut two = BestTwo::new();
-            for (j, e) in ld.iter().enumerate() {
+            for (j, e) in frame.keypoint_desc.iter().enumerate() {
                 two.offer(hamming(d, e), j);
             }
-            if let Some(arg) = two.winner(64, false).filter(|&a| !used[a]) {
-                used[arg] = true;
-                out.push((pi, arg));
+            if let Some(j) = two.winner(64, false) {
+                found.push((two.best, i, j));
             }
         }
-        out
+        Self::assign(found, map, frame)
+    }
+
+    /// PnP RANSAC on the matches: `curr_from_ref` and the inlier matches.
+    fn pnp_ransac(
+        &self,
+        map: &LocalMap,
+        frame: &Frame,
+        matches: &[(usize, usize)],
+        (ransac_px, iterations, min_inliers): (f32, i32, usize),
+    ) -> Result<Option<Solved>, FrontendError> {
+        if matches.len() < min_inliers.max(6) {
+            return Ok(None);
+        }
+        let obj: core::Vector<core::Point3f> = matches
+            .iter()
+            .map(|&(p, _)| {
+                let x = map.points[p];
+                core::Point3f::new(x.x as f32, x.y as f32, x.z as f32)
+            })
+            .collect();
+        let img: core::Vector<core::Point2f> = matches
+            .iter()
+            .map(|&(_, c)| core::Point2f::new(frame.keypoints[c].0 as f32, frame.keypoints[c].1 as f32))
+            .collect();
+        let k = &self.rig.k;
+        let kmat = Mat::from_slice_2d(&[[k.fx, 0.0, k.cx], [0.0, k.fy, k.cy], [0.0, 0.0, 1.0]])?;
+        let mut rvec = Mat::default();
+        let mut tvec = Mat::default();
+        let mut inliers = core::Vector::<i32>::new();
+        let ok = calib3d::solve_pnp_ransac(
+            &obj,
+            &img,
+            &kmat,
+            &core::no_array(),
+            &mut rvec,
+            &mut tvec,
+            false,
+            iterations,
+            ransac_px,
+            0.999,
+            &mut inliers,
+            if iterations > 200 { calib3d::SOLVEPNP_AP3P } else { calib3d::SOLVEPNP_EPNP },
+        )?;
+        tracing::trace!(matches = matches.len(), inliers = inliers.len(), "PnP RANSAC");
+        if !ok || inliers.len() < min_inliers {
+            return Ok(None);
+        }
+        let mut rmat = Mat::default();
+        calib3d::rodrigues(&rvec, &mut rmat, &mut core::no_array())?;
+        let r = Matrix3::from_fn(|i, j| *rmat.at_2d::<f64>(i as i32, j as i32).unwrap_or(&0.0));
+        let t = Vector3::new(*tvec.at::<f64>(0)?, *tvec.at::<f64>(1)?, *tvec.at::<f64>(2)?);
+        let pose = se3::isometry_from_parts(&r, &t);
+        if !pose.translation.vector.iter().all(|v| v.is_finite()) {
+            return Ok(None);
+        }
+        Ok(Some((pose, inliers.iter().map(|i| matches[i as usize]).collect())))
+    }
+
+    /// Noise of an observation `[u_l, v, u_r]`: 1 px, and for a stereo observation of a point farther
+    /// than `far_baselines` baselines, a right-image σ growing in proportion to its depth (its
+    /// disparity, a few pixels, says little about depth and is the most exposed to rectification error).
+    fn noise(&self, o: &[f64; 3]) -> NoiseModel {
+        let d = o[0] - o[2];
+        let far = self.config.far_baselines * self.rig.baseline;
+        let z = self.rig.k.fx * self.rig.baseline / d.max(1e-6);
+        if o[2].is_finite() && z > far {
+            NoiseModel::Diagonal(vec![1.0, 1.0, z / far])
+        } else {
+            NoiseModel::Isotropic(1.0)
+        }
+    }
+
+    /// Refine `curr_from_ref` on the matches: the local map's keyframes fixed, the matched points free
+    /// (eliminated) with all their keyframe observations, the current frame's observations stereo where
+    /// it has a stereo point. Four rounds: after each, the current observations above the χ² bound
+    /// (95 %: 7.815 stereo, 5.991 left only, σ = 1 px) are set aside for the next round and the
+    /// set-aside ones are checked again; Huber in the first two rounds, plain least squares after. The
+    /// first three rounds move the pose alone (points held where their keyframes put them).
+    fn refine(
+        &self,
+        map: &LocalMap,
+        frame: &Frame,
+        matches: &[(usize, usize)],
+        guess: &Isometry3<f64>,
+    ) -> Option<Refined> {
+        const CHI2_STEREO: f64 = 7.815;
+        const CHI2_MONO: f64 = 5.991;
+        let k = self.rig.k;
+        let b = self.rig.baseline;
+        let mut pose = *guess;
+        let mut active = vec![true; matches.len()];
+        let (mut sq_sum, mut sq_n) = (0.0, 0usize);
+        let current_obs = |c: usize| -> [f64; 3] {
+            match frame.of_keypoint.get(c).copied().flatten() {
+                Some(q) => frame.obs[q],
+                None => [frame.keypoints[c].0, frame.keypoints[c].1, f64::NAN],
+            }
+        };
+        for round in 0..4 {
+            if active.iter().filter(|a| **a).count() < self.config.weak_inliers.max(6) {
+                return None;
+            }
+            let mut values = Values::new();
+            let mut graph = Graph::new();
+            let k_curr = values.add(Var::Pose(pose.inverse()));
+            let mut slots: HashMap<usize, slam_optim::Key> = HashMap::new();
+            let kernel = |robust: bool| -> Box<dyn slam_optim::RobustKernel> {
+                if robust {
+                    Box::new(Huber(CHI2_STEREO.sqrt()))
+                } else {
+                    Box::new(slam_optim::L2)
+                }
+            };
+            let add = |graph: &mut Graph, pose_key, point_key, o: [f64; 3], noise: NoiseModel, robust: bool| {
+                let f: Box<dyn slam_optim::Factor> = if o[2].is_finite() {
+                    Box::new(StereoReprojection::new(pose_key, point_key, k, b, o))
+                } else {
+                    Box::new(MonoReprojection::new(pose_key, point_key, k, [o[0], o[1]]))
+                };
+                graph.add_boxed(f, noise, kernel(robust)).ok()
+            };
+            let mut current: Vec<(usize, slam_optim::Key, usize)> = Vec::new(); // (match, point, factor)
+                                                                                // the first rounds move the pose alone (points where their keyframes put them): cheap, and
+                                                                                // enough to sort inliers from outliers; the last frees the points
+            let full = round == 3;
+            for (m, &(i, c)) in matches.iter().enumerate() {
+                let kx = values.add(Var::Point(map.points[i]));
+                if !full {
+                    graph.fix(kx);
+                    if active[m] {
+                        let o = current_obs(c);
+                        if let Some(f) = add(&mut graph, k_curr, kx, o, self.noise(&o), round < 2) {
+                            current.push((m, kx, f));
+                        }
+                    } else {
+                        current.push((m, kx, usize::MAX));
+                    }
+                    continue;
+                }
+                graph.eliminate(kx);
+                for &(slot, o) in &map.views[i] {
+                    let ks = match slots.get(&slot) {
+                        Some(&key) => key,
+                        None => {
+                            let key = values.add(Var::Pose(map.poses[slot]));
+                            graph.fix(key);
+                            slots.insert(slot, key);
+                            key
+                        }
+                    };
+                    add(&mut graph, ks, kx, o, self.noise(&o), true);
+                }
+                if active[m] {
+                    let o = current_obs(c);
+                    if let Some(f) = add(&mut graph, k_curr, kx, o, self.noise(&o), false) {
+                        current.push((m, kx, f));
+                    }
+                } else {
+                    current.push((m, kx, usize::MAX));
+                }
+            }
+            if self.optimizer.optimize(&graph, &mut values, &Options::with_max_iterations(10), None).is_err() {
+                return None;
+            }
+            pose = values.pose(k_curr)?.inverse();
+            // classify every match at the new pose, the set-aside ones included
+            let world_from_curr = pose.inverse();
+            let mut probe_values = Values::new();
+            let probe_pose = probe_values.add(Var::Pose(world_from_curr));
+            for &(m, kx, f) in &current {
+                let o = current_obs(matches[m].1);
+                let chi2 = if f != usize::MAX {
+                    graph.whitened_residual(f, &values).and_then(|r| r.ok()).map(|r| r.norm_squared())
+                } else {
+                    // not in the graph: the point as its first keyframe saw it
+                    let x = values.point(kx).copied().unwrap_or(map.points[matches[m].0]);
+                    let probe_point = probe_values.add(Var::Point(x));
+                    let mut g = Graph::new();
+                    add(&mut g, probe_pose, probe_point, o, self.noise(&o), false)
+                        .and_then(|fi| g.whitened_residual(fi, &probe_values))
+                        .and_then(|r| r.ok())
+                        .map(|r| r.norm_squared())
+                };
+                let bound = if o[2].is_finite() { CHI2_STEREO } else { CHI2_MONO };
+                active[m] = chi2.is_some_and(|c| c <= bound);
+                if round == 3 && active[m] && f != usize::MAX {
+                    // left-image error at the final pose, the point where the adjustment put it
+                    if let Some(x) = values.point(kx) {
+                        let p = pose * nalgebra::Point3::from(*x);
+                        let (u, v) = (k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy);
+                        sq_sum += (u - o[0]).powi(2) + (v - o[1]).powi(2);
+                        sq_n += 1;
+                    }
+                }
+            }
+        }
+        let inliers: Vec<(usize, usize)> = matches.iter().zip(&active).filter(|(_, a)| **a).map(|(m, _)| *m).collect();
+        if inliers.len() < self.config.weak_inliers.max(6) {
+            return None;
+        }
+        let rms = (sq_sum / sq_n.max(1) as f64).sqrt();
+        Some(Refined { pose, inliers, rms })
+    }
+
+    /// Support of a refined pose: [`Support::Full`] with at least `min_inliers` inliers over at least
+    /// `min_spread_cells` cells of a 4 × 4 grid; [`Support::Weak`] with at least `weak_inliers` over at
+    /// least 3 cells; else rejected, as is any pose whose inliers' RMS error exceeds `max_rms_px`.
+    pub fn support(config: &VoConfig, inliers: usize, cells: usize, rms_px: f64) -> Support {
+        if rms_px.is_nan() || rms_px > config.max_rms_px || inliers < config.weak_inliers || cells < 3 {
+            Support::Rejected
+        } else if inliers >= config.min_inliers && cells >= config.min_spread_cells {
+            Support::Full
+        } else {
+            Support::Weak
+        }
+    }
+
+    /// Track against the local map from `guess` (`curr_from_ref`): search in windows sized by `bounds`
+    /// (metres, radians), PnP RANSAC, a second search at the pose found, and the refinement.
+    /// Returns the refined pose and the RANSAC inlier count.
+    fn track_from(
+        &self,
+        map: &LocalMap,
+        frame: &Frame,
+        guess: &Isometry3<f64>,
+        bounds: (f64, f64),
+    ) -> Result<Option<(Refined, usize)>, FrontendError> {
+        let skip = vec![false; map.points.len()];
+        let taken = vec![false; frame.keypoints.len()];
+        let matches = self.search(map, guess, frame, &|c, o| self.window(c, o, bounds), &skip, &taken);
+        tracing::trace!(matches = matches.len(), "local-map search");
+        let Some((pose, inliers)) =
+            self.pnp_ransac(map, frame, &matches, (self.config.ransac_px, 200, self.config.weak_inliers))?
+        else {
+            return Ok(None);
+        };
+        Ok(self.extend_and_refine(map, frame, &pose, inliers))
+    }
+
+    /// The second search (points not matched yet, small windows at `pose`) and the refinement.
+    fn extend_and_refine(
+        &self,
+        map: &LocalMap,
+        frame: &Frame,
+        pose: &Isometry3<f64>,
+        inliers: Vec<(usize, usize)>,
+    ) -> Option<(Refined, usize)> {
+        let ransac_inliers = inliers.len();
+        let mut skip = vec![false; map.points.len()];
+        let mut taken = vec![false; frame.keypoints.len()];
+        for &(i, c) in &inliers {
+            skip[i] = true;
+            taken[c] = true;
+        }
+        let radius = self.config.local_radius;
+        let extra = self.search(map, pose, frame, &|_, o| radius * 1.2f64.powi(o), &skip, &taken);
+        let mut all = inliers;
+        all.extend(extra);
+        all.sort_unstable();
+        self.refine(map, frame, &all, pose).map(|r| (r, ransac_inliers))
     }
 
     /// Make `frame` the reference keyframe; ids of points matched to the old reference carry over.
@@ -442,13 +1032,8 @@ impl StereoVo {
         earlier: &[(KeyframeId, usize, [f64; 3], Vector3<f64>)],
     ) -> KeyframeData {
         // keypoint → the map point it was matched to
-        let from_keypoint: std::collections::HashMap<usize, PointId> = carried.iter().map(|&(id, c)| (c, id)).collect();
-        let mut keypoint_of = vec![usize::MAX; frame.points.len()];
-        for (kp, q) in frame.of_keypoint.iter().enumerate() {
-            if let Some(q) = q {
-                keypoint_of[*q] = kp;
-            }
-        }
+        let from_keypoint: HashMap<usize, PointId> = carried.iter().map(|&(id, c)| (c, id)).collect();
+        let keypoint_of = frame.point_keypoints();
         for (q, id) in frame.ids.iter_mut().enumerate() {
             *id = match from_keypoint.get(&keypoint_of[q]) {
                 Some(&old) => old,
@@ -483,12 +1068,13 @@ impl StereoVo {
         match (old, parent) {
             (Some(old), Some(_)) => {
                 self.local.push_front(old);
-                self.local.truncate(self.config.local_keyframes);
+                self.local.truncate(self.config.local_keyframes.max(self.config.relocalisation_keyframes));
             }
             // a new segment: the old keyframes' poses are not related to it
             _ => self.local.clear(),
         }
         self.kf_from_last = Isometry3::identity();
+        self.kf_from_measured = Isometry3::identity();
         self.kf_inliers = None;
         self.since_kf = 0;
         data
@@ -511,6 +1097,116 @@ impl StereoVo {
         &self.pairs
     }
 
+    /// Relocalisation: along the motion (the motion model applied 2 to 16 times: frames dropped by the
+    /// recorder look like that), then by descriptors alone against the local map and
+    /// then against each older keyframe (4-point solver, 5000 RANSAC rounds, 2 × the RANSAC threshold,
+    /// ≥ 12 inliers), each candidate verified by a second search and the refinement.
+    /// Returns the first candidate `accept` takes, and the pose of the first one found (accepted or
+    /// not: where a new map segment starts when nothing better is found).
+    fn relocalise(
+        &self,
+        map: &LocalMap,
+        frame: &Frame,
+        accept: &dyn Fn(&Refined, Route) -> bool,
+    ) -> Result<Relocalisation, FrontendError> {
+        let mut first = None;
+        // each hypothesis of k − 1 dropped frames covers half a step either side of its prediction
+        let (t1, r1) = motion_limits(&self.step_config(), 1.0);
+        let bounds = (t1 + 0.5 * self.velocity.translation.vector.norm(), r1 + 0.5 * self.velocity.rotation.angle());
+        for k in 2usize..=16 {
+            let guess = (self.kf_from_last * scaled(&self.velocity, self.steps(self.gap) - 1.0 + k as f64)).inverse();
+            if let Some((r, n)) = self.track_from(map, frame, &guess, bounds)? {
+                tracing::debug!(steps = k, inliers = r.inliers.len(), "relocalisation along the motion");
+                first.get_or_insert(r.pose);
+                if accept(&r, Route::Along(k)) {
+                    return Ok((Some((r, n, Route::Along(k))), first));
+                }
+            }
+        }
+        let Some(reference) = &self.reference else { return Ok((None, first)) };
+        let ref_from_world = reference.world_from_kf.inverse();
+        let mut maps = vec![None];
+        for kf in self.local.iter().skip(self.config.local_keyframes) {
+            let mut single = LocalMap::default();
+            single.add_keyframe(kf, ref_from_world * kf.world_from_kf, &mut HashMap::new());
+            maps.push(Some(single));
+        }
+        for candidate in &maps {
+            let m = candidate.as_ref().unwrap_or(map);
+            let all = self.match_all(m, frame);
+            let Some((pose, _)) = self.pnp_ransac(m, frame, &all, (2.0 * self.config.ransac_px, 5000, 12))? else {
+                continue;
+            };
+            first.get_or_insert(pose);
+            // verify against the local map at the candidate pose
+            let skip = vec![false; map.points.len()];
+            let taken = vec![false; frame.keypoints.len()];
+            let radius = 2.0 * self.config.local_radius;
+            let matches = self.search(map, &pose, frame, &|_, o| radius * 1.2f64.powi(o), &skip, &taken);
+            let Some((pose, inliers)) =
+                self.pnp_ransac(map, frame, &matches, (self.config.ransac_px, 200, self.config.weak_inliers))?
+            else {
+                continue;
+            };
+            if let Some((r, n)) = self.extend_and_refine(map, frame, &pose, inliers) {
+                tracing::debug!(inliers = r.inliers.len(), "relocalisation by descriptors");
+                first.get_or_insert(r.pose);
+                if accept(&r, Route::Descriptors) {
+                    return Ok((Some((r, n, Route::Descriptors)), first));
+                }
+            }
+        }
+        Ok((None, first))
+    }
+
+    /// Frame-id steps as velocity steps (the velocity was measured over `velocity_gap` ids), at least 1.
+    fn steps(&self, ids: usize) -> f64 {
+        ids.max(1) as f64 / self.velocity_gap.max(1) as f64
+    }
+
+    /// The settings with the frame period of one velocity step.
+    fn step_config(&self) -> VoConfig {
+        VoConfig { frame_period_s: self.config.period() * self.velocity_gap.max(1) as f64, ..self.config }
+    }
+
+    /// Whether a refined pose (`curr_from_ref`) found by `route` is accepted: its support, and its
+    /// consistency with the motion model over the frames since the last measured pose.
+    fn judge(&self, r: &Refined, route: Route, frame: &Frame) -> Support {
+        let cells = spread_cells(r.inliers.iter().map(|&(_, c)| frame.keypoints[c]), self.image_size);
+        let support = Self::support(&self.config, r.inliers.len(), cells, r.rms);
+        if support == Support::Rejected {
+            tracing::debug!(inliers = r.inliers.len(), cells, rms = r.rms, "pose rejected: support");
+            return support;
+        }
+        let (steps, frames) = match route {
+            Route::Along(k) => {
+                (self.steps(self.gap) - 1.0 + k as f64, self.steps(self.since_measured) - 1.0 + k as f64)
+            }
+            _ => (self.steps(self.gap), self.steps(self.since_measured)),
+        };
+        let predicted = self.kf_from_last * scaled(&self.velocity, steps);
+        let pose = r.pose.inverse();
+        if motion_consistent(
+            &self.step_config(),
+            &pose,
+            &predicted,
+            &self.kf_from_measured,
+            frames,
+            self.velocity_known,
+        ) {
+            support
+        } else {
+            let d = predicted.inverse() * pose;
+            tracing::debug!(
+                metres = d.translation.vector.norm(),
+                degrees = d.rotation.angle().to_degrees(),
+                frames,
+                "pose rejected: inconsistent with the motion model"
+            );
+            Support::Rejected
+        }
+    }
+
     /// Track one rectified stereo pair (grey or colour; colour is converted).
     pub fn process(
         &mut self,
@@ -521,23 +1217,22 @@ impl StereoVo {
     ) -> Result<TrackedFrame, FrontendError> {
         let t0 = Instant::now();
         let (lm, rm) = (Self::grey_of(left)?, Self::grey_of(right)?);
-        let (mut lp, mut ld) = extract(&mut self.orb, &lm)?;
+        self.image_size = (lm.cols().max(1) as f64, lm.rows().max(1) as f64);
+        let mut lf = extract(&mut self.orb, &lm)?;
         if !exclude.is_empty() {
-            let keep: Vec<bool> = lp.iter().map(|&(u, v)| !exclude.iter().any(|b| b.contains_point(u, v))).collect();
-            let mut k = keep.iter();
-            lp.retain(|_| *k.next().unwrap_or(&true));
-            let mut k = keep.iter();
-            ld.retain(|_| *k.next().unwrap_or(&true));
+            let keep: Vec<bool> =
+                lf.points.iter().map(|&(u, v)| !exclude.iter().any(|b| b.contains_point(u, v))).collect();
+            lf.retain(&keep);
         }
-        let (rp, rd) = extract(&mut self.orb, &rm)?;
+        let rf = extract(&mut self.orb, &rm)?;
         let t1 = Instant::now();
         let (lg, rg) = (GreyView::of(&lm)?, GreyView::of(&rm)?);
-        let frame = self.stereo(&lp, &ld, &rp, &rd, (&lg, &rg));
+        let frame = self.stereo(&lf, &rf, (&lg, &rg));
         let t2 = Instant::now();
         self.grey.swap(0, 1);
         self.grey[1] = Some(lm);
         self.keypoints.swap(0, 1);
-        self.keypoints[1] = lp.clone();
+        self.keypoints[1] = lf.points.clone();
         let stereo_points = frame.points.len();
         let times = |t3: Instant| StageTimes {
             extraction: (t1 - t0).as_secs_f64() * 1e3,
@@ -546,125 +1241,142 @@ impl StereoVo {
         };
         let Some(reference) = self.reference.as_ref() else {
             let kf = self.take_keyframe(frame, frame_index, Isometry3::identity(), None, &[], &[]);
+            self.since_measured = 1;
+            (self.last_index, self.measured_index, self.failed) = (frame_index, frame_index, false);
+            self.velocity_known = false;
+            self.velocity = Isometry3::identity();
+            self.velocity_gap = 1;
             return Ok(TrackedFrame {
                 world_from_camera: Isometry3::identity(),
                 reference: (kf.id, Isometry3::identity()),
                 state: TrackState::Initialised,
                 stereo_points,
+                tracked_map_points: 0,
+                reprojection_rms_px: f64::NAN,
                 keyframe: Some(kf),
                 times: times(Instant::now()),
             });
         };
-        let prev = &reference.frame;
-        let predicted = (self.kf_from_last * self.velocity).inverse(); // curr ← keyframe
-        let mut matches = self.guided_match(prev, &predicted, &lp, &ld, self.config.search_radius);
-        if matches.len() < self.config.min_inliers {
-            matches = self.guided_match(prev, &self.kf_from_last.inverse(), &lp, &ld, 4.0 * self.config.search_radius);
-        }
-        let mut solved =
-            self.pnp(prev, &frame, &lp, &matches, &predicted, (self.config.ransac_px, 200, self.config.min_inliers))?;
-        let mut state = solved.as_ref().map(|s| TrackState::Tracked { inliers: s.1.len() });
-        // best unverified relocalisation pose: where a new map segment starts if nothing better is found
-        let mut fallback = None;
-        if solved.is_none() {
-            // relocalisation, first along the motion: dropped frames (a jump ahead) look like the motion
-            // model applied several times
-            for k in [2, 3, 5, 8, 12, 16] {
-                let mut step = Isometry3::identity();
-                for _ in 0..k {
-                    step *= self.velocity;
-                }
-                let guess = (self.kf_from_last * step).inverse();
-                let m = self.guided_match(prev, &guess, &lp, &ld, 2.0 * self.config.search_radius);
-                tracing::trace!(steps = k, matches = m.len(), "relocalisation along the motion");
-                if m.len() >= self.config.min_inliers {
-                    solved =
-                        self.pnp(prev, &frame, &lp, &m, &guess, (self.config.ransac_px, 200, self.config.min_inliers))?;
-                    if solved.is_some() {
-                        tracing::info!(frame = frame_index, steps = k, "relocalised along the motion");
-                        break;
-                    }
-                }
-            }
-            if solved.is_none() {
-                // then by descriptors alone, no motion prior, with a wider RANSAC threshold
-                let all = self.match_all(prev, &ld);
-                tracing::debug!(frame = frame_index, matches = all.len(), "relocalisation: descriptor matches");
-                // (many outliers: a minimal 4-point solver and many more RANSAC rounds)
-                let candidate =
-                    self.pnp(prev, &frame, &lp, &all, &predicted, (2.0 * self.config.ransac_px, 5000, 12))?;
-                // verify: the candidate pose must explain many guided matches
-                if let Some((pose, _)) = candidate {
-                    fallback = Some(pose);
-                    let m = self.guided_match(prev, &pose, &lp, &ld, self.config.search_radius);
-                    tracing::trace!(matches = m.len(), "relocalisation candidate check");
-                    let need = (2 * self.config.min_inliers / 3).max(12);
-                    solved = self.pnp(prev, &frame, &lp, &m, &pose, (self.config.ransac_px, 200, need))?;
-                }
-            }
-            state = solved.as_ref().map(|s| TrackState::Relocalised { inliers: s.1.len() });
-            if let Some(s) = &solved {
-                tracing::info!(
-                    frame = frame_index,
-                    inliers = s.1.len(),
-                    "relocalised against keyframe {}",
-                    reference.id
-                );
-            }
-        }
         let (ref_id, world_from_ref) = (reference.id, reference.world_from_kf);
-        let (curr_from_prev, state, inliers) = match (solved, state) {
-            (Some((pose, inl)), Some(state)) => (pose, state, inl),
-            _ => (fallback.unwrap_or(predicted), TrackState::Lost, Vec::new()),
+        let map = self.local_map();
+        // frame intervals since the last processed and the last measured frame (unreadable frames
+        // between them count)
+        self.gap = frame_index.saturating_sub(self.last_index).max(1);
+        self.since_measured = frame_index.saturating_sub(self.measured_index).max(1);
+        self.last_index = frame_index;
+        let n = self.since_measured;
+        let predicted = (self.kf_from_last * scaled(&self.velocity, self.steps(self.gap))).inverse(); // curr ← keyframe
+        let bounds = if self.velocity_known {
+            motion_limits(&self.step_config(), self.steps(n))
+        } else {
+            (self.config.max_speed * n as f64 * self.config.period(), 0.1)
         };
+        let accept = |r: &Refined, route: Route| self.judge(r, route, &frame) != Support::Rejected;
+        // 1. the local map from the constant-velocity prediction; 2. wider, around the last pose
+        let mut found = None;
+        let mut fallback = None;
+        let wider = (bounds.0 + self.velocity.translation.vector.norm(), bounds.1 + self.velocity.rotation.angle());
+        for (guess, b) in [(predicted, bounds), (self.kf_from_last.inverse(), wider)] {
+            if let Some((r, ransac)) = self.track_from(&map, &frame, &guess, b)? {
+                fallback.get_or_insert(r.pose);
+                if accept(&r, Route::Motion) {
+                    found = Some((r, ransac, Route::Motion));
+                    break;
+                }
+            }
+        }
+        // 3. relocalisation
+        if found.is_none() {
+            let (r, first) = self.relocalise(&map, &frame, &accept)?;
+            found = r;
+            fallback = fallback.or(first);
+        }
+        let support = found.as_ref().map(|(r, _, route)| self.judge(r, *route, &frame));
+        let was_measured = !self.failed;
+        let (state, curr_from_ref, refined) = match (found, support) {
+            (Some((r, ransac, route)), Some(s)) if s != Support::Rejected => {
+                let state = if !was_measured {
+                    tracing::info!(frame = frame_index, inliers = r.inliers.len(), ?route, "relocalised");
+                    TrackState::Relocalised { inliers: ransac }
+                } else if route != Route::Motion {
+                    tracing::info!(frame = frame_index, inliers = r.inliers.len(), ?route, "relocalised");
+                    TrackState::Relocalised { inliers: ransac }
+                } else if s == Support::Full {
+                    TrackState::Tracked { inliers: ransac }
+                } else {
+                    TrackState::Weak { inliers: ransac }
+                };
+                (state, r.pose, Some(r))
+            }
+            _ => (if was_measured { TrackState::Lost } else { TrackState::Predicted }, predicted, None),
+        };
+        let kf_from_curr = curr_from_ref.inverse();
+        let measured = refined.is_some();
         // matched map points: (id, keypoint)
-        let mut carried: Vec<(PointId, usize)> = inliers.iter().map(|&(p, c)| (prev.ids[p], c)).collect();
-        let kf_from_curr = curr_from_prev.inverse();
-        let tracked = state != TrackState::Lost;
-        if tracked {
-            self.velocity = self.kf_from_last.inverse() * kf_from_curr;
+        let carried: Vec<(PointId, usize)> =
+            refined.as_ref().map(|r| r.inliers.iter().map(|&(i, c)| (map.ids[i], c)).collect()).unwrap_or_default();
+        if let Some(r) = &refined {
+            if matches!(state, TrackState::Tracked { .. } | TrackState::Weak { .. }) && n == self.gap {
+                self.velocity = self.kf_from_last.inverse() * kf_from_curr;
+                self.velocity_known = true;
+                self.velocity_gap = self.gap;
+            }
+            if matches!(state, TrackState::Tracked { .. }) && self.pairs.len() < self.config.keep_disparity_pairs {
+                let (a, b): (Vec<[f64; 3]>, Vec<[f64; 3]>) = r
+                    .inliers
+                    .iter()
+                    .filter_map(|&(i, c)| {
+                        let (_, o) = map.views[i].iter().find(|(slot, o)| *slot == 0 && o[2].is_finite())?;
+                        Some((*o, frame.obs[frame.of_keypoint.get(c).copied().flatten()?]))
+                    })
+                    .unzip();
+                self.pairs.push(DisparityPair { keyframe: a, frame: b, frame_from_keyframe: curr_from_ref });
+            }
+            self.kf_from_measured = kf_from_curr;
+            (self.measured_index, self.failed) = (frame_index, false);
+        } else {
+            self.failed = true;
+            tracing::warn!(frame = frame_index, stereo_points, state = state.name(), "no pose accepted");
         }
-        if matches!(state, TrackState::Tracked { .. }) && self.pairs.len() < self.config.keep_disparity_pairs {
-            let (a, b): (Vec<[f64; 3]>, Vec<[f64; 3]>) = inliers
-                .iter()
-                .filter(|&&(p, _)| prev.obs[p][2].is_finite())
-                .filter_map(|&(p, c)| Some((prev.obs[p], frame.obs[frame.of_keypoint.get(c).copied().flatten()?])))
-                .unzip();
-            self.pairs.push(DisparityPair { keyframe: a, frame: b, frame_from_keyframe: curr_from_prev });
-        }
+        let tracked_map_points = refined.as_ref().map_or(0, |r| r.inliers.len());
+        // share of the reference keyframe's points tracked in this frame (its overlap with the keyframe)
+        let overlap = refined.as_ref().map_or(0.0, |r| {
+            let of_reference = r.inliers.iter().filter(|&&(i, _)| map.views[i].iter().any(|v| v.0 == 0)).count();
+            let total = self.reference.as_ref().map_or(0, |k| k.frame.valid.iter().filter(|v| **v).count());
+            of_reference as f64 / total.max(1) as f64
+        });
+        let rms = refined.as_ref().map_or(f64::NAN, |r| r.rms);
         let world_from_curr = world_from_ref * kf_from_curr;
         self.since_kf += 1;
+        let lost_too_long = !measured
+            && n as f64 * self.config.period() > self.config.max_lost_s
+            && stereo_points >= self.config.min_inliers;
         let want_keyframe = match state {
-            TrackState::Tracked { inliers } => {
-                let base = *self.kf_inliers.get_or_insert(inliers);
-                (inliers as f64) < self.config.keyframe_inlier_ratio * base as f64
+            TrackState::Tracked { .. } => {
+                let base = *self.kf_inliers.get_or_insert(tracked_map_points);
+                (tracked_map_points as f64) < self.config.keyframe_inlier_ratio * base as f64
                     || self.since_kf >= self.config.keyframe_max_gap
+                    || overlap < self.config.keyframe_overlap
             }
-            _ => true,
+            TrackState::Weak { .. } | TrackState::Relocalised { .. } => true,
+            _ => lost_too_long,
         };
-        // keep the old keyframe when this frame has too few points of its own (black frame, blur)
-        let keyframe = if want_keyframe && (frame.points.len() >= self.config.min_inliers || tracked) {
-            if matches!(state, TrackState::Tracked { .. }) && !self.local.is_empty() {
-                // the local map's points re-observed here keep their ids; the pose stays the two-frame
-                // adjustment's (refining it against the older keyframes' points, held fixed, made it
-                // worse: docs/system.md)
-                if let Some(r) = self.reference.as_ref() {
-                    let extra = self.search_local(&r.frame, r.world_from_kf, &curr_from_prev, &carried, &lp, &ld);
-                    carried.extend(extra);
-                }
-            }
-            // a lost frame starts a new map segment: no parent, no carried points
-            let parent = tracked.then_some((ref_id, kf_from_curr));
-            if !tracked {
+        let keyframe = if want_keyframe {
+            // a frame lost for too long starts a new map segment: no parent, no carried points, at the
+            // first unverified candidate pose when there was one, else at the motion prediction
+            let (parent, world_from_kf) = if measured {
+                ((Some((ref_id, kf_from_curr))), world_from_curr)
+            } else {
                 tracing::warn!(frame = frame_index, "tracking lost: new map segment from this frame");
-            }
+                (None, world_from_ref * fallback.unwrap_or(curr_from_ref).inverse())
+            };
             let mut frame = frame;
-            let earlier = match (tracked && self.config.triangulate, self.reference.as_ref()) {
+            let earlier = match (measured && self.config.triangulate, self.reference.as_ref()) {
                 (true, Some(r)) => Self::triangulate(
                     &self.rig.k,
                     &r.frame,
                     &mut frame,
-                    &curr_from_prev,
+                    &curr_from_ref,
                     &carried,
                     self.config.triangulate_parallax_deg,
                 )
@@ -673,16 +1385,27 @@ impl StereoVo {
                 .collect(),
                 _ => Vec::new(),
             };
-            Some(self.take_keyframe(frame, frame_index, world_from_curr, parent, &carried, &earlier))
+            let kf = self.take_keyframe(frame, frame_index, world_from_kf, parent, &carried, &earlier);
+            if !measured {
+                (self.measured_index, self.failed) = (frame_index, false);
+                self.velocity_known = false;
+            }
+            Some(kf)
         } else {
             self.kf_from_last = kf_from_curr;
             None
         };
+        let (reference, world_from_camera) = match &keyframe {
+            Some(kf) if !measured => ((kf.id, Isometry3::identity()), kf.world_from_camera),
+            _ => ((ref_id, kf_from_curr), world_from_curr),
+        };
         Ok(TrackedFrame {
-            world_from_camera: world_from_curr,
-            reference: (ref_id, kf_from_curr),
+            world_from_camera,
+            reference,
             state,
             stereo_points,
+            tracked_map_points,
+            reprojection_rms_px: rms,
             keyframe,
             times: times(Instant::now()),
         })
@@ -773,49 +1496,6 @@ impl StereoVo {
         out
     }
 
-    /// Points of the older keyframes (the local map) not matched yet, projected with the current pose and
-    /// matched within `local_radius`: `(map point, keypoint)`.
-    fn search_local(
-        &self,
-        reference: &Frame,
-        world_from_ref: Isometry3<f64>,
-        curr_from_ref: &Isometry3<f64>,
-        matched: &[(PointId, usize)],
-        lp: &[(f64, f64)],
-        ld: &[[u8; 32]],
-    ) -> Vec<(PointId, usize)> {
-        let mut seen: std::collections::HashSet<PointId> = matched.iter().map(|m| m.0).collect();
-        seen.extend(reference.ids.iter().copied());
-        let used: std::collections::HashSet<usize> = matched.iter().map(|m| m.1).collect();
-        let ref_from_world = world_from_ref.inverse();
-        let mut candidates = Frame {
-            points: Vec::new(),
-            desc: Vec::new(),
-            obs: Vec::new(),
-            of_keypoint: Vec::new(),
-            ids: Vec::new(),
-            valid: Vec::new(),
-            keypoints: Vec::new(),
-            keypoint_desc: Vec::new(),
-        };
-        for kf in &self.local {
-            let to_ref = ref_from_world * kf.world_from_kf;
-            for (i, id) in kf.frame.ids.iter().enumerate() {
-                if kf.frame.valid[i] && seen.insert(*id) {
-                    candidates.points.push((to_ref * nalgebra::Point3::from(kf.frame.points[i])).coords);
-                    candidates.desc.push(kf.frame.desc[i]);
-                    candidates.ids.push(*id);
-                    candidates.valid.push(true);
-                }
-            }
-        }
-        self.guided_match(&candidates, curr_from_ref, lp, ld, self.config.local_radius)
-            .into_iter()
-            .filter(|&(_, c)| !used.contains(&c))
-            .map(|(i, c)| (candidates.ids[i], c))
-            .collect()
-    }
-
     /// Forward-backward Lucas-Kanade flow of the previous frame's keypoints inside `regions` into the
     /// current frame; pairs whose round trip misses by more than a pixel are dropped.
     pub fn optical_flow(&self, regions: &[BBox]) -> Result<Vec<PointPair>, FrontendError> {
@@ -861,102 +1541,20 @@ impl StereoVo {
         }
         Ok(out)
     }
+}
 
-    /// PnP RANSAC on the matches, then a two-frame stereo bundle adjustment on the inliers; returns the
-    /// pose and the inlier matches.
-    fn pnp(
-        &self,
-        prev: &Frame,
-        curr: &Frame,
-        lp: &[(f64, f64)],
-        matches: &[(usize, usize)],
-        guess: &Isometry3<f64>,
-        (ransac_px, iterations, min_inliers): (f32, i32, usize),
-    ) -> Result<Option<Solved>, FrontendError> {
-        if matches.len() < min_inliers {
-            return Ok(None);
+/// Apply a mapper's correction to a keyframe it concerns: pose, refined points, culled points.
+fn apply_correction(kf: &mut Reference, c: &KeyframeCorrection) {
+    kf.world_from_kf = c.world_from_camera;
+    let kf_from_world = c.world_from_camera.inverse();
+    let refined: HashMap<PointId, Vector3<f64>> = c.points.iter().copied().collect();
+    let culled: HashSet<PointId> = c.culled.iter().copied().collect();
+    for (i, id) in kf.frame.ids.iter().enumerate() {
+        if culled.contains(id) {
+            kf.frame.valid[i] = false;
+        } else if let Some(x) = refined.get(id) {
+            kf.frame.points[i] = (kf_from_world * nalgebra::Point3::from(*x)).coords;
         }
-        let obj: core::Vector<core::Point3f> = matches
-            .iter()
-            .map(|&(p, _)| {
-                let x = prev.points[p];
-                core::Point3f::new(x.x as f32, x.y as f32, x.z as f32)
-            })
-            .collect();
-        let img: core::Vector<core::Point2f> =
-            matches.iter().map(|&(_, c)| core::Point2f::new(lp[c].0 as f32, lp[c].1 as f32)).collect();
-        let k = &self.rig.k;
-        let kmat = Mat::from_slice_2d(&[[k.fx, 0.0, k.cx], [0.0, k.fy, k.cy], [0.0, 0.0, 1.0]])?;
-        let mut rvec = Mat::default();
-        let mut tvec = Mat::default();
-        let mut inliers = core::Vector::<i32>::new();
-        let ok = calib3d::solve_pnp_ransac(
-            &obj,
-            &img,
-            &kmat,
-            &core::no_array(),
-            &mut rvec,
-            &mut tvec,
-            false,
-            iterations,
-            ransac_px,
-            0.999,
-            &mut inliers,
-            if iterations > 200 { calib3d::SOLVEPNP_AP3P } else { calib3d::SOLVEPNP_EPNP },
-        )?;
-        tracing::trace!(matches = matches.len(), inliers = inliers.len(), "PnP RANSAC");
-        if !ok || inliers.len() < min_inliers {
-            return Ok(None);
-        }
-        let mut rmat = Mat::default();
-        calib3d::rodrigues(&rvec, &mut rmat, &mut core::no_array())?;
-        let r = Matrix3::from_fn(|i, j| *rmat.at_2d::<f64>(i as i32, j as i32).unwrap_or(&0.0));
-        let t = Vector3::new(*tvec.at::<f64>(0)?, *tvec.at::<f64>(1)?, *tvec.at::<f64>(2)?);
-        let mut curr_from_prev = se3::isometry_from_parts(&r, &t);
-        if !curr_from_prev.translation.vector.iter().all(|v| v.is_finite()) {
-            curr_from_prev = *guess;
-        }
-        // two-frame stereo bundle adjustment on the inliers: previous camera fixed (the gauge), current
-        // camera free, points free (eliminated); stereo observations where a frame has them
-        let mut values = Values::new();
-        let k_prev = values.add(Var::Pose(Isometry3::identity()));
-        let k_curr = values.add(Var::Pose(curr_from_prev.inverse()));
-        let mut graph = Graph::new();
-        graph.fix(k_prev);
-        let b = self.rig.baseline;
-        for idx in inliers.iter() {
-            let (p, c) = matches[idx as usize];
-            let kx = values.add(Var::Point(prev.points[p]));
-            graph.eliminate(kx);
-            let o = prev.obs[p];
-            let _ = if o[2].is_nan() {
-                graph.add(MonoReprojection::new(k_prev, kx, *k, [o[0], o[1]]), NoiseModel::Isotropic(1.0), Huber(2.0))
-            } else {
-                graph.add(StereoReprojection::new(k_prev, kx, *k, b, o), NoiseModel::Isotropic(1.0), Huber(2.0))
-            };
-            match curr.of_keypoint.get(c).copied().flatten() {
-                Some(q) => {
-                    let _ = graph.add(
-                        StereoReprojection::new(k_curr, kx, *k, b, curr.obs[q]),
-                        NoiseModel::Isotropic(1.0),
-                        Huber(2.0),
-                    );
-                }
-                None => {
-                    let _ = graph.add(
-                        MonoReprojection::new(k_curr, kx, *k, [lp[c].0, lp[c].1]),
-                        NoiseModel::Isotropic(1.0),
-                        Huber(2.0),
-                    );
-                }
-            }
-        }
-        if self.optimizer.optimize(&graph, &mut values, &Options::with_max_iterations(20), None).is_ok() {
-            if let Some(p) = values.pose(k_curr) {
-                curr_from_prev = p.inverse();
-            }
-        }
-        Ok(Some((curr_from_prev, inliers.iter().map(|i| matches[i as usize]).collect())))
     }
 }
 
@@ -973,21 +1571,11 @@ impl StereoTracker for StereoVo {
 
     fn correct(&mut self, c: &KeyframeCorrection) {
         for kf in self.local.iter_mut().filter(|k| k.id == c.id) {
-            kf.world_from_kf = c.world_from_camera;
+            apply_correction(kf, c);
         }
         let Some(r) = self.reference.as_mut() else { return };
         if r.id == c.id {
-            r.world_from_kf = c.world_from_camera;
-            let kf_from_world = c.world_from_camera.inverse();
-            let refined: std::collections::HashMap<PointId, Vector3<f64>> = c.points.iter().copied().collect();
-            let culled: std::collections::HashSet<PointId> = c.culled.iter().copied().collect();
-            for (i, id) in r.frame.ids.iter().enumerate() {
-                if culled.contains(id) {
-                    r.frame.valid[i] = false;
-                } else if let Some(x) = refined.get(id) {
-                    r.frame.points[i] = (kf_from_world * nalgebra::Point3::from(*x)).coords;
-                }
-            }
+            apply_correction(r, c);
         } else if let Some((parent, parent_from_ref)) = r.parent {
             if parent == c.id {
                 r.world_from_kf = c.world_from_camera * parent_from_ref;
@@ -1014,6 +1602,8 @@ mod tests {
             of_keypoint: vec![None; n],
             ids: Vec::new(),
             valid: Vec::new(),
+            octave: vec![0; n],
+            angle: vec![0.0; n],
             keypoints,
             keypoint_desc: desc,
         }
@@ -1065,5 +1655,173 @@ mod tests {
         let mut again = frame_of(frame.keypoints.clone(), frame.keypoint_desc.clone());
         let carried: Vec<(PointId, usize)> = (0..again.keypoints.len()).map(|c| (c as PointId, c)).collect();
         assert!(StereoVo::triangulate(&k, &reference, &mut again, &curr_from_ref, &carried, 3.0).is_empty());
+    }
+
+    /// A synthetic keyframe: stereo observations of `points` (camera frame) with these ids.
+    fn keyframe_of(k: &Intrinsics, b: f64, points: &[Vector3<f64>], ids: &[PointId], desc: &[[u8; 32]]) -> Frame {
+        let obs: Vec<[f64; 3]> = points
+            .iter()
+            .map(|x| {
+                let (u, v) = (k.fx * x.x / x.z + k.cx, k.fy * x.y / x.z + k.cy);
+                [u, v, u - k.fx * b / x.z]
+            })
+            .collect();
+        let n = points.len();
+        Frame {
+            points: points.to_vec(),
+            desc: desc.to_vec(),
+            obs: obs.clone(),
+            of_keypoint: (0..n).map(Some).collect(),
+            ids: ids.to_vec(),
+            valid: vec![true; n],
+            keypoints: obs.iter().map(|o| (o[0], o[1])).collect(),
+            keypoint_desc: desc.to_vec(),
+            octave: vec![0; n],
+            angle: vec![10.0; n],
+        }
+    }
+
+    /// Local-map tracking: points the reference keyframe did not see (lost in that frame) are found
+    /// again from an older covisible keyframe, and the refinement recovers the pose; the motion guard
+    /// accepts the true pose and rejects it moved by 5 m.
+    #[test]
+    fn local_map_recovers_points_lost_for_one_frame_and_the_guard_rejects_a_5m_jump() {
+        let k = Intrinsics::new(707.0, 707.0, 601.9, 183.1);
+        let b = 0.54;
+        let mut rng = SimRng::new(11);
+        let world: Vec<Vector3<f64>> = (0..240)
+            .map(|_| {
+                // inside the view of every camera below (the nearest is 5.6 m away)
+                let z = rng.uniform(8.0, 40.0);
+                Vector3::new(rng.uniform(-0.4, 0.4) * z, rng.uniform(-0.15, 0.15) * z, z)
+            })
+            .collect();
+        let desc: Vec<[u8; 32]> = (0..world.len())
+            .map(|_| std::array::from_fn(|_| (rng.uniform(0.0, 256.0) as u32).min(255) as u8))
+            .collect();
+        let ids: Vec<PointId> = (0..world.len() as PointId).collect();
+        // keyframe 0 at the origin sees every point; keyframe 1, 1.2 m ahead, misses the last 30
+        let world_from = |z: f64| Isometry3::translation(0.0, 0.0, z);
+        let in_camera = |pose: &Isometry3<f64>, pts: &[Vector3<f64>]| -> Vec<Vector3<f64>> {
+            pts.iter().map(|x| (pose.inverse() * nalgebra::Point3::from(*x)).coords).collect()
+        };
+        let kf0 = keyframe_of(&k, b, &in_camera(&world_from(0.0), &world), &ids, &desc);
+        let seen = world.len() - 30;
+        let kf1 = keyframe_of(&k, b, &in_camera(&world_from(1.2), &world[..seen]), &ids[..seen], &desc[..seen]);
+        let make = |local_keyframes: usize| {
+            let mut vo =
+                StereoVo::new(StereoRig { k, baseline: b }, VoConfig { local_keyframes, ..VoConfig::default() }, {
+                    std::sync::Arc::new(slam_lm::LevenbergMarquardt::default())
+                })
+                .expect("ORB");
+            vo.image_size = (1241.0, 376.0);
+            vo.reference = Some(Reference {
+                frame: keyframe_of(&k, b, &in_camera(&world_from(1.2), &world[..seen]), &ids[..seen], &desc[..seen]),
+                id: 1,
+                world_from_kf: world_from(1.2),
+                parent: Some((0, world_from(1.2))),
+            });
+            vo.local.push_front(Reference {
+                frame: keyframe_of(&k, b, &in_camera(&world_from(0.0), &world), &ids, &desc),
+                id: 0,
+                world_from_kf: world_from(0.0),
+                parent: None,
+            });
+            vo
+        };
+        let _ = (&kf0, &kf1);
+        // the current frame, 2.4 m from the origin, sees every point
+        let truth = world_from(2.4);
+        let frame = keyframe_of(&k, b, &in_camera(&truth, &world), &vec![0; world.len()], &desc);
+        let curr_from_ref = truth.inverse() * world_from(1.2);
+        for (local_keyframes, expect_recovered) in [(0, false), (4, true)] {
+            let vo = make(local_keyframes);
+            let map = vo.local_map();
+            let skip = vec![false; map.points.len()];
+            let taken = vec![false; frame.keypoints.len()];
+            // the prediction is off by 0.3 m and a little turn
+            let guess = Isometry3::new(Vector3::new(0.1, 0.0, 0.3), Vector3::new(0.0, 0.01, 0.0)) * curr_from_ref;
+            let matches = vo.search(&map, &guess, &frame, &|c, o| vo.window(c, o, (0.35, 0.03)), &skip, &taken);
+            let recovered: Vec<PointId> =
+                matches.iter().map(|&(i, _)| map.ids[i]).filter(|&id| id >= seen as PointId).collect();
+            assert_eq!(!recovered.is_empty(), expect_recovered, "{local_keyframes} keyframes: {recovered:?}");
+            for &(i, c) in &matches {
+                assert_eq!(map.ids[i] as usize, c, "every match is right");
+            }
+            if !expect_recovered {
+                continue;
+            }
+            assert_eq!(recovered.len(), 30, "all the points the reference missed");
+            let r = vo.refine(&map, &frame, &matches, &guess).expect("refined");
+            let err = r.pose * curr_from_ref.inverse();
+            assert!(err.translation.vector.norm() < 1e-3 && err.rotation.angle() < 1e-5, "{err:?}");
+            assert_eq!(r.inliers.len(), world.len(), "all inliers");
+            assert!(r.rms < 1e-3, "rms {}", r.rms);
+            // the motion guard: the camera moves 1.2 m per frame and the last frame was the reference
+            let mut vo = vo;
+            vo.velocity = Isometry3::translation(0.0, 0.0, 1.2);
+            vo.velocity_known = true;
+            assert_eq!(vo.judge(&r, Route::Motion, &frame), Support::Full);
+            let jump = Refined {
+                pose: Isometry3::translation(3.0, 0.0, -4.0) * r.pose,
+                inliers: r.inliers.clone(),
+                rms: r.rms,
+            };
+            assert_eq!(vo.judge(&jump, Route::Motion, &frame), Support::Rejected, "a 5 m jump");
+        }
+    }
+
+    #[test]
+    fn motion_limits_follow_the_frame_period_and_vehicle_physics() {
+        for period in [0.1, 0.2, 0.3, 0.4] {
+            let config = VoConfig { frame_period_s: period, ..VoConfig::default() };
+            let last = Isometry3::translation(0.0, 0.0, 100.0);
+            let predicted = last * Isometry3::translation(0.0, 0.0, 15.0 * period);
+            // hard braking (0.9 g) during the frame: accepted
+            let braking = predicted * Isometry3::translation(0.0, 0.0, -0.5 * 9.0 * period * period);
+            assert!(motion_consistent(&config, &braking, &predicted, &last, 1.0, true), "{period}");
+            // a 5 m jump in any direction: rejected
+            for d in [Vector3::new(0.0, 0.0, 5.0), Vector3::new(5.0, 0.0, 0.0), Vector3::new(3.0, 0.0, -4.0)] {
+                let jump = Isometry3::translation(d.x, d.y, d.z) * predicted;
+                assert!(!motion_consistent(&config, &jump, &predicted, &last, 1.0, true), "{period} {d}");
+            }
+            // a 20° turn within one frame: rejected
+            let turn = predicted * Isometry3::rotation(Vector3::new(0.0, 20f64.to_radians(), 0.0));
+            assert!(!motion_consistent(&config, &turn, &predicted, &last, 1.0, true), "{period}");
+            // while the velocity is unknown only the speed limit (50 m/s) applies
+            let fast = last * Isometry3::translation(0.0, 0.0, 40.0 * period);
+            let too_fast = last * Isometry3::translation(0.0, 0.0, 60.0 * period);
+            assert!(motion_consistent(&config, &fast, &last, &last, 1.0, false));
+            assert!(!motion_consistent(&config, &too_fast, &last, &last, 1.0, false));
+        }
+        // the limits grow with the frames since the last measured pose
+        let c = VoConfig::default();
+        assert!(
+            motion_limits(&c, 3.0).0 > motion_limits(&c, 1.0).0 && motion_limits(&c, 3.0).1 > motion_limits(&c, 1.0).1
+        );
+    }
+
+    #[test]
+    fn support_needs_inliers_spread_and_small_error() {
+        let c = VoConfig::default();
+        assert_eq!(StereoVo::support(&c, 200, 10, 0.8), Support::Full);
+        assert_eq!(StereoVo::support(&c, 20, 10, 0.8), Support::Weak);
+        assert_eq!(StereoVo::support(&c, 200, 4, 0.8), Support::Weak);
+        assert_eq!(StereoVo::support(&c, 200, 2, 0.8), Support::Rejected);
+        assert_eq!(StereoVo::support(&c, 10, 10, 0.8), Support::Rejected);
+        assert_eq!(StereoVo::support(&c, 200, 10, 2.5), Support::Rejected);
+        assert_eq!(StereoVo::support(&c, 200, 10, f64::NAN), Support::Rejected);
+        assert_eq!(spread_cells([(1.0, 1.0), (1240.0, 375.0), (620.0, 10.0)].into_iter(), (1241.0, 376.0)), 3);
+    }
+
+    #[test]
+    fn orientation_check_drops_matches_that_turn_against_the_rest() {
+        // most turn by 2°, some by −1° (the neighbouring bin across 0), four by 90°
+        let mut m: Vec<(usize, usize, f32)> = (0..50).map(|i| (i, i, 2.0)).collect();
+        m.extend((50..70).map(|i| (i, i, -1.0)));
+        m.extend((70..74).map(|i| (i, i, 90.0)));
+        let kept = orientation_filter(m);
+        assert_eq!(kept.len(), 70, "{kept:?}");
+        assert!(kept.iter().all(|&(i, _)| i < 70));
     }
 }

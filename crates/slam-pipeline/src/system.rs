@@ -125,6 +125,10 @@ pub struct FrameRecord {
     pub state: Option<TrackState>,
     /// The frame became a keyframe.
     pub keyframe: bool,
+    /// Map points tracked in the frame (0 when no pose was measured or the frame was unreadable).
+    pub tracked_map_points: usize,
+    /// RMS reprojection error of the tracked map points, pixels (NaN when none).
+    pub reprojection_rms_px: f64,
     /// Detections used.
     pub detections: Vec<Detection>,
     /// Object of each detection.
@@ -166,8 +170,14 @@ pub struct RunCounts {
     pub keyframes: usize,
     /// Frames whose images could not be read (pose held).
     pub unreadable: usize,
-    /// Frames where tracking failed.
+    /// Frames tracked with full support.
+    pub tracked: usize,
+    /// Frames tracked with less support (pose used, marked weak).
+    pub weak: usize,
+    /// Frames where tracking failed (the first frame of a failure; pose predicted).
     pub lost: usize,
+    /// Frames after a lost one that were not recovered either (pose predicted).
+    pub predicted: usize,
     /// Frames recovered by relocalisation.
     pub relocalised: usize,
     /// Map segments started after a failure (the first one not counted).
@@ -482,6 +492,8 @@ pub fn run(
                         index: i,
                         state: None,
                         keyframe: false,
+                        tracked_map_points: 0,
+                        reprojection_rms_px: f64::NAN,
                         detections: Vec::new(),
                         tracks: Vec::new(),
                         times,
@@ -500,12 +512,15 @@ pub fn run(
             times.stereo = tf.times.stereo;
             times.tracking = tf.times.tracking;
             match tf.state {
+                TrackState::Initialised => {}
+                TrackState::Tracked { .. } => counts.tracked += 1,
+                TrackState::Weak { .. } => counts.weak += 1,
                 TrackState::Lost => {
                     counts.lost += 1;
                     tracing::warn!(frame = i, stereo_points = tf.stereo_points, "tracking lost");
                 }
+                TrackState::Predicted => counts.predicted += 1,
                 TrackState::Relocalised { .. } => counts.relocalised += 1,
-                _ => {}
             }
             let t = Instant::now();
             let flow = if prev_boxes.is_empty() {
@@ -557,13 +572,7 @@ pub fn run(
                 frame: i,
                 keyframe: tf.reference.0,
                 relative: pose_to_array(&tf.reference.1),
-                state: match tf.state {
-                    TrackState::Initialised => "initialised",
-                    TrackState::Tracked { .. } => "tracked",
-                    TrackState::Lost => "lost",
-                    TrackState::Relocalised { .. } => "relocalised",
-                }
-                .into(),
+                state: tf.state.name().into(),
             });
             let is_kf = tf.keyframe.is_some();
             if let Some(kf) = tf.keyframe {
@@ -576,7 +585,16 @@ pub fn run(
             }
             times.interval = last_done.elapsed().as_secs_f64() * 1e3;
             last_done = Instant::now();
-            let record = FrameRecord { index: i, state: Some(tf.state), keyframe: is_kf, detections, tracks, times };
+            let record = FrameRecord {
+                index: i,
+                state: Some(tf.state),
+                keyframe: is_kf,
+                tracked_map_points: tf.tracked_map_points,
+                reprojection_rms_px: tf.reprojection_rms_px,
+                detections,
+                tracks,
+                times,
+            };
             on_frame(&record);
             records.push(record);
         }

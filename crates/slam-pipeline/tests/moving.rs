@@ -117,6 +117,8 @@ impl StereoTracker for Scripted {
             reference: (ref_id, if frame == 0 { Isometry3::identity() } else { relative }),
             state: if frame == 0 { TrackState::Initialised } else { TrackState::Tracked { inliers: 100 } },
             stereo_points: 100,
+            tracked_map_points: 100,
+            reprojection_rms_px: 0.5,
             keyframe,
             times: StageTimes::default(),
         })
