@@ -64,6 +64,30 @@ pub(crate) fn parse_exact(path: &Path, line: usize, fields: &[&str], n: usize) -
     parse_numbers(path, line, fields)
 }
 
+/// The lines of a file whose line k belongs to frame k (times, timestamps), with their 1-based line
+/// numbers. Trailing blank lines are fine; a blank line followed by more lines is an error, because
+/// skipping it would give every later frame its neighbour's line.
+pub(crate) fn frame_lines<'a>(path: &Path, text: &'a str) -> Result<Vec<(usize, &'a str)>, DatasetError> {
+    let mut out = Vec::new();
+    let mut blank: Option<usize> = None;
+    for (i, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            blank.get_or_insert(i + 1);
+            continue;
+        }
+        if let Some(b) = blank {
+            return Err(DatasetError::Parse {
+                path: path.to_path_buf(),
+                line: b,
+                message: "blank line between frame lines (line k is frame k: skipping it would shift every later frame)"
+                    .into(),
+            });
+        }
+        out.push((i + 1, line));
+    }
+    Ok(out)
+}
+
 pub(crate) fn parse_numbers(path: &Path, line: usize, fields: &[&str]) -> Result<Vec<f64>, DatasetError> {
     fields
         .iter()

@@ -97,6 +97,12 @@ fn every_reader_names_file_and_line() {
         ),
         ("ts-word.txt", unit(parse_timestamps(&p("ts-word.txt"), "2011-09-26 13:xx:25.9\n")), Some(1), "bad minute"),
         ("ts-inf.txt", unit(parse_timestamps(&p("ts-inf.txt"), "2011-09-26 13:02:inf\n")), Some(1), "non-finite"),
+        (
+            "ts-gap.txt",
+            unit(parse_timestamps(&p("ts-gap.txt"), "2011-09-26 13:02:25.9\n\n2011-09-26 13:02:26.0\n")),
+            Some(2),
+            "blank line between frame lines",
+        ),
         // KITTI poses
         (
             "poses-inf.txt",

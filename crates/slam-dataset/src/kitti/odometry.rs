@@ -216,8 +216,8 @@ impl OdometrySequence {
         let times = if times_path.exists() {
             let text = read_text(&times_path)?;
             let mut t = Vec::new();
-            for (i, l) in text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty()) {
-                t.extend(crate::parse_numbers(&times_path, i + 1, &[l.trim()])?);
+            for (n, l) in crate::frame_lines(&times_path, &text)? {
+                t.extend(crate::parse_numbers(&times_path, n, &[l.trim()])?);
             }
             values_of_ids(&t, &pairs.ids, &times_path, "times")?
         } else {

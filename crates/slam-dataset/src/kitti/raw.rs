@@ -94,11 +94,8 @@ pub fn parse_timestamps(path: &Path, text: &str) -> Result<Vec<f64>, DatasetErro
     let mut out = Vec::new();
     let mut day_offset = 0.0;
     let mut last = f64::NEG_INFINITY;
-    for (i, line) in text.lines().enumerate() {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let err = |m: &str| DatasetError::Parse { path: path.to_path_buf(), line: i + 1, message: m.into() };
+    for (n, line) in crate::frame_lines(path, text)? {
+        let err = |m: &str| DatasetError::Parse { path: path.to_path_buf(), line: n, message: m.into() };
         let time = line.split_whitespace().nth(1).ok_or_else(|| err("expected 'date time'"))?;
         let parts: Vec<&str> = time.split(':').collect();
         if parts.len() != 3 {
