@@ -14,7 +14,7 @@
 //! follows the classical rule: `Δ ← max(Δ, 3‖δ‖)` when `ρ > 0.75`, `Δ ← ‖δ‖ / 4` when `ρ < 0.25`
 //! (and after a rejected step). A trial point where a factor cannot be evaluated is a rejected step.
 
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use slam_optim::{
     linear::{LinearSystem, Linearization, Step},
@@ -115,29 +115,11 @@ impl Optimizer for DogLeg {
     ) -> Result<Summary, OptimError> {
         let start = Instant::now();
         let (p, o) = (self.params, options);
-        let sys = LinearSystem::new(graph, values, o.dense_limit)?;
-        let mut lin = sys
-            .linearize(graph, values)
-            .map_err(|(factor, source)| OptimError::InitialEvaluation { factor, source })?;
-        let mut cost = lin.cost;
-        if !cost.is_finite() {
-            return Err(OptimError::NonFiniteCost);
-        }
-        let mut summary = Summary {
-            initial_cost: cost,
-            final_cost: cost,
-            iterations: 0,
-            accepted: 0,
-            termination: Termination::MaxIterations,
-            elapsed: Duration::ZERO,
-            reduced_dim: sys.reduced_dim(),
-            sparse: sys.is_sparse(),
+        let (sys, mut lin, mut summary) = match slam_optim::linear::start(graph, values, o, start)? {
+            Ok(ready) => ready,
+            Err(done) => return Ok(done),
         };
-        if !sys.has_free_variables() {
-            summary.termination = Termination::NoFreeVariables;
-            summary.elapsed = start.elapsed();
-            return Ok(summary);
-        }
+        let mut cost = lin.cost;
         let mut radius = o.initial_radius;
         let mut mu = p.min_mu;
         // steps at the current linearisation (recomputed after every accepted step)

@@ -12,11 +12,9 @@
 //! `μ ← μ / max(1/3, 1 − (2ρ − 1)³)`; after a rejected step `μ ← μ / v`, `v ← 2v`. A failed
 //! factorisation, or a trial point where a factor cannot be evaluated, is a rejected step.
 
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
-use slam_optim::{
-    linear::LinearSystem, Graph, IterationInfo, Observer, OptimError, Optimizer, Options, Summary, Termination, Values,
-};
+use slam_optim::{Graph, IterationInfo, Observer, OptimError, Optimizer, Options, Summary, Termination, Values};
 
 /// Settings particular to Levenberg–Marquardt (the common ones are [`Options`]); defaults follow Ceres.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -73,29 +71,11 @@ impl Optimizer for LevenbergMarquardt {
     ) -> Result<Summary, OptimError> {
         let start = Instant::now();
         let (p, o) = (self.params, options);
-        let sys = LinearSystem::new(graph, values, o.dense_limit)?;
-        let mut lin = sys
-            .linearize(graph, values)
-            .map_err(|(factor, source)| OptimError::InitialEvaluation { factor, source })?;
-        let mut cost = lin.cost;
-        if !cost.is_finite() {
-            return Err(OptimError::NonFiniteCost);
-        }
-        let mut summary = Summary {
-            initial_cost: cost,
-            final_cost: cost,
-            iterations: 0,
-            accepted: 0,
-            termination: Termination::MaxIterations,
-            elapsed: Duration::ZERO,
-            reduced_dim: sys.reduced_dim(),
-            sparse: sys.is_sparse(),
+        let (sys, mut lin, mut summary) = match slam_optim::linear::start(graph, values, o, start)? {
+            Ok(ready) => ready,
+            Err(done) => return Ok(done),
         };
-        if !sys.has_free_variables() {
-            summary.termination = Termination::NoFreeVariables;
-            summary.elapsed = start.elapsed();
-            return Ok(summary);
-        }
+        let mut cost = lin.cost;
         let mut radius = o.initial_radius;
         let mut decrease = 2.0;
         loop {

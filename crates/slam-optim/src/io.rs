@@ -7,9 +7,9 @@ use nalgebra::{DMatrix, Isometry3, Quaternion, Translation3, UnitQuaternion, Vec
 
 use crate::{
     factors::{BalReprojection, Between},
+    graph::Graph,
     noise::NoiseModel,
     robust::{Huber, RobustKernel, L2},
-    graph::Graph,
     values::{BalCamera, Key, Values, Var},
 };
 

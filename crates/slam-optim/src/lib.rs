@@ -36,10 +36,8 @@ pub mod robust;
 pub mod values;
 
 pub use factor::{Factor, FactorError};
-pub use noise::NoiseModel;
-pub use robust::{Cauchy, Huber, RobustKernel, Tukey, L2};
 pub use graph::{Entry, Graph};
-pub use optimizer::{
-    IterationInfo, Observer, OptimError, Optimizer, Options, SharedOptimizer, Summary, Termination,
-};
+pub use noise::NoiseModel;
+pub use optimizer::{IterationInfo, Observer, OptimError, Optimizer, Options, SharedOptimizer, Summary, Termination};
+pub use robust::{Cauchy, Huber, RobustKernel, Tukey, L2};
 pub use values::{BalCamera, Key, Values, Var};

@@ -728,3 +728,37 @@ fn sparse_solve(pat: &Pattern, vals: &[f64], rhs: &DVector<f64>) -> Option<DVect
     llt.solve_in_place_with_conj(Conj::No, b.as_mut(), Par::Seq, MemStack::new(&mut buf));
     Some(DVector::from_fn(n, |i, _| b[(i, 0)]))
 }
+
+/// Where every trust-region backend starts: the linear system of `graph` at `values`, its first
+/// linearisation, and a [`crate::Summary`] holding the initial cost. `Ok(Err(summary))` is a finished
+/// solve (nothing is free to move); a factor that cannot be evaluated, or a non-finite cost, is an error.
+#[allow(clippy::type_complexity)]
+pub fn start(
+    graph: &Graph,
+    values: &Values,
+    options: &crate::Options,
+    started: std::time::Instant,
+) -> Result<Result<(LinearSystem, Linearization, crate::Summary), crate::Summary>, OptimError> {
+    let sys = LinearSystem::new(graph, values, options.dense_limit)?;
+    let lin =
+        sys.linearize(graph, values).map_err(|(factor, source)| OptimError::InitialEvaluation { factor, source })?;
+    if !lin.cost.is_finite() {
+        return Err(OptimError::NonFiniteCost);
+    }
+    let mut summary = crate::Summary {
+        initial_cost: lin.cost,
+        final_cost: lin.cost,
+        iterations: 0,
+        accepted: 0,
+        termination: crate::Termination::MaxIterations,
+        elapsed: std::time::Duration::ZERO,
+        reduced_dim: sys.reduced_dim(),
+        sparse: sys.is_sparse(),
+    };
+    if !sys.has_free_variables() {
+        summary.termination = crate::Termination::NoFreeVariables;
+        summary.elapsed = started.elapsed();
+        return Ok(Err(summary));
+    }
+    Ok(Ok((sys, lin, summary)))
+}
