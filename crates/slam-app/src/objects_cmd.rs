@@ -373,6 +373,29 @@ struct Row {
     yaw_within: usize,
 }
 
+/// The frame id of each line of a run's trajectory: the `frame` column of its `tracking.csv` (one row
+/// per played frame, in the trajectory's order). A run with `--frames 20..60` starts at id 20, so the
+/// line number is not the id.
+fn played_frame_ids(path: &std::path::Path, poses: usize) -> anyhow::Result<Vec<usize>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let ids = text
+        .lines()
+        .enumerate()
+        .skip(1)
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| {
+            l.split(',')
+                .next()
+                .and_then(|f| f.trim().parse::<usize>().ok())
+                .with_context(|| format!("{}:{}: no frame id in the first column: {l:?}", path.display(), i + 1))
+        })
+        .collect::<anyhow::Result<Vec<usize>>>()?;
+    if ids.len() != poses {
+        bail!("{} has {} frames, the trajectory {poses} poses: not the same run", path.display(), ids.len());
+    }
+    Ok(ids)
+}
+
 /// `slam-app eval <run folder> --labels <label_02.txt>`: score a finished run's object map.
 fn eval_run_folder(dir: &std::path::Path, a: &EvalArgs) -> anyhow::Result<()> {
     let labels_path = a.labels.as_ref().context("scoring a run folder needs --labels <label_02.txt>")?;
@@ -382,7 +405,8 @@ fn eval_run_folder(dir: &std::path::Path, a: &EvalArgs) -> anyhow::Result<()> {
     let objects = slam_eval::read_object_map(&dir.join("objects.json"))?;
     let config =
         slam_eval::ScoreConfig { min_frames: a.min_frames, static_m: a.static_m, moving_m: a.moving_m, ..Default::default() };
-    let score = slam_eval::score_run(&labels, &poses, &geometry, &objects, &config);
+    let ids = played_frame_ids(&dir.join("tracking.csv"), poses.len())?;
+    let score = slam_eval::score_run(&labels, &poses, &ids, &geometry, &objects, &config);
     print!("{}", score.report());
     let out = dir.join("objects_score.json");
     score.write_json(&out)?;
@@ -530,6 +554,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
                 vehicle = id,
                 e_trans = metrics::e_trans(e, &gt.ellipsoid),
                 e_axe = metrics::e_axe(e, &gt.ellipsoid),
+                e_yaw = metrics::e_yaw(e, &gt.ellipsoid, &(seq.poses[first].rotation * Vector3::y())),
                 frames = gt.boxes.len(),
                 first_depth = depth,
                 travel,

@@ -620,7 +620,9 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
                 })
             })
             .collect();
-        let score = slam_eval::score_run(labels, &out.poses, geometry, &objects, &slam_eval::ScoreConfig::default());
+        let ids: Vec<usize> = out.frames.iter().map(|r| r.index).collect();
+        let score =
+            slam_eval::score_run(labels, &out.poses, &ids, geometry, &objects, &slam_eval::ScoreConfig::default());
         println!("\n{}", score.report());
         score.write_json(&w.join("objects_score.json"))?;
         scored.push_str("objects_score.json, ");

@@ -936,7 +936,8 @@ fn run_scores_its_objects_against_labels_and_eval_repeats_it() {
     assert!(census.contains("moving object mapped as static 1") && census.contains("matching nothing 1"), "{text}");
     assert!(text.contains("label   3 Van") && text.contains("(static): object"), "the parked van is found: {text}");
     let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("objects_score.json")).expect("score file")).expect("json");
+        serde_json::from_str(&std::fs::read_to_string(out.join("objects_score.json")).expect("score file"))
+            .expect("json");
     assert_eq!(json["vehicles"]["found"], 1);
     assert_eq!(json["census"]["duplicate"], 0);
     let o = app().arg("eval").arg(&out).args(["--labels", labels]).output().expect("eval runs");
@@ -947,5 +948,48 @@ fn run_scores_its_objects_against_labels_and_eval_repeats_it() {
     // a run folder without --labels is a clear error
     let o = app().arg("eval").arg(&out).output().expect("eval runs");
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--labels"));
+    std::fs::remove_dir_all(&out).ok();
+}
+
+/// `run --labels --frames 20..60` on drive 0005: poses, detections and labels are matched by frame id,
+/// not by the pose's position in the run. The parked van (label 3) is the one static labelled vehicle
+/// of these frames and is found; the moving van's boxes go into one static object (moving mapped as
+/// static) and one flagged dynamic. Scoring by position (pose 0 taken as frame 0) found no static
+/// vehicle at all and called the van's object "never in view". `eval` on the folder reads the ids from
+/// tracking.csv and repeats the figures.
+#[test]
+fn labels_scoring_of_a_run_not_starting_at_frame_0_goes_by_frame_id() {
+    let out = std::env::temp_dir().join(format!("slam-app-labels-from-20-{}", std::process::id()));
+    let labels = "fixtures/kitti_tracking/0000/label_02.txt";
+    let o = app()
+        .args(["run", "fixtures/kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync", "--detector", "labels"])
+        .args(["--labels", labels, "--frames", "20..60", "--out"])
+        .arg(&out)
+        .output()
+        .expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout).to_string();
+    let line = |t: &str, start: &str| t.lines().find(|l| l.starts_with(start)).map(str::to_string).unwrap_or_default();
+    let figures = line(&text, "objects vs labels (40 frames)");
+    let census = line(&text, "static map objects");
+    assert!(figures.contains("static labelled vehicles 1, found 1 (success 1.000)"), "{text}");
+    assert!(
+        census.starts_with("static map objects 2: matched 1, duplicate 0, moving object mapped as static 1"),
+        "{text}"
+    );
+    assert!(census.contains("matching nothing 0") && !census.contains("never in view"), "{text}");
+    assert!(text.contains("label   3 Van         40 frames") && text.contains("(static): object"), "{text}");
+    let o = app().arg("eval").arg(&out).args(["--labels", labels]).output().expect("eval runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let again = String::from_utf8_lossy(&o.stdout).to_string();
+    assert_eq!(line(&again, "objects vs labels"), figures, "{again}");
+    assert_eq!(line(&again, "static map objects"), census, "{again}");
+    // a tracking.csv that does not belong to the trajectory is refused, naming the file
+    let csv = out.join("tracking.csv");
+    let rows = std::fs::read_to_string(&csv).expect("tracking.csv");
+    std::fs::write(&csv, rows.lines().take(10).collect::<Vec<_>>().join("\n")).expect("write");
+    let o = app().arg("eval").arg(&out).args(["--labels", labels]).output().expect("eval runs");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("tracking.csv") && err.contains("not the same run"), "{err}");
     std::fs::remove_dir_all(&out).ok();
 }

@@ -52,7 +52,14 @@ pub struct ScoreConfig {
 
 impl Default for ScoreConfig {
     fn default() -> Self {
-        Self { match_iou: 0.3, dont_care_cover: 0.5, static_m: 1.0, moving_m: 3.0, min_frames: 10, yaw_within_deg: 15.0 }
+        Self {
+            match_iou: 0.3,
+            dont_care_cover: 0.5,
+            static_m: 1.0,
+            moving_m: 3.0,
+            min_frames: 10,
+            yaw_within_deg: 15.0,
+        }
     }
 }
 
@@ -214,10 +221,13 @@ fn label_ellipsoid(l: &TrackingLabel, pose: &Isometry3<f64>, centre: Vector3<f64
     Ellipsoid::new(Isometry3::from_parts(Translation3::from(centre), rot), Vector3::new(len / 2.0, h / 2.0, w / 2.0))
 }
 
-/// Score a run's objects (`poses`: world from the run's camera, one per frame of the run).
+/// Score a run's objects. `poses`: world from the run's camera, one per played frame; `frame_ids`: the
+/// sequence's frame id of each (a run with `--frames 20..60` starts at id 20), the ids that labels and
+/// the objects' `frames` use. Labels of frames the run did not play are ignored.
 pub fn score_run(
     labels: &[TrackingLabel],
     poses: &[Isometry3<f64>],
+    frame_ids: &[usize],
     geometry: &LabelGeometry,
     objects: &[ScoredInput],
     config: &ScoreConfig,
@@ -225,11 +235,13 @@ pub fn score_run(
     let k = geometry.intrinsics();
     let image = geometry.image();
     let n = poses.len();
+    let pose_of: BTreeMap<usize, Isometry3<f64>> = frame_ids.iter().copied().zip(poses.iter().copied()).collect();
+    let played = |f: usize| pose_of.contains_key(&f);
     // label tracks and DontCare regions inside the run
     let mut by_track: BTreeMap<i64, Vec<&TrackingLabel>> = BTreeMap::new();
     let mut dont_care: BTreeMap<usize, Vec<BBox>> = BTreeMap::new();
     let mut boxes: BTreeMap<usize, Vec<(i64, BBox)>> = BTreeMap::new();
-    for l in labels.iter().filter(|l| l.frame < n) {
+    for l in labels.iter().filter(|l| played(l.frame)) {
         if l.is_dont_care() {
             if let Some(b) = geometry.label_box(l) {
                 dont_care.entry(l.frame).or_default().push(b);
@@ -247,10 +259,8 @@ pub fn score_run(
     let tracks: BTreeMap<i64, Track> = by_track
         .into_iter()
         .map(|(id, labels)| {
-            let centres: Vec<Vector3<f64>> = labels
-                .iter()
-                .map(|l| LabelGeometry::to_world(&poses[l.frame], &geometry.centre(l)))
-                .collect();
+            let centres: Vec<Vector3<f64>> =
+                labels.iter().map(|l| LabelGeometry::to_world(&pose_of[&l.frame], &geometry.centre(l))).collect();
             let mean = centres.iter().sum::<Vector3<f64>>() / centres.len() as f64;
             let spread = centres.iter().map(|c| (c - mean).norm()).fold(0.0, f64::max);
             (id, Track { labels, spread, mean })
@@ -269,8 +279,8 @@ pub fn score_run(
     for (oi, o) in objects.iter().enumerate() {
         let mut votes: BTreeMap<Vote, usize> = BTreeMap::new();
         let mut scored = 0;
-        for &f in o.frames.iter().filter(|&&f| f < n) {
-            let cam = Camera::new(k, poses[f]);
+        for (&f, pose) in o.frames.iter().filter_map(|f| Some((f, pose_of.get(f)?))) {
+            let cam = Camera::new(k, *pose);
             let Some(b) = project(&o.ellipsoid, &cam).ok().and_then(|c| c.clipped_bounds(&image).ok()) else {
                 continue;
             };
@@ -284,9 +294,12 @@ pub fn score_run(
                 .max_by(|a, b| a.0.total_cmp(&b.0).then(b.1.cmp(&a.1)));
             let vote = if let Some((_, t)) = best {
                 Vote::Track(t)
-            } else if dont_care.get(&f).into_iter().flatten().any(|d| {
-                b.intersection(d).map_or(0.0, |i| i.area()) >= config.dont_care_cover * b.area().max(1e-9)
-            }) {
+            } else if dont_care
+                .get(&f)
+                .into_iter()
+                .flatten()
+                .any(|d| b.intersection(d).map_or(0.0, |i| i.area()) >= config.dont_care_cover * b.area().max(1e-9))
+            {
                 Vote::DontCare
             } else {
                 Vote::Nothing
@@ -358,8 +371,7 @@ pub fn score_run(
         } else {
             "unclear"
         };
-        let vehicle =
-            (kind == "Car" || kind == "Van") && motion == "static" && t.labels.len() >= config.min_frames;
+        let vehicle = (kind == "Car" || kind == "Van") && motion == "static" && t.labels.len() >= config.min_frames;
         let object = best_of.get(&id).filter(|_| !is_moving(id)).map(|b| objects[b.2].id);
         let mut ts = TrackScore {
             track: id,
@@ -380,19 +392,25 @@ pub fn score_run(
             if let Some(b) = best_of.get(&id) {
                 let e = &objects[b.2].ellipsoid;
                 let l0 = t.labels[0];
-                let truth = label_ellipsoid(l0, &poses[l0.frame], t.mean);
+                let truth = label_ellipsoid(l0, &pose_of[&l0.frame], t.mean);
                 let ious: Vec<f64> = t
                     .labels
                     .iter()
                     .filter_map(|l| {
                         let lb = geometry.label_box(l)?;
-                        let cam = Camera::new(k, poses[l.frame]);
-                        Some(project(e, &cam).ok().and_then(|c| c.clipped_bounds(&image).ok()).map_or(0.0, |b| b.iou(&lb)))
+                        let cam = Camera::new(k, pose_of[&l.frame]);
+                        Some(
+                            project(e, &cam)
+                                .ok()
+                                .and_then(|c| c.clipped_bounds(&image).ok())
+                                .map_or(0.0, |b| b.iou(&lb)),
+                        )
                     })
                     .collect();
                 let iou = ious.iter().sum::<f64>() / ious.len().max(1) as f64;
-                let up = poses[l0.frame].rotation * Vector3::y();
-                let (et, ea, ey) = (metrics::e_trans(e, &truth), metrics::e_axe(e, &truth), metrics::e_yaw(e, &truth, &up));
+                let up = pose_of[&l0.frame].rotation * Vector3::y();
+                let (et, ea, ey) =
+                    (metrics::e_trans(e, &truth), metrics::e_axe(e, &truth), metrics::e_yaw(e, &truth, &up));
                 figures.found += 1;
                 iou_sum += iou;
                 et_sum += et;
@@ -529,11 +547,31 @@ mod tests {
 
     #[test]
     fn census_and_vehicle_figures_of_a_scripted_scene() {
+        scripted_scene(0);
+    }
+
+    /// A run that starts at frame id 20 (`--frames 20..32`): poses are matched to labels and
+    /// detections by frame id, not by position, so the figures are those of the run from 0.
+    #[test]
+    fn a_run_not_starting_at_frame_0_is_scored_by_frame_id() {
+        scripted_scene(20);
+    }
+
+    /// The scripted scene with every frame id shifted by `first`, plus labels of frames before and
+    /// after the run (which must be ignored).
+    fn scripted_scene(first: usize) {
         // the camera drives 1 m per frame along z for 12 frames
         let poses: Vec<Isometry3<f64>> = (0..12).map(|i| Isometry3::translation(0.0, 0.0, i as f64)).collect();
+        let ids: Vec<usize> = (first..first + 12).collect();
         let mut labels = Vec::new();
+        if first > 0 {
+            // a car that the run never saw, labelled before its first frame
+            labels.push(car(first - 1, 8, Vector3::new(0.0, 1.6, 10.0)));
+        }
+        labels.push(car(first + 12, 8, Vector3::new(0.0, 1.6, 10.0)));
         for f in 0..12 {
             let z = f as f64;
+            let f = f + first;
             labels.push(car(f, 1, Vector3::new(4.0, 1.6, 25.0 - z))); // parked at world (4, 0.85, 25)
             labels.push(car(f, 2, Vector3::new(-3.0, 1.6, 15.0))); // driving ahead at the camera's speed
             let mut dc = car(f, -1, Vector3::zeros());
@@ -542,7 +580,7 @@ mod tests {
             dc.bbox = BBox::new(100.0, 150.0, 300.0, 250.0);
             labels.push(dc);
         }
-        let frames: Vec<usize> = (0..12).collect();
+        let frames: Vec<usize> = ids.clone();
         let heading = -std::f64::consts::FRAC_PI_2;
         let parked = Vector3::new(4.0, 0.85, 25.0);
         // the DontCare region's ray at 30 m: pixel (200, 200)
@@ -569,7 +607,7 @@ mod tests {
                 id: 3,
                 class: 2,
                 ellipsoid: ellipsoid(Vector3::new(-3.0, 0.85, 21.0), heading),
-                frames: (4..8).collect(),
+                frames: (first + 4..first + 8).collect(),
                 dynamic: false,
             },
             // the car ahead, flagged dynamic
@@ -577,20 +615,30 @@ mod tests {
                 id: 4,
                 class: 2,
                 ellipsoid: ellipsoid(Vector3::new(-3.0, 0.85, 18.0), heading),
-                frames: (2..5).collect(),
+                frames: (first + 2..first + 5).collect(),
                 dynamic: true,
             },
             ScoredInput {
                 id: 5,
                 class: 2,
-                ellipsoid: Ellipsoid::new(Isometry3::translation(in_dont_care.x, in_dont_care.y, in_dont_care.z), Vector3::new(1.0, 0.8, 1.0)),
-                frames: vec![0],
+                ellipsoid: Ellipsoid::new(
+                    Isometry3::translation(in_dont_care.x, in_dont_care.y, in_dont_care.z),
+                    Vector3::new(1.0, 0.8, 1.0),
+                ),
+                frames: vec![first],
                 dynamic: false,
             },
             // junk on the road, far from any label
-            ScoredInput { id: 6, class: 2, ellipsoid: ellipsoid(Vector3::new(0.0, 1.0, 40.0), 0.0), frames: vec![0, 1], dynamic: false },
+            ScoredInput {
+                id: 6,
+                class: 2,
+                ellipsoid: ellipsoid(Vector3::new(0.0, 1.0, 40.0), 0.0),
+                frames: vec![first, first + 1],
+                dynamic: false,
+            },
         ];
-        let s = score_run(&labels, &poses, &G, &objects, &ScoreConfig::default());
+        let s = score_run(&labels, &poses, &ids, &G, &objects, &ScoreConfig::default());
+        assert!(s.tracks.iter().all(|t| t.track != 8), "a track outside the run's frames was scored");
         let c = s.census;
         assert_eq!(
             (c.static_objects, c.matched, c.duplicate, c.moving, c.dont_care, c.nothing),
