@@ -370,11 +370,14 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
             (k, _) => k.name().to_string(),
         };
         println!(
-            "quadric SLAM on {} ({:?} layout, {n} frames: {}, fx {fx:.1} px, baseline {:.4} m, detector: {source})",
+            "quadric SLAM on {} ({:?} layout, {n} frames: {}, fx {fx:.1} px, baseline {:.4} m, detector: {source}, \
+             association: {}, ellipsoids: {})",
             seq.dir.display(),
             seq.layout,
             played_ids(&seq, &sel),
             seq.baseline,
+            a.associator.name(),
+            a.method.fit().name(),
         );
         if !(seq.gaps.is_empty() && seq.one_camera.is_empty()) {
             println!(
