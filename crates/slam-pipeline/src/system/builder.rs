@@ -31,6 +31,40 @@ const QUEUE: usize = 4;
 /// the associator ([`Associator`]; default ODA gated at [`SystemConfig::projected_gate`]), the
 /// ellipsoid method ([`FitMethod`], an initialiser with or without refinement; default
 /// Tri+Yaw+refine), the frame source (only for [`System::run`]) and the settings.
+///
+/// Wiring a system and driving it frame by frame (the example of `docs/architecture.md`):
+///
+/// ```
+/// use std::sync::Arc;
+///
+/// use slam_core::{DetectionSource, StereoTracker};
+/// use slam_pipeline::{
+///     objects::FitMethod,
+///     system::{FrameInput, RunOutput, SystemBuilder, SystemConfig, SystemError},
+/// };
+/// use slam_quadric::Intrinsics;
+///
+/// fn wire_and_play(
+///     tracker: Box<dyn StereoTracker>,
+///     detector: Box<dyn DetectionSource>,
+///     frames: impl IntoIterator<Item = FrameInput>,
+/// ) -> Result<RunOutput, SystemError> {
+///     let k = Intrinsics::new(718.856, 718.856, 607.193, 185.216);
+///     let mut system = SystemBuilder::new(k, 0.537)
+///         .config(SystemConfig::default())
+///         .tracker(tracker)
+///         .detector(Some(detector))
+///         .associator(Box::new(slam_assoc::IouAssociator::default()))
+///         .optimizer(Arc::new(slam_lm::LevenbergMarquardt::default()))
+///         .method(FitMethod::refined(Arc::new(slam_quadric::init::Conic::default()), "Conic+refine"))
+///         .build()?;
+///     for frame in frames {
+///         let record = system.step(frame)?;
+///         println!("frame {}: {} boxes, keyframe {}", record.index, record.detections.len(), record.keyframe);
+///     }
+///     system.finish()
+/// }
+/// ```
 pub struct SystemBuilder {
     intrinsics: Intrinsics,
     baseline: f64,
