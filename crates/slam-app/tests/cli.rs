@@ -1009,15 +1009,17 @@ fn run_method_changes_the_objects_not_the_trajectory() {
     }
 }
 
-/// The main job's first frames with the IoU associator: other objects than with ODA.
+/// The main job's first frames with the IoU associator: other objects than with ODA; the baselines
+/// without refinement (Q-SLAM, Tri) run too and map other objects than ODA + Tri+Yaw+refine.
 #[test]
 fn run_associator_changes_the_objects() {
     let dir = std::env::temp_dir().join(format!("slam-app-run-assoc-{}", std::process::id()));
     let file = "fixtures/kitti_odom_06/detections/yolo_fastest_tiles3.json";
-    let run = |assoc: &str| {
-        let out = dir.join(assoc);
+    let run_with = |assoc: &str, method: &str| {
+        let out = dir.join(format!("{assoc}-{method}"));
         let o = app()
-            .args(["run", "--max-frames", "15", "--detections", file, "--associator", assoc, "--out"])
+            .args(["run", "--max-frames", "15", "--detections", file, "--associator", assoc, "--method", method])
+            .arg("--out")
             .arg(&out)
             .output()
             .expect("runs");
@@ -1025,8 +1027,13 @@ fn run_associator_changes_the_objects() {
         let text = String::from_utf8_lossy(&o.stdout).to_string();
         (text, std::fs::read_to_string(out.join("objects.json")).expect("objects"))
     };
-    let (oda_text, oda) = run("oda");
-    let (iou_text, iou) = run("iou");
+    let (oda_text, oda) = run_with("oda", "refine");
+    let (iou_text, iou) = run_with("iou", "refine");
     assert!(oda_text.contains("association: ODA,") && iou_text.contains("association: IoU,"), "{iou_text}");
     assert!(oda != iou, "IoU association gives ODA's objects");
+    for (method, name) in [("qslam", "Q-SLAM"), ("tri", "Tri")] {
+        let (text, objects) = run_with("oda", method);
+        assert!(text.contains(&format!("ellipsoids: {name})")), "{text}");
+        assert!(objects != oda, "--method {method} gives the objects of Tri+Yaw+refine");
+    }
 }
