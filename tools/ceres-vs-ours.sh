@@ -33,12 +33,12 @@ problems=(
   "problem-16 Huber|problem-16-22106-pre.txt|1"
 )
 log="$(mktemp)"
-trap 'rm -f "$log"' EXIT
+trap 'rm -f "$log" "$log.ceres-stderr"' EXIT
 echo "ceres-vs-ours: $rounds rounds, Ceres $linear Schur, $(date -u '+%Y-%m-%d %H:%M UTC'), load $(cut -d' ' -f1-3 /proc/loadavg)"
 for ((r = 1; r <= rounds; r++)); do
   for p in "${problems[@]}"; do
     IFS='|' read -r name file huber <<<"$p"
-    line="$("$ceres" "$data/$file" "$huber" 1 "$linear" | grep '^RESULT')"
+    line="$("$ceres" "$data/$file" "$huber" 1 "$linear" 2>>"$log.ceres-stderr" | grep '^RESULT')"
     secs="$(sed -E 's/.* seconds=([^ ]+).*/\1/' <<<"$line")"
     cpu="$(sed -E 's/.* cpu=([^ ]+).*/\1/' <<<"$line")"
     final="$(sed -E 's/.* final=([^ ]+).*/\1/' <<<"$line")"

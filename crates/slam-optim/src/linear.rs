@@ -685,6 +685,62 @@ fn normal_equations(graph: &Graph, layout: &Layout, lins: &Lins, pattern: Option
     Normal { h, g, hee, ge, c }
 }
 
+/// Largest dense reduced system whose Schur complement is accumulated in [`BlockLower`] (its lower block
+/// triangle, about `n²/2` values, is a second copy; above this size the O(n³) factorisation dominates
+/// the solve and the copy would only cost memory).
+const BLOCKED_SCHUR_MAX: usize = 4000;
+
+/// The lower block triangle of the dense reduced matrix with every block contiguous (column-major), so
+/// that the Schur updates of one eliminated variable touch a few contiguous runs of memory instead of
+/// columns a whole matrix apart. Each entry receives the same operations in the same order as in the
+/// dense matrix, so the result is bit-identical.
+struct BlockLower {
+    /// Start of block `(a, b)`, `a ≥ b`, at `a (a + 1) / 2 + b`.
+    off: Vec<usize>,
+    data: Vec<f64>,
+}
+
+impl BlockLower {
+    fn new(m: &DMatrix<f64>, layout: &Layout) -> Self {
+        let n = layout.reduced.len();
+        let mut off = Vec::with_capacity(n * (n + 1) / 2);
+        let mut data = Vec::new();
+        for a in 0..n {
+            let (_, ra, da) = layout.reduced[a];
+            for b in 0..=a {
+                let (_, rb, db) = layout.reduced[b];
+                off.push(data.len());
+                for j in 0..db {
+                    data.extend_from_slice(&m.as_slice()[(rb + j) * m.nrows() + ra..][..da]);
+                }
+            }
+        }
+        Self { off, data }
+    }
+
+    fn block_mut(&mut self, a: usize, b: usize) -> &mut [f64] {
+        let i = a * (a + 1) / 2 + b;
+        let end = self.off.get(i + 1).copied().unwrap_or(self.data.len());
+        &mut self.data[self.off[i]..end]
+    }
+
+    fn write_back(&self, m: &mut DMatrix<f64>, layout: &Layout) {
+        let nr = m.nrows();
+        let mut blocks = self.off.iter();
+        for a in 0..layout.reduced.len() {
+            let (_, ra, da) = layout.reduced[a];
+            for b in 0..=a {
+                let (_, rb, db) = layout.reduced[b];
+                let Some(&o) = blocks.next() else { return };
+                for j in 0..db {
+                    let start = (rb + j) * nr + ra;
+                    m.as_mut_slice()[start..start + da].copy_from_slice(&self.data[o + j * da..o + (j + 1) * da]);
+                }
+            }
+        }
+    }
+}
+
 /// Solve the damped system for the full step (reduced then eliminated variables), or `None` when a
 
 fn damped_step(
@@ -723,7 +779,11 @@ fn damped_step(
         }
         (Reduced::Sparse(_), None) => return None,
     }
-    // Schur complement of the eliminated variables.
+    // Schur complement of the eliminated variables (dense path: into contiguous blocks when small).
+    let mut blocked = match &dense {
+        Some(m) if !layout.eliminated.is_empty() && n_red <= BLOCKED_SCHUR_MAX => Some(BlockLower::new(m, layout)),
+        _ => None,
+    };
     let mut hinvs = Vec::with_capacity(layout.eliminated.len());
     let mut vt: Vec<Vec<f64>> = Vec::new();
     let mut prod = DMatrix::zeros(0, 0);
@@ -770,7 +830,9 @@ fn damped_step(
                 let (_, rb, db) = layout.reduced[b];
                 pair += 1;
                 // S_ab −= C_aᵀ H⁻¹ C_b = V_aᵀ C_b
-                if let Some(m) = dense.as_mut() {
+                if let Some(bl) = blocked.as_mut() {
+                    add_atb(bl.block_mut(a, b), da, (0, 0), -1.0, (&vt[ai], da), (cb, de), a == b);
+                } else if let Some(m) = dense.as_mut() {
                     add_atb(m.as_mut_slice(), n_red, (ra, rb), -1.0, (&vt[ai], da), (cb, de), a == b);
                 } else if let Some(pat) = pattern {
                     let i = *pat.schur_blocks.get(pair - 1)?;
@@ -788,6 +850,9 @@ fn damped_step(
             }
         }
         hinvs.push(hinv);
+    }
+    if let (Some(m), Some(bl)) = (dense.as_mut(), blocked.as_ref()) {
+        bl.write_back(m, layout);
     }
     let dred = if n_red == 0 {
         DVector::zeros(0)
@@ -821,11 +886,13 @@ fn damped_step(
 /// the normal equations and of the Schur complement.
 ///
 /// With `lower`, the block is a diagonal block of a symmetric matrix of which only the lower triangle
-/// is read, and only entries on or below its diagonal are updated.
+/// is read, and the general-size path updates only the entries on or below its diagonal.
 ///
 /// The common block sizes (9-parameter BAL cameras and 6-dof poses against 2-, 3- and 4-row residuals
-/// or 3-dof points) go to a copy with compile-time sizes, whose loops the compiler unrolls; the
-/// arithmetic and its order are the same, so the result is bit-identical.
+/// or 3-dof points) go to a copy with compile-time sizes, whose loops the compiler unrolls and
+/// vectorises; it updates the whole block (skipping the upper triangle of a diagonal block costs more
+/// in branching than it saves). The arithmetic and its order are the same, so the result is
+/// bit-identical.
 #[inline]
 fn add_atb(
     m: &mut [f64],
@@ -839,11 +906,8 @@ fn add_atb(
     let db = if r == 0 { 0 } else { b.len() / r };
     macro_rules! fixed {
         ($($da:literal, $r:literal, $db:literal);*) => {
-            match (da, r, db, lower) {
-                $(
-                    ($da, $r, $db, false) => return add_atb_fixed::<$da, $r, $db, false>(m, ld, (ra, rb), alpha, at, b),
-                    ($da, $r, $db, true) => return add_atb_fixed::<$da, $r, $db, true>(m, ld, (ra, rb), alpha, at, b),
-                )*
+            match (da, r, db) {
+                $(($da, $r, $db) => return add_atb_fixed::<$da, $r, $db>(m, ld, (ra, rb), alpha, at, b),)*
                 _ => {}
             }
         };
@@ -854,7 +918,7 @@ fn add_atb(
 
 /// [`add_atb`] with compile-time sizes `A` (R × DA), `B` (R × DB).
 #[inline(always)]
-fn add_atb_fixed<const DA: usize, const R: usize, const DB: usize, const LOWER: bool>(
+fn add_atb_fixed<const DA: usize, const R: usize, const DB: usize>(
     m: &mut [f64],
     ld: usize,
     (ra, rb): (usize, usize),
@@ -864,16 +928,19 @@ fn add_atb_fixed<const DA: usize, const R: usize, const DB: usize, const LOWER: 
 ) {
     let (at, b) = (&at[..DA * R], &b[..R * DB]);
     for j in 0..DB {
-        let i0 = if LOWER { j.min(DA) } else { 0 };
         let start = (rb + j) * ld + ra;
-        let col = &mut m[start + i0..start + DA];
+        let col = &mut m[start..start + DA];
+        // the column in registers while the R updates are added (same order, one load and store)
+        let mut acc = [0.0; DA];
+        acc.copy_from_slice(col);
         for k in 0..R {
             let f = alpha * b[j * R + k];
-            let ak = &at[k * DA + i0..(k + 1) * DA];
-            for (o, a) in col.iter_mut().zip(ak) {
+            let ak = &at[k * DA..(k + 1) * DA];
+            for (o, a) in acc.iter_mut().zip(ak) {
                 *o += f * a;
             }
         }
+        col.copy_from_slice(&acc);
     }
 }
 
