@@ -19,7 +19,7 @@ rounds="${1:-5}"
 linear="${2:-sparse}"
 data="${DATA:-fixtures/optim}"
 ceres=tools/ceres-bench/build/ceres_bal
-ours=target/release/slam-app
+ours="${OURS:-target/release/slam-app}"   # OURS=path/to/slam-app compares another build
 [ -x "$ceres" ] || bash tools/ceres-bench/build.sh
 [ -x "$ours" ] || cargo build --release -p slam-app
 case "$rounds" in ''|*[!0-9]*) echo "ROUNDS must be a number" >&2; exit 2;; esac

@@ -66,7 +66,7 @@ impl Lins {
 
 /// A column-major block as a nalgebra view.
 fn view(j: &[f64], rows: usize) -> nalgebra::DMatrixView<'_, f64> {
-    nalgebra::DMatrixView::from_slice(j, rows, if rows == 0 { 0 } else { j.len() / rows })
+    nalgebra::DMatrixView::from_slice(j, rows, j.len().checked_div(rows).unwrap_or(0))
 }
 
 /// Index of a free variable in the solve.
@@ -233,7 +233,7 @@ impl HInv {
 
     /// `out` = row-major `H⁻¹ C` (d_e × n; `c` column-major).
     fn mul_mat_rowmajor(&self, cs: &[f64], n: usize, out: &mut Vec<f64>) {
-        let de = if n == 0 { 0 } else { cs.len() / n };
+        let de = cs.len().checked_div(n).unwrap_or(0);
         out.clear();
         out.resize(de * n, 0.0);
         match self {
@@ -742,7 +742,7 @@ impl BlockLower {
 }
 
 /// Solve the damped system for the full step (reduced then eliminated variables), or `None` when a
-
+/// factorisation fails.
 fn damped_step(
     layout: &Layout,
     ne: &Normal,
@@ -903,7 +903,7 @@ fn add_atb(
     (b, r): (&[f64], usize),
     lower: bool,
 ) {
-    let db = if r == 0 { 0 } else { b.len() / r };
+    let db = b.len().checked_div(r).unwrap_or(0);
     macro_rules! fixed {
         ($($da:literal, $r:literal, $db:literal);*) => {
             match (da, r, db) {
@@ -971,7 +971,7 @@ fn add_atb_dyn(
 /// Row-major copy of a column-major matrix into `out`.
 #[inline]
 fn transpose_into(a: &[f64], r: usize, out: &mut Vec<f64>) {
-    let c = if r == 0 { 0 } else { a.len() / r };
+    let c = a.len().checked_div(r).unwrap_or(0);
     out.clear();
     out.resize(r * c, 0.0);
     for (i, col) in a.chunks_exact(r.max(1)).enumerate() {

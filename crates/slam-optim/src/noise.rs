@@ -81,7 +81,7 @@ impl NoiseModel {
                 }
             }
             NoiseModel::SqrtInformation(w) => {
-                let cols = if rows == 0 { 0 } else { j.len() / rows };
+                let cols = j.len().checked_div(rows).unwrap_or(0);
                 let m = w * DMatrix::from_column_slice(rows, cols, j);
                 j.copy_from_slice(m.as_slice());
             }
