@@ -177,6 +177,13 @@ impl Rng {
 /// same either way, so both variants hold the same measurements.
 type Generated = (Values, Graph, Vec<Key>, Vec<Isometry3<f64>>);
 
+/// The generated stereo BA of [`check_sparse_matches_dense`] at any size (two poses fixed, the rest
+/// perturbed), for benchmarks: `(values, graph)`.
+pub fn generated_stereo_ba(n_poses: usize, points_per_pose: usize, seed: u64) -> (Values, Graph) {
+    let (values, graph, _, _) = stereo_ba(n_poses, points_per_pose, 2, false, seed);
+    (values, graph)
+}
+
 fn stereo_ba(n_poses: usize, points_per_pose: usize, fixed: usize, at_truth: bool, seed: u64) -> Generated {
     let mut rng = Rng(seed);
     let baseline = 0.54;

@@ -22,11 +22,51 @@ use crate::{
     values::{Key, Values},
 };
 
-/// One factor's weighted, whitened linearisation.
-struct Lin {
-    r: DVector<f64>,
-    /// Per key of the factor: Jacobian block, or `None` when the key is fixed.
-    j: Vec<Option<DMatrix<f64>>>,
+/// Every factor's weighted, whitened linearisation, in flat buffers (one allocation per buffer per
+/// linearisation, not several per factor).
+#[derive(Default)]
+struct Lins {
+    /// Residuals of all factors, one after the other.
+    r: Vec<f64>,
+    /// Start of factor `i`'s residual in `r` (one more entry than factors).
+    r_off: Vec<usize>,
+    /// Jacobian blocks of all factors' keys, each column-major (`dim × tangent dim`).
+    j: Vec<f64>,
+    /// Start of each (factor, key) block in `j`, factor by factor, key by key (plus one final entry).
+    j_off: Vec<usize>,
+    /// Start of factor `i`'s keys in `j_off` (one more entry than factors).
+    key_start: Vec<usize>,
+}
+
+impl Lins {
+    fn with_capacity(factors: usize) -> Self {
+        let mut l = Lins {
+            r: Vec::with_capacity(factors * 2),
+            r_off: Vec::with_capacity(factors + 1),
+            j: Vec::new(),
+            j_off: Vec::with_capacity(factors * 2 + 1),
+            key_start: Vec::with_capacity(factors + 1),
+        };
+        l.r_off.push(0);
+        l.key_start.push(0);
+        l
+    }
+
+    /// Factor `i`'s residual.
+    fn residual(&self, i: usize) -> &[f64] {
+        &self.r[self.r_off[i]..self.r_off[i + 1]]
+    }
+
+    /// Factor `i`'s Jacobian block for its `t`-th key, as `(column-major slice, rows)`.
+    fn jacobian(&self, i: usize, t: usize) -> (&[f64], usize) {
+        let q = self.key_start[i] + t;
+        (&self.j[self.j_off[q]..self.j_off[q + 1]], self.r_off[i + 1] - self.r_off[i])
+    }
+}
+
+/// A column-major block as a nalgebra view.
+fn view(j: &[f64], rows: usize) -> nalgebra::DMatrixView<'_, f64> {
+    nalgebra::DMatrixView::from_slice(j, rows, j.len().checked_div(rows).unwrap_or(0))
 }
 
 /// Index of a free variable in the solve.
@@ -41,19 +81,30 @@ struct Layout {
     slots: Vec<Option<Slot>>,
     reduced: Vec<(Key, usize, usize)>, // key, offset, dim
     eliminated: Vec<(Key, usize)>,     // key, dim
-}
-
-struct ElimBlock {
-    hee: DMatrix<f64>,
-    ge: DVector<f64>,
-    /// `(reduced var, J_eᵀ J_r)` blocks, d_e × d_r, sorted by reduced var.
-    links: Vec<(usize, DMatrix<f64>)>,
+    /// Per eliminated variable, where its `H_ee` (d_e², column-major) and `g_e` (d_e) start in
+    /// [`Normal::hee`] and [`Normal::ge`].
+    elim_off: Vec<(usize, usize)>,
+    /// Links of eliminated variable `v`: `link_start[v]..link_start[v + 1]` index `link_var` (the
+    /// reduced variables it shares a factor with, ascending) and `link_off` (where its block
+    /// `C = J_eᵀ J_r`, d_e × d_r column-major, starts in [`Normal::c`]; one final entry).
+    link_start: Vec<usize>,
+    link_var: Vec<usize>,
+    link_off: Vec<usize>,
+    /// Per factor key (factor `i`'s keys start at `key_link_start[i]`): the link its Jacobian block
+    /// adds to, or `usize::MAX` (no eliminated variable in the factor, or the key is not reduced).
+    key_link_start: Vec<usize>,
+    key_link: Vec<usize>,
 }
 
 /// Block pattern of the reduced system for the sparse path: which `(a, b)` blocks (`a ≥ b`) exist,
 /// where their entries sit in the compressed-column lower triangle, and the symbolic factorisation.
 struct Pattern {
     index: HashMap<(usize, usize), usize>,
+    /// Block of each diagonal `(a, a)` (the common lookup, without hashing).
+    diag_block: Vec<usize>,
+    /// Per link pair of each eliminated variable, in the order the Schur complement visits them
+    /// (variable by variable; link `a` ascending, then link `b ≤ a` ascending), the block it updates.
+    schur_blocks: Vec<usize>,
     /// Per block, the CSC value position of each entry in column-major order (`usize::MAX` for the
     /// unused upper half of diagonal blocks).
     positions: Vec<Vec<usize>>,
@@ -151,8 +202,18 @@ impl Pattern {
             },
         )
         .ok()?;
-        let index = pairs.iter().enumerate().map(|(i, p)| (*p, i)).collect();
-        Some(Self { index, positions, pairs, diag, symbolic, llt })
+        let index: HashMap<(usize, usize), usize> = pairs.iter().enumerate().map(|(i, p)| (*p, i)).collect();
+        let diag_block = (0..layout.reduced.len()).map(|a| index.get(&(a, a)).copied()).collect::<Option<_>>()?;
+        let mut schur_blocks = Vec::new();
+        for ev in 0..layout.eliminated.len() {
+            let links = &layout.link_var[layout.link_start[ev]..layout.link_start[ev + 1]];
+            for (ai, &a) in links.iter().enumerate() {
+                for &b in &links[..=ai] {
+                    schur_blocks.push(*index.get(&(a, b))?);
+                }
+            }
+        }
+        Some(Self { index, diag_block, schur_blocks, positions, pairs, diag, symbolic, llt })
     }
 }
 
@@ -170,12 +231,11 @@ impl HInv {
         }
     }
 
-    /// `out` = row-major `H⁻¹ C` (d_e × n).
-    fn mul_mat_rowmajor(&self, c: &DMatrix<f64>, out: &mut Vec<f64>) {
-        let (de, n) = c.shape();
+    /// `out` = row-major `H⁻¹ C` (d_e × n; `c` column-major).
+    fn mul_mat_rowmajor(&self, cs: &[f64], n: usize, out: &mut Vec<f64>) {
+        let de = cs.len().checked_div(n).unwrap_or(0);
         out.clear();
         out.resize(de * n, 0.0);
-        let cs = c.as_slice();
         match self {
             HInv::Three(h) => {
                 for (i, col) in cs.chunks_exact(3).enumerate() {
@@ -205,7 +265,12 @@ enum Reduced {
 struct Normal {
     h: Reduced,
     g: DVector<f64>,
-    elim: Vec<ElimBlock>,
+    /// `H_ee` blocks of the eliminated variables ([`Layout::elim_off`]).
+    hee: Vec<f64>,
+    /// Gradient blocks of the eliminated variables.
+    ge: Vec<f64>,
+    /// `C = J_eᵀ J_r` blocks of every link ([`Layout::link_off`]).
+    c: Vec<f64>,
 }
 
 /// The problem's layout and (for the sparse path) the symbolic factorisation, built once per solve.
@@ -219,7 +284,7 @@ pub struct LinearSystem {
 pub struct Linearization {
     /// The cost `½ Σ ρ` at the point.
     pub cost: f64,
-    lins: Vec<Lin>,
+    lins: Lins,
     ne: Normal,
 }
 
@@ -304,12 +369,15 @@ impl LinearSystem {
 
     /// Largest absolute gradient component.
     pub fn gradient_max(&self, lin: &Linearization) -> f64 {
-        lin.ne.g.amax().max(lin.ne.elim.iter().map(|e| e.ge.amax()).fold(0.0, f64::max))
+        lin.ne.g.amax().max(lin.ne.ge.iter().fold(0.0, |m, x| m.max(x.abs())))
     }
 
     /// The gradient `Jᵀr` as a step.
     pub fn gradient(&self, lin: &Linearization) -> Step {
-        Step { reduced: lin.ne.g.clone(), eliminated: lin.ne.elim.iter().map(|e| e.ge.clone()).collect() }
+        let eliminated = (self.layout.eliminated.iter().zip(&self.layout.elim_off))
+            .map(|(&(_, de), &(_, go))| DVector::from_column_slice(&lin.ne.ge[go..go + de]))
+            .collect();
+        Step { reduced: lin.ne.g.clone(), eliminated }
     }
 
     /// `½‖r‖² − ½‖r + J step‖²`, the decrease the linear model predicts (reweighted residuals).
@@ -384,17 +452,130 @@ fn layout(graph: &Graph, values: &Values) -> Result<Layout, OptimError> {
             off += dim;
         }
     }
-    Ok(Layout { slots, reduced, eliminated })
+    // Links between eliminated and reduced variables, fixed for the whole solve.
+    let mut links: Vec<BTreeSet<usize>> = vec![BTreeSet::new(); eliminated.len()];
+    let factor_vars = |keys: &[Key]| {
+        let mut el = None;
+        for k in keys {
+            if let Some(Slot::Eliminated { var }) = slots.get(k.0).copied().flatten() {
+                el = Some(var);
+            }
+        }
+        el
+    };
+    for e in graph.entries() {
+        if let Some(ev) = factor_vars(e.factor.keys()) {
+            for k in e.factor.keys() {
+                if let Some(Slot::Reduced { var }) = slots.get(k.0).copied().flatten() {
+                    links[ev].insert(var);
+                }
+            }
+        }
+    }
+    let (mut link_start, mut link_var, mut link_off) = (vec![0], Vec::new(), vec![0]);
+    let mut elim_off = Vec::with_capacity(eliminated.len());
+    let (mut ho, mut go) = (0, 0);
+    for (ev, set) in links.iter().enumerate() {
+        let de = eliminated[ev].1;
+        elim_off.push((ho, go));
+        ho += de * de;
+        go += de;
+        for &a in set {
+            link_var.push(a);
+            let end = link_off.last().copied().unwrap_or(0) + de * reduced[a].2;
+            link_off.push(end);
+        }
+        link_start.push(link_var.len());
+    }
+    let (mut key_link_start, mut key_link) = (Vec::with_capacity(graph.len() + 1), Vec::new());
+    for e in graph.entries() {
+        key_link_start.push(key_link.len());
+        let el = factor_vars(e.factor.keys());
+        for k in e.factor.keys() {
+            let l = match (el, slots.get(k.0).copied().flatten()) {
+                (Some(ev), Some(Slot::Reduced { var })) => {
+                    let range = &link_var[link_start[ev]..link_start[ev + 1]];
+                    range.binary_search(&var).map_or(usize::MAX, |p| link_start[ev] + p)
+                }
+                _ => usize::MAX,
+            };
+            key_link.push(l);
+        }
+    }
+    key_link_start.push(key_link.len());
+    Ok(Layout {
+        slots,
+        reduced,
+        eliminated,
+        elim_off,
+        link_start,
+        link_var,
+        link_off,
+        key_link_start,
+        key_link,
+    })
 }
 
-fn linearize(graph: &Graph, values: &Values, jac: bool) -> Result<(f64, Vec<Lin>), (usize, FactorError)> {
+/// `C += Aᵀ B` for column-major `A` (r × da), `B` (r × db), `C` (da × db), each entry as
+/// `dot(A_i, B_j) + C_ij` with the dot product summed in order: the same arithmetic as nalgebra's
+/// `gemm_tr(1, A, B, 1)` (which it replaces on the hot path, without allocating), so the result is
+/// bit-identical.
+#[inline]
+fn atb_add(c: &mut [f64], a: &[f64], b: &[f64], r: usize, da: usize, db: usize) {
+    match r {
+        2 => atb_add_r::<2>(c, a, b, da, db),
+        3 => atb_add_r::<3>(c, a, b, da, db),
+        4 => atb_add_r::<4>(c, a, b, da, db),
+        _ => {
+            // nalgebra sums long dot products in eight interleaved accumulators: defer to it.
+            let mut m = nalgebra::DMatrixViewMut::from_slice(c, da, db);
+            m.gemm_tr(1.0, &view(a, r), &view(b, r), 1.0);
+        }
+    }
+}
+
+#[inline(always)]
+fn atb_add_r<const R: usize>(c: &mut [f64], a: &[f64], b: &[f64], da: usize, db: usize) {
+    for (bj, cj) in b.chunks_exact(R).take(db).zip(c.chunks_exact_mut(da.max(1))) {
+        for (ai, cij) in a.chunks_exact(R).take(da).zip(cj.iter_mut()) {
+            let mut dot = 0.0;
+            for k in 0..R {
+                dot += ai[k] * bj[k];
+            }
+            *cij += dot;
+        }
+    }
+}
+
+fn linearize(graph: &Graph, values: &Values, jac: bool) -> Result<(f64, Lins), (usize, FactorError)> {
     let mut cost = 0.0;
-    let mut lins = Vec::with_capacity(if jac { graph.entries().len() } else { 0 });
-    let mut buf = Vec::new();
+    let mut lins = if jac { Lins::with_capacity(graph.entries().len()) } else { Lins::default() };
+    let mut scratch = Vec::new();
     for (i, e) in graph.entries().iter().enumerate() {
-        let mut r = e.factor.evaluate(values, if jac { Some(&mut buf) } else { None }).map_err(|err| (i, err))?;
-        e.noise.whiten(&mut r);
-        let s = r.norm_squared();
+        let dim = e.factor.dim();
+        let keys = e.factor.keys();
+        let r = if jac {
+            let r0 = lins.r.len();
+            lins.r.resize(r0 + dim, 0.0);
+            lins.r_off.push(r0 + dim);
+            let j0 = lins.j.len();
+            let mut end = j0;
+            for &k in keys {
+                lins.j_off.push(end);
+                end += dim * values.get(k).map_or(0, |v| v.dim());
+            }
+            lins.key_start.push(lins.j_off.len());
+            lins.j.resize(end, 0.0);
+            e.factor.evaluate_into(values, &mut lins.r[r0..], Some(&mut lins.j[j0..])).map_err(|err| (i, err))?;
+            &mut lins.r[r0..]
+        } else {
+            scratch.clear();
+            scratch.resize(dim, 0.0);
+            e.factor.evaluate_into(values, &mut scratch, None).map_err(|err| (i, err))?;
+            &mut scratch[..]
+        };
+        e.noise.whiten_slice(r);
+        let s = nalgebra::DVectorView::from_slice(r, dim).norm_squared();
         let [rho, d1, _] = e.kernel.evaluate(s);
         if !rho.is_finite() {
             return Err((i, FactorError::Undefined("non-finite residual".into())));
@@ -402,29 +583,23 @@ fn linearize(graph: &Graph, values: &Values, jac: bool) -> Result<(f64, Vec<Lin>
         cost += 0.5 * rho;
         if jac {
             let w = d1.max(0.0).sqrt();
-            r *= w;
-            let j = e
-                .factor
-                .keys()
-                .iter()
-                .zip(buf.drain(..))
-                .map(|(k, mut jk)| {
-                    if graph.is_fixed(*k) {
-                        None
-                    } else {
-                        e.noise.whiten_jacobian(&mut jk);
-                        jk *= w;
-                        Some(jk)
-                    }
-                })
-                .collect();
-            lins.push(Lin { r, j });
+            r.iter_mut().for_each(|x| *x *= w);
+            let q0 = lins.key_start[i];
+            for q in q0..q0 + keys.len() {
+                let (b0, b1) = (lins.j_off[q], lins.j_off.get(q + 1).copied().unwrap_or(lins.j.len()));
+                let block = &mut lins.j[b0..b1];
+                e.noise.whiten_jacobian_slice(block, dim);
+                block.iter_mut().for_each(|x| *x *= w);
+            }
         }
+    }
+    if jac {
+        lins.j_off.push(lins.j.len());
     }
     Ok((cost, lins))
 }
 
-fn normal_equations(graph: &Graph, layout: &Layout, lins: &[Lin], pattern: Option<&Pattern>) -> Normal {
+fn normal_equations(graph: &Graph, layout: &Layout, lins: &Lins, pattern: Option<&Pattern>) -> Normal {
     let n_red: usize = layout.reduced.iter().map(|r| r.2).sum();
     let mut h = match pattern {
         None => Reduced::Dense(DMatrix::zeros(n_red, n_red)),
@@ -433,21 +608,23 @@ fn normal_equations(graph: &Graph, layout: &Layout, lins: &[Lin], pattern: Optio
         ),
     };
     let mut g = DVector::zeros(n_red);
-    let mut elim: Vec<ElimBlock> = layout
-        .eliminated
-        .iter()
-        .map(|&(_, d)| ElimBlock { hee: DMatrix::zeros(d, d), ge: DVector::zeros(d), links: Vec::new() })
-        .collect();
-    let mut red: Vec<(usize, &DMatrix<f64>)> = Vec::new();
+    let n_hee: usize = layout.eliminated.iter().map(|&(_, d)| d * d).sum();
+    let n_ge: usize = layout.eliminated.iter().map(|&(_, d)| d).sum();
+    let (mut hee, mut ge) = (vec![0.0; n_hee], vec![0.0; n_ge]);
+    let mut c = vec![0.0; layout.link_off.last().copied().unwrap_or(0)];
+    // (reduced var, column-major Jacobian block with the residual's rows)
+    let mut red: Vec<(usize, &[f64])> = Vec::new();
     let mut rowmajor: Vec<Vec<f64>> = Vec::new();
-    for (e, lin) in graph.entries().iter().zip(lins) {
+    for (i, e) in graph.entries().iter().enumerate() {
         red.clear();
-        let mut el: Option<(usize, &DMatrix<f64>)> = None;
-        for (k, j) in e.factor.keys().iter().zip(&lin.j) {
-            let Some(j) = j else { continue };
+        let r = lins.residual(i);
+        let rdim = r.len();
+        let mut el: Option<(usize, &[f64])> = None;
+        for (t, k) in e.factor.keys().iter().enumerate() {
+            let (js, _) = lins.jacobian(i, t);
             match layout.slots.get(k.0).copied().flatten() {
-                Some(Slot::Reduced { var }) => red.push((var, j)),
-                Some(Slot::Eliminated { var }) => el = Some((var, j)),
+                Some(Slot::Reduced { var }) => red.push((var, js)),
+                Some(Slot::Eliminated { var }) => el = Some((var, js)),
                 None => {}
             }
         }
@@ -455,13 +632,13 @@ fn normal_equations(graph: &Graph, layout: &Layout, lins: &[Lin], pattern: Optio
             rowmajor.push(Vec::new());
         }
         for (ai, &(_, ja)) in red.iter().enumerate() {
-            transpose_into(ja, &mut rowmajor[ai]);
+            transpose_into(ja, rdim, &mut rowmajor[ai]);
         }
-        let rdim = lin.r.len();
+        let rv = nalgebra::DVectorView::from_slice(r, rdim);
         for ai in 0..red.len() {
             let (a, ja) = red[ai];
             let (_, ra, da) = layout.reduced[a];
-            g.rows_mut(ra, da).gemv_tr(1.0, ja, &lin.r, 1.0);
+            g.rows_mut(ra, da).gemv_tr(1.0, &view(ja, rdim), &rv, 1.0);
             for (bi, &(b, jb)) in red[..=ai].iter().enumerate() {
                 // H_rc += J_rᵀ J_c with r ≥ c
                 let (row, col, tr, jc) = if a >= b { (a, b, ai, jb) } else { (b, a, bi, ja) };
@@ -469,17 +646,19 @@ fn normal_equations(graph: &Graph, layout: &Layout, lins: &[Lin], pattern: Optio
                 match (&mut h, pattern) {
                     (Reduced::Dense(m), _) => {
                         let (rr, rc) = (layout.reduced[row].1, layout.reduced[col].1);
-                        add_atb(m.as_mut_slice(), n_red, (rr, rc), 1.0, (&rowmajor[tr], dr), (jc.as_slice(), rdim));
+                        add_atb(m.as_mut_slice(), n_red, (rr, rc), 1.0, (&rowmajor[tr], dr), (jc, rdim), row == col);
                     }
                     (Reduced::Sparse(blocks), Some(p)) => {
-                        if let Some(&i) = p.index.get(&(row, col)) {
+                        let block = if row == col { p.diag_block.get(row) } else { p.index.get(&(row, col)) };
+                        if let Some(&i) = block {
                             add_atb(
                                 blocks[i].as_mut_slice(),
                                 dr,
                                 (0, 0),
                                 1.0,
                                 (&rowmajor[tr], dr),
-                                (jc.as_slice(), rdim),
+                                (jc, rdim),
+                                row == col,
                             );
                         }
                     }
@@ -488,25 +667,82 @@ fn normal_equations(graph: &Graph, layout: &Layout, lins: &[Lin], pattern: Optio
             }
         }
         if let Some((ev, je)) = el {
-            let eb = &mut elim[ev];
-            eb.hee.gemm_tr(1.0, je, je, 1.0);
-            eb.ge.gemv_tr(1.0, je, &lin.r, 1.0);
-            for &(a, ja) in &red {
-                match eb.links.iter_mut().find(|(v, _)| *v == a) {
-                    Some((_, m)) => m.gemm_tr(1.0, je, ja, 1.0),
-                    None => eb.links.push((a, je.tr_mul(ja))),
+            let de = layout.eliminated[ev].1;
+            let (ho, go) = layout.elim_off[ev];
+            atb_add(&mut hee[ho..ho + de * de], je, je, rdim, de, de);
+            atb_add(&mut ge[go..go + de], je, r, rdim, de, 1);
+            let kl = layout.key_link_start[i];
+            for (t, &l) in layout.key_link[kl..layout.key_link_start[i + 1]].iter().enumerate() {
+                if l == usize::MAX {
+                    continue;
+                }
+                let (ja, _) = lins.jacobian(i, t);
+                let dr = layout.reduced[layout.link_var[l]].2;
+                atb_add(&mut c[layout.link_off[l]..layout.link_off[l + 1]], je, ja, rdim, de, dr);
+            }
+        }
+    }
+    Normal { h, g, hee, ge, c }
+}
+
+/// Largest dense reduced system whose Schur complement is accumulated in [`BlockLower`] (its lower block
+/// triangle, about `n²/2` values, is a second copy; above this size the O(n³) factorisation dominates
+/// the solve and the copy would only cost memory).
+const BLOCKED_SCHUR_MAX: usize = 4000;
+
+/// The lower block triangle of the dense reduced matrix with every block contiguous (column-major), so
+/// that the Schur updates of one eliminated variable touch a few contiguous runs of memory instead of
+/// columns a whole matrix apart. Each entry receives the same operations in the same order as in the
+/// dense matrix, so the result is bit-identical.
+struct BlockLower {
+    /// Start of block `(a, b)`, `a ≥ b`, at `a (a + 1) / 2 + b`.
+    off: Vec<usize>,
+    data: Vec<f64>,
+}
+
+impl BlockLower {
+    fn new(m: &DMatrix<f64>, layout: &Layout) -> Self {
+        let n = layout.reduced.len();
+        let mut off = Vec::with_capacity(n * (n + 1) / 2);
+        let mut data = Vec::new();
+        for a in 0..n {
+            let (_, ra, da) = layout.reduced[a];
+            for b in 0..=a {
+                let (_, rb, db) = layout.reduced[b];
+                off.push(data.len());
+                for j in 0..db {
+                    data.extend_from_slice(&m.as_slice()[(rb + j) * m.nrows() + ra..][..da]);
+                }
+            }
+        }
+        Self { off, data }
+    }
+
+    fn block_mut(&mut self, a: usize, b: usize) -> &mut [f64] {
+        let i = a * (a + 1) / 2 + b;
+        let end = self.off.get(i + 1).copied().unwrap_or(self.data.len());
+        &mut self.data[self.off[i]..end]
+    }
+
+    fn write_back(&self, m: &mut DMatrix<f64>, layout: &Layout) {
+        let nr = m.nrows();
+        let mut blocks = self.off.iter();
+        for a in 0..layout.reduced.len() {
+            let (_, ra, da) = layout.reduced[a];
+            for b in 0..=a {
+                let (_, rb, db) = layout.reduced[b];
+                let Some(&o) = blocks.next() else { return };
+                for j in 0..db {
+                    let start = (rb + j) * nr + ra;
+                    m.as_mut_slice()[start..start + da].copy_from_slice(&self.data[o + j * da..o + (j + 1) * da]);
                 }
             }
         }
     }
-    for eb in &mut elim {
-        eb.links.sort_by_key(|(a, _)| *a);
-    }
-    Normal { h, g, elim }
 }
 
 /// Solve the damped system for the full step (reduced then eliminated variables), or `None` when a
-
+/// factorisation fails.
 fn damped_step(
     layout: &Layout,
     ne: &Normal,
@@ -543,55 +779,68 @@ fn damped_step(
         }
         (Reduced::Sparse(_), None) => return None,
     }
-    // Schur complement of the eliminated variables.
-    let mut hinvs = Vec::with_capacity(ne.elim.len());
+    // Schur complement of the eliminated variables (dense path: into contiguous blocks when small).
+    let mut blocked = match &dense {
+        Some(m) if !layout.eliminated.is_empty() && n_red <= BLOCKED_SCHUR_MAX => Some(BlockLower::new(m, layout)),
+        _ => None,
+    };
+    let mut hinvs = Vec::with_capacity(layout.eliminated.len());
     let mut vt: Vec<Vec<f64>> = Vec::new();
     let mut prod = DMatrix::zeros(0, 0);
-    for eb in &ne.elim {
-        let de = eb.hee.nrows();
+    let mut pair = 0; // running index of the link pairs ([`Pattern::schur_blocks`])
+    for (ev, &(_, de)) in layout.eliminated.iter().enumerate() {
+        let (ho, go) = layout.elim_off[ev];
+        let (hee, ge) = (&ne.hee[ho..ho + de * de], &ne.ge[go..go + de]);
+        // this variable's links: (reduced var, C block)
+        let links = (layout.link_start[ev]..layout.link_start[ev + 1])
+            .map(|l| (layout.link_var[l], &ne.c[layout.link_off[l]..layout.link_off[l + 1]]));
         // H_ee⁻¹ (damped), fixed-size for points
         let hinv = if de == 3 {
-            let mut h = nalgebra::Matrix3::from_column_slice(eb.hee.as_slice());
+            let mut h = nalgebra::Matrix3::from_column_slice(hee);
             for i in 0..3 {
                 let x = h[(i, i)];
                 h[(i, i)] += damp(x);
             }
             HInv::Three(h.cholesky()?.inverse())
         } else {
-            let mut h = eb.hee.clone();
+            let mut h = DMatrix::from_column_slice(de, de, hee);
             for i in 0..de {
                 let x = h[(i, i)];
                 h[(i, i)] += damp(x);
             }
             HInv::Dyn(h.cholesky()?.inverse())
         };
-        let hg: Vec<f64> = hinv.mul_vec(eb.ge.as_slice());
-        while vt.len() < eb.links.len() {
+        let hg: Vec<f64> = hinv.mul_vec(ge);
+        let n_links = layout.link_start[ev + 1] - layout.link_start[ev];
+        while vt.len() < n_links {
             vt.push(Vec::new());
         }
-        for (ai, (a, ca)) in eb.links.iter().enumerate() {
-            hinv.mul_mat_rowmajor(ca, &mut vt[ai]);
-            let (_, ra, da) = layout.reduced[*a];
+        for (ai, (a, ca)) in links.clone().enumerate() {
+            let (_, ra, da) = layout.reduced[a];
+            hinv.mul_mat_rowmajor(ca, da, &mut vt[ai]);
             // rhs_a −= C_aᵀ H⁻¹ g_e
-            for (i, col) in ca.as_slice().chunks_exact(de).enumerate().take(da) {
+            for (i, col) in ca.chunks_exact(de).enumerate().take(da) {
                 let dot: f64 = col.iter().zip(&hg).map(|(x, y)| x * y).sum();
                 rhs[ra + i] -= dot;
             }
         }
-        for (ai, (a, _)) in eb.links.iter().enumerate() {
-            let (_, ra, da) = layout.reduced[*a];
-            for (b, cb) in &eb.links[..=ai] {
-                let (_, rb, db) = layout.reduced[*b];
+        for (ai, (a, _)) in links.clone().enumerate() {
+            let (_, ra, da) = layout.reduced[a];
+            for (b, cb) in links.clone().take(ai + 1) {
+                let (_, rb, db) = layout.reduced[b];
+                pair += 1;
                 // S_ab −= C_aᵀ H⁻¹ C_b = V_aᵀ C_b
-                if let Some(m) = dense.as_mut() {
-                    add_atb(m.as_mut_slice(), n_red, (ra, rb), -1.0, (&vt[ai], da), (cb.as_slice(), de));
+                if let Some(bl) = blocked.as_mut() {
+                    add_atb(bl.block_mut(a, b), da, (0, 0), -1.0, (&vt[ai], da), (cb, de), a == b);
+                } else if let Some(m) = dense.as_mut() {
+                    add_atb(m.as_mut_slice(), n_red, (ra, rb), -1.0, (&vt[ai], da), (cb, de), a == b);
                 } else if let Some(pat) = pattern {
-                    let i = *pat.index.get(&(*a, *b))?;
+                    let i = *pat.schur_blocks.get(pair - 1)?;
                     if prod.shape() != (da, db) {
                         prod = DMatrix::zeros(da, db);
                     }
                     prod.fill(0.0);
-                    add_atb(prod.as_mut_slice(), da, (0, 0), 1.0, (&vt[ai], da), (cb.as_slice(), de));
+                    add_atb(prod.as_mut_slice(), da, (0, 0), 1.0, (&vt[ai], da), (cb, de), a == b);
                     for (x, &q) in prod.iter().zip(&pat.positions[i]) {
                         if q != usize::MAX {
                             vals[q] -= x;
@@ -601,6 +850,9 @@ fn damped_step(
             }
         }
         hinvs.push(hinv);
+    }
+    if let (Some(m), Some(bl)) = (dense.as_mut(), blocked.as_ref()) {
+        bl.write_back(m, layout);
     }
     let dred = if n_red == 0 {
         DVector::zeros(0)
@@ -614,12 +866,13 @@ fn damped_step(
         return None;
     }
     // Back-substitution.
-    let mut delim = Vec::with_capacity(ne.elim.len());
-    for (eb, hinv) in ne.elim.iter().zip(&hinvs) {
-        let mut t = eb.ge.clone();
-        for (a, c) in &eb.links {
-            let (_, off, d) = layout.reduced[*a];
-            t.gemv(1.0, c, &dred.rows(off, d), 1.0);
+    let mut delim = Vec::with_capacity(layout.eliminated.len());
+    for ((ev, &(_, de)), hinv) in layout.eliminated.iter().enumerate().zip(&hinvs) {
+        let go = layout.elim_off[ev].1;
+        let mut t = DVector::from_column_slice(&ne.ge[go..go + de]);
+        for l in layout.link_start[ev]..layout.link_start[ev + 1] {
+            let (_, off, d) = layout.reduced[layout.link_var[l]];
+            t.gemv(1.0, &view(&ne.c[layout.link_off[l]..layout.link_off[l + 1]], de), &dred.rows(off, d), 1.0);
         }
         let x = hinv.mul_vec(t.as_slice());
         delim.push(-DVector::from_vec(x));
@@ -631,6 +884,15 @@ fn damped_step(
 /// `A` (r × da) row by row (`at[k·da + i] = A(k, i)`) and `b` holds `B` (r × db) column-major. The
 /// inner loop is an axpy over contiguous memory, which the compiler vectorises; this is the hot loop of
 /// the normal equations and of the Schur complement.
+///
+/// With `lower`, the block is a diagonal block of a symmetric matrix of which only the lower triangle
+/// is read, and the general-size path updates only the entries on or below its diagonal.
+///
+/// The common block sizes (9-parameter BAL cameras and 6-dof poses against 2-, 3- and 4-row residuals
+/// or 3-dof points) go to a copy with compile-time sizes, whose loops the compiler unrolls and
+/// vectorises; it updates the whole block (skipping the upper triangle of a diagonal block costs more
+/// in branching than it saves). The arithmetic and its order are the same, so the result is
+/// bit-identical.
 #[inline]
 fn add_atb(
     m: &mut [f64],
@@ -639,13 +901,66 @@ fn add_atb(
     alpha: f64,
     (at, da): (&[f64], usize),
     (b, r): (&[f64], usize),
+    lower: bool,
 ) {
-    for (j, bj) in b.chunks_exact(r).enumerate() {
+    let db = b.len().checked_div(r).unwrap_or(0);
+    macro_rules! fixed {
+        ($($da:literal, $r:literal, $db:literal);*) => {
+            match (da, r, db) {
+                $(($da, $r, $db) => return add_atb_fixed::<$da, $r, $db>(m, ld, (ra, rb), alpha, at, b),)*
+                _ => {}
+            }
+        };
+    }
+    fixed!(9, 2, 9; 9, 3, 9; 6, 2, 6; 6, 3, 6; 6, 4, 6; 6, 3, 3; 3, 3, 6; 6, 6, 6);
+    add_atb_dyn(m, ld, (ra, rb), alpha, (at, da), (b, r), lower);
+}
+
+/// [`add_atb`] with compile-time sizes `A` (R × DA), `B` (R × DB).
+#[inline(always)]
+fn add_atb_fixed<const DA: usize, const R: usize, const DB: usize>(
+    m: &mut [f64],
+    ld: usize,
+    (ra, rb): (usize, usize),
+    alpha: f64,
+    at: &[f64],
+    b: &[f64],
+) {
+    let (at, b) = (&at[..DA * R], &b[..R * DB]);
+    for j in 0..DB {
         let start = (rb + j) * ld + ra;
-        let col = &mut m[start..start + da];
+        let col = &mut m[start..start + DA];
+        // the column in registers while the R updates are added (same order, one load and store)
+        let mut acc = [0.0; DA];
+        acc.copy_from_slice(col);
+        for k in 0..R {
+            let f = alpha * b[j * R + k];
+            let ak = &at[k * DA..(k + 1) * DA];
+            for (o, a) in acc.iter_mut().zip(ak) {
+                *o += f * a;
+            }
+        }
+        col.copy_from_slice(&acc);
+    }
+}
+
+/// [`add_atb`] for any sizes.
+fn add_atb_dyn(
+    m: &mut [f64],
+    ld: usize,
+    (ra, rb): (usize, usize),
+    alpha: f64,
+    (at, da): (&[f64], usize),
+    (b, r): (&[f64], usize),
+    lower: bool,
+) {
+    for (j, bj) in b.chunks_exact(r.max(1)).enumerate() {
+        let i0 = if lower { j.min(da) } else { 0 };
+        let start = (rb + j) * ld + ra;
+        let col = &mut m[start + i0..start + da];
         for (k, &bkj) in bj.iter().enumerate() {
             let f = alpha * bkj;
-            let ak = &at[k * da..(k + 1) * da];
+            let ak = &at[k * da + i0..(k + 1) * da];
             for (o, a) in col.iter_mut().zip(ak) {
                 *o += f * a;
             }
@@ -655,11 +970,11 @@ fn add_atb(
 
 /// Row-major copy of a column-major matrix into `out`.
 #[inline]
-fn transpose_into(a: &DMatrix<f64>, out: &mut Vec<f64>) {
-    let (r, c) = a.shape();
+fn transpose_into(a: &[f64], r: usize, out: &mut Vec<f64>) {
+    let c = a.len().checked_div(r).unwrap_or(0);
     out.clear();
     out.resize(r * c, 0.0);
-    for (i, col) in a.as_slice().chunks_exact(r).enumerate() {
+    for (i, col) in a.chunks_exact(r.max(1)).enumerate() {
         for (k, v) in col.iter().enumerate() {
             out[k * c + i] = *v;
         }
@@ -667,27 +982,28 @@ fn transpose_into(a: &DMatrix<f64>, out: &mut Vec<f64>) {
 }
 
 /// `½‖r‖² − ½‖r + Jδ‖²` summed over factors (the decrease the linear model predicts).
-fn model_decrease(graph: &Graph, layout: &Layout, lins: &[Lin], dred: &DVector<f64>, delim: &[DVector<f64>]) -> f64 {
+fn model_decrease(graph: &Graph, layout: &Layout, lins: &Lins, dred: &DVector<f64>, delim: &[DVector<f64>]) -> f64 {
     let mut total = 0.0;
     let mut jd = DVector::zeros(0);
-    for (e, lin) in graph.entries().iter().zip(lins) {
-        if jd.len() != lin.r.len() {
-            jd = DVector::zeros(lin.r.len());
+    for (i, e) in graph.entries().iter().enumerate() {
+        let r = nalgebra::DVectorView::from_slice(lins.residual(i), lins.r_off[i + 1] - lins.r_off[i]);
+        if jd.len() != r.len() {
+            jd = DVector::zeros(r.len());
         } else {
             jd.fill(0.0);
         }
-        for (k, j) in e.factor.keys().iter().zip(&lin.j) {
-            let Some(j) = j else { continue };
+        for (t, k) in e.factor.keys().iter().enumerate() {
+            let (js, rows) = lins.jacobian(i, t);
             match layout.slots.get(k.0).copied().flatten() {
                 Some(Slot::Reduced { var }) => {
                     let (_, off, d) = layout.reduced[var];
-                    jd.gemv(1.0, j, &dred.rows(off, d), 1.0);
+                    jd.gemv(1.0, &view(js, rows), &dred.rows(off, d), 1.0);
                 }
-                Some(Slot::Eliminated { var }) => jd.gemv(1.0, j, &delim[var], 1.0),
+                Some(Slot::Eliminated { var }) => jd.gemv(1.0, &view(js, rows), &delim[var], 1.0),
                 None => {}
             }
         }
-        total -= lin.r.dot(&jd) + 0.5 * jd.norm_squared();
+        total -= r.dot(&jd) + 0.5 * jd.norm_squared();
     }
     total
 }

@@ -35,6 +35,19 @@ fn check(f: &dyn Factor, values: &Values, name: &str) {
         let err = (a - n).norm() / n.norm().max(1.0);
         assert!(err < 1e-6, "{name} key {k}: rel err {err:e}\nanalytic {a}\nnumeric {n}");
     }
+    // the solvers' entry point gives exactly the same numbers (the BAL factor overrides it, the
+    // others use the provided copy), and refuses buffers of the wrong size
+    let r = f.evaluate(values, None).expect("residual");
+    let mut r_into = vec![0.0; f.dim()];
+    let mut j_into = vec![0.0; analytic.iter().map(|j| j.len()).sum()];
+    f.evaluate_into(values, &mut r_into, Some(&mut j_into)).unwrap_or_else(|e| panic!("{name}: {e}"));
+    assert_eq!(r.as_slice(), &r_into[..], "{name}: evaluate_into residual");
+    let flat: Vec<f64> = analytic.iter().flat_map(|j| j.iter().copied()).collect();
+    assert_eq!(flat, j_into, "{name}: evaluate_into Jacobians");
+    let mut short = vec![0.0; j_into.len() - 1];
+    assert!(f.evaluate_into(values, &mut r_into, Some(&mut short)).is_err(), "{name}: short Jacobian buffer");
+    let mut long_r = vec![0.0; f.dim() + 1];
+    assert!(f.evaluate_into(values, &mut long_r, None).is_err(), "{name}: long residual buffer");
 }
 
 const K: Intrinsics = Intrinsics { fx: 721.5, fy: 718.0, skew: 0.0, cx: 609.6, cy: 172.9 };
