@@ -380,12 +380,8 @@ fn eval_run_folder(dir: &std::path::Path, a: &EvalArgs) -> anyhow::Result<()> {
     let poses = read_kitti_poses(dir.join("trajectory.kitti.txt"))?;
     let geometry = slam_eval::LabelGeometry::read(&dir.join("camera.json"))?;
     let objects = slam_eval::read_object_map(&dir.join("objects.json"))?;
-    let config = slam_eval::ScoreConfig {
-        min_frames: a.min_frames,
-        static_m: a.static_m,
-        moving_m: a.moving_m,
-        ..Default::default()
-    };
+    let config =
+        slam_eval::ScoreConfig { min_frames: a.min_frames, static_m: a.static_m, moving_m: a.moving_m, ..Default::default() };
     let score = slam_eval::score_run(&labels, &poses, &geometry, &objects, &config);
     print!("{}", score.report());
     let out = dir.join("objects_score.json");

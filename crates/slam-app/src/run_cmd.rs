@@ -463,17 +463,7 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     sys.objects.method = a.method.fit();
     let out = system::run(frames, tracker, det, k, seq.baseline, &sys, optimizer, &mut on_frame)?;
     bar.finish();
-    Ok(Outcome {
-        out,
-        labels,
-        seq,
-        elapsed: start.elapsed().as_secs_f64(),
-        k,
-        image,
-        colour,
-        detections: counts,
-        notes,
-    })
+    Ok(Outcome { out, labels, seq, elapsed: start.elapsed().as_secs_f64(), k, image, colour, detections: counts, notes })
 }
 
 /// The calibration file a sequence's intrinsics came from (for messages).

@@ -1339,7 +1339,6 @@ impl StereoVo {
         };
         let (ref_id, world_from_ref) = (reference.id, reference.world_from_kf);
         let map = self.local_map();
-        tracing::debug!(points = map.points.len(), ms = t2.elapsed().as_secs_f64() * 1e3, "local map");
         // frame intervals since the last processed and the last measured frame (unreadable frames
         // between them count)
         self.gap = frame_index.saturating_sub(self.last_index).max(1);
