@@ -524,13 +524,32 @@ fn frame_period(stamped: &[(usize, f64)]) -> f64 {
     }
 }
 
+/// Every state a frame's row of `tracking.csv` can name, in the order of `track-bench`'s columns.
+const STATE_NAMES: [&str; 7] = ["initialised", "tracked", "weak", "relocalised", "predicted", "lost", "unreadable"];
+
+/// The state of a frame as `tracking.csv` names it ("unreadable": the images could not be read).
+fn state_name(r: &system::FrameRecord) -> &'static str {
+    r.state.map_or("unreadable", |s| s.name())
+}
+
+/// Frames in each state of [`STATE_NAMES`], counted from the records `tracking.csv` is written from.
+fn state_counts(frames: &[system::FrameRecord]) -> [usize; STATE_NAMES.len()] {
+    let mut counts = [0; STATE_NAMES.len()];
+    for r in frames {
+        if let Some(k) = STATE_NAMES.iter().position(|n| *n == state_name(r)) {
+            counts[k] += 1;
+        }
+    }
+    counts
+}
+
 /// `tracking.csv`: one row per input frame (frame, state, inliers, tracked map points, RMS
 /// reprojection error in pixels, tracking time in ms: extraction + stereo + tracking).
 fn write_tracking_csv(path: &std::path::Path, out: &RunOutput) -> anyhow::Result<()> {
     use std::fmt::Write as _;
     let mut text = String::from("frame,state,inliers,tracked_map_points,reprojection_rms_px,time_ms\n");
     for r in &out.frames {
-        let (state, inliers) = r.state.map_or(("unreadable", 0), |s| (s.name(), s.inliers()));
+        let (state, inliers) = (state_name(r), r.state.map_or(0, |s| s.inliers()));
         let rms =
             if r.reprojection_rms_px.is_finite() { format!("{:.3}", r.reprojection_rms_px) } else { String::new() };
         let ms = r.times.extraction + r.times.stereo + r.times.tracking;
@@ -1305,8 +1324,11 @@ pub fn track_bench(b: &TrackBenchArgs) -> anyhow::Result<()> {
     if cases.is_empty() {
         bail!("no cases: --only-cases needs at least one --case PATH[:STRIDE]");
     }
-    println!("| case | frames | ATE m | ATE aligned m | end drift % | largest step error m (frame), tracked frames | lost / relocalised | median frames/s |");
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|");
+    println!(
+        "| case | frames | ATE m | ATE aligned m | end drift % | largest step error m (frame), tracked frames | {} | median frames/s |",
+        STATE_NAMES.join(" | ")
+    );
+    println!("|---|---:|---:|---:|---:|---:|{}---:|", "---:|".repeat(STATE_NAMES.len()));
     let mut notes = Vec::new();
     for c in &cases {
         let path = c.path.to_string_lossy().to_string();
@@ -1327,16 +1349,16 @@ pub fn track_bench(b: &TrackBenchArgs) -> anyhow::Result<()> {
             out.frames.iter().map(|f| matches!(f.state, Some(slam_core::TrackState::Tracked { .. }))).collect();
         let step = truth.as_ref().and_then(|g| slam_pipeline::eval::largest_step_error(&out.poses, g, &tracked));
         let cell = |v: Option<f64>, digits: usize| v.map_or("–".to_string(), |v| format!("{v:.digits$}"));
+        let states: Vec<String> = state_counts(&out.frames).iter().map(|n| n.to_string()).collect();
         println!(
-            "| {} | {} | {} | {} | {} | {} | {} / {} | {:.1} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {:.1} |",
             c.name,
             out.frames.len(),
             cell(errors.as_ref().map(|e| e.ate_m), 3),
             cell(errors.as_ref().map(|e| e.ate_aligned_m), 3),
             cell(errors.as_ref().map(|e| e.end_drift_pct), 2),
             step.map_or("–".to_string(), |(e, k)| format!("{e:.3} ({})", seq.ids[k])),
-            out.counts.lost,
-            out.counts.relocalised,
+            states.join(" | "),
             median_fps(out)
         );
         if let Some(TruthSource::Oxts { median_pos_accuracy_m }) = seq.truth_source {
@@ -1350,7 +1372,7 @@ pub fn track_bench(b: &TrackBenchArgs) -> anyhow::Result<()> {
         }
     }
     println!(
-        "\nATE: RMS position error, both trajectories starting at the identity (\"aligned\": after the best rigid alignment). Step error: |t(est step) - t(true step)| over steps ending at a frame marked tracked; the frame id in brackets. Frames/s: 1000 / median interval between frames (machine load matters; accuracy figures are deterministic)."
+        "\nATE: RMS position error, both trajectories starting at the identity (\"aligned\": after the best rigid alignment). Step error: |t(est step) - t(true step)| over steps ending at a frame marked tracked; the frame id in brackets. State columns: frames per state as tracking.csv names them (each frame in exactly one). Frames/s: 1000 / median interval between frames (machine load matters; accuracy figures are deterministic)."
     );
     for n in notes {
         println!("{n}");

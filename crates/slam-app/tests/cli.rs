@@ -993,6 +993,48 @@ fn labels_scoring_of_a_run_not_starting_at_frame_0_goes_by_frame_id() {
     std::fs::remove_dir_all(&out).ok();
 }
 
+/// `track-bench` counts every tracking state, from the same records `tracking.csv` is written from:
+/// two black frames in a row (the first lost, the second predicted) show in their own columns, and
+/// every column equals the count of that state in the `tracking.csv` of a `run` on the same frames.
+#[test]
+fn track_bench_counts_every_state_like_tracking_csv() {
+    let frames: Vec<(usize, usize)> = (0..12).map(|i| (i, i)).collect();
+    let seq = odometry_copy("bench-states", &frames, 12);
+    let black = slam_core::Image::new(1226, 370, 1, vec![0; 1226 * 370]).expect("image");
+    for i in [6, 7] {
+        for d in ["image_0", "image_1"] {
+            slam_frontend::write_image(seq.join(format!("{d}/{i:06}.png")), &black).expect("black");
+        }
+    }
+    let o = app().args(["track-bench", "--only-cases", "--case"]).arg(&seq).output().expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout).to_string();
+    let cells =
+        |line: &str| -> Vec<String> { line.trim_matches('|').split('|').map(|c| c.trim().to_string()).collect() };
+    let mut lines = text.lines().filter(|l| l.starts_with('|'));
+    let header = cells(lines.next().expect("header"));
+    let row = cells(lines.nth(1).expect("a row"));
+    assert_eq!(header.len(), row.len(), "{text}");
+    let names = ["initialised", "tracked", "weak", "relocalised", "predicted", "lost", "unreadable"];
+    let column = |name: &str| -> usize {
+        let k = header.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name}\n{text}"));
+        row[k].parse().unwrap_or_else(|_| panic!("column {name}: {}\n{text}", row[k]))
+    };
+    let out = seq.parent().expect("parent").join("out");
+    let r = app().args(["run", "--detector", "none"]).arg(&seq).arg("--out").arg(&out).output().expect("runs");
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let csv = std::fs::read_to_string(out.join("tracking.csv")).expect("tracking.csv");
+    let states: Vec<String> = csv.lines().skip(1).map(|l| l.split(',').nth(1).expect("state").to_string()).collect();
+    assert_eq!(states.len(), 12, "{csv}");
+    for name in names {
+        assert_eq!(column(name), states.iter().filter(|s| *s == name).count(), "column {name}\n{text}\n{csv}");
+    }
+    assert_eq!(names.iter().map(|n| column(n)).sum::<usize>(), 12, "every frame in one column\n{text}");
+    assert_eq!((states[6].as_str(), states[7].as_str()), ("lost", "predicted"), "{csv}");
+    assert!(column("lost") >= 1 && column("predicted") >= 1, "{text}");
+    let _ = std::fs::remove_dir_all(seq.parent().and_then(|p| p.parent()).expect("copy root"));
+}
+
 /// Issue 16: `--method` goes through the `slam_quadric::Initializer` seam and `--associator` through the
 /// `Associator` seam. Image-free mode on the shipped tracking labels: each of the five methods and both
 /// associators give an object map of their own.

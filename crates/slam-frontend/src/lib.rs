@@ -10,6 +10,8 @@ pub mod detector;
 pub mod disparity;
 pub use detector::nms;
 pub mod image_io;
+mod matching;
+mod pose_only;
 pub mod stereo_vo;
 
 pub use detector::{DetectorConfig, DnnDetector, InputMode};

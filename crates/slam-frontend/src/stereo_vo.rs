@@ -19,12 +19,14 @@ use slam_core::{
 };
 use slam_optim::{
     factors::{MonoReprojection, StereoReprojection},
-    Graph, Huber, NoiseModel, Options, SharedOptimizer, Values, Var,
+    Graph, Huber, Key, NoiseModel, Options, SharedOptimizer, Values, Var,
 };
 use slam_quadric::{se3, Intrinsics};
 
 use crate::disparity::DisparityPair;
 use crate::image_io::{image_to_mat, FrontendError};
+use crate::matching::{hamming, KeypointGrid};
+use crate::pose_only;
 
 /// A rectified stereo rig.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -179,6 +181,8 @@ struct Frame {
     /// Pyramid level and orientation (degrees) of each left keypoint.
     octave: Vec<i32>,
     angle: Vec<f32>,
+    /// The left keypoints in cells (projection searches).
+    grid: KeypointGrid,
 }
 
 impl Frame {
@@ -260,6 +264,19 @@ type Solved = (Isometry3<f64>, Vec<(usize, usize)>);
 /// What relocalisation found: the accepted candidate (refined pose, RANSAC inliers, route), and the
 /// first candidate pose whether accepted or not.
 type Relocalisation = (Option<(Refined, usize, Route)>, Option<Isometry3<f64>>);
+
+/// 95 % bounds of χ² with 3 (stereo) and 2 (left image only) degrees of freedom, σ = 1 px.
+const CHI2_STEREO: f64 = 7.815;
+const CHI2_MONO: f64 = 5.991;
+
+/// One refinement round's problem ([`StereoVo::round_problem`]): the graph, its values, the current
+/// pose's key, and each match's point key and current factor (`usize::MAX`: set aside).
+struct RoundProblem {
+    graph: Graph,
+    values: Values,
+    pose: Key,
+    per_match: Vec<(Key, usize)>,
+}
 
 /// A refined pose: `curr_from_ref`, inlier matches (local-map point, keypoint), RMS reprojection error.
 struct Refined {
@@ -410,10 +427,6 @@ fn refine_disparity(left: &GreyView<'_>, right: &GreyView<'_>, ul: f64, v: f64, 
     let xr = (xr0 + best as i64 - L) as f64 + delta;
     let d = xl as f64 - xr;
     (d > 0.0).then_some(d)
-}
-
-fn hamming(a: &[u8; 32], b: &[u8; 32]) -> u32 {
-    a.iter().zip(b).map(|(x, y)| (x ^ y).count_ones()).sum()
 }
 
 /// The two smallest Hamming distances among the candidates offered, and the best candidate.
@@ -644,6 +657,7 @@ impl StereoVo {
             keypoint_desc: left.desc.clone(),
             octave: left.octave.clone(),
             angle: left.angle.clone(),
+            grid: KeypointGrid::new(&left.points),
         }
     }
 
@@ -689,13 +703,7 @@ impl StereoVo {
         taken: &[bool],
     ) -> Vec<(usize, usize)> {
         let k = &self.rig.k;
-        let cell = 32.0;
-        let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
-        for (i, p) in frame.keypoints.iter().enumerate() {
-            if !taken[i] {
-                grid.entry(((p.0 / cell).floor() as i64, (p.1 / cell).floor() as i64)).or_default().push(i);
-            }
-        }
+        let margin = KeypointGrid::CELL;
         let mut found: Vec<(u32, usize, usize)> = Vec::new();
         for (i, x) in map.points.iter().enumerate() {
             if skip[i] {
@@ -706,24 +714,21 @@ impl StereoVo {
                 continue;
             }
             let (u, v) = (k.fx * c.x / c.z + k.cx, k.fy * c.y / c.z + k.cy);
-            if u < -cell || v < -cell || u > self.image_size.0 + cell || v > self.image_size.1 + cell {
+            if u < -margin || v < -margin || u > self.image_size.0 + margin || v > self.image_size.1 + margin {
                 continue;
             }
             let radius = window(&c.coords, map.octave[i]);
-            let r = (radius / cell).ceil() as i64;
-            let (gx, gy) = ((u / cell).floor() as i64, (v / cell).floor() as i64);
             let mut two = BestTwo::new();
-            for dx in -r..=r {
-                for dy in -r..=r {
-                    let Some(cands) = grid.get(&(gx + dx, gy + dy)) else { continue };
-                    for &j in cands {
-                        let (uj, vj) = frame.keypoints[j];
-                        if (uj - u).powi(2) + (vj - v).powi(2) <= radius * radius {
-                            two.offer(hamming(&map.desc[i], &frame.keypoint_desc[j]), j);
-                        }
-                    }
+            let d = &map.desc[i];
+            frame.grid.for_each_near((u, v), radius, |j| {
+                if taken[j] {
+                    return;
                 }
-            }
+                let (uj, vj) = frame.keypoints[j];
+                if (uj - u).powi(2) + (vj - v).powi(2) <= radius * radius {
+                    two.offer(hamming(d, &frame.keypoint_desc[j]), j);
+                }
+            });
             if let Some(j) = two.winner(self.config.track_hamming, false) {
                 found.push((two.best, i, j));
             }
@@ -821,22 +826,159 @@ impl StereoVo {
     /// than `far_baselines` baselines, a right-image σ growing in proportion to its depth (its
     /// disparity, a few pixels, says little about depth and is the most exposed to rectification error).
     fn noise(&self, o: &[f64; 3]) -> NoiseModel {
-        let d = o[0] - o[2];
-        let far = self.config.far_baselines * self.rig.baseline;
-        let z = self.rig.k.fx * self.rig.baseline / d.max(1e-6);
-        if o[2].is_finite() && z > far {
-            NoiseModel::Diagonal(vec![1.0, 1.0, z / far])
+        let sigma = self.sigma(o);
+        if sigma[2] != 1.0 {
+            NoiseModel::Diagonal(sigma.to_vec())
         } else {
             NoiseModel::Isotropic(1.0)
         }
     }
 
-    /// Refine `curr_from_ref` on the matches: the local map's keyframes fixed, the matched points free
-    /// (eliminated) with all their keyframe observations, the current frame's observations stereo where
-    /// it has a stereo point. Four rounds: after each, the current observations above the χ² bound
-    /// (95 %: 7.815 stereo, 5.991 left only, σ = 1 px) are set aside for the next round and the
-    /// set-aside ones are checked again; Huber in the first two rounds, plain least squares after. The
-    /// first three rounds move the pose alone (points held where their keyframes put them).
+    /// The σ of each component of an observation ([`StereoVo::noise`]).
+    fn sigma(&self, o: &[f64; 3]) -> [f64; 3] {
+        let d = o[0] - o[2];
+        let far = self.config.far_baselines * self.rig.baseline;
+        let z = self.rig.k.fx * self.rig.baseline / d.max(1e-6);
+        if o[2].is_finite() && z > far {
+            [1.0, 1.0, z / far]
+        } else {
+            [1.0; 3]
+        }
+    }
+
+    /// The current frame's observation of keypoint `c`: stereo `[u_l, v, u_r]` where it has a stereo
+    /// point, else `[u, v, NaN]`.
+    fn observation(frame: &Frame, c: usize) -> [f64; 3] {
+        match frame.of_keypoint.get(c).copied().flatten() {
+            Some(q) => frame.obs[q],
+            None => [frame.keypoints[c].0, frame.keypoints[c].1, f64::NAN],
+        }
+    }
+
+    /// Adds the reprojection factor of observation `o` (stereo when `o[2]` is finite) of `point` from
+    /// `pose`, with Huber (at the 95 % stereo χ² bound) when `robust`; its index in the graph.
+    fn add_observation(
+        &self,
+        graph: &mut Graph,
+        (pose, point): (Key, Key),
+        o: [f64; 3],
+        robust: bool,
+    ) -> Option<usize> {
+        let (k, b) = (self.rig.k, self.rig.baseline);
+        let f: Box<dyn slam_optim::Factor> = if o[2].is_finite() {
+            Box::new(StereoReprojection::new(pose, point, k, b, o))
+        } else {
+            Box::new(MonoReprojection::new(pose, point, k, [o[0], o[1]]))
+        };
+        let kernel: Box<dyn slam_optim::RobustKernel> =
+            if robust { Box::new(Huber(CHI2_STEREO.sqrt())) } else { Box::new(slam_optim::L2) };
+        graph.add_boxed(f, self.noise(&o), kernel).ok()
+    }
+
+    /// The last refinement round's problem from `pose` (`curr_from_ref`): the matched points free
+    /// (eliminated) with all their keyframe observations (keyframes fixed, Huber) and the current
+    /// observations of the `active` matches (least squares). Every match gets its point's key; its
+    /// current factor is `usize::MAX` when set aside.
+    fn round_problem(
+        &self,
+        map: &LocalMap,
+        frame: &Frame,
+        matches: &[(usize, usize)],
+        (active, pose): (&[bool], &Isometry3<f64>),
+    ) -> RoundProblem {
+        let mut values = Values::new();
+        let mut graph = Graph::new();
+        let pose_key = values.add(Var::Pose(pose.inverse()));
+        let mut slots: HashMap<usize, Key> = HashMap::new();
+        let mut per_match = Vec::with_capacity(matches.len());
+        for (m, &(i, c)) in matches.iter().enumerate() {
+            let kx = values.add(Var::Point(map.points[i]));
+            graph.eliminate(kx);
+            for &(slot, o) in &map.views[i] {
+                let ks = *slots.entry(slot).or_insert_with(|| values.add(Var::Pose(map.poses[slot])));
+                graph.fix(ks);
+                self.add_observation(&mut graph, (ks, kx), o, true);
+            }
+            let f = if active[m] {
+                self.add_observation(&mut graph, (pose_key, kx), Self::observation(frame, c), false)
+            } else {
+                None
+            };
+            per_match.push((kx, f.unwrap_or(usize::MAX)));
+        }
+        RoundProblem { graph, values, pose: pose_key, per_match }
+    }
+
+    /// χ² of every observation at `pose` with its point fixed, each within its bound or not, and the
+    /// sum and count of squared left-image errors of those within.
+    fn classify_fixed(
+        rig: &pose_only::Rig,
+        obs: &[pose_only::PoseObservation],
+        pose: &Isometry3<f64>,
+    ) -> (Vec<bool>, f64, usize) {
+        let (mut active, mut sq_sum, mut sq_n) = (Vec::with_capacity(obs.len()), 0.0, 0usize);
+        for o in obs {
+            let bound = if o.observed[2].is_finite() { CHI2_STEREO } else { CHI2_MONO };
+            let ok = rig.residual(pose, o).filter(|(r, _)| r.norm_squared() <= bound);
+            if let Some((r, _)) = &ok {
+                sq_sum += (r.x * o.sigma[0]).powi(2) + (r.y * o.sigma[1]).powi(2);
+                sq_n += 1;
+            }
+            active.push(ok.is_some());
+        }
+        (active, sq_sum, sq_n)
+    }
+
+    /// χ² of every match's current observation at the solved round's pose (the set-aside ones against
+    /// their point as the round left it), and with `rms`, the sum and count of squared left-image
+    /// errors of the matches within the bound.
+    fn classify(
+        &self,
+        frame: &Frame,
+        matches: &[(usize, usize)],
+        p: &RoundProblem,
+        pose: &Isometry3<f64>,
+    ) -> (Vec<bool>, f64, usize) {
+        let k = self.rig.k;
+        let mut probe_values = Values::new();
+        let probe_pose = probe_values.add(Var::Pose(pose.inverse()));
+        let (mut active, mut sq_sum, mut sq_n) = (Vec::with_capacity(matches.len()), 0.0, 0usize);
+        for (&(_, c), &(kx, f)) in matches.iter().zip(&p.per_match) {
+            let o = Self::observation(frame, c);
+            let chi2 = if f != usize::MAX {
+                p.graph.whitened_residual(f, &p.values).and_then(|r| r.ok()).map(|r| r.norm_squared())
+            } else {
+                let probe_point = probe_values.add(Var::Point(p.values.point(kx).copied().unwrap_or_default()));
+                let mut g = Graph::new();
+                self.add_observation(&mut g, (probe_pose, probe_point), o, false)
+                    .and_then(|fi| g.whitened_residual(fi, &probe_values))
+                    .and_then(|r| r.ok())
+                    .map(|r| r.norm_squared())
+            };
+            let bound = if o[2].is_finite() { CHI2_STEREO } else { CHI2_MONO };
+            let ok = chi2.is_some_and(|c| c <= bound);
+            active.push(ok);
+            if ok && f != usize::MAX {
+                // left-image error at the pose, the point where the round put it
+                if let Some(x) = p.values.point(kx) {
+                    let q = pose * nalgebra::Point3::from(*x);
+                    let (u, v) = (k.fx * q.x / q.z + k.cx, k.fy * q.y / q.z + k.cy);
+                    sq_sum += (u - o[0]).powi(2) + (v - o[1]).powi(2);
+                    sq_n += 1;
+                }
+            }
+        }
+        (active, sq_sum, sq_n)
+    }
+
+    /// Refine `curr_from_ref` on the matches, the current frame's observations stereo where it has a
+    /// stereo point. Four rounds: after each, the current observations above the χ² bound (95 %: 7.815
+    /// stereo, 5.991 left only, σ = 1 px) are set aside for the next round and the set-aside ones are
+    /// checked again; Huber in the first two rounds, plain least squares after. The first three rounds
+    /// move the pose alone, the points held where their keyframes put them ([`pose_only::solve`]); the
+    /// fourth frees the matched points with all their keyframe observations (keyframes fixed). Round 1
+    /// is skipped when round 0 kept every match (it would solve the same problem again). The RMS error
+    /// is that of the last round's inliers.
     fn refine(
         &self,
         map: &LocalMap,
@@ -844,122 +986,46 @@ impl StereoVo {
         matches: &[(usize, usize)],
         guess: &Isometry3<f64>,
     ) -> Option<Refined> {
-        const CHI2_STEREO: f64 = 7.815;
-        const CHI2_MONO: f64 = 5.991;
-        let k = self.rig.k;
-        let b = self.rig.baseline;
+        let enough = self.config.weak_inliers.max(6);
         let mut pose = *guess;
         let mut active = vec![true; matches.len()];
-        let (mut sq_sum, mut sq_n) = (0.0, 0usize);
-        let current_obs = |c: usize| -> [f64; 3] {
-            match frame.of_keypoint.get(c).copied().flatten() {
-                Some(q) => frame.obs[q],
-                None => [frame.keypoints[c].0, frame.keypoints[c].1, f64::NAN],
-            }
-        };
+        let mut rms = f64::NAN;
+        let mut changed = true;
+        let rig = pose_only::Rig { k: self.rig.k, baseline: self.rig.baseline };
+        let fixed: Vec<pose_only::PoseObservation> = matches
+            .iter()
+            .map(|&(i, c)| {
+                let observed = Self::observation(frame, c);
+                pose_only::PoseObservation { point: map.points[i], observed, sigma: self.sigma(&observed) }
+            })
+            .collect();
         for round in 0..4 {
-            if active.iter().filter(|a| **a).count() < self.config.weak_inliers.max(6) {
+            if active.iter().filter(|a| **a).count() < enough {
                 return None;
             }
-            let mut values = Values::new();
-            let mut graph = Graph::new();
-            let k_curr = values.add(Var::Pose(pose.inverse()));
-            let mut slots: HashMap<usize, slam_optim::Key> = HashMap::new();
-            let kernel = |robust: bool| -> Box<dyn slam_optim::RobustKernel> {
-                if robust {
-                    Box::new(Huber(CHI2_STEREO.sqrt()))
-                } else {
-                    Box::new(slam_optim::L2)
-                }
+            if round == 1 && !changed {
+                continue; // round 0's problem again (Huber, pose only, the same inliers)
+            }
+            let (now, sq_sum, sq_n) = if round < 3 {
+                let used: Vec<pose_only::PoseObservation> =
+                    fixed.iter().zip(&active).filter(|(_, a)| **a).map(|(o, _)| *o).collect();
+                let huber = (round < 2).then(|| CHI2_STEREO.sqrt());
+                pose = pose_only::solve(&rig, &used, &pose, huber, 10)?;
+                Self::classify_fixed(&rig, &fixed, &pose)
+            } else {
+                let mut p = self.round_problem(map, frame, matches, (&active, &pose));
+                self.optimizer.optimize(&p.graph, &mut p.values, &Options::with_max_iterations(10), None).ok()?;
+                pose = p.values.pose(p.pose)?.inverse();
+                self.classify(frame, matches, &p, &pose)
             };
-            let add = |graph: &mut Graph, pose_key, point_key, o: [f64; 3], noise: NoiseModel, robust: bool| {
-                let f: Box<dyn slam_optim::Factor> = if o[2].is_finite() {
-                    Box::new(StereoReprojection::new(pose_key, point_key, k, b, o))
-                } else {
-                    Box::new(MonoReprojection::new(pose_key, point_key, k, [o[0], o[1]]))
-                };
-                graph.add_boxed(f, noise, kernel(robust)).ok()
-            };
-            let mut current: Vec<(usize, slam_optim::Key, usize)> = Vec::new(); // (match, point, factor)
-                                                                                // the first rounds move the pose alone (points where their keyframes put them): cheap, and
-                                                                                // enough to sort inliers from outliers; the last frees the points
-            let full = round == 3;
-            for (m, &(i, c)) in matches.iter().enumerate() {
-                let kx = values.add(Var::Point(map.points[i]));
-                if !full {
-                    graph.fix(kx);
-                    if active[m] {
-                        let o = current_obs(c);
-                        if let Some(f) = add(&mut graph, k_curr, kx, o, self.noise(&o), round < 2) {
-                            current.push((m, kx, f));
-                        }
-                    } else {
-                        current.push((m, kx, usize::MAX));
-                    }
-                    continue;
-                }
-                graph.eliminate(kx);
-                for &(slot, o) in &map.views[i] {
-                    let ks = match slots.get(&slot) {
-                        Some(&key) => key,
-                        None => {
-                            let key = values.add(Var::Pose(map.poses[slot]));
-                            graph.fix(key);
-                            slots.insert(slot, key);
-                            key
-                        }
-                    };
-                    add(&mut graph, ks, kx, o, self.noise(&o), true);
-                }
-                if active[m] {
-                    let o = current_obs(c);
-                    if let Some(f) = add(&mut graph, k_curr, kx, o, self.noise(&o), false) {
-                        current.push((m, kx, f));
-                    }
-                } else {
-                    current.push((m, kx, usize::MAX));
-                }
-            }
-            if self.optimizer.optimize(&graph, &mut values, &Options::with_max_iterations(10), None).is_err() {
-                return None;
-            }
-            pose = values.pose(k_curr)?.inverse();
-            // classify every match at the new pose, the set-aside ones included
-            let world_from_curr = pose.inverse();
-            let mut probe_values = Values::new();
-            let probe_pose = probe_values.add(Var::Pose(world_from_curr));
-            for &(m, kx, f) in &current {
-                let o = current_obs(matches[m].1);
-                let chi2 = if f != usize::MAX {
-                    graph.whitened_residual(f, &values).and_then(|r| r.ok()).map(|r| r.norm_squared())
-                } else {
-                    // not in the graph: the point as its first keyframe saw it
-                    let x = values.point(kx).copied().unwrap_or(map.points[matches[m].0]);
-                    let probe_point = probe_values.add(Var::Point(x));
-                    let mut g = Graph::new();
-                    add(&mut g, probe_pose, probe_point, o, self.noise(&o), false)
-                        .and_then(|fi| g.whitened_residual(fi, &probe_values))
-                        .and_then(|r| r.ok())
-                        .map(|r| r.norm_squared())
-                };
-                let bound = if o[2].is_finite() { CHI2_STEREO } else { CHI2_MONO };
-                active[m] = chi2.is_some_and(|c| c <= bound);
-                if round == 3 && active[m] && f != usize::MAX {
-                    // left-image error at the final pose, the point where the adjustment put it
-                    if let Some(x) = values.point(kx) {
-                        let p = pose * nalgebra::Point3::from(*x);
-                        let (u, v) = (k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy);
-                        sq_sum += (u - o[0]).powi(2) + (v - o[1]).powi(2);
-                        sq_n += 1;
-                    }
-                }
-            }
+            changed = now != active;
+            active = now;
+            rms = (sq_sum / sq_n.max(1) as f64).sqrt();
         }
         let inliers: Vec<(usize, usize)> = matches.iter().zip(&active).filter(|(_, a)| **a).map(|(m, _)| *m).collect();
-        if inliers.len() < self.config.weak_inliers.max(6) {
+        if inliers.len() < enough {
             return None;
         }
-        let rms = (sq_sum / sq_n.max(1) as f64).sqrt();
         Some(Refined { pose, inliers, rms })
     }
 
@@ -986,15 +1052,20 @@ impl StereoVo {
         guess: &Isometry3<f64>,
         bounds: (f64, f64),
     ) -> Result<Option<(Refined, usize)>, FrontendError> {
+        let t0 = Instant::now();
         let skip = vec![false; map.points.len()];
         let taken = vec![false; frame.keypoints.len()];
         let matches = self.search(map, guess, frame, &|c, o| self.window(c, o, bounds), &skip, &taken);
-        tracing::trace!(matches = matches.len(), "local-map search");
-        let Some((pose, inliers)) =
-            self.pnp_ransac(map, frame, &matches, (self.config.ransac_px, 200, self.config.weak_inliers))?
-        else {
-            return Ok(None);
-        };
+        let t1 = Instant::now();
+        let first = self.pnp_ransac(map, frame, &matches, (self.config.ransac_px, 200, self.config.weak_inliers))?;
+        let t2 = Instant::now();
+        tracing::debug!(
+            matches = matches.len(),
+            search_ms = (t1 - t0).as_secs_f64() * 1e3,
+            pnp_ms = (t2 - t1).as_secs_f64() * 1e3,
+            "local-map search"
+        );
+        let Some((pose, inliers)) = first else { return Ok(None) };
         Ok(self.extend_and_refine(map, frame, &pose, inliers))
     }
 
@@ -1006,6 +1077,7 @@ impl StereoVo {
         pose: &Isometry3<f64>,
         inliers: Vec<(usize, usize)>,
     ) -> Option<(Refined, usize)> {
+        let t0 = Instant::now();
         let ransac_inliers = inliers.len();
         let mut skip = vec![false; map.points.len()];
         let mut taken = vec![false; frame.keypoints.len()];
@@ -1018,7 +1090,15 @@ impl StereoVo {
         let mut all = inliers;
         all.extend(extra);
         all.sort_unstable();
-        self.refine(map, frame, &all, pose).map(|r| (r, ransac_inliers))
+        let t1 = Instant::now();
+        let refined = self.refine(map, frame, &all, pose);
+        tracing::debug!(
+            matches = all.len(),
+            search_ms = (t1 - t0).as_secs_f64() * 1e3,
+            refine_ms = t1.elapsed().as_secs_f64() * 1e3,
+            "second search and refinement"
+        );
+        refined.map(|r| (r, ransac_inliers))
     }
 
     /// Make `frame` the reference keyframe; ids of points matched to the old reference carry over.
@@ -1604,6 +1684,7 @@ mod tests {
             valid: Vec::new(),
             octave: vec![0; n],
             angle: vec![0.0; n],
+            grid: KeypointGrid::new(&keypoints),
             keypoints,
             keypoint_desc: desc,
         }
@@ -1678,6 +1759,7 @@ mod tests {
             keypoint_desc: desc.to_vec(),
             octave: vec![0; n],
             angle: vec![10.0; n],
+            grid: KeypointGrid::new(&obs.iter().map(|o| (o[0], o[1])).collect::<Vec<_>>()),
         }
     }
 
