@@ -4,6 +4,7 @@
 
 #![warn(missing_docs)]
 
+pub mod check;
 pub mod classes;
 pub mod detections;
 pub mod kitti;
