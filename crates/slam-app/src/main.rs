@@ -3,12 +3,10 @@
 mod assoc_cmd;
 mod config;
 mod detect_cmd;
-mod guard;
 mod objects_cmd;
 mod optim_cmd;
 mod optimizer_choice;
 mod output;
-mod plot;
 mod progress;
 mod run_cmd;
 mod sim_cmd;

@@ -1,13 +1,15 @@
 //! Evaluation of a run's object map against KITTI tracking labels ([`score`]), with the labels'
 //! geometry in the run's camera ([`labels`]); and the image-free object study on KITTI tracking
-//! sequences, label boxes as detections ([`labelled`]). Used by `slam-app run --labels`, `slam-app
-//! objects` and `slam-app eval`; kept out of the app so that every front end scores the same way.
+//! sequences, label boxes as detections ([`labelled`]); a trajectory file against ground truth
+//! ([`trajectory`]). Used by `slam-app run --labels`, `objects`, `eval` and `trajectory-eval`; kept out
+//! of the app so that every front end scores the same way.
 
 #![warn(missing_docs)]
 
 pub mod labelled;
 pub mod labels;
 pub mod score;
+pub mod trajectory;
 
 use std::path::Path;
 
