@@ -7,6 +7,7 @@ use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 use slam_core::DetectionSource;
 use slam_dataset::{
+    check::calibration_file,
     detections::{DetectionFile, GroundTruthDetections, GroundTruthNoise},
     kitti::{
         stereo::{open_stereo, FrameSelection, Layout, StereoSequence, TruthSource},
@@ -395,18 +396,6 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     let out = system::run(frames, tracker, det, k, seq.baseline, &sys, optimizer, &mut on_frame)?;
     bar.finish();
     Ok(Outcome { out, labels, seq, elapsed: start.elapsed().as_secs_f64(), k, image, colour, detections: counts, notes })
-}
-
-/// The calibration file a sequence's intrinsics came from (for messages).
-fn calibration_file(seq: &StereoSequence) -> PathBuf {
-    match seq.layout {
-        Layout::Odometry => seq.dir.join("calib.txt"),
-        Layout::Raw => seq.dir.parent().unwrap_or(&seq.dir).join("calib_cam_to_cam.txt"),
-        Layout::Tracking => {
-            let name = seq.dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-            seq.dir.parent().and_then(|p| p.parent()).unwrap_or(&seq.dir).join("calib").join(format!("{name}.txt"))
-        }
-    }
 }
 
 /// The entries `slam-app run` writes into its output folder (a folder written before the marker file

@@ -1,11 +1,15 @@
 //! Checks of values before any work starts: numbers against their valid range ([`number`], [`count`],
 //! with messages that name the value, what was given and the range), and a stereo sequence's calibration
-//! against the images it describes ([`calibration`], [`declared_size`], [`first_pair`]). Used by
-//! `slam-app` for command-line options, settings files and the sequences it opens.
+//! against the images it describes ([`calibration`], [`declared_size`], [`first_pair`], and the file it
+//! came from, [`calibration_file`]). Used by `slam-app` for command-line options, settings files and the
+//! sequences it opens.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use crate::DatasetError;
+use crate::{
+    kitti::stereo::{Layout, StereoSequence},
+    DatasetError,
+};
 
 /// A value outside its valid range, or a calibration that does not fit its images.
 #[derive(Debug, thiserror::Error)]
@@ -170,6 +174,18 @@ pub fn first_pair<'a>(
             let dir = left.first().and_then(|p| p.parent()).map(|p| p.display().to_string()).unwrap_or_default();
             CheckError::Invalid(format!("{dir}: no frame has both its left and its right image"))
         })
+}
+
+/// The calibration file a sequence's intrinsics came from (for messages).
+pub fn calibration_file(seq: &StereoSequence) -> PathBuf {
+    match seq.layout {
+        Layout::Odometry => seq.dir.join("calib.txt"),
+        Layout::Raw => seq.dir.parent().unwrap_or(&seq.dir).join("calib_cam_to_cam.txt"),
+        Layout::Tracking => {
+            let name = seq.dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+            seq.dir.parent().and_then(|p| p.parent()).unwrap_or(&seq.dir).join("calib").join(format!("{name}.txt"))
+        }
+    }
 }
 
 #[cfg(test)]

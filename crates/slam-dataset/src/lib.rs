@@ -7,6 +7,7 @@
 pub mod check;
 pub mod classes;
 pub mod detections;
+pub mod folders;
 pub mod kitti;
 pub mod output;
 pub mod trajectory;
