@@ -5,7 +5,6 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use clap::Args;
-use slam_assoc::Oda;
 use slam_dataset::kitti::{poses::read_kitti_poses, tracking::read_tracking_labels};
 use slam_eval::labelled::{
     run_mapper, score_sequence, table_header, DetectionTruth, LabelNoise, LabelledSequence, Study, VehicleCriteria,
@@ -28,6 +27,12 @@ pub struct InputArgs {
     /// Ellipsoid method
     #[arg(long, value_enum, default_value_t = Method::Refine)]
     method: Method,
+    /// Object associator
+    #[arg(long, value_enum, default_value_t = crate::optimizer_choice::AssociatorKind::Oda)]
+    associator: crate::optimizer_choice::AssociatorKind,
+    /// Optimiser backend of the object fits
+    #[arg(long, value_enum, default_value_t = crate::optimizer_choice::OptimizerKind::Lm)]
+    optimizer: crate::optimizer_choice::OptimizerKind,
     /// Also fit objects seen without parallax (a standing camera) once they have this many boxes: depth
     /// from the class's size prior (off by default, as in the paper)
     #[arg(long)]
@@ -98,11 +103,11 @@ pub enum Method {
 impl Method {
     pub(crate) fn fit(self) -> FitMethod {
         match self {
-            Method::Refine => FitMethod::Refine,
-            Method::Qslam => FitMethod::QSlam,
-            Method::Conic => FitMethod::Conic,
-            Method::Tri => FitMethod::Tri,
-            Method::TriYaw => FitMethod::TriYaw,
+            Method::Refine => FitMethod::default(),
+            Method::Qslam => FitMethod::qslam(),
+            Method::Conic => FitMethod::conic(),
+            Method::Tri => FitMethod::tri(),
+            Method::TriYaw => FitMethod::tri_yaw(),
         }
     }
 }
@@ -130,7 +135,6 @@ pub struct ObjectsArgs {
 /// Run the object mapper over a sequence's label boxes.
 fn run(seq: &LabelledSequence, input: &InputArgs) -> (ObjectMapper, DetectionTruth) {
     let config = MapperConfig {
-        method: input.method.fit(),
         min_views_without_parallax: input.without_parallax_after,
         box_shape: input.box_shape.shape(),
         min_parallax_deg: input.min_parallax_deg,
@@ -138,8 +142,8 @@ fn run(seq: &LabelledSequence, input: &InputArgs) -> (ObjectMapper, DetectionTru
         max_misses: (input.max_misses > 0).then_some(input.max_misses),
         ..MapperConfig::default()
     };
-    let mapper =
-        ObjectMapper::new(Box::new(Oda::default()), config, crate::optimizer_choice::OptimizerKind::default().build());
+    let mapper = ObjectMapper::new(input.associator.build(None), config, input.optimizer.build())
+        .with_method(input.method.fit());
     let noise = LabelNoise { noise: input.noise, dropout: input.dropout, seed: input.seed };
     run_mapper(seq, &noise, mapper)
 }
@@ -229,9 +233,10 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     }
     let seqs = crate::tracking_sequences(&dir)?;
     println!(
-        "Object metrics, label boxes as detections (noise {} of box size, dropout {}), ODA + {}",
+        "Object metrics, label boxes as detections (noise {} of box size, dropout {}), {} + {}",
         a.input.noise,
         a.input.dropout,
+        a.input.associator.name(),
         a.input.method.fit().name()
     );
     println!(

@@ -22,7 +22,7 @@ use slam_pipeline::{
     report::{frame_period, median, median_fps, stage_table, tracking_csv},
     map::Map,
     objects::MappedObject,
-    system::{self, FrameInput, RunOutput},
+    system::{self, FrameInput, RunOutput, SystemBuilder},
 };
 use slam_quadric::{ImageSize, Intrinsics};
 
@@ -83,6 +83,9 @@ pub struct RunArgs {
     /// Ellipsoid method of the objects (baselines for comparison)
     #[arg(long, value_enum, default_value_t = crate::objects_cmd::Method::Refine)]
     method: crate::objects_cmd::Method,
+    /// Object associator (the paper's ODA, or the IoU baseline)
+    #[arg(long, value_enum, default_value_t = crate::optimizer_choice::AssociatorKind::Oda)]
+    associator: crate::optimizer_choice::AssociatorKind,
     /// Run the detector on every n-th frame only (overrides system.detect_every)
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     detect_every: Option<u64>,
@@ -299,11 +302,14 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
             (k, _) => k.name().to_string(),
         };
         println!(
-            "quadric SLAM on {} ({:?} layout, {n} frames: {}, fx {fx:.1} px, baseline {:.4} m, detector: {source})",
+            "quadric SLAM on {} ({:?} layout, {n} frames: {}, fx {fx:.1} px, baseline {:.4} m, detector: {source}, \
+             association: {}, ellipsoids: {})",
             seq.dir.display(),
             seq.layout,
             played_ids(&seq, &sel),
             seq.baseline,
+            a.associator.name(),
+            a.method.fit().name(),
         );
         if !(seq.gaps.is_empty() && seq.one_camera.is_empty()) {
             println!(
@@ -391,9 +397,17 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
         bar.set_message(format!("{keyframes} keyframes, {lost} frames lost"));
         bar.inc();
     };
-    let mut sys = cfg.system(image);
-    sys.objects.method = a.method.fit();
-    let out = system::run(frames, tracker, det, k, seq.baseline, &sys, optimizer, &mut on_frame)?;
+    let sys = cfg.system(image);
+    let out = SystemBuilder::new(k, seq.baseline)
+        .config(sys)
+        .source(frames)
+        .tracker(tracker)
+        .detector(det)
+        .associator(a.associator.build(sys.projected_gate))
+        .optimizer(optimizer)
+        .method(a.method.fit())
+        .build()?
+        .run(&mut on_frame)?;
     bar.finish();
     Ok(Outcome { out, labels, seq, elapsed: start.elapsed().as_secs_f64(), k, image, colour, detections: counts, notes })
 }
