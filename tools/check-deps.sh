@@ -4,7 +4,9 @@
 #  2. nothing below the front end links OpenCV;
 #  3. the seam crates (slam-core, slam-optim) depend on no implementation crate;
 #  4. implementation crates depend on seams only (slam-quadric, slam-core, slam-optim), never on each other.
-# Composition crates (slam-pipeline, slam-sim, slam-app) may combine implementations.
+# Composition crates (slam-pipeline, slam-sim, slam-eval, slam-viz, slam-app) may combine implementations;
+#  5. slam-eval and everything below the front end stay free of OpenCV; slam-viz (pictures, above the
+#     front end) is used by slam-app only.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export CARGO_NET_OFFLINE=true
@@ -24,13 +26,13 @@ fi
 echo "check-deps: slam-quadric depends on [ ${plain}] (+ serde with the serde feature): ok"
 
 # Nothing below the front end links OpenCV.
-for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline; do
+for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-eval; do
   if cargo tree -q -p "$crate" --all-features -e normal --prefix none | grep -q '^opencv '; then
     echo "check-deps: $crate must not depend on opencv" >&2
     exit 1
   fi
 done
-echo "check-deps: no OpenCV below slam-frontend: ok"
+echo "check-deps: no OpenCV below slam-frontend (nor in slam-eval): ok"
 
 # Workspace crates a crate depends on directly (normal dependencies, all features).
 workspace_deps() { direct -p "$1" --all-features | tr ' ' '\n' | grep '^slam-' | tr '\n' ' ' || true; }
@@ -59,3 +61,13 @@ for crate in slam-assoc slam-dataset slam-frontend slam-lm slam-dogleg; do
   check_only "$crate" $seams
 done
 echo "check-deps: implementation crates (slam-assoc, slam-dataset, slam-frontend, slam-lm, slam-dogleg) depend on seams only: ok"
+
+# slam-viz sits at the top, under the app only: no library crate depends on it.
+for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-eval slam-frontend; do
+  if workspace_deps "$crate" | tr ' ' '\n' | grep -qx slam-viz; then
+    echo "check-deps: $crate must not depend on slam-viz (pictures are for the app)" >&2
+    exit 1
+  fi
+done
+check_only slam-viz slam-quadric slam-core slam-sim slam-pipeline slam-frontend
+echo "check-deps: slam-viz depends on [ $(workspace_deps slam-viz)] and only slam-app depends on it: ok"

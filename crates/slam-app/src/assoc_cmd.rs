@@ -1,13 +1,14 @@
 //! `slam-app assoc …`: association accuracy studies.
 
-use std::{collections::BTreeMap, path::PathBuf};
+use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 use slam_assoc::{
-    eval::{run as run_sim, simulate, IdSwitchCounter, Lcg, MotCounts, SimConfig},
-    IouAssociator, ObjectTracker, Oda, TrackerConfig, TrackerInput,
+    eval::SimConfig,
+    study::{id_switches_on_labels, simulated_totals, BoxNoise, LabelledFrames},
+    IouAssociator, Oda,
 };
-use slam_core::{geometry::BBox, Associator, Detection};
+use slam_core::{Associator, Detection};
 use slam_dataset::kitti::tracking::read_tracking_labels;
 
 #[derive(Subcommand, Debug)]
@@ -67,25 +68,14 @@ fn sim(a: &SimArgs) -> anyhow::Result<()> {
     println!("Simulated association, {} scenes x {} frames, 8 objects of one class in two lanes", a.scenes, a.frames);
     println!("{:<24} {:>10} {:>8} {:>10} {:>8}", "scene", "ODA IDSW", "ODA MOTA", "IoU IDSW", "IoU MOTA");
     for (name, cfg) in variants {
-        let mut totals = [MotCounts::default(), MotCounts::default()];
-        for seed in 0..a.scenes {
-            let frames = simulate(&cfg, seed);
-            for (k, (_, make)) in associators().iter().enumerate() {
-                let mut tracker = ObjectTracker::new(make(), TrackerConfig::default());
-                let c = run_sim(&mut tracker, &frames);
-                totals[k].ground_truth += c.ground_truth;
-                totals[k].misses += c.misses;
-                totals[k].false_positives += c.false_positives;
-                totals[k].id_switches += c.id_switches;
-            }
-        }
+        let [oda, iou] = associators().map(|(_, make)| simulated_totals(&cfg, a.scenes, make));
         println!(
             "{:<24} {:>10} {:>8.4} {:>10} {:>8.4}",
             name,
-            totals[0].id_switches,
-            totals[0].mota(),
-            totals[1].id_switches,
-            totals[1].mota()
+            oda.id_switches,
+            oda.mota(),
+            iou.id_switches,
+            iou.mota()
         );
     }
     Ok(())
@@ -124,7 +114,7 @@ fn kitti(a: &KittiArgs) -> anyhow::Result<()> {
     for seq in &seqs {
         let name = seq.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let labels = read_tracking_labels(seq.join("label_02.txt"))?;
-        let mut frames: BTreeMap<usize, Vec<(u64, Detection)>> = BTreeMap::new();
+        let mut frames = LabelledFrames::new();
         let n_frames = labels.iter().map(|l| l.frame + 1).max().unwrap_or(0);
         let mut objects = std::collections::BTreeSet::new();
         for l in &labels {
@@ -137,42 +127,12 @@ fn kitti(a: &KittiArgs) -> anyhow::Result<()> {
         for (ci, cond) in CONDITIONS.iter().enumerate() {
             let mut cells = Vec::new();
             for (k, (aname, make)) in associators().iter().enumerate() {
-                let mut rng = Lcg::new(a.seed.wrapping_mul(1000).wrapping_add(ci as u64));
-                let mut tracker = ObjectTracker::new(make(), TrackerConfig::default());
-                let mut ids = IdSwitchCounter::default();
-                let mut n_det = 0;
-                let projected = BTreeMap::new();
-                for f in 0..n_frames {
-                    let mut truth = Vec::new();
-                    let mut dets = Vec::new();
-                    for (id, d) in frames.get(&f).map(|v| v.as_slice()).unwrap_or(&[]) {
-                        if rng.unit() < cond.dropout {
-                            continue;
-                        }
-                        let b = d.bbox;
-                        let (sx, sy) = (cond.noise_frac * b.width(), cond.noise_frac * b.height());
-                        let nb = BBox::new(
-                            b.xmin + sx * rng.normal(),
-                            b.ymin + sy * rng.normal(),
-                            b.xmax + sx * rng.normal(),
-                            b.ymax + sy * rng.normal(),
-                        );
-                        let nb = if nb.validated().is_ok() { nb } else { b };
-                        dets.push(Detection::new(d.class, 1.0, nb));
-                        truth.push(*id);
-                    }
-                    n_det += dets.len();
-                    let out = tracker.step(&TrackerInput {
-                        detections: &dets,
-                        projected: &projected,
-                        flow: &[],
-                        keyframe: true,
-                    });
-                    ids.frame(truth.iter().zip(&out.tracks).filter_map(|(t, k)| Some((*t, (*k)?))));
-                }
-                totals[ci][k] += ids.switches;
-                cells.push(ids.switches);
-                csv.push_str(&format!("{name},{},{n_det},{},{aname},{}\n", objects.len(), cond.name, ids.switches));
+                let noise = BoxNoise { noise_frac: cond.noise_frac, dropout: cond.dropout };
+                let seed = a.seed.wrapping_mul(1000).wrapping_add(ci as u64);
+                let r = id_switches_on_labels(&frames, n_frames, noise, seed, make());
+                totals[ci][k] += r.id_switches;
+                cells.push(r.id_switches);
+                csv.push_str(&format!("{name},{},{},{},{aname},{}\n", objects.len(), r.detections, cond.name, r.id_switches));
             }
             row.push_str(&format!(" | {:>20}", format!("{} / {}", cells[0], cells[1])));
         }

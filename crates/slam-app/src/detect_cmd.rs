@@ -2,7 +2,7 @@
 
 use std::{
     collections::BTreeMap,
-    path::{Path, PathBuf},
+    path::PathBuf,
     time::Instant,
 };
 
@@ -124,47 +124,13 @@ pub struct DetectArgs {
     model: ModelArgs,
 }
 
-fn list_images(input: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    if let Ok(seq) = slam_dataset::kitti::stereo::open_stereo(input) {
-        return Ok(seq.left);
-    }
-    let candidates = [
-        input.to_path_buf(),
-        input.join("image_2"),
-        input.join("image_02/data"),
-        input.join("image_0"),
-        input.join("image_00/data"),
-    ];
-    for dir in candidates {
-        let Ok(rd) = std::fs::read_dir(&dir) else { continue };
-        let mut v: Vec<PathBuf> = rd
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("png") || x.eq_ignore_ascii_case("jpg")))
-            .collect();
-        if !v.is_empty() {
-            v.sort();
-            return Ok(v);
-        }
-    }
-    bail!(
-        "{} is neither a KITTI stereo sequence (odometry, raw or tracking layout) nor a folder of PNG/JPG images \
-         (searched also its image_2, image_02/data, image_0, image_00/data)",
-        input.display()
-    )
-}
-
-/// The frame id of each image: the number in its file name (KITTI's `000042.png` is frame 42) when every
-/// name is one, so that the detection file lines up with ground truth and with `run` however frames are
-/// missing; else (arbitrary names) the position in name order, said on stdout.
+/// The frame id of each image: the number in its file name when every name is one, else (arbitrary
+/// names) the position in name order, said on stdout.
 fn frame_ids(images: &[PathBuf]) -> Vec<usize> {
-    let ids: Option<Vec<usize>> = images.iter().map(|p| slam_dataset::kitti::odometry::frame_id(p)).collect();
-    match ids {
-        Some(ids) if ids.windows(2).all(|w| w[0] < w[1]) => ids,
-        _ => {
-            println!("image names are not all distinct frame numbers: frames are numbered by position in name order");
-            (0..images.len()).collect()
-        }
-    }
+    slam_dataset::folders::frame_ids(images).unwrap_or_else(|| {
+        println!("image names are not all distinct frame numbers: frames are numbered by position in name order");
+        (0..images.len()).collect()
+    })
 }
 
 /// Overlay files `detect` writes (a folder written before the marker file existed may be replaced when it
@@ -174,9 +140,7 @@ fn overlay_name(name: &str) -> bool {
 }
 
 pub fn detect(a: &DetectArgs) -> anyhow::Result<()> {
-    let mut images = list_images(&a.input)?;
-    // numeric names sort by their number (9.png before 10.png)
-    images.sort_by_key(|p| (slam_dataset::kitti::odometry::frame_id(p), p.clone()));
+    let images = slam_dataset::folders::list_images(&a.input)?;
     let ids = frame_ids(&images);
     a.model.check()?;
     // both outputs are checked writable before the first image, and put in place whole at the end

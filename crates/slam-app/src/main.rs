@@ -3,12 +3,10 @@
 mod assoc_cmd;
 mod config;
 mod detect_cmd;
-mod guard;
 mod objects_cmd;
 mod optim_cmd;
 mod optimizer_choice;
 mod output;
-mod plot;
 mod progress;
 mod run_cmd;
 mod sim_cmd;
@@ -77,26 +75,9 @@ pub(crate) fn fixture(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures").join(rel)
 }
 
-/// The sequence folders (those holding `label_02.txt`) of an image-free KITTI tracking folder, sorted;
-/// a sequence folder itself is the one sequence.
+/// The sequence folders of an image-free KITTI tracking folder (`slam_dataset::folders`).
 pub(crate) fn tracking_sequences(dir: &std::path::Path) -> anyhow::Result<Vec<PathBuf>> {
-    use anyhow::Context;
-    if dir.join("label_02.txt").is_file() {
-        return Ok(vec![dir.to_path_buf()]);
-    }
-    let mut seqs: Vec<PathBuf> = std::fs::read_dir(dir)
-        .with_context(|| format!("cannot list sequences in {}", dir.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.join("label_02.txt").is_file())
-        .collect();
-    seqs.sort();
-    if seqs.is_empty() {
-        anyhow::bail!(
-            "{} is neither a sequence folder (label_02.txt, poses_orbslam3.txt, calib.txt) nor a folder of them",
-            dir.display()
-        );
-    }
-    Ok(seqs)
+    Ok(slam_dataset::folders::tracking_sequences(dir)?)
 }
 
 fn main() -> std::process::ExitCode {

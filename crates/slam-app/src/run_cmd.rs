@@ -1,13 +1,13 @@
 //! `slam-app run`: the whole system on a KITTI stereo sequence; trajectory, map, objects, pictures and
 //! errors. `slam-app map`: inspect and export a saved map.
 
-use std::{collections::BTreeMap, path::PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
-use nalgebra::{Matrix2, Point3, Vector2};
-use slam_core::{geometry::Ellipse2, DetectionSource, Image};
+use slam_core::DetectionSource;
 use slam_dataset::{
+    check::calibration_file,
     detections::{DetectionFile, GroundTruthDetections, GroundTruthNoise},
     kitti::{
         stereo::{open_stereo, FrameSelection, Layout, StereoSequence, TruthSource},
@@ -15,15 +15,16 @@ use slam_dataset::{
     },
     trajectory::{write_kitti_poses, write_tum},
 };
-use slam_eval::LabelGeometry;
-use slam_frontend::{draw_overlay, ellipse_outline, read_image, write_image, Overlay, StereoRig, StereoVo};
+use slam_eval::{trajectory::PoseFile, LabelGeometry};
+use slam_frontend::{read_image, StereoRig, StereoVo};
 use slam_pipeline::{
     eval::trajectory_errors,
-    map::{Map, MapObject},
+    report::{frame_period, median, median_fps, stage_table, tracking_csv},
+    map::Map,
     objects::MappedObject,
-    system::{self, FrameInput, FrameTimes, RunOutput, SystemBuilder},
+    system::{self, FrameInput, RunOutput, SystemBuilder},
 };
-use slam_quadric::{project, Camera, ImageSize, Intrinsics};
+use slam_quadric::{ImageSize, Intrinsics};
 
 use crate::{config::RunConfig, detect_cmd::ModelArgs};
 
@@ -155,9 +156,6 @@ fn played_ids(seq: &StereoSequence, sel: &FrameSelection) -> String {
     format!("frame ids {first}..={last}{stride}")
 }
 
-/// COCO classes mapped as objects: person, bicycle, car, motorcycle, bus, truck.
-const OBJECT_CLASSES: [u16; 6] = [0, 1, 2, 3, 5, 7];
-
 impl RunArgs {
     /// The detection source: `--detector` when given, else the one the mode-specific options select
     /// (`--detections`: file, `--label-noise`: labels), else the shipped network. An option of another
@@ -223,7 +221,7 @@ fn detector(
                 }
             }
             let per_frame = file.frames.iter().map(|(&f, d)| (f, d.len()));
-            notes.extend(crate::guard::unused_frames(&path.display().to_string(), per_frame, &seq.ids));
+            notes.extend(slam_frontend::detectors::unused_frames(&path.display().to_string(), per_frame, &seq.ids));
             Some(Box::new(file))
         }
         DetectorKind::Labels => {
@@ -235,56 +233,11 @@ fn detector(
             })?;
             let truth = geometry.detections(labels);
             let per_frame = truth.iter().map(|(&f, d)| (f, d.len()));
-            notes.extend(crate::guard::unused_frames("labels", per_frame, &seq.ids));
+            notes.extend(slam_frontend::detectors::unused_frames("labels", per_frame, &seq.ids));
             let noise = GroundTruthNoise { box_sigma: a.label_noise.unwrap_or(0.0), ..GroundTruthNoise::default() };
             Some(Box::new(GroundTruthDetections::new(truth, noise, [image.width, image.height])))
         }
     })
-}
-
-/// Frames per second from the median interval between consecutive frames (start-up and the first frame
-/// excluded).
-fn median_fps(out: &RunOutput) -> f64 {
-    let mut v: Vec<f64> = out.frames.iter().skip(1).map(|f| f.times.interval).collect();
-    1000.0 / median(&mut v)
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(|a, b| a.total_cmp(b));
-    if v.is_empty() {
-        f64::NAN
-    } else {
-        v[v.len() / 2]
-    }
-}
-
-/// Median per stage, over the frames where the stage ran.
-fn stage_table(out: &RunOutput) -> Vec<(&'static str, f64, usize)> {
-    type Stage = (&'static str, fn(&FrameTimes) -> f64);
-    let stages: [Stage; 8] = [
-        ("detection (own thread)", |t| t.detection),
-        ("ORB extraction", |t| t.extraction),
-        ("stereo matching", |t| t.stereo),
-        ("tracking (local map + PnP + refinement)", |t| t.tracking),
-        ("optical flow", |t| t.flow),
-        ("association", |t| t.association),
-        ("local BA (keyframes, mapping thread)", |t| t.bundle_adjustment),
-        ("object init + optimisation (keyframes)", |t| t.objects),
-    ];
-    stages
-        .iter()
-        .map(|(name, f)| {
-            let keyframe_only = name.contains("keyframes");
-            let mut v: Vec<f64> = out
-                .frames
-                .iter()
-                .filter(|r| r.state.is_some() && (!keyframe_only || r.keyframe))
-                .map(|r| f(&r.times))
-                .collect();
-            let n = v.len();
-            (*name, median(&mut v), n)
-        })
-        .collect()
 }
 
 /// A finished run and what is needed to report on it.
@@ -298,29 +251,8 @@ struct Outcome {
     image: ImageSize,
     colour: bool,
     /// What the detection guard changed, and reports of detections no frame used.
-    detections: Option<std::sync::Arc<crate::guard::DetectionCounts>>,
+    detections: Option<std::sync::Arc<slam_frontend::detectors::DetectionCounts>>,
     notes: Vec<String>,
-}
-
-/// Keeps the detections of the mapped classes only.
-struct ClassFilter(Box<dyn DetectionSource>);
-
-impl DetectionSource for ClassFilter {
-    fn name(&self) -> &str {
-        self.0.name()
-    }
-    fn needs_image(&self) -> bool {
-        self.0.needs_image()
-    }
-    fn detect(
-        &mut self,
-        frame: usize,
-        image: Option<&Image>,
-    ) -> Result<Vec<slam_core::Detection>, slam_core::DetectError> {
-        let mut d = self.0.detect(frame, image)?;
-        d.retain(|d| OBJECT_CLASSES.contains(&d.class.0));
-        Ok(d)
-    }
 }
 
 fn settings(a: &RunArgs) -> anyhow::Result<RunConfig> {
@@ -411,8 +343,8 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     let mut notes = Vec::new();
     let mut counts = None;
     let det = detector(a, &seq, image, labels.as_ref(), &mut notes)?.map(|d| {
-        let (g, c) = crate::guard::DetectionGuard::new(
-            Box::new(ClassFilter(d)),
+        let (g, c) = slam_frontend::detectors::DetectionGuard::new(
+            Box::new(slam_frontend::detectors::ClassFilter(d)),
             [image.width, image.height],
             cfg.system.max_detections,
         );
@@ -480,18 +412,6 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
     Ok(Outcome { out, labels, seq, elapsed: start.elapsed().as_secs_f64(), k, image, colour, detections: counts, notes })
 }
 
-/// The calibration file a sequence's intrinsics came from (for messages).
-fn calibration_file(seq: &StereoSequence) -> PathBuf {
-    match seq.layout {
-        Layout::Odometry => seq.dir.join("calib.txt"),
-        Layout::Raw => seq.dir.parent().unwrap_or(&seq.dir).join("calib_cam_to_cam.txt"),
-        Layout::Tracking => {
-            let name = seq.dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-            seq.dir.parent().and_then(|p| p.parent()).unwrap_or(&seq.dir).join("calib").join(format!("{name}.txt"))
-        }
-    }
-}
-
 /// The entries `slam-app run` writes into its output folder (a folder written before the marker file
 /// existed may be replaced when it holds only these).
 fn run_output_name(name: &str) -> bool {
@@ -508,20 +428,6 @@ fn run_output_name(name: &str) -> bool {
             | "objects_score.json"
             | "tracking.csv"
     ) || name.ends_with(".tmp")
-}
-
-/// Seconds per step of the frame index (the tracker counts frame intervals by index differences): the
-/// median of Δtime / Δindex over consecutive `(index, time)` pairs; 0.1 s, KITTI's rate, when there
-/// are fewer than two or they are not increasing.
-fn frame_period(stamped: &[(usize, f64)]) -> f64 {
-    let mut d: Vec<f64> =
-        stamped.windows(2).filter(|w| w[1].0 > w[0].0).map(|w| (w[1].1 - w[0].1) / (w[1].0 - w[0].0) as f64).collect();
-    let m = median(&mut d);
-    if m.is_finite() && m > 0.0 {
-        m
-    } else {
-        0.1
-    }
 }
 
 /// Every state a frame's row of `tracking.csv` can name, in the order of `track-bench`'s columns.
@@ -541,21 +447,6 @@ fn state_counts(frames: &[system::FrameRecord]) -> [usize; STATE_NAMES.len()] {
         }
     }
     counts
-}
-
-/// `tracking.csv`: one row per input frame (frame, state, inliers, tracked map points, RMS
-/// reprojection error in pixels, tracking time in ms: extraction + stereo + tracking).
-fn write_tracking_csv(path: &std::path::Path, out: &RunOutput) -> anyhow::Result<()> {
-    use std::fmt::Write as _;
-    let mut text = String::from("frame,state,inliers,tracked_map_points,reprojection_rms_px,time_ms\n");
-    for r in &out.frames {
-        let (state, inliers) = (state_name(r), r.state.map_or(0, |s| s.inliers()));
-        let rms =
-            if r.reprojection_rms_px.is_finite() { format!("{:.3}", r.reprojection_rms_px) } else { String::new() };
-        let ms = r.times.extraction + r.times.stereo + r.times.tracking;
-        let _ = writeln!(text, "{},{state},{inliers},{},{rms},{ms:.2}", r.index, r.tracked_map_points);
-    }
-    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
 }
 
 pub fn run(a: &RunArgs) -> anyhow::Result<()> {
@@ -585,7 +476,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     // one pose per played frame, in id order; TUM lines carry the frames' own times
     write_kitti_poses(w.join("trajectory.kitti.txt"), &out.poses)?;
     write_tum(w.join("trajectory.tum.txt"), &seq.times, &out.poses)?;
-    write_tracking_csv(&w.join("tracking.csv"), &out)?;
+    std::fs::write(w.join("tracking.csv"), tracking_csv(&out)).with_context(|| format!("writing {}", w.join("tracking.csv").display()))?;
     out.map.save(&w.join("map.json"))?;
     let objects: Vec<&MappedObject> = out.objects.iter().collect();
     slam_pipeline::objects::write_object_map_in(&w.join("objects.json"), &objects, slam_pipeline::map::MAP_WORLD)
@@ -742,42 +633,6 @@ pub fn run_bench(b: &RunBenchArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Top-view outline (x, z) of a stored object's ellipsoid: its orthographic projection along y.
-fn footprint(o: &MapObject) -> Vec<[f64; 2]> {
-    let r = nalgebra::Matrix3::from_row_slice(&o.rotation);
-    let a = nalgebra::Vector3::from(o.semi_axes);
-    let s = r * nalgebra::Matrix3::from_diagonal(&a.map(|a| a * a)) * r.transpose();
-    let shape = Matrix2::new(s[(0, 0)], s[(0, 2)], s[(2, 0)], s[(2, 2)]);
-    ellipse_outline(&Ellipse2 { centre: Vector2::new(o.center[0], o.center[2]), shape }, 48)
-}
-
-/// The top-down picture (`map.svg`, `map.png` in `dir`) of a map, its frame poses and ground truth.
-fn map_picture(
-    map: &Map,
-    poses: &[nalgebra::Isometry3<f64>],
-    truth: Option<&[nalgebra::Isometry3<f64>]>,
-    dir: &std::path::Path,
-) -> anyhow::Result<Vec<PathBuf>> {
-    let xz = |p: &nalgebra::Isometry3<f64>| [p.translation.vector.x, p.translation.vector.z];
-    let estimate: Vec<[f64; 2]> = poses.iter().map(xz).collect();
-    let truth: Option<Vec<[f64; 2]>> = truth.map(|g| g.iter().take(poses.len()).map(xz).collect());
-    let points: Vec<[f64; 2]> = map.points.values().map(|p| [p.position[0], p.position[2]]).collect();
-    let objects: Vec<crate::plot::MapShape> = map
-        .objects
-        .iter()
-        .map(|o| crate::plot::MapShape {
-            outline: footprint(o),
-            label: format!("#{} {}", o.id, slam_core::ClassId(o.class).name()),
-            state: crate::plot::ObjectState::of(o.dynamic, o.moving),
-        })
-        .collect();
-    crate::plot::topdown_figure(
-        &crate::plot::TopDown { estimate: &estimate, truth: truth.as_deref(), points: &points, objects: &objects },
-        dir,
-        "map",
-    )
-}
-
 fn pictures(
     a: &RunArgs,
     out_dir: &std::path::Path,
@@ -787,107 +642,17 @@ fn pictures(
     image: ImageSize,
     colour: bool,
 ) -> anyhow::Result<String> {
-    map_picture(&out.map, &out.poses, seq.truth_from_first().as_deref(), out_dir)?;
+    slam_viz::map_picture(&out.map, &out.poses, seq.truth_from_first().as_deref(), out_dir)?;
     let mut written = "map.svg, map.png".to_string();
     if !a.overlays_on() {
         return Ok(written);
     }
-    let dir = out_dir.join("overlays");
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let mut count = 0;
-    for (i, rec) in out.frames.iter().enumerate() {
-        if i as u64 % a.overlay_every.unwrap_or(1) != 0 || rec.state.is_none() {
-            continue;
-        }
-        // records are in input order: entry i of the played sequence is frame id rec.index
-        let img: Image = match read_image(&seq.left[i], colour) {
-            Ok(img) => img,
-            Err(e) => {
-                tracing::warn!("overlay of frame {}: {e}", rec.index);
-                continue;
-            }
-        };
-        let overlay = frame_overlay(out, i, k, image);
-        let format = a.overlay_format.as_deref().unwrap_or("png");
-        write_image(dir.join(format!("{:06}.{format}", rec.index)), &draw_overlay(&img, &overlay)?)?;
-        count += 1;
-    }
+    let format = a.overlay_format.as_deref().unwrap_or("png");
+    let every = a.overlay_every.unwrap_or(1);
+    let opts = slam_viz::OverlayOptions { left: &seq.left, colour, k, image, every, format };
+    let count = slam_viz::write_overlays(out, &opts, &out_dir.join("overlays"))?;
     written.push_str(&format!(", {count} overlays in overlays/"));
     Ok(written)
-}
-
-/// The overlay of frame `i`: each detection box with its object's id, class and score, coloured by the
-/// object's state (grey: no object); each mapped object's projected ellipsoid with `#id class`; moving
-/// objects (not mapped) get no ellipsoid; each object's past map-point centroids as a trail; a legend.
-fn frame_overlay(out: &RunOutput, i: usize, k: Intrinsics, image: ImageSize) -> Overlay {
-    use crate::plot::ObjectState;
-    let rec = &out.frames[i];
-    let camera = Camera::new(k, out.poses[i]);
-    let grey = [170, 170, 170];
-    let state_of: BTreeMap<u64, ObjectState> =
-        out.objects.iter().map(|o| (o.id.0, ObjectState::of(o.dynamic, o.moving))).collect();
-    let mut o = Overlay::default();
-    for (d, t) in rec.detections.iter().zip(&rec.tracks) {
-        let (c, label) = match t {
-            Some(id) => {
-                let st = state_of.get(&id.0).copied().unwrap_or(ObjectState::Static);
-                let c = if out.objects.iter().any(|x| x.id == *id && (x.ellipsoid.is_some() || x.moving)) {
-                    st.bgr()
-                } else {
-                    grey
-                };
-                let tail = if st == ObjectState::Moving { " moving" } else { "" };
-                (c, format!("#{} {} {:.2}{tail}", id.0, d.class.name(), d.score))
-            }
-            None => (grey, format!("{} {:.2}", d.class.name(), d.score)),
-        };
-        o.boxes.push((d.bbox, c, label));
-    }
-    let from_world = camera.world_from_camera.inverse();
-    for obj in &out.objects {
-        let seen_now = obj.observations.iter().any(|x| x.frame == rec.index);
-        let state = ObjectState::of(obj.dynamic, obj.moving);
-        let c = state.bgr();
-        if let (Some(e), ObjectState::Static | ObjectState::Dynamic) = (&obj.ellipsoid, state) {
-            if let Some(ell) = project(e, &camera).ok().and_then(|conic| conic.ellipse()) {
-                let outline = ellipse_outline(&ell, 64);
-                let on_screen =
-                    outline.iter().any(|p| p[0] >= 0.0 && p[0] < image.width && p[1] >= 0.0 && p[1] < image.height);
-                if on_screen && (seen_now || (from_world * Point3::from(e.centre())).z < 40.0) {
-                    o.lines.push((outline, true, c, 2));
-                    let tail = if state == ObjectState::Dynamic { " dynamic" } else { "" };
-                    o.labels.push((
-                        [ell.centre.x - 20.0, ell.centre.y + 5.0],
-                        c,
-                        format!("#{} {}{tail}", obj.id.0, obj.class.name()),
-                    ));
-                }
-            }
-        }
-        // trail: the object's centroids (from map points) up to this frame, projected
-        let trail: Vec<[f64; 2]> = obj
-            .observations
-            .iter()
-            .filter(|x| x.frame <= rec.index)
-            .filter_map(|x| x.centroid)
-            .filter_map(|p| {
-                let q = from_world * Point3::from(p);
-                (q.z > 0.5).then(|| [k.fx * q.x / q.z + k.cx, k.fy * q.y / q.z + k.cy])
-            })
-            .collect();
-        if seen_now && trail.len() >= 2 {
-            o.lines.push((trail.clone(), false, c, 1));
-        }
-        if seen_now {
-            for p in trail {
-                o.dots.push((p, c, 2));
-            }
-        }
-    }
-    o.legend = ObjectState::ALL.iter().map(|s| (s.bgr(), s.meaning().to_string())).collect();
-    o.legend.push((grey, "detection without a fitted object".into()));
-    o.legend.push(([255, 255, 255], "ellipse: projected ellipsoid; dots: its past centroids".into()));
-    o
 }
 
 #[derive(Args, Debug)]
@@ -938,10 +703,10 @@ pub fn map(a: &MapArgs) -> anyhow::Result<()> {
             o.semi_axes[1],
             o.semi_axes[2],
             o.frames.len(),
-            match crate::plot::ObjectState::of(o.dynamic, o.moving) {
-                crate::plot::ObjectState::Static => "",
-                crate::plot::ObjectState::Dynamic => " dynamic",
-                crate::plot::ObjectState::Moving => " moving (not mapped)",
+            match slam_viz::ObjectState::of(o.dynamic, o.moving) {
+                slam_viz::ObjectState::Static => "",
+                slam_viz::ObjectState::Dynamic => " dynamic",
+                slam_viz::ObjectState::Moving => " moving (not mapped)",
             }
         );
     }
@@ -982,45 +747,13 @@ pub fn map(a: &MapArgs) -> anyhow::Result<()> {
     }
     if let Some(dir) = &a.picture {
         // each picture is written whole (beside its final name, then renamed): the folder may hold other files
-        for f in crate::output::write_files_into(dir, |tmp| map_picture(&map, &poses, None, tmp).map(|_| ()))? {
+        for f in crate::output::write_files_into(dir, |tmp| {
+            slam_viz::map_picture(&map, &poses, None, tmp).map(|_| ()).map_err(anyhow::Error::from)
+        })? {
             println!("wrote {}", f.display());
         }
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use slam_quadric::Ellipsoid;
-
-    #[test]
-    fn footprint_of_a_turned_ellipsoid() {
-        let e = Ellipsoid::new(
-            nalgebra::Isometry3::from_parts(
-                nalgebra::Translation3::new(2.0, 1.0, 10.0),
-                nalgebra::UnitQuaternion::from_axis_angle(&nalgebra::Vector3::y_axis(), std::f64::consts::FRAC_PI_2),
-            ),
-            nalgebra::Vector3::new(2.0, 0.8, 1.0),
-        );
-        let r = e.rotation();
-        let f = footprint(&MapObject {
-            id: 1,
-            class: 2,
-            class_name: "car".into(),
-            center: [e.centre().x, e.centre().y, e.centre().z],
-            semi_axes: [e.semi_axes.x, e.semi_axes.y, e.semi_axes.z],
-            rotation: std::array::from_fn(|k| r[(k / 3, k % 3)]),
-            frames: vec![0],
-            dynamic: false,
-            moving: false,
-            points: Vec::new(),
-        });
-        // turned 90° about y: the length (2 m) now runs along z, the width (1 m) along x
-        let (xs, zs): (Vec<f64>, Vec<f64>) = f.iter().map(|p| (p[0], p[1])).unzip();
-        let span = |v: &[f64]| v.iter().cloned().fold(f64::MIN, f64::max) - v.iter().cloned().fold(f64::MAX, f64::min);
-        assert!((span(&xs) - 2.0).abs() < 0.01 && (span(&zs) - 4.0).abs() < 0.01, "{} {}", span(&xs), span(&zs));
-    }
 }
 
 #[derive(Args, Debug)]
@@ -1036,96 +769,19 @@ pub struct TrajEvalArgs {
     max_diff: f64,
 }
 
-/// A pose file: KITTI poses, or TUM times and poses.
-enum PoseFile {
-    Kitti(Vec<nalgebra::Isometry3<f64>>),
-    Tum(Vec<f64>, Vec<nalgebra::Isometry3<f64>>),
-}
-
-impl PoseFile {
-    fn poses(&self) -> &[nalgebra::Isometry3<f64>] {
-        match self {
-            PoseFile::Kitti(p) | PoseFile::Tum(_, p) => p,
-        }
-    }
-}
-
-fn read_poses(path: &std::path::Path) -> anyhow::Result<PoseFile> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let fields =
-        text.lines().find(|l| !l.trim().is_empty() && !l.starts_with('#')).map_or(0, |l| l.split_whitespace().count());
-    Ok(match fields {
-        12 => PoseFile::Kitti(slam_dataset::kitti::poses::parse_kitti_poses(path, &text)?),
-        8 => {
-            let (t, p) = slam_dataset::trajectory::parse_tum(path, &text)?;
-            PoseFile::Tum(t, p)
-        }
-        n => bail!("{}: lines of {n} numbers: expected 12 (KITTI) or 8 (TUM)", path.display()),
-    })
-}
-
-/// Pairs `(estimate index, ground-truth index)`: each estimated time to the nearest ground-truth time
-/// within `max_diff` seconds (ground truth sorted by time first; each ground-truth pose used once, by the
-/// estimate nearest to it).
-fn match_by_time(est: &[f64], gt: &[f64], max_diff: f64) -> Vec<(usize, usize)> {
-    let mut order: Vec<usize> = (0..gt.len()).collect();
-    order.sort_by(|&a, &b| gt[a].total_cmp(&gt[b]));
-    let mut best: BTreeMap<usize, (f64, usize)> = BTreeMap::new();
-    for (i, &t) in est.iter().enumerate() {
-        let k = order.partition_point(|&j| gt[j] < t);
-        let near = [k.checked_sub(1), Some(k)]
-            .into_iter()
-            .flatten()
-            .filter_map(|k| order.get(k).copied())
-            .min_by(|&a, &b| (gt[a] - t).abs().total_cmp(&(gt[b] - t).abs()));
-        if let Some(j) = near {
-            let d = (gt[j] - t).abs();
-            if d <= max_diff && best.get(&j).is_none_or(|b| d < b.0) {
-                best.insert(j, (d, i));
-            }
-        }
-    }
-    let mut pairs: Vec<(usize, usize)> = best.into_iter().map(|(j, (_, i))| (i, j)).collect();
-    pairs.sort();
-    pairs
-}
-
 /// `slam-app trajectory-eval`: ATE, drift and RPE of any trajectory file against ground truth.
 pub fn trajectory_eval(a: &TrajEvalArgs) -> anyhow::Result<()> {
-    let est = read_poses(&a.estimate)?;
-    let gt = read_poses(&a.ground_truth)?;
-    let (pairs, how) = match (&est, &gt) {
-        (PoseFile::Tum(te, _), PoseFile::Tum(tg, _)) => {
-            (match_by_time(te, tg, a.max_diff), format!("by timestamp (nearest within {} s)", a.max_diff))
-        }
-        _ => {
-            let n = est.poses().len().min(gt.poses().len());
-            let why = if matches!((&est, &gt), (PoseFile::Kitti(_), PoseFile::Kitti(_))) {
-                "by line (KITTI files have no times)"
-            } else {
-                "by line (one file is KITTI, which has no times)"
-            };
-            ((0..n).map(|i| (i, i)).collect(), why.to_string())
-        }
-    };
+    let est = PoseFile::read(&a.estimate)?;
+    let gt = PoseFile::read(&a.ground_truth)?;
+    let c = slam_eval::trajectory::compare(&est, &gt, a.max_diff, &[10.0, 20.0, 40.0, 100.0, 200.0, 400.0, 800.0]);
     println!(
-        "matched {} of {} estimated poses to the {} ground-truth poses {how}",
-        pairs.len(),
+        "matched {} of {} estimated poses to the {} ground-truth poses {}",
+        c.pairs.len(),
         est.poses().len(),
-        gt.poses().len()
+        gt.poses().len(),
+        c.how
     );
-    // both start at the identity at the first matched pair, as KITTI's and our files do
-    let pick = |v: &[nalgebra::Isometry3<f64>], first: bool| -> Vec<nalgebra::Isometry3<f64>> {
-        let k = |&(i, j): &(usize, usize)| if first { i } else { j };
-        let origin = pairs.first().map(|p| v[k(p)]).unwrap_or_else(nalgebra::Isometry3::identity).inverse();
-        pairs.iter().map(|p| origin * v[k(p)]).collect()
-    };
-    let e = trajectory_errors(
-        &pick(est.poses(), true),
-        &pick(gt.poses(), false),
-        &[10.0, 20.0, 40.0, 100.0, 200.0, 400.0, 800.0],
-    )
-    .with_context(|| format!("fewer than two matched poses ({} matched)", pairs.len()))?;
+    let e = c.errors.with_context(|| format!("fewer than two matched poses ({} matched)", c.pairs.len()))?;
     println!("| metric | value |\n|---|---:|");
     println!("| poses compared | {} |\n| path (ground truth) | {:.1} m |", e.frames, e.path_m);
     println!("| ATE (first poses aligned) | {:.3} m |\n| ATE (rigid alignment) | {:.3} m |", e.ate_m, e.ate_aligned_m);

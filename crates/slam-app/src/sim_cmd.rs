@@ -1,10 +1,9 @@
 //! `slam-app sim`: the simulation study, with tables, CSV and plots.
 
-use std::{fmt::Write as _, path::PathBuf, time::Instant};
+use std::{path::PathBuf, time::Instant};
 
-use anyhow::Context;
 use clap::Args;
-use slam_sim::{breakdown_level, sweep, CellStats, Geometry, Method, NoiseKind, SweepConfig};
+use slam_sim::{report, sweep, SweepConfig};
 
 #[derive(Args, Debug)]
 pub struct SimArgs {
@@ -23,14 +22,6 @@ pub struct SimArgs {
     /// Skip the plots.
     #[arg(long)]
     no_plots: bool,
-}
-
-fn fmt(x: f64, prec: usize) -> String {
-    if x.is_nan() {
-        "-".into()
-    } else {
-        format!("{x:.prec$}")
-    }
 }
 
 /// Entries `sim` writes into its output folder (a folder written before the marker file existed may be
@@ -68,33 +59,15 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
     let elapsed = start.elapsed();
     for &g in &config.geometries {
         for &k in &config.noise {
-            print_table(&cells, g, k, &config.methods);
+            print!("{}", report::noise_table(&cells, g, k, &config.methods));
         }
     }
-    println!("\nBreakdown level (smallest noise level with success < 50 %; '-' = never within the sweep):");
-    println!(
-        "{:<9} {:<12} {}",
-        "geometry",
-        "noise",
-        config.methods.iter().map(|m| format!("{:>15}", m.name())).collect::<String>()
-    );
-    for &g in &config.geometries {
-        for &k in &config.noise {
-            let row: String = config
-                .methods
-                .iter()
-                .map(|&m| {
-                    format!("{:>15}", breakdown_level(&cells, g, k, m).map(|l| format!("{l}%")).unwrap_or("-".into()))
-                })
-                .collect();
-            println!("{:<9} {:<12} {row}", g.name(), k.name());
-        }
-    }
-    write_csv(&cells, &dir.path().join("simulation.csv"))?;
+    print!("{}", report::breakdown_table(&cells, &config));
+    crate::output::write_file(&dir.path().join("simulation.csv"), report::csv(&cells).as_bytes())?;
     let mut plots = Vec::new();
     if !a.no_plots {
         for &g in &config.geometries {
-            plots.extend(crate::plot::simulation_figure(&cells, g, &config.noise, &config.methods, dir.path())?);
+            plots.extend(slam_viz::simulation_figure(&cells, g, &config.noise, &config.methods, dir.path())?);
         }
     }
     dir.commit()?;
@@ -107,60 +80,5 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
     for f in plots {
         println!("plot: {}", a.out.join(f.file_name().unwrap_or_default()).display());
     }
-    Ok(())
-}
-
-fn print_table(cells: &[CellStats], g: Geometry, k: NoiseKind, methods: &[Method]) {
-    println!(
-        "\n== {} geometry, {} noise (per method: success %, median e_trans m, median e_axe m, mean IoU2D) ==",
-        g.name(),
-        k.name()
-    );
-    let mut header = format!("{:>6}", "p%");
-    for m in methods {
-        header.push_str(&format!(" | {:^26}", m.name()));
-    }
-    println!("{header}");
-    for &level in k.levels() {
-        let mut row = format!("{:>6}", level);
-        for &m in methods {
-            if let Some(c) = cells.iter().find(|c| c.geometry == g && c.noise == k && c.level == level && c.method == m)
-            {
-                row.push_str(&format!(
-                    " | {:>4.0} {:>6} {:>6} {:>6}",
-                    100.0 * c.success,
-                    fmt(c.e_trans_median, 3),
-                    fmt(c.e_axe_median, 3),
-                    fmt(c.iou_mean, 3)
-                ));
-            }
-        }
-        println!("{row}");
-    }
-}
-
-fn write_csv(cells: &[CellStats], path: &std::path::Path) -> anyhow::Result<()> {
-    let mut s = String::from("geometry,noise,level_percent,method,trials,success,e_trans_mean,e_trans_median,e_axe_mean,e_axe_median,iou_mean,iou_median\n");
-    for c in cells {
-        let _ = writeln!(
-            s,
-            "{},{},{},{},{},{},{},{},{},{},{},{}",
-            c.geometry.name(),
-            c.noise.name(),
-            c.level,
-            c.method.name(),
-            c.trials,
-            c.success,
-            c.e_trans_mean,
-            c.e_trans_median,
-            c.e_axe_mean,
-            c.e_axe_median,
-            c.iou_mean,
-            c.iou_median
-        );
-    }
-    let tmp = path.with_extension("csv.tmp");
-    std::fs::write(&tmp, s).with_context(|| format!("cannot write {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))?;
     Ok(())
 }

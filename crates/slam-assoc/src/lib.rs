@@ -19,6 +19,7 @@
 
 pub mod conformance;
 pub mod eval;
+pub mod study;
 mod hungarian;
 mod iou;
 mod kalman;

@@ -1,11 +1,15 @@
 //! Dataset readers for quadric SLAM. Every reader returns [`DatasetError`] values that name the file
-//! and, for parse errors, the 1-based line; none panics on malformed input.
+//! and, for parse errors, the 1-based line; none panics on malformed input. The writing side:
+//! trajectories ([`trajectory`]) and output folders and files that are never half-written ([`output`]).
 
 #![warn(missing_docs)]
 
+pub mod check;
 pub mod classes;
 pub mod detections;
+pub mod folders;
 pub mod kitti;
+pub mod output;
 pub mod trajectory;
 
 use std::path::{Path, PathBuf};

@@ -1,11 +1,15 @@
 //! Evaluation of a run's object map against KITTI tracking labels ([`score`]), with the labels'
-//! geometry in the run's camera ([`labels`]). Used by `slam-app run --labels` and `slam-app eval` on a
-//! run's output folder; kept out of the app so that every front end scores the same way.
+//! geometry in the run's camera ([`labels`]); and the image-free object study on KITTI tracking
+//! sequences, label boxes as detections ([`labelled`]); a trajectory file against ground truth
+//! ([`trajectory`]). Used by `slam-app run --labels`, `objects`, `eval` and `trajectory-eval`; kept out
+//! of the app so that every front end scores the same way.
 
 #![warn(missing_docs)]
 
+pub mod labelled;
 pub mod labels;
 pub mod score;
+pub mod trajectory;
 
 use std::path::Path;
 

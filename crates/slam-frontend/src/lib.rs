@@ -7,6 +7,7 @@
 #![warn(missing_docs)]
 
 pub mod detector;
+pub mod detectors;
 pub mod disparity;
 pub use detector::nms;
 pub mod image_io;

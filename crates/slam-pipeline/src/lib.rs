@@ -12,6 +12,7 @@ pub mod eval;
 pub mod map;
 pub mod mapping;
 pub mod objects;
+pub mod report;
 pub mod settings;
 pub mod system;
 pub mod texture;

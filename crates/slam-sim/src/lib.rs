@@ -25,6 +25,7 @@
 #![warn(missing_docs)]
 
 mod methods;
+pub mod report;
 mod scene;
 mod sweep;
 

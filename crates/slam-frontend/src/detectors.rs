@@ -1,6 +1,8 @@
-//! Bounds on what a detection source hands the system: boxes clipped to the image (refused when nothing
-//! of them is inside), at most `max` per frame (the highest scores), every change counted; and reports of
-//! detections that no frame of the run will use.
+//! Wrappers around any detection source (the network, a file, labels), used by `slam-app run`:
+//! - [`ClassFilter`]: keeps the classes the system maps as objects ([`OBJECT_CLASSES`]);
+//! - [`DetectionGuard`]: bounds on what a source hands the system: boxes clipped to the image (refused
+//!   when nothing of them is inside), at most `max` per frame (the highest scores), every change counted;
+//! - [`unused_frames`]: reports of detections that no frame of the run will use.
 
 use std::sync::{
     atomic::{AtomicUsize, Ordering},
@@ -67,6 +69,26 @@ pub fn limit(dets: &mut Vec<Detection>, max: usize) -> usize {
     let mut k = keep.into_iter();
     dets.retain(|_| k.next().unwrap_or(false));
     dropped
+}
+
+/// COCO classes mapped as objects: person, bicycle, car, motorcycle, bus, truck.
+pub const OBJECT_CLASSES: [u16; 6] = [0, 1, 2, 3, 5, 7];
+
+/// Keeps the detections of the mapped classes ([`OBJECT_CLASSES`]) only.
+pub struct ClassFilter(pub Box<dyn DetectionSource>);
+
+impl DetectionSource for ClassFilter {
+    fn name(&self) -> &str {
+        self.0.name()
+    }
+    fn needs_image(&self) -> bool {
+        self.0.needs_image()
+    }
+    fn detect(&mut self, frame: usize, image: Option<&Image>) -> Result<Vec<Detection>, DetectError> {
+        let mut d = self.0.detect(frame, image)?;
+        d.retain(|d| OBJECT_CLASSES.contains(&d.class.0));
+        Ok(d)
+    }
 }
 
 /// A detection source with its output bounded (see the module).
@@ -219,6 +241,18 @@ mod tests {
                 && s.contains("in 1 frames"),
             "{s}"
         );
+    }
+
+    #[test]
+    fn the_class_filter_keeps_mapped_classes_only() {
+        let boxes: Vec<Detection> = [0u16, 2, 9, 7, 56]
+            .iter()
+            .map(|&c| Detection::new(ClassId(c), 0.5, BBox::new(0.0, 0.0, 10.0, 10.0)))
+            .collect();
+        let mut f = ClassFilter(Box::new(Fixed(boxes)));
+        let kept: Vec<u16> = f.detect(0, None).expect("detects").iter().map(|d| d.class.0).collect();
+        assert_eq!(kept, [0, 2, 7], "person, car, truck kept; traffic light (9) and chair (56) dropped");
+        assert_eq!(f.name(), "fixed");
     }
 
     #[test]

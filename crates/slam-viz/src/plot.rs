@@ -1,10 +1,12 @@
-//! Plots of the simulation study (SVG and PNG through plotters, text with an embedded font).
+//! Plots through plotters (SVG and PNG, text with an embedded font): the simulation study's figure
+//! ([`simulation_figure`]) and the top-down map of a run ([`topdown_figure`]).
 
 use std::path::{Path, PathBuf};
 
-use anyhow::Context;
 use plotters::prelude::*;
 use slam_sim::{CellStats, Geometry, Method, NoiseKind};
+
+use crate::VizError;
 
 const COLORS: [RGBColor; 6] = [
     RGBColor(214, 39, 40),
@@ -35,13 +37,13 @@ fn draw<DB: DrawingBackend>(
     g: Geometry,
     kinds: &[NoiseKind],
     methods: &[Method],
-) -> anyhow::Result<()>
+) -> Result<(), String>
 where
     DB::ErrorType: 'static,
 {
-    root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    root.fill(&WHITE).map_err(|e| format!("{e:?}"))?;
     let title = format!("Initialisation under noise, {} geometry", g.name());
-    let root = root.titled(&title, ("sans-serif", 26)).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let root = root.titled(&title, ("sans-serif", 26)).map_err(|e| format!("{e:?}"))?;
     let panels = root.split_evenly((kinds.len(), METRICS.len()));
     for (pi, panel) in panels.iter().enumerate() {
         let kind = kinds[pi / METRICS.len()];
@@ -64,13 +66,8 @@ where
             .x_label_area_size(28)
             .y_label_area_size(40)
             .build_cartesian_2d(0f64..xmax, 0f64..ymax)
-            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-        chart
-            .configure_mesh()
-            .x_desc("noise %")
-            .light_line_style(WHITE)
-            .draw()
-            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            .map_err(|e| format!("{e:?}"))?;
+        chart.configure_mesh().x_desc("noise %").light_line_style(WHITE).draw().map_err(|e| format!("{e:?}"))?;
         for (mi, &m) in methods.iter().enumerate() {
             let color = COLORS[mi % COLORS.len()];
             let pts: Vec<(f64, f64)> = levels
@@ -82,17 +79,14 @@ where
                     v.is_finite().then_some((l, v.min(ymax)))
                 })
                 .collect();
-            let series = chart
-                .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
-                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            let series =
+                chart.draw_series(LineSeries::new(pts.clone(), color.stroke_width(2))).map_err(|e| format!("{e:?}"))?;
             if pi == 0 {
                 series
                     .label(m.name())
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
             }
-            chart
-                .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
-                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled()))).map_err(|e| format!("{e:?}"))?;
         }
         if pi == 0 {
             chart
@@ -101,10 +95,10 @@ where
                 .border_style(BLACK)
                 .position(SeriesLabelPosition::LowerLeft)
                 .draw()
-                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+                .map_err(|e| format!("{e:?}"))?;
         }
     }
-    root.present().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    root.present().map_err(|e| format!("{e:?}"))?;
     Ok(())
 }
 
@@ -115,16 +109,16 @@ pub fn simulation_figure(
     kinds: &[NoiseKind],
     methods: &[Method],
     out: &Path,
-) -> anyhow::Result<Vec<PathBuf>> {
+) -> Result<Vec<PathBuf>, VizError> {
     register_font();
     let size = (1600, 300 * kinds.len() as u32 + 60);
     let stem = format!("sim_{}", g.name());
     let svg = out.join(format!("{stem}.svg"));
     let png = out.join(format!("{stem}.png"));
     draw(SVGBackend::new(&svg, size).into_drawing_area(), cells, g, kinds, methods)
-        .with_context(|| format!("drawing {}", svg.display()))?;
+        .map_err(|message| VizError::Draw { path: svg.clone(), message })?;
     draw(BitMapBackend::new(&png, size).into_drawing_area(), cells, g, kinds, methods)
-        .with_context(|| format!("drawing {}", png.display()))?;
+        .map_err(|message| VizError::Draw { path: png.clone(), message })?;
     Ok(vec![svg, png])
 }
 
@@ -193,10 +187,13 @@ pub struct MapShape {
 
 /// What the top-down map shows (x right, z forward of the first camera; metres).
 pub struct TopDown<'a> {
+    /// The estimated positions, one per frame.
     pub estimate: &'a [[f64; 2]],
     /// Ground truth, one position per estimated pose (the first ones when shorter).
     pub truth: Option<&'a [[f64; 2]]>,
+    /// Map points.
     pub points: &'a [[f64; 2]],
+    /// Objects.
     pub objects: &'a [MapShape],
 }
 
@@ -216,11 +213,11 @@ fn error_colour(f: f64) -> RGBColor {
 fn draw_topdown<DB: DrawingBackend>(
     root: DrawingArea<DB, plotters::coord::Shift>,
     m: &TopDown<'_>,
-) -> anyhow::Result<()>
+) -> Result<(), String>
 where
     DB::ErrorType: 'static,
 {
-    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow::anyhow!("{e:?}");
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| format!("{e:?}");
     root.fill(&WHITE).map_err(err)?;
     // with ground truth, a column on the right holds the error over distance
     let (root, side) = if m.truth.is_some() {
@@ -400,14 +397,14 @@ where
 }
 
 /// Write the top-down map as `<stem>.svg` and `<stem>.png`.
-pub fn topdown_figure(m: &TopDown<'_>, out: &Path, stem: &str) -> anyhow::Result<Vec<PathBuf>> {
+pub fn topdown_figure(m: &TopDown<'_>, out: &Path, stem: &str) -> Result<Vec<PathBuf>, VizError> {
     register_font();
     let size = if m.truth.is_some() { (1400, 900) } else { (900, 900) };
     let svg = out.join(format!("{stem}.svg"));
     let png = out.join(format!("{stem}.png"));
     draw_topdown(SVGBackend::new(&svg, size).into_drawing_area(), m)
-        .with_context(|| format!("drawing {}", svg.display()))?;
+        .map_err(|message| VizError::Draw { path: svg.clone(), message })?;
     draw_topdown(BitMapBackend::new(&png, size).into_drawing_area(), m)
-        .with_context(|| format!("drawing {}", png.display()))?;
+        .map_err(|message| VizError::Draw { path: png.clone(), message })?;
     Ok(vec![svg, png])
 }

@@ -1,0 +1,520 @@
+//! Output that is never half-written (used by `slam-app`'s commands; errors are [`OutputError`]).
+//!
+//! * [`OutputDir`]: a command that writes a folder (`run --out`, `sim --out`, `detect --overlays`) writes
+//!   into a temporary sibling (`.NAME.partial-PID`) and puts it in place only when everything is written:
+//!   on Linux by swapping the two folders in one step (`renameat2(RENAME_EXCHANGE)`), elsewhere by
+//!   renaming the old folder to a backup (`.NAME.old-PID`), the new one into place, then removing the
+//!   backup. A run killed at any point leaves `NAME` as it was or as the finished run wrote it, never a
+//!   mixture; a finished run leaves no file of an earlier one.
+//! * [`write_file`] / [`AtomicFile`]: a single file is written beside its destination and renamed over it.
+//!
+//! Folders are replaced as a whole, so a folder is only replaced when this program wrote it: it is empty,
+//! or every entry is one its marker file (`.slam-app-output`, written last) lists, or (folders written
+//! before the marker existed) every entry is a name the command writes. Anything else is refused before
+//! any work starts, naming the foreign entries.
+
+use std::path::{Path, PathBuf};
+
+/// Errors of the output helpers; each message names the path (and the command-line option, where given).
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// The destination cannot be used as asked (a file where a folder is needed, foreign entries, …).
+    #[error("{0}")]
+    Refused(String),
+    /// A file-system operation failed.
+    #[error("{context}: {source}")]
+    Io {
+        /// What was being done, naming the path.
+        context: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The caller's writer failed.
+    #[error("{context}: {source}")]
+    Writer {
+        /// What was being written.
+        context: String,
+        /// The writer's error.
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// The caller's writer failed (its error as it is).
+    #[error("{0}")]
+    Callback(#[source] Box<dyn std::error::Error + Send + Sync>),
+}
+
+/// Result of the output helpers.
+pub type Result<T> = std::result::Result<T, OutputError>;
+
+macro_rules! bail {
+    ($($arg:tt)*) => {
+        return Err(OutputError::Refused(format!($($arg)*)))
+    };
+}
+
+/// Attach a message to an I/O error.
+trait Context<T> {
+    fn with_context(self, f: impl FnOnce() -> String) -> Result<T>;
+}
+
+impl<T> Context<T> for std::io::Result<T> {
+    fn with_context(self, f: impl FnOnce() -> String) -> Result<T> {
+        self.map_err(|source| OutputError::Io { context: f(), source })
+    }
+}
+
+/// Name of the marker file listing what a command wrote into its output folder.
+pub const MARKER: &str = ".slam-app-output";
+
+/// `dir`'s parent (`.` for a bare name) and file name; refuses paths without a name (`.`, `/`, `..`).
+fn split(dir: &Path, option: &str) -> Result<(PathBuf, String)> {
+    let name = match dir.file_name() {
+        Some(n) if dir.components().next_back().is_some_and(|c| matches!(c, std::path::Component::Normal(_))) => {
+            n.to_string_lossy().into_owned()
+        }
+        _ => bail!(
+            "{option} {}: name a folder of its own (it is replaced as a whole), not `.`, `..` or `/`",
+            dir.display()
+        ),
+    };
+    let parent = match dir.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    Ok((parent, name))
+}
+
+/// Whether process `pid` is alive (Linux: `/proc/PID`; elsewhere assumed alive, so nothing is removed).
+fn alive(pid: &str) -> bool {
+    if cfg!(target_os = "linux") {
+        Path::new("/proc").join(pid).exists()
+    } else {
+        true
+    }
+}
+
+/// A folder being written: files go into [`OutputDir::path`]; [`OutputDir::commit`] puts it in place.
+/// Dropped without a commit, the temporary folder is removed and the old folder is untouched.
+pub struct OutputDir {
+    target: PathBuf,
+    tmp: PathBuf,
+    parent: PathBuf,
+    name: String,
+    done: bool,
+}
+
+impl OutputDir {
+    /// Prepare `dir` (named `option` in messages, e.g. `--out`) for a command that writes the entries
+    /// `ours` accepts: checks that `dir` is a folder this program wrote (or new, or empty), recovers from an
+    /// interrupted replacement, removes temporary folders of dead runs, and creates the temporary folder
+    /// (which also proves the location writable, before any work starts).
+    pub fn create(dir: &Path, option: &str, command: &str, ours: fn(&str) -> bool) -> Result<Self> {
+        let (parent, name) = split(dir, option)?;
+        std::fs::create_dir_all(&parent)
+            .with_context(|| format!("{option} {}: cannot create its parent folder", dir.display()))?;
+        let pid = std::process::id();
+        // leftovers of runs that were killed: temporary folders, and a backup whose swap was cut short
+        let partial = format!(".{name}.partial-");
+        let old = format!(".{name}.old-");
+        let mut backups = Vec::new();
+        if let Ok(rd) = std::fs::read_dir(&parent) {
+            for e in rd.flatten() {
+                let n = e.file_name().to_string_lossy().into_owned();
+                if let Some(p) = n.strip_prefix(&partial) {
+                    if p != pid.to_string() && !alive(p) {
+                        let _ = std::fs::remove_dir_all(e.path());
+                        tracing::info!("removed {} (left by a run that was killed)", e.path().display());
+                    }
+                } else if let Some(p) = n.strip_prefix(&old) {
+                    if !alive(p) {
+                        backups.push(e.path());
+                    }
+                }
+            }
+        }
+        backups.sort();
+        for b in backups {
+            if !dir.exists() {
+                std::fs::rename(&b, dir)
+                    .with_context(|| format!("cannot restore {} to {}", b.display(), dir.display()))?;
+                tracing::warn!(
+                    "{}: restored the previous output from {} (a run was killed while replacing it)",
+                    dir.display(),
+                    b.display()
+                );
+            } else {
+                let _ = std::fs::remove_dir_all(&b);
+            }
+        }
+        if std::fs::symlink_metadata(dir).is_ok_and(|m| m.file_type().is_symlink()) {
+            // swapping would replace the link, not the folder it points to
+            bail!("{option} {}: is a symbolic link; give the folder it points to", dir.display());
+        }
+        if dir.exists() {
+            let meta = std::fs::metadata(dir).with_context(|| format!("{option} {}", dir.display()))?;
+            if !meta.is_dir() {
+                bail!("{option} {}: is a file, not a folder", dir.display());
+            }
+            let listed: Vec<String> = std::fs::read_to_string(dir.join(MARKER))
+                .map(|t| t.lines().skip(1).map(str::to_string).collect())
+                .unwrap_or_default();
+            let marked = dir.join(MARKER).is_file();
+            let mut foreign: Vec<String> = std::fs::read_dir(dir)
+                .with_context(|| format!("{option} {}: cannot list it", dir.display()))?
+                .flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n != MARKER && !(if marked { listed.contains(n) } else { ours(n) }))
+                .collect();
+            foreign.sort();
+            if !foreign.is_empty() {
+                let shown: Vec<&str> = foreign.iter().take(5).map(String::as_str).collect();
+                bail!(
+                    "{option} {}: holds {} entr{} that `slam-app {command}` did not write ({}{}): the folder is \
+                     replaced as a whole, so choose a new or empty folder or move them away",
+                    dir.display(),
+                    foreign.len(),
+                    if foreign.len() == 1 { "y" } else { "ies" },
+                    shown.join(", "),
+                    if foreign.len() > 5 { ", …" } else { "" }
+                );
+            }
+        }
+        let tmp = parent.join(format!("{partial}{pid}"));
+        let _ = std::fs::remove_dir_all(&tmp);
+        std::fs::create_dir(&tmp).with_context(|| {
+            format!("{option} {}: cannot write in {} (checked before starting)", dir.display(), parent.display())
+        })?;
+        let probe = tmp.join(MARKER);
+        std::fs::write(&probe, format!("slam-app {command}\n")).with_context(|| {
+            format!("{option} {}: cannot write in {} (checked before starting)", dir.display(), parent.display())
+        })?;
+        Ok(Self { target: dir.to_path_buf(), tmp, parent, name, done: false })
+    }
+
+    /// Where to write (the temporary folder).
+    pub fn path(&self) -> &Path {
+        &self.tmp
+    }
+
+    /// The folder the output will be at.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// Put the written folder in place of the old one (which is removed), in one step where the system
+    /// allows it.
+    pub fn commit(mut self) -> Result<()> {
+        // the marker is written last: it lists every entry, so a later run knows what it may replace
+        let mut names: Vec<String> = std::fs::read_dir(&self.tmp)
+            .with_context(|| format!("cannot list {}", self.tmp.display()))?
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n != MARKER)
+            .collect();
+        names.sort();
+        let first = std::fs::read_to_string(self.tmp.join(MARKER)).unwrap_or_default();
+        let first = first.lines().next().unwrap_or("slam-app");
+        write_file(&self.tmp.join(MARKER), format!("{first}\n{}\n", names.join("\n")).as_bytes())?;
+        sync_dir(&self.tmp);
+        if self.target.exists() {
+            if !exchange(&self.tmp, &self.target)? {
+                // no atomic swap here: old → backup, new → place, backup removed; a kill between the two
+                // renames is repaired by the next run (`create` restores the backup)
+                let backup = self.parent.join(format!(".{}.old-{}", self.name, std::process::id()));
+                std::fs::rename(&self.target, &backup)
+                    .with_context(|| format!("cannot move the old {} aside", self.target.display()))?;
+                if let Err(e) = std::fs::rename(&self.tmp, &self.target) {
+                    let _ = std::fs::rename(&backup, &self.target);
+                    return Err::<(), _>(e)
+                        .with_context(|| format!("cannot put the new {} in place", self.target.display()));
+                }
+                let _ = std::fs::remove_dir_all(&backup);
+                self.done = true;
+                sync_dir(&self.parent);
+                return Ok(());
+            }
+            // the temporary path now holds the old folder
+            if let Err(e) = std::fs::remove_dir_all(&self.tmp) {
+                tracing::warn!("the previous output, moved to {}, could not be removed: {e}", self.tmp.display());
+            }
+        } else {
+            std::fs::rename(&self.tmp, &self.target)
+                .with_context(|| format!("cannot put {} in place", self.target.display()))?;
+        }
+        self.done = true;
+        sync_dir(&self.parent);
+        Ok(())
+    }
+}
+
+impl Drop for OutputDir {
+    fn drop(&mut self) {
+        if !self.done {
+            let _ = std::fs::remove_dir_all(&self.tmp);
+        }
+    }
+}
+
+/// Swap two paths in one step (Linux `renameat2(RENAME_EXCHANGE)`); `Ok(false)` when the file system or
+/// the platform cannot.
+#[cfg(target_os = "linux")]
+fn exchange(a: &Path, b: &Path) -> Result<bool> {
+    use rustix::fs::{renameat_with, RenameFlags, CWD};
+    match renameat_with(CWD, a, CWD, b, RenameFlags::EXCHANGE) {
+        Ok(()) => Ok(true),
+        Err(e)
+            if e == rustix::io::Errno::INVAL || e == rustix::io::Errno::NOSYS || e == rustix::io::Errno::OPNOTSUPP =>
+        {
+            Ok(false)
+        }
+        Err(e) => Err::<bool, _>(std::io::Error::from(e))
+            .with_context(|| format!("cannot put {} in place of {}", a.display(), b.display())),
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn exchange(_a: &Path, _b: &Path) -> Result<bool> {
+    Ok(false)
+}
+
+/// Flush a folder's entries to disk (best effort: a crash of the machine, not only of the process).
+fn sync_dir(dir: &Path) {
+    if let Ok(f) = std::fs::File::open(dir) {
+        let _ = f.sync_all();
+    }
+}
+
+/// The temporary sibling of `path` a new version is written to before the rename.
+fn temp_of(path: &Path) -> PathBuf {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
+}
+
+/// Refuse a destination that is a folder or has no file name; create its parent folder.
+fn prepare_file(path: &Path) -> Result<()> {
+    if path.file_name().is_none() || path.is_dir() {
+        bail!("{}: is a folder, expected a file name", path.display());
+    }
+    if let Some(p) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(p).with_context(|| format!("cannot create the folder of {}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// Write a whole file atomically: a temporary file beside it, synced, then renamed over it.
+pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
+    AtomicFile::new(path)?.write_with(|tmp| std::fs::write(tmp, bytes))
+}
+
+/// A file written by someone else's writer (a library function taking a path) and put in place
+/// atomically.
+pub struct AtomicFile {
+    path: PathBuf,
+    tmp: PathBuf,
+}
+
+impl AtomicFile {
+    /// Check `path` can be written (its folder exists or is created, and a file can be made in it) before
+    /// any work starts.
+    pub fn new(path: &Path) -> Result<Self> {
+        prepare_file(path)?;
+        let tmp = temp_of(path);
+        std::fs::write(&tmp, b"").with_context(|| format!("cannot write {}", path.display()))?;
+        Ok(Self { path: path.to_path_buf(), tmp })
+    }
+
+    /// Let `write` write the temporary file, then rename it over the destination.
+    pub fn write_with<E: Into<Box<dyn std::error::Error + Send + Sync>>>(
+        self,
+        write: impl FnOnce(&Path) -> std::result::Result<(), E>,
+    ) -> Result<()> {
+        write(&self.tmp).map_err(|e| OutputError::Writer {
+            context: format!("cannot write {}", self.path.display()),
+            source: e.into(),
+        })?;
+        if let Ok(f) = std::fs::File::open(&self.tmp) {
+            let _ = f.sync_all();
+        }
+        std::fs::rename(&self.tmp, &self.path).with_context(|| format!("cannot write {}", self.path.display()))?;
+        Ok(())
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        // after a successful rename the temporary name no longer exists
+        let _ = std::fs::remove_file(&self.tmp);
+    }
+}
+
+/// Write files into `dir` (which may hold other files, e.g. `map --picture` into a run folder): `write`
+/// fills a temporary folder inside `dir`, then each file is renamed into place. Each file is whole; returns
+/// the final paths.
+pub fn write_files_into<E: Into<Box<dyn std::error::Error + Send + Sync>>>(
+    dir: &Path,
+    write: impl FnOnce(&Path) -> std::result::Result<(), E>,
+) -> Result<Vec<PathBuf>> {
+    if dir.is_file() {
+        bail!("{}: is a file, expected a folder", dir.display());
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let tmp = dir.join(format!(".partial-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    std::fs::create_dir(&tmp).with_context(|| format!("cannot write in {}", dir.display()))?;
+    struct Cleanup(PathBuf);
+    impl Drop for Cleanup {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+    let _cleanup = Cleanup(tmp.clone());
+    write(&tmp).map_err(|e| OutputError::Callback(e.into()))?;
+    let mut names: Vec<PathBuf> = std::fs::read_dir(&tmp)
+        .with_context(|| format!("cannot list {}", tmp.display()))?
+        .flatten()
+        .map(|e| e.path())
+        .collect();
+    names.sort();
+    let mut out = Vec::new();
+    for p in names {
+        let to = dir.join(p.file_name().unwrap_or_default());
+        std::fs::rename(&p, &to).with_context(|| format!("cannot write {}", to.display()))?;
+        out.push(to);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("slam-app-output-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).expect("scratch");
+        d
+    }
+
+    fn ours(n: &str) -> bool {
+        n == "a.txt" || n == "b.txt"
+    }
+
+    fn listing(d: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(d)
+            .expect("list")
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn a_committed_folder_replaces_the_old_one_whole() {
+        let root = scratch("commit");
+        let dir = root.join("out");
+        let o = OutputDir::create(&dir, "--out", "test", ours).expect("new");
+        std::fs::write(o.path().join("a.txt"), "1").expect("write");
+        std::fs::write(o.path().join("b.txt"), "1").expect("write");
+        assert!(!dir.exists(), "nothing in place before the commit");
+        o.commit().expect("commit");
+        assert_eq!(listing(&dir), [MARKER, "a.txt", "b.txt"]);
+        // second run writes only a.txt: b.txt of the first run must not survive
+        let o = OutputDir::create(&dir, "--out", "test", ours).expect("again");
+        std::fs::write(o.path().join("a.txt"), "2").expect("write");
+        assert_eq!(std::fs::read_to_string(dir.join("a.txt")).expect("old"), "1", "old intact while writing");
+        o.commit().expect("commit");
+        assert_eq!(listing(&dir), [MARKER, "a.txt"]);
+        assert_eq!(std::fs::read_to_string(dir.join("a.txt")).expect("new"), "2");
+        assert_eq!(listing(&root), ["out"], "no temporary or backup folder left");
+        std::fs::remove_dir_all(&root).ok();
+    }
+
+    #[test]
+    fn an_abandoned_folder_leaves_the_old_one_and_no_temporary() {
+        let root = scratch("drop");
+        let dir = root.join("out");
+        std::fs::create_dir_all(&dir).expect("dir");
+        std::fs::write(dir.join("a.txt"), "old").expect("write");
+        {
+            let o = OutputDir::create(&dir, "--out", "test", ours).expect("create");
+            std::fs::write(o.path().join("a.txt"), "new").expect("write");
+        }
+        assert_eq!(std::fs::read_to_string(dir.join("a.txt")).expect("old"), "old");
+        assert_eq!(listing(&root), ["out"]);
+        std::fs::remove_dir_all(&root).ok();
+    }
+
+    #[test]
+    fn foreign_files_files_and_nameless_paths_are_refused() {
+        let root = scratch("foreign");
+        let dir = root.join("out");
+        std::fs::create_dir_all(&dir).expect("dir");
+        std::fs::write(dir.join("a.txt"), "x").expect("write");
+        std::fs::write(dir.join("thesis.tex"), "x").expect("write");
+        let e = OutputDir::create(&dir, "--out", "test", ours).err().expect("refused").to_string();
+        assert!(e.contains("thesis.tex") && e.contains("did not write") && !e.contains("a.txt"), "{e}");
+        assert_eq!(listing(&root), ["out"], "nothing created when refused");
+        // a marker lists what the earlier run wrote: other names are foreign even if `ours` accepts them
+        std::fs::remove_file(dir.join("thesis.tex")).expect("rm");
+        std::fs::write(dir.join(MARKER), "slam-app test\nb.txt\n").expect("marker");
+        let e = OutputDir::create(&dir, "--out", "test", ours).err().expect("refused").to_string();
+        assert!(e.contains("(a.txt)"), "{e}");
+        #[cfg(unix)]
+        {
+            let link = root.join("link");
+            std::os::unix::fs::symlink(&dir, &link).expect("symlink");
+            let e = OutputDir::create(&link, "--out", "test", ours).err().expect("refused").to_string();
+            assert!(e.contains("symbolic link"), "{e}");
+            std::fs::remove_file(&link).expect("rm");
+        }
+        let file = root.join("file");
+        std::fs::write(&file, "x").expect("write");
+        let e = OutputDir::create(&file, "--out", "test", ours).err().expect("refused").to_string();
+        assert!(e.contains("is a file"), "{e}");
+        for p in [".", "..", "/"] {
+            let e = OutputDir::create(Path::new(p), "--out", "test", ours).err().expect("refused").to_string();
+            assert!(e.contains("name a folder of its own"), "{p}: {e}");
+        }
+        std::fs::remove_dir_all(&root).ok();
+    }
+
+    #[test]
+    fn leftovers_of_killed_runs_are_cleaned_and_a_cut_swap_is_restored() {
+        let root = scratch("recover");
+        let dir = root.join("out");
+        // a temporary folder of a dead process (pid far above the kernel's limit) and a backup whose swap
+        // was cut after the old folder was moved aside
+        std::fs::create_dir_all(root.join(".out.partial-999999999")).expect("tmp");
+        std::fs::create_dir_all(root.join(".out.old-999999999")).expect("backup");
+        std::fs::write(root.join(".out.old-999999999/a.txt"), "old").expect("write");
+        let o = OutputDir::create(&dir, "--out", "test", ours).expect("create");
+        assert_eq!(std::fs::read_to_string(dir.join("a.txt")).expect("restored"), "old");
+        drop(o);
+        assert_eq!(listing(&root), ["out"]);
+        std::fs::remove_dir_all(&root).ok();
+    }
+
+    #[test]
+    fn atomic_files_replace_whole_and_refuse_folders() {
+        let root = scratch("file");
+        let f = root.join("sub/x.json");
+        write_file(&f, b"one").expect("write");
+        write_file(&f, b"two").expect("write");
+        assert_eq!(std::fs::read_to_string(&f).expect("read"), "two");
+        assert_eq!(listing(&root.join("sub")), ["x.json"]);
+        let e = write_file(&root, b"x").expect_err("folder").to_string();
+        assert!(e.contains("is a folder"), "{e}");
+        // a writer that fails leaves the old file and no temporary
+        let e = AtomicFile::new(&f)
+            .expect("new")
+            .write_with(|_| Err(std::io::Error::other("encoder broke")))
+            .expect_err("fails");
+        assert!(e.to_string().contains("encoder broke"), "{e}");
+        assert_eq!(std::fs::read_to_string(&f).expect("read"), "two");
+        assert_eq!(listing(&root.join("sub")), ["x.json"]);
+        let files = write_files_into(&root.join("sub"), |t| std::fs::write(t.join("p.svg"), "s")).expect("into");
+        assert_eq!(files, [root.join("sub/p.svg")]);
+        assert_eq!(listing(&root.join("sub")), ["p.svg", "x.json"]);
+        std::fs::remove_dir_all(&root).ok();
+    }
+}

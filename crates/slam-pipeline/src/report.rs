@@ -1,0 +1,142 @@
+//! Summaries of a finished run for reports: frames per second, per-stage medians, the frame period of
+//! a sequence's timestamps, and the per-frame `tracking.csv`.
+
+use crate::system::{FrameTimes, RunOutput};
+
+/// Frames per second from the median interval between consecutive frames (start-up and the first frame
+/// excluded).
+pub fn median_fps(out: &RunOutput) -> f64 {
+    let mut v: Vec<f64> = out.frames.iter().skip(1).map(|f| f.times.interval).collect();
+    1000.0 / median(&mut v)
+}
+
+/// The upper median (the element at `len / 2` after sorting); NaN for none. Sorts `v`.
+pub fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v[v.len() / 2]
+    }
+}
+
+/// Median per stage, over the frames where the stage ran: `(stage, median ms, frames)`; the stages that
+/// run on keyframes only (local BA, objects) over keyframes.
+pub fn stage_table(out: &RunOutput) -> Vec<(&'static str, f64, usize)> {
+    type Stage = (&'static str, fn(&FrameTimes) -> f64);
+    let stages: [Stage; 8] = [
+        ("detection (own thread)", |t| t.detection),
+        ("ORB extraction", |t| t.extraction),
+        ("stereo matching", |t| t.stereo),
+        ("tracking (local map + PnP + refinement)", |t| t.tracking),
+        ("optical flow", |t| t.flow),
+        ("association", |t| t.association),
+        ("local BA (keyframes, mapping thread)", |t| t.bundle_adjustment),
+        ("object init + optimisation (keyframes)", |t| t.objects),
+    ];
+    stages
+        .iter()
+        .map(|(name, f)| {
+            let keyframe_only = name.contains("keyframes");
+            let mut v: Vec<f64> = out
+                .frames
+                .iter()
+                .filter(|r| r.state.is_some() && (!keyframe_only || r.keyframe))
+                .map(|r| f(&r.times))
+                .collect();
+            let n = v.len();
+            (*name, median(&mut v), n)
+        })
+        .collect()
+}
+
+/// Seconds per step of the frame index (the tracker counts frame intervals by index differences): the
+/// median of Δtime / Δindex over consecutive `(index, time)` pairs; 0.1 s, KITTI's rate, when there
+/// are fewer than two or they are not increasing.
+pub fn frame_period(stamped: &[(usize, f64)]) -> f64 {
+    let mut d: Vec<f64> =
+        stamped.windows(2).filter(|w| w[1].0 > w[0].0).map(|w| (w[1].1 - w[0].1) / (w[1].0 - w[0].0) as f64).collect();
+    let m = median(&mut d);
+    if m.is_finite() && m > 0.0 {
+        m
+    } else {
+        0.1
+    }
+}
+
+/// `tracking.csv`: one row per input frame (frame, state, inliers, tracked map points, RMS
+/// reprojection error in pixels, tracking time in ms: extraction + stereo + tracking).
+pub fn tracking_csv(out: &RunOutput) -> String {
+    use std::fmt::Write as _;
+    let mut text = String::from("frame,state,inliers,tracked_map_points,reprojection_rms_px,time_ms\n");
+    for r in &out.frames {
+        let (state, inliers) = r.state.map_or(("unreadable", 0), |s| (s.name(), s.inliers()));
+        let rms =
+            if r.reprojection_rms_px.is_finite() { format!("{:.3}", r.reprojection_rms_px) } else { String::new() };
+        let ms = r.times.extraction + r.times.stereo + r.times.tracking;
+        let _ = writeln!(text, "{},{state},{inliers},{},{rms},{ms:.2}", r.index, r.tracked_map_points);
+    }
+    text
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::system::FrameRecord;
+    use slam_core::TrackState;
+
+    fn record(index: usize, interval: f64, keyframe: bool, state: Option<TrackState>) -> FrameRecord {
+        FrameRecord {
+            index,
+            state,
+            keyframe,
+            tracked_map_points: 7,
+            reprojection_rms_px: if state.is_some() { 0.5 } else { f64::NAN },
+            detections: Vec::new(),
+            tracks: Vec::new(),
+            times: FrameTimes {
+                interval,
+                extraction: 2.0,
+                bundle_adjustment: 10.0 * index as f64,
+                ..FrameTimes::default()
+            },
+        }
+    }
+
+    #[test]
+    fn frame_period_is_the_median_step_and_falls_back_to_kitti_rate() {
+        // ids 0, 1, 3 (one skipped), 4 at 10 Hz, plus a decreasing pair that is ignored
+        let stamped = [(0, 0.0), (1, 0.1), (3, 0.3), (4, 0.4), (2, 0.2)];
+        assert!((frame_period(&stamped) - 0.1).abs() < 1e-12);
+        assert_eq!(frame_period(&[(0, 0.0)]), 0.1);
+        assert_eq!(frame_period(&[(0, 1.0), (1, 1.0)]), 0.1, "no time passes: not a period");
+    }
+
+    #[test]
+    fn stage_medians_skip_unreadable_frames_and_keyframe_stages_use_keyframes() {
+        let tracked = Some(TrackState::Lost);
+        let frames = vec![
+            record(0, 500.0, true, tracked),
+            record(1, 50.0, false, tracked),
+            record(2, 100.0, true, tracked),
+            record(3, 100.0, false, None),
+        ];
+        let out = RunOutput {
+            map: crate::map::Map::default(),
+            poses: Vec::new(),
+            objects: Vec::new(),
+            frames,
+            counts: Default::default(),
+        };
+        // the first frame's interval (start-up) is left out: median of 50, 100, 100
+        assert!((median_fps(&out) - 10.0).abs() < 1e-12);
+        let table = stage_table(&out);
+        let row = |name: &str| table.iter().find(|r| r.0.starts_with(name)).copied().expect("stage");
+        assert_eq!(row("ORB extraction"), ("ORB extraction", 2.0, 3));
+        // local BA: keyframes 0 and 2 only (0 and 20 ms): the upper median
+        assert_eq!(row("local BA"), ("local BA (keyframes, mapping thread)", 20.0, 2));
+        let csv = tracking_csv(&out);
+        assert_eq!(csv.lines().count(), 5);
+        assert!(csv.lines().nth(4).expect("row").starts_with("3,unreadable,0,7,,"), "{csv}");
+    }
+}
