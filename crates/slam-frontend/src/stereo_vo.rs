@@ -878,7 +878,10 @@ impl StereoVo {
                 } else {
                     Box::new(MonoReprojection::new(pose_key, point_key, k, [o[0], o[1]]))
                 };
-                graph.add_boxed(f, noise, kernel(robust)).ok()
+                graph
+                    .add_boxed(f, noise, kernel(robust))
+                    .map_err(|e| tracing::warn!("pose refinement: observation left out: {e}"))
+                    .ok()
             };
             let mut current: Vec<(usize, slam_optim::Key, usize)> = Vec::new(); // (match, point, factor)
                                                                                 // the first rounds move the pose alone (points where their keyframes put them): cheap, and

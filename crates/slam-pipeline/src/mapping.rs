@@ -217,11 +217,14 @@ impl LocalMapper {
             for (pid, obs) in &k.observations {
                 let Some(&xk) = point_keys.get(pid) else { continue };
                 let (noise, huber) = (NoiseModel::Isotropic(1.0), Huber(self.config.huber_px));
-                let _ = if obs[2].is_nan() {
+                let added = if obs[2].is_nan() {
                     graph.add(MonoReprojection::new(pk, xk, self.k, [obs[0], obs[1]]), noise, huber)
                 } else {
                     graph.add(StereoReprojection::new(pk, xk, self.k, self.baseline, *obs), noise, huber)
                 };
+                if let Err(e) = added {
+                    tracing::warn!(keyframe = kid, point = pid, "local bundle adjustment: observation left out: {e}");
+                }
             }
         }
         let options = Options::with_max_iterations(self.config.iterations);
