@@ -3,7 +3,6 @@
 
 use std::{
     collections::{BTreeMap, BTreeSet},
-    fmt::Write as _,
     path::PathBuf,
 };
 
@@ -423,7 +422,19 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         "{:<6} {:>8} {:>8} {:>8} {:>8} {:>9} {:>8} {:>8} {:>8} {:>7}",
         "seq", "vehicles", "found", "success", "IoU2D", "e_trans", "e_axe", "e_ray", "e_yaw", "<=15deg"
     );
-    let mut csv = String::from("sequence,vehicles,found,success,iou2d,e_trans,e_axe,e_ray,e_yaw,yaw_within_15\n");
+    let mut csv = csv::Writer::from_writer(Vec::new());
+    csv.write_record([
+        "sequence",
+        "vehicles",
+        "found",
+        "success",
+        "iou2d",
+        "e_trans",
+        "e_axe",
+        "e_ray",
+        "e_yaw",
+        "yaw_within_15",
+    ])?;
     let (mut sum_yaw, mut sum_within) = (0.0, 0.0);
     let (mut tot, mut n_seq) = (Row::default(), 0usize);
     let (mut sum_success, mut sum_iou, mut sum_et, mut sum_ea, mut n_found_seq) = (0.0, 0.0, 0.0, 0.0, 0usize);
@@ -554,17 +565,18 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             row.e_yaw / f,
             row.yaw_within as f64 / f
         ));
-        let _ = writeln!(
-            csv,
-            "{name},{},{},{success},{},{},{},{e_ray},{},{}",
-            row.vehicles,
-            row.found,
-            row.iou / f,
-            row.e_trans / f,
-            row.e_axe / f,
-            row.e_yaw / f,
-            row.yaw_within as f64 / f
-        );
+        csv.write_record([
+            name.to_string(),
+            row.vehicles.to_string(),
+            row.found.to_string(),
+            success.to_string(),
+            (row.iou / f).to_string(),
+            (row.e_trans / f).to_string(),
+            (row.e_axe / f).to_string(),
+            e_ray.to_string(),
+            (row.e_yaw / f).to_string(),
+            (row.yaw_within as f64 / f).to_string(),
+        ])?;
         if row.vehicles > 0 {
             n_seq += 1;
             sum_success += success;
@@ -643,7 +655,8 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     );
     println!("paper (its KITTI raw drives): success 0.602, IoU2D 0.730, e_trans 2.128 m, e_axe 0.642 m");
     if let Some(f) = csv_out {
-        f.write_with(|tmp| std::fs::write(tmp, csv).map_err(anyhow::Error::from))?;
+        let bytes = csv.into_inner().map_err(|e| e.into_error())?;
+        f.write_with(|tmp| std::fs::write(tmp, bytes).map_err(anyhow::Error::from))?;
     }
     Ok(())
 }

@@ -513,15 +513,23 @@ fn frame_period(stamped: &[(usize, f64)]) -> f64 {
 /// `tracking.csv`: one row per input frame (frame, state, inliers, tracked map points, RMS
 /// reprojection error in pixels, tracking time in ms: extraction + stereo + tracking).
 fn write_tracking_csv(path: &std::path::Path, out: &RunOutput) -> anyhow::Result<()> {
-    use std::fmt::Write as _;
-    let mut text = String::from("frame,state,inliers,tracked_map_points,reprojection_rms_px,time_ms\n");
+    let mut csv = csv::Writer::from_writer(Vec::new());
+    csv.write_record(["frame", "state", "inliers", "tracked_map_points", "reprojection_rms_px", "time_ms"])?;
     for r in &out.frames {
         let (state, inliers) = r.state.map_or(("unreadable", 0), |s| (s.name(), s.inliers()));
         let rms =
             if r.reprojection_rms_px.is_finite() { format!("{:.3}", r.reprojection_rms_px) } else { String::new() };
         let ms = r.times.extraction + r.times.stereo + r.times.tracking;
-        let _ = writeln!(text, "{},{state},{inliers},{},{rms},{ms:.2}", r.index, r.tracked_map_points);
+        csv.write_record([
+            r.index.to_string(),
+            state.to_string(),
+            inliers.to_string(),
+            r.tracked_map_points.to_string(),
+            rms,
+            format!("{ms:.2}"),
+        ])?;
     }
+    let text = csv.into_inner().map_err(|e| e.into_error())?;
     std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
 }
 

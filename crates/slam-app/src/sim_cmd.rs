@@ -1,6 +1,6 @@
 //! `slam-app sim`: the simulation study, with tables, CSV and plots.
 
-use std::{fmt::Write as _, path::PathBuf, time::Instant};
+use std::{path::PathBuf, time::Instant};
 
 use anyhow::Context;
 use clap::Args;
@@ -140,25 +140,38 @@ fn print_table(cells: &[CellStats], g: Geometry, k: NoiseKind, methods: &[Method
 }
 
 fn write_csv(cells: &[CellStats], path: &std::path::Path) -> anyhow::Result<()> {
-    let mut s = String::from("geometry,noise,level_percent,method,trials,success,e_trans_mean,e_trans_median,e_axe_mean,e_axe_median,iou_mean,iou_median\n");
+    let mut csv = csv::Writer::from_writer(Vec::new());
+    csv.write_record([
+        "geometry",
+        "noise",
+        "level_percent",
+        "method",
+        "trials",
+        "success",
+        "e_trans_mean",
+        "e_trans_median",
+        "e_axe_mean",
+        "e_axe_median",
+        "iou_mean",
+        "iou_median",
+    ])?;
     for c in cells {
-        let _ = writeln!(
-            s,
-            "{},{},{},{},{},{},{},{},{},{},{},{}",
-            c.geometry.name(),
-            c.noise.name(),
-            c.level,
-            c.method.name(),
-            c.trials,
-            c.success,
-            c.e_trans_mean,
-            c.e_trans_median,
-            c.e_axe_mean,
-            c.e_axe_median,
-            c.iou_mean,
-            c.iou_median
-        );
+        csv.write_record([
+            c.geometry.name().to_string(),
+            c.noise.name().to_string(),
+            c.level.to_string(),
+            c.method.name().to_string(),
+            c.trials.to_string(),
+            c.success.to_string(),
+            c.e_trans_mean.to_string(),
+            c.e_trans_median.to_string(),
+            c.e_axe_mean.to_string(),
+            c.e_axe_median.to_string(),
+            c.iou_mean.to_string(),
+            c.iou_median.to_string(),
+        ])?;
     }
+    let s = csv.into_inner().map_err(|e| e.into_error())?;
     let tmp = path.with_extension("csv.tmp");
     std::fs::write(&tmp, s).with_context(|| format!("cannot write {}", tmp.display()))?;
     std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))?;
