@@ -4,7 +4,7 @@ use std::{collections::BTreeMap, path::PathBuf};
 
 use clap::{Args, Subcommand};
 use slam_assoc::{
-    eval::{run as run_sim, simulate, IdSwitchCounter, Lcg, MotCounts, SimConfig},
+    eval::{run as run_sim, simulate, IdSwitchCounter, MotCounts, SimRng, SimConfig},
     IouAssociator, ObjectTracker, Oda, TrackerConfig, TrackerInput,
 };
 use slam_core::{geometry::BBox, Associator, Detection};
@@ -138,7 +138,7 @@ fn kitti(a: &KittiArgs) -> anyhow::Result<()> {
         for (ci, cond) in CONDITIONS.iter().enumerate() {
             let mut cells = Vec::new();
             for (k, (aname, make)) in associators().iter().enumerate() {
-                let mut rng = Lcg::new(a.seed.wrapping_mul(1000).wrapping_add(ci as u64));
+                let mut rng = SimRng::new(a.seed.wrapping_mul(1000).wrapping_add(ci as u64));
                 let mut tracker = ObjectTracker::new(make(), TrackerConfig::default());
                 let mut ids = IdSwitchCounter::default();
                 let mut n_det = 0;
