@@ -9,7 +9,6 @@ use std::{
 use anyhow::{bail, Context};
 use clap::Args;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use slam_assoc::Oda;
 use slam_core::{geometry::BBox, rng::SimRng, Detection};
 use slam_dataset::{
     classes,
@@ -32,6 +31,12 @@ pub struct InputArgs {
     /// Ellipsoid method
     #[arg(long, value_enum, default_value_t = Method::Refine)]
     method: Method,
+    /// Object associator
+    #[arg(long, value_enum, default_value_t = crate::optimizer_choice::AssociatorKind::Oda)]
+    associator: crate::optimizer_choice::AssociatorKind,
+    /// Optimiser backend of the object fits
+    #[arg(long, value_enum, default_value_t = crate::optimizer_choice::OptimizerKind::Lm)]
+    optimizer: crate::optimizer_choice::OptimizerKind,
     /// Also fit objects seen without parallax (a standing camera) once they have this many boxes: depth
     /// from the class's size prior (off by default, as in the paper)
     #[arg(long)]
@@ -102,11 +107,11 @@ pub enum Method {
 impl Method {
     pub(crate) fn fit(self) -> FitMethod {
         match self {
-            Method::Refine => FitMethod::Refine,
-            Method::Qslam => FitMethod::QSlam,
-            Method::Conic => FitMethod::Conic,
-            Method::Tri => FitMethod::Tri,
-            Method::TriYaw => FitMethod::TriYaw,
+            Method::Refine => FitMethod::default(),
+            Method::Qslam => FitMethod::qslam(),
+            Method::Conic => FitMethod::conic(),
+            Method::Tri => FitMethod::tri(),
+            Method::TriYaw => FitMethod::tri_yaw(),
         }
     }
 }
@@ -162,7 +167,6 @@ fn run(seq: &Sequence, input: &InputArgs) -> (ObjectMapper, BTreeMap<(usize, usi
         }
     }
     let config = MapperConfig {
-        method: input.method.fit(),
         min_views_without_parallax: input.without_parallax_after,
         box_shape: input.box_shape.shape(),
         min_parallax_deg: input.min_parallax_deg,
@@ -170,8 +174,8 @@ fn run(seq: &Sequence, input: &InputArgs) -> (ObjectMapper, BTreeMap<(usize, usi
         max_misses: (input.max_misses > 0).then_some(input.max_misses),
         ..MapperConfig::default()
     };
-    let mut mapper =
-        ObjectMapper::new(Box::new(Oda::default()), config, crate::optimizer_choice::OptimizerKind::default().build());
+    let mut mapper = ObjectMapper::new(input.associator.build(None), config, input.optimizer.build())
+        .with_method(input.method.fit());
     let mut truth = BTreeMap::new();
     for (frame, pose) in seq.poses.iter().enumerate() {
         let mut rng = SimRng::derive(input.seed, &[frame as u64]);
@@ -409,9 +413,10 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     }
     let seqs = crate::tracking_sequences(&dir)?;
     println!(
-        "Object metrics, label boxes as detections (noise {} of box size, dropout {}), ODA + {}",
+        "Object metrics, label boxes as detections (noise {} of box size, dropout {}), {} + {}",
         a.input.noise,
         a.input.dropout,
+        a.input.associator.name(),
         a.input.method.fit().name()
     );
     println!(

@@ -21,7 +21,7 @@ use slam_pipeline::{
     eval::trajectory_errors,
     map::{Map, MapObject},
     objects::MappedObject,
-    system::{self, FrameInput, FrameTimes, RunOutput},
+    system::{self, FrameInput, FrameTimes, RunOutput, SystemBuilder},
 };
 use slam_quadric::{project, Camera, ImageSize, Intrinsics};
 
@@ -82,6 +82,9 @@ pub struct RunArgs {
     /// Ellipsoid method of the objects (baselines for comparison)
     #[arg(long, value_enum, default_value_t = crate::objects_cmd::Method::Refine)]
     method: crate::objects_cmd::Method,
+    /// Object associator (the paper's ODA, or the IoU baseline)
+    #[arg(long, value_enum, default_value_t = crate::optimizer_choice::AssociatorKind::Oda)]
+    associator: crate::optimizer_choice::AssociatorKind,
     /// Run the detector on every n-th frame only (overrides system.detect_every)
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     detect_every: Option<u64>,
@@ -367,11 +370,14 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
             (k, _) => k.name().to_string(),
         };
         println!(
-            "quadric SLAM on {} ({:?} layout, {n} frames: {}, fx {fx:.1} px, baseline {:.4} m, detector: {source})",
+            "quadric SLAM on {} ({:?} layout, {n} frames: {}, fx {fx:.1} px, baseline {:.4} m, detector: {source}, \
+             association: {}, ellipsoids: {})",
             seq.dir.display(),
             seq.layout,
             played_ids(&seq, &sel),
             seq.baseline,
+            a.associator.name(),
+            a.method.fit().name(),
         );
         if !(seq.gaps.is_empty() && seq.one_camera.is_empty()) {
             println!(
@@ -459,9 +465,17 @@ fn run_system(a: &RunArgs, cfg: &RunConfig, quiet: bool) -> anyhow::Result<Outco
         bar.set_message(format!("{keyframes} keyframes, {lost} frames lost"));
         bar.inc();
     };
-    let mut sys = cfg.system(image);
-    sys.objects.method = a.method.fit();
-    let out = system::run(frames, tracker, det, k, seq.baseline, &sys, optimizer, &mut on_frame)?;
+    let sys = cfg.system(image);
+    let out = SystemBuilder::new(k, seq.baseline)
+        .config(sys)
+        .source(frames)
+        .tracker(tracker)
+        .detector(det)
+        .associator(a.associator.build(sys.projected_gate))
+        .optimizer(optimizer)
+        .method(a.method.fit())
+        .build()?
+        .run(&mut on_frame)?;
     bar.finish();
     Ok(Outcome { out, labels, seq, elapsed: start.elapsed().as_secs_f64(), k, image, colour, detections: counts, notes })
 }

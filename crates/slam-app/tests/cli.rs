@@ -949,3 +949,91 @@ fn run_scores_its_objects_against_labels_and_eval_repeats_it() {
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--labels"));
     std::fs::remove_dir_all(&out).ok();
 }
+
+/// Issue 16: `--method` goes through the `slam_quadric::Initializer` seam and `--associator` through the
+/// `Associator` seam. Image-free mode on the shipped tracking labels: each of the five methods and both
+/// associators give an object map of their own.
+#[test]
+fn objects_methods_and_associators_each_give_their_own_map() {
+    let dir = std::env::temp_dir().join(format!("slam-app-seams-{}", std::process::id()));
+    let map = |args: &[&str]| {
+        let out = dir.join(format!("{}.json", args.join("_")));
+        let o = app()
+            .args(["objects", "fixtures/kitti_tracking/0003"])
+            .args(args)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .expect("runs");
+        assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read(&out).expect("object map")
+    };
+    let methods = ["refine", "qslam", "conic", "tri", "tri-yaw"];
+    let maps: Vec<Vec<u8>> = methods.iter().map(|m| map(&["--method", m])).collect();
+    for i in 0..maps.len() {
+        for j in i + 1..maps.len() {
+            assert!(maps[i] != maps[j], "--method {} and {} give the same objects", methods[i], methods[j]);
+        }
+    }
+    assert!(map(&["--associator", "iou"]) != maps[0], "IoU association gives ODA's objects");
+    assert!(map(&["--associator", "oda"]) == maps[0], "ODA is the default");
+}
+
+/// The main job's first frames (boxes from the shipped detector's file, so no network runs): the
+/// object map follows `--method`, the trajectory does not (objects do not move the cameras here).
+#[test]
+fn run_method_changes_the_objects_not_the_trajectory() {
+    let dir = std::env::temp_dir().join(format!("slam-app-run-methods-{}", std::process::id()));
+    let file = "fixtures/kitti_odom_06/detections/yolo_fastest_tiles3.json";
+    let run = |args: &[&str]| {
+        let out = dir.join(args.join("_"));
+        let o = app()
+            .args(["run", "--max-frames", "15", "--detections", file])
+            .args(args)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .expect("runs");
+        assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
+        let text = String::from_utf8_lossy(&o.stdout).to_string();
+        let read = |f: &str| std::fs::read_to_string(out.join(f)).expect("output");
+        (text, read("objects.json"), read("trajectory.kitti.txt"))
+    };
+    let refine = run(&["--method", "refine"]);
+    assert!(refine.0.contains("association: ODA, ellipsoids: Tri+Yaw+refine"), "{}", refine.0);
+    for (m, name) in [("conic", "Conic"), ("tri-yaw", "Tri+Yaw")] {
+        let other = run(&["--method", m]);
+        assert!(other.0.contains(&format!("ellipsoids: {name})")), "{}", other.0);
+        assert!(other.1 != refine.1, "--method {m} gives the objects of Tri+Yaw+refine");
+        assert_eq!(other.2, refine.2, "--method {m} moved the cameras");
+    }
+}
+
+/// The main job's first frames with the IoU associator: other objects than with ODA; the baselines
+/// without refinement (Q-SLAM, Tri) run too and map other objects than ODA + Tri+Yaw+refine.
+#[test]
+fn run_associator_changes_the_objects() {
+    let dir = std::env::temp_dir().join(format!("slam-app-run-assoc-{}", std::process::id()));
+    let file = "fixtures/kitti_odom_06/detections/yolo_fastest_tiles3.json";
+    let run_with = |assoc: &str, method: &str| {
+        let out = dir.join(format!("{assoc}-{method}"));
+        let o = app()
+            .args(["run", "--max-frames", "15", "--detections", file, "--associator", assoc, "--method", method])
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .expect("runs");
+        assert!(o.status.success(), "{assoc}: {}", String::from_utf8_lossy(&o.stderr));
+        let text = String::from_utf8_lossy(&o.stdout).to_string();
+        (text, std::fs::read_to_string(out.join("objects.json")).expect("objects"))
+    };
+    let (oda_text, oda) = run_with("oda", "refine");
+    let (iou_text, iou) = run_with("iou", "refine");
+    assert!(oda_text.contains("association: ODA,") && iou_text.contains("association: IoU,"), "{iou_text}");
+    assert!(oda != iou, "IoU association gives ODA's objects");
+    for (method, name) in [("qslam", "Q-SLAM"), ("tri", "Tri")] {
+        let (text, objects) = run_with("oda", method);
+        assert!(text.contains(&format!("ellipsoids: {name})")), "{text}");
+        assert!(objects != oda, "--method {method} gives the objects of Tri+Yaw+refine");
+    }
+}

@@ -1,7 +1,9 @@
 //! Checks every [`Associator`] must pass. Another association crate can run them from its own tests:
 //! `slam_assoc::conformance::check_all(&mut || Box::new(MyAssociator::default()))`.
 //!
-//! Each check returns `Err(description)` on the first violation.
+//! Each check returns `Err(description)` on the first violation. These are test helpers, for a
+//! test to assert on and print: the description is for a person, not a typed error a program would
+//! handle (the seam itself, [`Associator::associate`], cannot fail).
 
 use slam_core::{
     geometry::BBox, Assignment, AssociationInput, Associator, ClassId, Detection, PointPair, Region, TrackId, TrackView,

@@ -34,9 +34,22 @@ pub enum DetectError {
     /// The source needs the image and none was given.
     #[error("this detection source needs the image of frame {0}")]
     NeedsImage(usize),
-    /// Any other failure (model inference, decoding), with a message naming what failed.
-    #[error("{0}")]
-    Failed(String),
+    /// The source's backend failed for this frame (model inference, decoding); the cause is the
+    /// error's source.
+    #[error("frame {frame}: {source}")]
+    Failed {
+        /// Frame index.
+        frame: usize,
+        /// Why.
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+}
+
+impl DetectError {
+    /// A backend failure for `frame`.
+    pub fn failed(frame: usize, e: impl std::error::Error + Send + Sync + 'static) -> Self {
+        DetectError::Failed { frame, source: Box::new(e) }
+    }
 }
 
 /// A source of detections for the frames of a sequence.

@@ -167,11 +167,22 @@ pub struct KeyframeCorrection {
     pub culled: Vec<PointId>,
 }
 
-/// Errors a tracker reports (image conversion or library failures; a failed frame is not an error but
-/// [`TrackState::Lost`]).
+/// Errors a tracker reports (a failed frame is not an error but [`TrackState::Lost`]). Marked
+/// non-exhaustive so that failure kinds can be added without breaking callers' matches.
 #[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-pub struct TrackError(pub String);
+#[non_exhaustive]
+pub enum TrackError {
+    /// The tracker's backend (image library, optimiser) failed; the cause is the error's source.
+    #[error("{0}")]
+    Backend(#[source] Box<dyn std::error::Error + Send + Sync>),
+}
+
+impl TrackError {
+    /// A backend failure.
+    pub fn backend(e: impl std::error::Error + Send + Sync + 'static) -> Self {
+        TrackError::Backend(Box::new(e))
+    }
+}
 
 /// A stereo visual front end.
 pub trait StereoTracker: Send {

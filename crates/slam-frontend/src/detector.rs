@@ -243,6 +243,6 @@ impl DetectionSource for DnnDetector {
 
     fn detect(&mut self, frame: usize, image: Option<&Image>) -> Result<Vec<Detection>, DetectError> {
         let image = image.ok_or(DetectError::NeedsImage(frame))?;
-        self.detect_image(image).map_err(|e| DetectError::Failed(format!("frame {frame}: {e}")))
+        self.detect_image(image).map_err(|e| DetectError::failed(frame, e))
     }
 }

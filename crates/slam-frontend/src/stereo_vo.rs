@@ -1569,7 +1569,7 @@ impl StereoTracker for StereoVo {
         right: &Image,
         exclude: &[BBox],
     ) -> Result<TrackedFrame, TrackError> {
-        self.process(frame, left, right, exclude).map_err(|e| TrackError(e.to_string()))
+        self.process(frame, left, right, exclude).map_err(TrackError::backend)
     }
 
     fn correct(&mut self, c: &KeyframeCorrection) {
@@ -1587,7 +1587,7 @@ impl StereoTracker for StereoVo {
     }
 
     fn flow(&mut self, regions: &[BBox]) -> Result<Vec<PointPair>, TrackError> {
-        self.optical_flow(regions).map_err(|e| TrackError(e.to_string()))
+        self.optical_flow(regions).map_err(TrackError::backend)
     }
 }
 

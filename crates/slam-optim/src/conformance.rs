@@ -1,7 +1,9 @@
 //! Checks every [`Optimizer`] must pass. A backend crate runs them from its own tests:
 //! `slam_optim::conformance::check_all(&MyOptimizer::default(), &fixtures_optim_dir)`.
 //!
-//! Each check returns `Err(description)` on the first violation. The references are external: the
+//! Each check returns `Err(description)` on the first violation. These are test helpers, for a
+//! test to assert on and print: the description is for a person (the seam itself returns the typed
+//! [`crate::OptimError`]). The references are external: the
 //! Ceres / GTSAM minima of the anchor problems (`fixtures/optim/ANCHORS.md`), and for the generated
 //! problems the ground truth they were made from.
 //!

@@ -292,8 +292,22 @@ pub fn refine_with_planes(
     planes: &[Vector4<f64>],
     optimizer: &dyn Optimizer,
 ) -> Result<Ellipsoid, InitError> {
+    refine_with_start(&Dqp::default(), views, image, prior, config, planes, optimizer)
+}
+
+/// [`refine_with_planes`] with another initialiser for the first start (in place of the plain DQP);
+/// the other starts (DQP with centre correction, the triangulated centre at two headings) stay.
+pub fn refine_with_start(
+    initializer: &dyn Initializer,
+    views: &[BoxView],
+    image: &ImageSize,
+    prior: &ObjectPrior,
+    config: &RefineConfig,
+    planes: &[Vector4<f64>],
+    optimizer: &dyn Optimizer,
+) -> Result<Ellipsoid, InitError> {
     let mut starts = Vec::new();
-    if let Ok(e) = Dqp::default().initialize(views) {
+    if let Ok(e) = initializer.initialize(views) {
         starts.push(align_to_prior(&e, &prior.axes));
     }
     if let Ok(e) = Dqp::with_centre_correction().initialize(views) {

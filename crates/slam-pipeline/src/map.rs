@@ -424,74 +424,102 @@ impl Map {
     /// keyframe's camera as a frustum of four triangles (1 m deep, looking along its z), the frame
     /// trajectory as edges, and the map points as vertices; world frame of the map ([`MAP_WORLD`]).
     pub fn export_scene_ply(&self, path: &Path) -> Result<SceneCounts, MapError> {
-        use std::fmt::Write;
-        let mut vertices: Vec<([f64; 3], [u8; 3])> = Vec::new();
-        let mut faces: Vec<[usize; 3]> = Vec::new();
-        let mut edges: Vec<[usize; 2]> = Vec::new();
+        let mut mesh = SceneMesh::default();
         let mut counts = SceneCounts::default();
-        let (rings, segments) = (12usize, 24usize);
         for o in self.objects.iter().filter(|o| !o.moving) {
-            let colour = if o.dynamic { SCENE_DYNAMIC } else { SCENE_STATIC };
-            let r = nalgebra::Matrix3::from_row_slice(&o.rotation);
-            let base = vertices.len();
-            // poles, then rings × segments
-            for z in [-1.0, 1.0] {
-                let p = r * Vector3::new(0.0, 0.0, z * o.semi_axes[2]) + Vector3::from(o.center);
-                vertices.push(([p.x, p.y, p.z], colour));
-            }
-            for i in 1..rings {
-                let theta = std::f64::consts::PI * i as f64 / rings as f64 - std::f64::consts::FRAC_PI_2;
-                for j in 0..segments {
-                    let phi = std::f64::consts::TAU * j as f64 / segments as f64;
-                    let u = Vector3::new(
-                        o.semi_axes[0] * theta.cos() * phi.cos(),
-                        o.semi_axes[1] * theta.cos() * phi.sin(),
-                        o.semi_axes[2] * theta.sin(),
-                    );
-                    let p = r * u + Vector3::from(o.center);
-                    vertices.push(([p.x, p.y, p.z], colour));
-                }
-            }
-            let at = |i: usize, j: usize| base + 2 + (i - 1) * segments + j % segments;
-            for j in 0..segments {
-                faces.push([base, at(1, j + 1), at(1, j)]);
-                faces.push([base + 1, at(rings - 1, j), at(rings - 1, j + 1)]);
-                for i in 1..rings - 1 {
-                    faces.push([at(i, j), at(i, j + 1), at(i + 1, j + 1)]);
-                    faces.push([at(i, j), at(i + 1, j + 1), at(i + 1, j)]);
-                }
-            }
+            mesh.add_ellipsoid(o);
             counts.ellipsoids += 1;
         }
         for k in self.keyframes.values() {
-            let pose = pose_from_array(&k.pose);
-            let base = vertices.len();
-            let apex = pose.translation.vector;
-            vertices.push(([apex.x, apex.y, apex.z], SCENE_CAMERA));
-            for (x, y) in [(-0.6, -0.2), (0.6, -0.2), (0.6, 0.2), (-0.6, 0.2)] {
-                let p = pose * nalgebra::Point3::new(x, y, 1.0);
-                vertices.push(([p.x, p.y, p.z], SCENE_CAMERA));
-            }
-            for c in 0..4 {
-                faces.push([base, base + 1 + c, base + 1 + (c + 1) % 4]);
-            }
+            mesh.add_frustum(&pose_from_array(&k.pose));
             counts.cameras += 1;
         }
-        let first = vertices.len();
+        let first = mesh.vertices.len();
         for p in self.frame_poses().into_iter().flatten() {
             let t = p.translation.vector;
-            vertices.push(([t.x, t.y, t.z], SCENE_TRAJECTORY));
+            mesh.vertices.push(([t.x, t.y, t.z], SCENE_TRAJECTORY));
         }
-        counts.trajectory = vertices.len() - first;
-        for i in first + 1..vertices.len() {
-            edges.push([i - 1, i]);
+        counts.trajectory = mesh.vertices.len() - first;
+        for i in first + 1..mesh.vertices.len() {
+            mesh.edges.push([i - 1, i]);
         }
         for p in self.points.values() {
-            vertices.push((p.position, SCENE_POINT));
+            mesh.vertices.push((p.position, SCENE_POINT));
         }
         counts.points = self.points.len();
-        (counts.vertices, counts.faces, counts.edges) = (vertices.len(), faces.len(), edges.len());
+        (counts.vertices, counts.faces, counts.edges) = (mesh.vertices.len(), mesh.faces.len(), mesh.edges.len());
+        let io = |source| MapError::Io { path: path.to_path_buf(), source };
+        let mut tmp = path.as_os_str().to_owned();
+        tmp.push(".tmp");
+        std::fs::write(&tmp, mesh.to_ply()).map_err(io)?;
+        std::fs::rename(&tmp, path).map_err(io)?;
+        Ok(counts)
+    }
+}
+
+/// Coloured vertices, triangles and edges of an exported scene.
+#[derive(Default)]
+struct SceneMesh {
+    vertices: Vec<([f64; 3], [u8; 3])>,
+    faces: Vec<[usize; 3]>,
+    edges: Vec<[usize; 2]>,
+}
+
+impl SceneMesh {
+    /// An ellipsoid as 12 rings × 24 segments between two poles, coloured by its state.
+    fn add_ellipsoid(&mut self, o: &MapObject) {
+        let (rings, segments) = (12usize, 24usize);
+        let colour = if o.dynamic { SCENE_DYNAMIC } else { SCENE_STATIC };
+        let r = nalgebra::Matrix3::from_row_slice(&o.rotation);
+        let base = self.vertices.len();
+        // poles, then rings × segments
+        for z in [-1.0, 1.0] {
+            let p = r * Vector3::new(0.0, 0.0, z * o.semi_axes[2]) + Vector3::from(o.center);
+            self.vertices.push(([p.x, p.y, p.z], colour));
+        }
+        for i in 1..rings {
+            let theta = std::f64::consts::PI * i as f64 / rings as f64 - std::f64::consts::FRAC_PI_2;
+            for j in 0..segments {
+                let phi = std::f64::consts::TAU * j as f64 / segments as f64;
+                let u = Vector3::new(
+                    o.semi_axes[0] * theta.cos() * phi.cos(),
+                    o.semi_axes[1] * theta.cos() * phi.sin(),
+                    o.semi_axes[2] * theta.sin(),
+                );
+                let p = r * u + Vector3::from(o.center);
+                self.vertices.push(([p.x, p.y, p.z], colour));
+            }
+        }
+        let at = |i: usize, j: usize| base + 2 + (i - 1) * segments + j % segments;
+        for j in 0..segments {
+            self.faces.push([base, at(1, j + 1), at(1, j)]);
+            self.faces.push([base + 1, at(rings - 1, j), at(rings - 1, j + 1)]);
+            for i in 1..rings - 1 {
+                self.faces.push([at(i, j), at(i, j + 1), at(i + 1, j + 1)]);
+                self.faces.push([at(i, j), at(i + 1, j + 1), at(i + 1, j)]);
+            }
+        }
+    }
+
+    /// A camera as a frustum of four triangles, 1 m deep along its z.
+    fn add_frustum(&mut self, pose: &Isometry3<f64>) {
+        let base = self.vertices.len();
+        let apex = pose.translation.vector;
+        self.vertices.push(([apex.x, apex.y, apex.z], SCENE_CAMERA));
+        for (x, y) in [(-0.6, -0.2), (0.6, -0.2), (0.6, 0.2), (-0.6, 0.2)] {
+            let p = pose * nalgebra::Point3::new(x, y, 1.0);
+            self.vertices.push(([p.x, p.y, p.z], SCENE_CAMERA));
+        }
+        for c in 0..4 {
+            self.faces.push([base, base + 1 + c, base + 1 + (c + 1) % 4]);
+        }
+    }
+
+    /// The ASCII PLY text.
+    fn to_ply(&self) -> String {
+        use std::fmt::Write;
         let mut s = String::new();
+        // writing into a String cannot fail
         let _ = write!(
             s,
             "ply\nformat ascii 1.0\ncomment quadric-slam scene: ellipsoids (green static, orange dynamic), camera \
@@ -499,25 +527,20 @@ impl Map {
              property float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\n\
              property uchar blue\nelement face {}\nproperty list uchar int vertex_indices\nelement edge {}\n\
              property int vertex1\nproperty int vertex2\nend_header\n",
-            vertices.len(),
-            faces.len(),
-            edges.len()
+            self.vertices.len(),
+            self.faces.len(),
+            self.edges.len()
         );
-        for (p, c) in &vertices {
+        for (p, c) in &self.vertices {
             let _ = writeln!(s, "{:.4} {:.4} {:.4} {} {} {}", p[0], p[1], p[2], c[0], c[1], c[2]);
         }
-        for f in &faces {
+        for f in &self.faces {
             let _ = writeln!(s, "3 {} {} {}", f[0], f[1], f[2]);
         }
-        for e in &edges {
+        for e in &self.edges {
             let _ = writeln!(s, "{} {}", e[0], e[1]);
         }
-        let io = |source| MapError::Io { path: path.to_path_buf(), source };
-        let mut tmp = path.as_os_str().to_owned();
-        tmp.push(".tmp");
-        std::fs::write(&tmp, s).map_err(io)?;
-        std::fs::rename(&tmp, path).map_err(io)?;
-        Ok(counts)
+        s
     }
 }
 

@@ -162,7 +162,26 @@ impl LocalMapper {
     /// Bundle adjustment of the newest keyframes of `newest`'s segment; returns (free, fixed) keyframe
     /// counts and the number of culled observations.
     fn adjust(&mut self, newest: KeyframeId) -> ((usize, usize), usize) {
-        // the window: newest keyframes back to the segment's start
+        let window = self.window(newest);
+        let window_set: BTreeSet<KeyframeId> = window.iter().copied().collect();
+        let (local_points, fixed) = self.local_points_and_gauge(&window);
+        if window.len() < 2 && fixed.iter().all(|f| window_set.contains(f)) {
+            return ((0, fixed.len()), 0);
+        }
+        let mut problem = self.problem(&window_set, &fixed, &local_points);
+        let options = Options::with_max_iterations(self.config.iterations);
+        if let Err(e) = self.optimizer.optimize(&problem.graph, &mut problem.values, &options, None) {
+            tracing::warn!(keyframe = newest, "local bundle adjustment failed: {e}");
+            return ((0, fixed.len()), 0);
+        }
+        self.write_back(&problem, &fixed);
+        let culled = self.cull(&window);
+        ((window_set.len() - window_set.intersection(&fixed).count(), fixed.len()), culled)
+    }
+
+    /// The window: the newest keyframes back to the segment's start, at most `config.window`, newest
+    /// first.
+    fn window(&self, newest: KeyframeId) -> Vec<KeyframeId> {
         let mut window = Vec::new();
         for (&id, k) in self.map.keyframes.range(..=newest).rev() {
             window.push(id);
@@ -170,9 +189,13 @@ impl LocalMapper {
                 break;
             }
         }
-        let window_set: BTreeSet<KeyframeId> = window.iter().copied().collect();
-        // a point seen by one keyframe only says nothing about the poses (its stereo observation alone
-        // fixes it): only points seen at least twice enter the adjustment
+        window
+    }
+
+    /// The window's points seen at least twice (a point seen by one keyframe only says nothing about
+    /// the poses: its stereo observation alone fixes it), and the keyframes held fixed: those outside
+    /// the window that see them, or, at a segment's start, the window's oldest (the gauge).
+    fn local_points_and_gauge(&self, window: &[KeyframeId]) -> (BTreeSet<PointId>, BTreeSet<KeyframeId>) {
         let local_points: BTreeSet<PointId> = window
             .iter()
             .filter_map(|id| self.map.keyframes.get(id))
@@ -183,86 +206,93 @@ impl LocalMapper {
             .iter()
             .filter_map(|p| self.map.points.get(p))
             .flat_map(|p| p.observed_by.iter().copied())
-            .filter(|k| !window_set.contains(k))
+            .filter(|k| !window.contains(k))
             .collect();
         if fixed.is_empty() {
-            // the segment's first keyframes: the oldest of the window holds the gauge
             if let Some(&oldest) = window.last() {
                 fixed.insert(oldest);
             }
         }
-        if window.len() < 2 && fixed.iter().all(|f| window_set.contains(f)) {
-            return ((0, fixed.len()), 0);
-        }
-        let mut values = Values::new();
-        let mut graph = Graph::new();
-        let mut pose_keys = BTreeMap::new();
-        for id in window_set.union(&fixed) {
+        (local_points, fixed)
+    }
+
+    /// The adjustment's graph: poses of the window and the fixed keyframes, the local points
+    /// (eliminated), and a stereo or left-only reprojection factor (Huber) per observation.
+    fn problem(
+        &self,
+        window: &BTreeSet<KeyframeId>,
+        fixed: &BTreeSet<KeyframeId>,
+        local_points: &BTreeSet<PointId>,
+    ) -> BaProblem {
+        let mut p = BaProblem {
+            graph: Graph::new(),
+            values: Values::new(),
+            pose_keys: BTreeMap::new(),
+            point_keys: BTreeMap::new(),
+        };
+        for id in window.union(fixed) {
             let Some(pose) = self.map.keyframe_pose(*id) else { continue };
-            let key = values.add(Var::Pose(pose));
+            let key = p.values.add(Var::Pose(pose));
             if fixed.contains(id) {
-                graph.fix(key);
+                p.graph.fix(key);
             }
-            pose_keys.insert(*id, key);
+            p.pose_keys.insert(*id, key);
         }
-        let mut point_keys = BTreeMap::new();
-        for pid in &local_points {
+        for pid in local_points {
             let Some(x) = self.map.point(*pid) else { continue };
-            let key = values.add(Var::Point(x));
-            graph.eliminate(key);
-            point_keys.insert(*pid, key);
+            let key = p.values.add(Var::Point(x));
+            p.graph.eliminate(key);
+            p.point_keys.insert(*pid, key);
         }
-        for (kid, &pk) in &pose_keys {
+        for (kid, &pk) in &p.pose_keys {
             let Some(k) = self.map.keyframes.get(kid) else { continue };
             for (pid, obs) in &k.observations {
-                let Some(&xk) = point_keys.get(pid) else { continue };
+                let Some(&xk) = p.point_keys.get(pid) else { continue };
                 let (noise, huber) = (NoiseModel::Isotropic(1.0), Huber(self.config.huber_px));
                 let added = if obs[2].is_nan() {
-                    graph.add(MonoReprojection::new(pk, xk, self.k, [obs[0], obs[1]]), noise, huber)
+                    p.graph.add(MonoReprojection::new(pk, xk, self.k, [obs[0], obs[1]]), noise, huber)
                 } else {
-                    graph.add(StereoReprojection::new(pk, xk, self.k, self.baseline, *obs), noise, huber)
+                    p.graph.add(StereoReprojection::new(pk, xk, self.k, self.baseline, *obs), noise, huber)
                 };
+                // an isotropic 1 px noise fits every reprojection factor; should that change, the
+                // observation is left out and said so
                 if let Err(e) = added {
-                    tracing::warn!(keyframe = kid, point = pid, "local bundle adjustment: observation left out: {e}");
+                    tracing::warn!(keyframe = kid, point = pid, "observation left out of local BA: {e}");
                 }
             }
         }
-        let options = Options::with_max_iterations(self.config.iterations);
-        if let Err(e) = self.optimizer.optimize(&graph, &mut values, &options, None) {
-            tracing::warn!(keyframe = newest, "local bundle adjustment failed: {e}");
-            return ((0, fixed.len()), 0);
-        }
-        for (kid, key) in &pose_keys {
+        p
+    }
+
+    /// Store the adjusted poses of the free keyframes and the finite adjusted points.
+    fn write_back(&mut self, p: &BaProblem, fixed: &BTreeSet<KeyframeId>) {
+        for (kid, key) in &p.pose_keys {
             if fixed.contains(kid) {
                 continue;
             }
-            if let (Some(p), Some(k)) = (values.pose(*key), self.map.keyframes.get_mut(kid)) {
-                k.pose = pose_to_array(p);
+            if let (Some(pose), Some(k)) = (p.values.pose(*key), self.map.keyframes.get_mut(kid)) {
+                k.pose = pose_to_array(pose);
             }
         }
-        for (pid, key) in &point_keys {
-            if let (Some(x), Some(p)) = (values.point(*key), self.map.points.get_mut(pid)) {
+        for (pid, key) in &p.point_keys {
+            if let (Some(x), Some(point)) = (p.values.point(*key), self.map.points.get_mut(pid)) {
                 if x.iter().all(|v| v.is_finite()) {
-                    p.position = [x.x, x.y, x.z];
+                    point.position = [x.x, x.y, x.z];
                 }
             }
         }
-        // cull observations that still disagree, then points nobody sees
+    }
+
+    /// Cull the window's observations that still disagree with the adjusted map (χ² bounds), then the
+    /// points nobody sees; returns the number of culled observations.
+    fn cull(&mut self, window: &[KeyframeId]) -> usize {
         let mut culled = 0;
-        for kid in &window {
+        for kid in window {
             let Some(pose) = self.map.keyframe_pose(*kid) else { continue };
             let obs = self.map.keyframes.get_mut(kid).map(|k| std::mem::take(&mut k.observations)).unwrap_or_default();
             let mut keep = Vec::with_capacity(obs.len());
             for (pid, o) in obs {
-                let good = self.map.point(pid).and_then(|x| self.project(&pose, &x)).is_some_and(|p| {
-                    let left = (p[0] - o[0]).powi(2) + (p[1] - o[1]).powi(2);
-                    if o[2].is_nan() {
-                        left <= self.config.cull_chi2_mono
-                    } else {
-                        left + (p[2] - o[2]).powi(2) <= self.config.cull_chi2
-                    }
-                });
-                if good {
+                if self.agrees(&pose, pid, &o) {
                     keep.push((pid, o));
                 } else {
                     culled += 1;
@@ -278,13 +308,34 @@ impl LocalMapper {
                 k.observations = keep;
             }
         }
-        ((window_set.len() - window_set.intersection(&fixed).count(), fixed.len()), culled)
+        culled
+    }
+
+    /// Whether observation `o` (stereo, or left-only with a NaN right x) of point `pid` from a keyframe
+    /// at `pose` is within the χ² bound of its kind.
+    fn agrees(&self, pose: &Isometry3<f64>, pid: PointId, o: &[f64; 3]) -> bool {
+        self.map.point(pid).and_then(|x| self.project(pose, &x)).is_some_and(|p| {
+            let left = (p[0] - o[0]).powi(2) + (p[1] - o[1]).powi(2);
+            if o[2].is_nan() {
+                left <= self.config.cull_chi2_mono
+            } else {
+                left + (p[2] - o[2]).powi(2) <= self.config.cull_chi2
+            }
+        })
     }
 
     /// Keyframe pose of a stored keyframe (convenience for callers holding an id).
     pub fn keyframe_pose(&self, id: KeyframeId) -> Option<Isometry3<f64>> {
         self.map.keyframe_pose(id)
     }
+}
+
+/// A local bundle adjustment: its graph, values, and the keys of the keyframes and points in it.
+struct BaProblem {
+    graph: Graph,
+    values: Values,
+    pose_keys: BTreeMap<KeyframeId, slam_optim::Key>,
+    point_keys: BTreeMap<PointId, slam_optim::Key>,
 }
 
 #[cfg(test)]

@@ -10,55 +10,120 @@
 //! spaced views. An object whose fitted boxes still miss by more than `dynamic_rms_px` (RMS) is flagged
 //! dynamic: a moving object cannot be explained by one static ellipsoid.
 
-use std::{collections::BTreeMap, path::Path};
+use std::{collections::BTreeMap, path::Path, sync::Arc};
 
 use nalgebra::{Vector3, Vector4};
 use serde::Serialize;
 use slam_assoc::{ObjectTracker, TrackerConfig, TrackerInput};
 use slam_core::{geometry::BBox, Associator, ClassId, Detection, KeyframeId, PointId, PointPair, TrackId};
 use slam_optim::{
-    object::{box_residual, refine_with_planes, BoxShape, ObjectPrior, RefineConfig},
+    object::{box_residual, refine_with_start, BoxShape, ObjectPrior, RefineConfig},
     SharedOptimizer,
 };
-use slam_quadric::{init::BoxView, project, Camera, Ellipsoid, ImageSize};
+use slam_quadric::{
+    init::{BoxView, Conic, Dqp, Initializer, QSlamSvd, Tri},
+    project, Camera, Ellipsoid, ImageSize,
+};
 
-/// How an object's ellipsoid is computed from its views.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum FitMethod {
-    /// DQP starts + object optimisation ([`slam_optim::object::refine`]).
-    #[default]
-    Refine,
-    /// QuadricSLAM's SVD (baseline).
-    QSlam,
-    /// Rubino et al.'s conic method (baseline).
-    Conic,
-    /// Triangulated centre + full 3×3 block (baseline).
-    Tri,
-    /// The paper's DQP as printed (baseline).
-    TriYaw,
+/// How an object's ellipsoid is computed from its views: an initialiser (any
+/// [`slam_quadric::Initializer`]), optionally followed by the object optimisation
+/// ([`slam_optim::object::refine_with_start`]: the initialiser's ellipsoid is one of its starts, texture
+/// planes and the class prior enter there). Cheap to clone (the initialiser is shared).
+#[derive(Clone)]
+pub struct FitMethod {
+    initializer: Arc<dyn Initializer>,
+    refine: bool,
+    name: String,
 }
 
-impl FitMethod {
-    /// Short name.
-    pub fn name(&self) -> &'static str {
-        match self {
-            FitMethod::Refine => "Tri+Yaw+refine",
-            FitMethod::QSlam => "Q-SLAM",
-            FitMethod::Conic => "Conic",
-            FitMethod::Tri => "Tri",
-            FitMethod::TriYaw => "Tri+Yaw",
-        }
+impl std::fmt::Debug for FitMethod {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FitMethod").field("name", &self.name).field("refine", &self.refine).finish()
     }
 }
 
-/// Settings of the [`ObjectMapper`] (the `[objects]` table of `slam-app run --config`; `method`, `image`
-/// and `tracker` are set by the caller, not by the file).
+impl PartialEq for FitMethod {
+    /// Same name and stages (an initialiser's settings are part of its name for the built-in methods).
+    fn eq(&self, other: &Self) -> bool {
+        self.name == other.name && self.refine == other.refine
+    }
+}
+
+impl Default for FitMethod {
+    /// The paper's method: DQP (Tri+Yaw) then the object optimisation.
+    fn default() -> Self {
+        Self::refined(Arc::new(Dqp::default()), "Tri+Yaw+refine")
+    }
+}
+
+impl FitMethod {
+    /// The names [`FitMethod::by_name`] accepts, in the order of the comparison tables.
+    pub const NAMES: [&'static str; 5] = ["Tri+Yaw+refine", "Q-SLAM", "Conic", "Tri", "Tri+Yaw"];
+
+    /// The initialiser's ellipsoid as it is.
+    pub fn initial(initializer: Arc<dyn Initializer>, name: impl Into<String>) -> Self {
+        Self { initializer, refine: false, name: name.into() }
+    }
+
+    /// The initialiser's ellipsoid refined by the object optimisation.
+    pub fn refined(initializer: Arc<dyn Initializer>, name: impl Into<String>) -> Self {
+        Self { initializer, refine: true, name: name.into() }
+    }
+
+    /// A built-in method by its table name ([`FitMethod::NAMES`]).
+    pub fn by_name(name: &str) -> Option<Self> {
+        match name {
+            "Tri+Yaw+refine" => Some(Self::default()),
+            "Q-SLAM" => Some(Self::qslam()),
+            "Conic" => Some(Self::conic()),
+            "Tri" => Some(Self::tri()),
+            "Tri+Yaw" => Some(Self::tri_yaw()),
+            _ => None,
+        }
+    }
+
+    /// "Q-SLAM": QuadricSLAM's SVD (baseline).
+    pub fn qslam() -> Self {
+        Self::initial(Arc::new(QSlamSvd), "Q-SLAM")
+    }
+
+    /// "Conic": Rubino et al.'s conic method (baseline).
+    pub fn conic() -> Self {
+        Self::initial(Arc::new(Conic::default()), "Conic")
+    }
+
+    /// "Tri": triangulated centre and a full 3×3 block (baseline).
+    pub fn tri() -> Self {
+        Self::initial(Arc::new(Tri::default()), "Tri")
+    }
+
+    /// "Tri+Yaw": the paper's DQP as printed, without the object optimisation (baseline).
+    pub fn tri_yaw() -> Self {
+        Self::initial(Arc::new(Dqp::default()), "Tri+Yaw")
+    }
+
+    /// Short name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Whether the object optimisation follows the initialiser.
+    pub fn refines(&self) -> bool {
+        self.refine
+    }
+
+    /// The initialiser.
+    pub fn initializer(&self) -> &dyn Initializer {
+        &*self.initializer
+    }
+}
+
+/// Settings of the [`ObjectMapper`] (the `[objects]` table of `slam-app run --config`; `image` and
+/// `tracker` are set by the caller, not by the file; the fitting method is given to the mapper
+/// ([`ObjectMapper::with_method`])).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize, documented::DocumentedFieldsOpt)]
 #[serde(default, deny_unknown_fields)]
 pub struct MapperConfig {
-    /// Fitting method.
-    #[serde(skip)]
-    pub method: FitMethod,
     /// What a box bounds in the object optimisation: "ellipse" (the ellipsoid's projected ellipse, the
     /// paper's model, default) or "cuboid" (its circumscribed cuboid, docs/objects.md).
     #[serde(with = "crate::settings::box_shape")]
@@ -126,7 +191,6 @@ pub struct MapperConfig {
 impl Default for MapperConfig {
     fn default() -> Self {
         Self {
-            method: FitMethod::Refine,
             box_shape: BoxShape::Ellipse,
             image: ImageSize::new(1242.0, 375.0),
             min_views: 3,
@@ -309,24 +373,22 @@ impl FitJob {
         }
     }
 
-    /// Whether [`FitJob::run`] uses texture planes (only [`FitMethod::Refine`] does).
+    /// Whether [`FitJob::run`] uses texture planes (only a method that refines does).
     pub fn uses_planes(&self) -> bool {
-        self.method == FitMethod::Refine
+        self.method.refines()
     }
 
-    /// Run the fit; `planes` are texture planes of the object's points (used by [`FitMethod::Refine`]).
+    /// Run the fit: the method's initialiser, then, when the method refines, the object optimisation;
+    /// `planes` are texture planes of the object's points (used by the optimisation).
     pub fn run(&self, planes: &[Vector4<f64>]) -> FitResult {
-        use slam_quadric::init::{Conic, Dqp, Initializer, QSlamSvd, Tri};
         let views = &self.views;
-        let fitted = match self.method {
-            FitMethod::Refine => {
-                let config = RefineConfig { box_shape: self.box_shape, ..RefineConfig::default() };
-                refine_with_planes(views, &self.image, &class_prior(self.class), &config, planes, &*self.optimizer)
-            }
-            FitMethod::QSlam => QSlamSvd.initialize(views),
-            FitMethod::Conic => Conic::default().initialize(views),
-            FitMethod::Tri => Tri::default().initialize(views),
-            FitMethod::TriYaw => Dqp::default().initialize(views),
+        let fitted = if self.method.refines() {
+            let config = RefineConfig { box_shape: self.box_shape, ..RefineConfig::default() };
+            let prior = class_prior(self.class);
+            let init = self.method.initializer();
+            refine_with_start(init, views, &self.image, &prior, &config, planes, &*self.optimizer)
+        } else {
+            self.method.initializer().initialize(views)
         };
         let too_far = |e: &Ellipsoid| {
             views
@@ -346,7 +408,7 @@ impl FitJob {
                 let prior = class_prior(self.class);
                 let size_dev = (e.semi_axes - prior.axes).component_div(&prior.sigma).norm();
                 let odd_size =
-                    self.method == FitMethod::Refine && self.dynamic_prior_sigmas.is_some_and(|k| size_dev > k);
+                    self.method.refines() && self.dynamic_prior_sigmas.is_some_and(|k| size_dev > k);
                 let dynamic = rms.is_none_or(|r| r > self.dynamic_rms_px) || odd_size;
                 tracing::debug!(
                     object = self.id.0,
@@ -381,6 +443,7 @@ pub struct ObjectMapper {
     merged: BTreeMap<TrackId, TrackId>,
     fits: usize,
     optimizer: SharedOptimizer,
+    method: FitMethod,
 }
 
 impl ObjectMapper {
@@ -393,7 +456,19 @@ impl ObjectMapper {
             merged: BTreeMap::new(),
             fits: 0,
             optimizer,
+            method: FitMethod::default(),
         }
+    }
+
+    /// Use `method` for the ellipsoid fits (default: [`FitMethod::default`], Tri+Yaw+refine).
+    pub fn with_method(mut self, method: FitMethod) -> Self {
+        self.method = method;
+        self
+    }
+
+    /// The fitting method.
+    pub fn method(&self) -> &FitMethod {
+        &self.method
     }
 
     /// All objects, by id.
@@ -693,7 +768,7 @@ impl ObjectMapper {
             views,
             references,
             points: obj.points.iter().copied().collect(),
-            method: cfg.method,
+            method: self.method.clone(),
             box_shape: cfg.box_shape,
             image: cfg.image,
             dynamic_rms_px: cfg.dynamic_rms_px,

@@ -23,21 +23,22 @@
 //! argument all carry that id, so a run over a subset or a sequence with gaps stays aligned with
 //! ground truth, labels and detection files.
 
-use std::{collections::VecDeque, time::Instant};
+mod builder;
+mod threads;
+mod tracking;
 
-use crossbeam_channel::{bounded, unbounded, Receiver, Sender};
-use nalgebra::{Isometry3, Point3, Vector3};
-use slam_core::{
-    geometry::{BBox, Camera, Intrinsics},
-    ClassId, Detection, DetectionSource, Image, KeyframeCorrection, KeyframeData, StereoTracker, TrackId, TrackState,
-};
+pub use builder::{FrameSource, System, SystemBuilder};
+use nalgebra::Isometry3;
+use slam_core::{geometry::Intrinsics, Detection, DetectionSource, Image, StereoTracker, TrackError, TrackId, TrackState};
 use slam_optim::SharedOptimizer;
+pub use threads::MapperRequest;
+pub use tracking::Tracking;
 
 use crate::{
-    map::{pose_to_array, FramePose, Map},
-    mapping::{LocalMapper, MappingConfig},
-    objects::{class_prior, suppress_duplicate_boxes, FitJob, FitResult, MappedObject, MapperConfig, ObjectMapper, PointsCentroid},
-    texture::{texture_planes, TextureConfig},
+    map::Map,
+    mapping::MappingConfig,
+    objects::{MappedObject, MapperConfig},
+    texture::TextureConfig,
 };
 
 /// The box misfit (RMS, pixels) that flags an object dynamic in the running system, where boxes come
@@ -204,173 +205,34 @@ pub struct RunOutput {
     pub counts: RunCounts,
 }
 
-/// Requests to the local-mapping thread.
-pub enum MapperRequest {
-    /// A new keyframe and the object fits due at it.
-    Keyframe(Box<KeyframeData>, Vec<FitJob>),
-    /// Stop and hand the map over.
-    Finish,
-}
-
-struct MapperReply {
-    correction: KeyframeCorrection,
-    fits: Vec<FitResult>,
-    ba_ms: f64,
-    fit_ms: f64,
-    culled: usize,
-}
-
 /// Failures of the system itself (not of the data: bad frames are counted and logged).
 #[derive(Debug, thiserror::Error)]
 pub enum SystemError {
     /// The tracker failed in a way it could not turn into a lost frame.
-    #[error("frame {frame}: {message}")]
+    #[error("frame {frame}: {source}")]
     Tracker {
         /// Frame index.
         frame: usize,
-        /// The tracker's message.
-        message: String,
+        /// The tracker's error.
+        source: TrackError,
     },
     /// A thread stopped unexpectedly.
     #[error("the {0} thread stopped unexpectedly")]
     Thread(&'static str),
+    /// A part the system cannot run without was not given to the [`SystemBuilder`].
+    #[error("no {0} given to the system builder")]
+    Missing(&'static str),
 }
 
-fn mapping_thread(
-    mut mapper: LocalMapper,
-    texture: TextureConfig,
-    requests: Receiver<MapperRequest>,
-    replies: Sender<MapperReply>,
-) -> Map {
-    for req in requests {
-        match req {
-            MapperRequest::Keyframe(kf, mut jobs) => {
-                let report = mapper.insert_keyframe(&kf);
-                for job in &mut jobs {
-                    job.repose(|k| mapper.keyframe_pose(k));
-                }
-                let t = Instant::now();
-                let fits = jobs
-                    .iter()
-                    .map(|job| {
-                        // texture planes from the map points as seen by the latest view
-                        let planes = match job.views.last() {
-                            Some(v) if job.uses_planes() => {
-                                let points: Vec<Vector3<f64>> =
-                                    job.points.iter().filter_map(|p| mapper.map().point(*p)).collect();
-                                texture_planes(&points, &v.camera, &texture)
-                            }
-                            _ => Vec::new(),
-                        };
-                        job.run(&planes)
-                    })
-                    .collect();
-                let reply = MapperReply {
-                    correction: report.correction,
-                    fits,
-                    ba_ms: report.ba_ms,
-                    fit_ms: t.elapsed().as_secs_f64() * 1e3,
-                    culled: report.culled_observations,
-                };
-                if replies.send(reply).is_err() {
-                    break;
-                }
-            }
-            MapperRequest::Finish => break,
-        }
-    }
-    mapper.into_map()
-}
-
-/// Fewest map points in a box for its centroid to count.
-const MIN_OBJECT_POINTS: usize = 5;
-
-/// Heights an object of a class group can have, metres: vehicles from a low car to a lorry (1.2–4.5),
-/// people and riders 0.9–2.1, anything else 0.3–5.
-fn height_range(class: ClassId) -> (f64, f64) {
-    match class.0 {
-        2 | 5 | 7 => (1.2, 4.5),
-        0 | 1 | 3 => (0.9, 2.1),
-        _ => (0.3, 5.0),
-    }
-}
-
-/// The stereo points of a keyframe that lie on the object of a box, and where they put it.
-///
-/// Candidates: points inside the central part of the box (`core` of its width and height) whose depth
-/// fits the box height for some height the class can have (no near limit for a box cut by the image
-/// border: its height understates the object's). Among them the object is the densest depth cluster:
-/// windows `[z, z + 2w]` with `w = max(a, 2 σ_z(z))`, `a` the class's half-length (a car seen obliquely
-/// spans its length in depth) and `σ_z = z² σ_d / (f b)` the stereo depth noise; the object is the
-/// nearest window holding at least half as many points as the densest one (it hides what lies behind
-/// it). The centroid is
-/// the points' median world position (`None` below [`MIN_OBJECT_POINTS`] points).
-#[allow(clippy::too_many_arguments)]
-fn object_points(
-    kf: &KeyframeData,
-    b: &BBox,
-    core: f64,
-    class: ClassId,
-    k: &Intrinsics,
-    baseline: f64,
-    disparity_sigma: f64,
-    image: &slam_core::geometry::ImageSize,
-) -> (Vec<u64>, Option<PointsCentroid>) {
-    let (cx, cy) = (0.5 * (b.xmin + b.xmax), 0.5 * (b.ymin + b.ymax));
-    let (hw, hh) = (0.5 * core * (b.xmax - b.xmin), 0.5 * core * (b.ymax - b.ymin));
-    let (hmin, hmax) = height_range(class);
-    let bh = b.height().max(1.0);
-    let cut = b.touches_border(image, 2.0);
-    let (near, far) = (if cut { 0.0 } else { k.fy * hmin / bh }, k.fy * hmax / bh);
-    let mut cand: Vec<&slam_core::KeyframePoint> = kf
-        .points
-        .iter()
-        .filter(|p| (p.observation[0] - cx).abs() <= hw && (p.observation[1] - cy).abs() <= hh)
-        .filter(|p| p.camera_point.z > 0.0 && (near..=far).contains(&p.camera_point.z))
-        .collect();
-    cand.sort_by(|a, b| a.camera_point.z.total_cmp(&b.camera_point.z).then(a.id.cmp(&b.id)));
-    let sigma_z = |z: f64| z * z * disparity_sigma / (k.fx * baseline);
-    let half_length = class_prior(class).axes.x;
-    let windows: Vec<usize> = (0..cand.len())
-        .map(|i| {
-            let z0 = cand[i].camera_point.z;
-            let top = z0 + 2.0 * half_length.max(2.0 * sigma_z(z0));
-            cand[i..].iter().take_while(|p| p.camera_point.z <= top).count()
-        })
-        .collect();
-    // the nearest window holding at least half as many points as the densest one: the object hides
-    // what lies behind it, and a textured facade behind a plain car can outnumber the car's points
-    let densest = windows.iter().copied().max().unwrap_or(0);
-    let best = windows
-        .iter()
-        .position(|&n| n >= MIN_OBJECT_POINTS && 2 * n >= densest)
-        .map_or((0, 0), |i| (windows[i], i));
-    let kept: Vec<(u64, Vector3<f64>, f64)> = cand[best.1..best.1 + best.0]
-        .iter()
-        .map(|p| (p.id, (kf.world_from_camera * Point3::from(p.camera_point)).coords, p.camera_point.z))
-        .collect();
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(|a, b| a.total_cmp(b));
-        v[v.len() / 2]
-    };
-    // a centroid needs a few points: one stray point of the background would fake a motion
-    let centroid = (kept.len() >= MIN_OBJECT_POINTS).then(|| {
-        let m = |k: usize| median(kept.iter().map(|p| p.1[k]).collect());
-        PointsCentroid {
-            position: Vector3::new(m(0), m(1), m(2)),
-            depth_sigma: sigma_z(median(kept.iter().map(|p| p.2).collect())),
-        }
-    });
-    (kept.iter().map(|p| p.0).collect(), centroid)
-}
-
-/// Run the whole system over `frames`.
+/// Run the whole system over `frames`: a [`SystemBuilder`] with these parts, the default associator
+/// (ODA) and ellipsoid method (Tri+Yaw+refine), played to the end with [`System::run`].
 ///
 /// `detector` is `None` for a run without objects. `optimizer` solves the local bundle adjustments and
 /// the object fits. `on_frame` sees each frame's record as soon as it is tracked (progress output).
+#[allow(clippy::too_many_arguments)]
 pub fn run(
-    frames: Box<dyn Iterator<Item = FrameInput> + Send>,
-    mut tracker: Box<dyn StereoTracker>,
+    frames: FrameSource,
+    tracker: Box<dyn StereoTracker>,
     detector: Option<Box<dyn DetectionSource>>,
     intrinsics: Intrinsics,
     baseline: f64,
@@ -378,235 +240,12 @@ pub fn run(
     optimizer: SharedOptimizer,
     on_frame: &mut dyn FnMut(&FrameRecord),
 ) -> Result<RunOutput, SystemError> {
-    let config = *config;
-    std::thread::scope(|scope| {
-        // reader → detection
-        let (frame_tx, frame_rx) = bounded::<FrameInput>(4);
-        scope.spawn(move || {
-            for f in frames {
-                if frame_tx.send(f).is_err() {
-                    break;
-                }
-            }
-        });
-        // detection → tracking
-        type Detected = (FrameInput, Result<Vec<Detection>, String>, f64);
-        let (det_tx, det_rx) = bounded::<Detected>(4);
-        let detect_every = config.detect_every.max(1);
-        scope.spawn(move || {
-            let mut detector = detector;
-            for f in frame_rx {
-                let t = Instant::now();
-                // an unreadable frame is not tracked, so its boxes would go unused
-                let dets = match (&mut detector, &f.images) {
-                    (Some(d), Ok((left, _))) if f.index % detect_every == 0 => {
-                        let img = d.needs_image().then_some(left);
-                        d.detect(f.index, img).map_err(|e| e.to_string())
-                    }
-                    _ => Ok(Vec::new()),
-                };
-                let ms = t.elapsed().as_secs_f64() * 1e3;
-                if det_tx.send((f, dets, ms)).is_err() {
-                    break;
-                }
-            }
-        });
-        // local mapping
-        let (req_tx, req_rx) = unbounded::<MapperRequest>();
-        let (reply_tx, reply_rx) = unbounded::<MapperReply>();
-        let mapper = LocalMapper::new(intrinsics, baseline, config.mapping, optimizer.clone());
-        let texture = config.texture;
-        let mapping = scope.spawn(move || mapping_thread(mapper, texture, req_rx, reply_tx));
-
-        // tracking, on this thread
-        let oda = slam_assoc::Oda::new(slam_assoc::OdaConfig {
-            min_projected_iou: config.projected_gate,
-            ..slam_assoc::OdaConfig::default()
-        });
-        // with stereo points, an ellipsoid must agree with them
-        let mut objects =
-            ObjectMapper::new(Box::new(oda), MapperConfig { stereo_evidence: true, ..config.objects }, optimizer);
-        let mut records: Vec<FrameRecord> = Vec::new();
-        let mut trajectory: Vec<FramePose> = Vec::new();
-        let mut counts = RunCounts::default();
-        let mut pending: VecDeque<(usize, usize)> = VecDeque::new(); // (keyframe frame, record index)
-        let mut last_reference: Option<(u64, Isometry3<f64>)> = None;
-        let mut prev_boxes: Vec<BBox> = Vec::new();
-        let mut moving_boxes: Vec<BBox> = Vec::new();
-        let apply = |reply: MapperReply,
-                     tracker: &mut Box<dyn StereoTracker>,
-                     objects: &mut ObjectMapper,
-                     record: Option<&mut FrameRecord>,
-                     counts: &mut RunCounts| {
-            tracker.correct(&reply.correction);
-            for fit in reply.fits {
-                objects.apply(fit);
-            }
-            counts.culled_observations += reply.culled;
-            if let Some(r) = record {
-                r.times.bundle_adjustment = reply.ba_ms;
-                r.times.objects = reply.fit_ms;
-            }
-        };
-        let mut last_done = Instant::now();
-        for (input, dets, det_ms) in det_rx {
-            let i = input.index;
-            while let Some(&(_, rec)) = pending.front() {
-                // counted in played frames (records), not frame ids: with a stride or gaps in the ids the
-                // lag stays the same number of tracked frames
-                if rec + config.correction_lag > records.len() {
-                    break;
-                }
-                let reply = reply_rx.recv().map_err(|_| SystemError::Thread("local mapping"))?;
-                apply(reply, &mut tracker, &mut objects, records.get_mut(rec), &mut counts);
-                pending.pop_front();
-            }
-            counts.frames += 1;
-            let detections = match dets {
-                Ok(d) if config.suppress_duplicates => {
-                    let (kept, dropped) = suppress_duplicate_boxes(d);
-                    counts.suppressed_boxes += dropped;
-                    kept
-                }
-                Ok(d) => d,
-                Err(e) => {
-                    counts.detector_errors += 1;
-                    tracing::warn!(frame = i, "detector failed: {e}; frame has no boxes");
-                    Vec::new()
-                }
-            };
-            let mut times = FrameTimes { detection: det_ms, ..FrameTimes::default() };
-            let (left, right) = match input.images {
-                Ok(pair) => pair,
-                Err(why) => {
-                    counts.unreadable += 1;
-                    tracing::warn!(frame = i, "unreadable: {why}; pose held");
-                    let (kf, rel) = last_reference.unwrap_or((0, Isometry3::identity()));
-                    trajectory.push(FramePose {
-                        frame: i,
-                        keyframe: kf,
-                        relative: pose_to_array(&rel),
-                        state: "unreadable".into(),
-                    });
-                    let record = FrameRecord {
-                        index: i,
-                        state: None,
-                        keyframe: false,
-                        tracked_map_points: 0,
-                        reprojection_rms_px: f64::NAN,
-                        detections: Vec::new(),
-                        tracks: Vec::new(),
-                        times,
-                    };
-                    on_frame(&record);
-                    records.push(record);
-                    prev_boxes.clear();
-                    continue;
-                }
-            };
-            let exclude: &[BBox] = if config.exclude_moving { &moving_boxes } else { &[] };
-            let tf = tracker
-                .track(i, &left, &right, exclude)
-                .map_err(|e| SystemError::Tracker { frame: i, message: e.to_string() })?;
-            times.extraction = tf.times.extraction;
-            times.stereo = tf.times.stereo;
-            times.tracking = tf.times.tracking;
-            match tf.state {
-                TrackState::Initialised => {}
-                TrackState::Tracked { .. } => counts.tracked += 1,
-                TrackState::Weak { .. } => counts.weak += 1,
-                TrackState::Lost => {
-                    counts.lost += 1;
-                    tracing::warn!(frame = i, stereo_points = tf.stereo_points, "tracking lost");
-                }
-                TrackState::Predicted => counts.predicted += 1,
-                TrackState::Relocalised { .. } => counts.relocalised += 1,
-            }
-            let t = Instant::now();
-            let flow = if prev_boxes.is_empty() {
-                Vec::new()
-            } else {
-                tracker.flow(&prev_boxes).unwrap_or_else(|e| {
-                    tracing::debug!(frame = i, "optical flow failed: {e}");
-                    Vec::new()
-                })
-            };
-            times.flow = t.elapsed().as_secs_f64() * 1e3;
-            let t = Instant::now();
-            let camera = Camera::new(intrinsics, tf.world_from_camera);
-            let tracks = objects.associate(i, &camera, Some(tf.reference), &detections, &flow);
-            if let Some(kf) = &tf.keyframe {
-                if kf.parent.is_none() && kf.id > 0 {
-                    counts.new_segments += 1;
-                }
-                for (d, t) in detections.iter().zip(&tracks) {
-                    if let Some(id) = t {
-                        let (pts, centroid) = object_points(
-                            kf,
-                            &d.bbox,
-                            config.object_core,
-                            d.class,
-                            &intrinsics,
-                            baseline,
-                            config.disparity_sigma_px,
-                            &config.objects.image,
-                        );
-                        objects.add_points(*id, &pts, centroid);
-                    }
-                }
-            }
-            moving_boxes = detections
-                .iter()
-                .zip(&tracks)
-                .filter(|(_, t)| t.and_then(|id| objects.object(id)).is_some_and(|o| o.moving))
-                .map(|(d, _)| {
-                    let b = d.bbox;
-                    let (mx, my) = (0.1 * (b.xmax - b.xmin), 0.1 * (b.ymax - b.ymin));
-                    BBox::new(b.xmin - mx, b.ymin - my, b.xmax + mx, b.ymax + my)
-                })
-                .collect();
-            prev_boxes = detections.iter().map(|d| d.bbox).collect();
-            times.association = t.elapsed().as_secs_f64() * 1e3;
-            last_reference = Some(tf.reference);
-            trajectory.push(FramePose {
-                frame: i,
-                keyframe: tf.reference.0,
-                relative: pose_to_array(&tf.reference.1),
-                state: tf.state.name().into(),
-            });
-            let is_kf = tf.keyframe.is_some();
-            if let Some(kf) = tf.keyframe {
-                counts.keyframes += 1;
-                let jobs = objects.fit_jobs();
-                req_tx
-                    .send(MapperRequest::Keyframe(Box::new(kf), jobs))
-                    .map_err(|_| SystemError::Thread("local mapping"))?;
-                pending.push_back((i, records.len()));
-            }
-            times.interval = last_done.elapsed().as_secs_f64() * 1e3;
-            last_done = Instant::now();
-            let record = FrameRecord {
-                index: i,
-                state: Some(tf.state),
-                keyframe: is_kf,
-                tracked_map_points: tf.tracked_map_points,
-                reprojection_rms_px: tf.reprojection_rms_px,
-                detections,
-                tracks,
-                times,
-            };
-            on_frame(&record);
-            records.push(record);
-        }
-        while let Some((_, rec)) = pending.pop_front() {
-            let reply = reply_rx.recv().map_err(|_| SystemError::Thread("local mapping"))?;
-            apply(reply, &mut tracker, &mut objects, records.get_mut(rec), &mut counts);
-        }
-        let _ = req_tx.send(MapperRequest::Finish);
-        let mut map = mapping.join().map_err(|_| SystemError::Thread("local mapping"))?;
-        map.trajectory = trajectory;
-        map.objects = objects.objects().filter_map(MappedObject::to_map_object).collect();
-        let poses = map.frame_poses().into_iter().map(|p| p.unwrap_or_else(Isometry3::identity)).collect();
-        Ok(RunOutput { map, poses, objects: objects.objects().cloned().collect(), frames: records, counts })
-    })
+    SystemBuilder::new(intrinsics, baseline)
+        .config(*config)
+        .source(frames)
+        .tracker(tracker)
+        .detector(detector)
+        .optimizer(optimizer)
+        .build()?
+        .run(on_frame)
 }

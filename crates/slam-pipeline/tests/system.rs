@@ -1,6 +1,7 @@
 //! The threaded system with a scripted tracker (no OpenCV): keyframes reach local mapping, its
 //! corrections come back and fix the tracker's scale drift, a parked car is mapped, a moving one is
-//! flagged, an unreadable frame is counted, and two runs give identical output.
+//! flagged, an unreadable frame is counted, two runs give identical output, and driving the system
+//! frame by frame ([`System::step`]) gives what a whole run does.
 
 use std::collections::BTreeMap;
 
@@ -9,7 +10,7 @@ use slam_core::{
     geometry::BBox, ClassId, DetectError, Detection, DetectionSource, Image, KeyframeCorrection, KeyframeData,
     KeyframePoint, PointPair, StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
 };
-use slam_pipeline::system::{run, FrameInput, SystemConfig};
+use slam_pipeline::system::{run, FrameInput, FrameRecord, RunOutput, SystemBuilder, SystemConfig, SystemError};
 use slam_quadric::{metrics, project, Camera, Ellipsoid, ImageSize, Intrinsics};
 
 const K: Intrinsics = Intrinsics { fx: 721.5377, fy: 721.5377, skew: 0.0, cx: 609.5593, cy: 172.854 };
@@ -232,6 +233,52 @@ fn two_runs_give_identical_output() {
         o.objects.iter().map(|x| (x.id.0, x.ellipsoid.map(|e| e.centre()))).collect()
     };
     assert_eq!(by_id(&a), by_id(&b));
+}
+
+/// What a run decided per frame (its records without the wall-clock times).
+fn decisions(r: &FrameRecord) -> (usize, Option<slam_core::TrackState>, bool, usize, Vec<Option<slam_core::TrackId>>) {
+    (r.index, r.state, r.keyframe, r.tracked_map_points, r.tracks.clone())
+}
+
+fn ellipsoids(o: &RunOutput) -> BTreeMap<u64, (Option<Ellipsoid>, bool, bool)> {
+    o.objects.iter().map(|x| (x.id.0, (x.ellipsoid, x.dynamic, x.moving))).collect()
+}
+
+#[test]
+fn stepping_frame_by_frame_gives_what_run_gives() {
+    let ran = run(frames(), Box::new(Scripted::new()), Some(Box::new(Boxes)), K, B, &config(), lm(), &mut |_| {})
+        .expect("runs");
+    let mut system = SystemBuilder::new(K, B)
+        .config(config())
+        .tracker(Box::new(Scripted::new()))
+        .detector(Some(Box::new(Boxes)))
+        .optimizer(lm())
+        .build()
+        .expect("builds");
+    let mut seen = Vec::new();
+    for f in frames() {
+        seen.push(decisions(system.step(f).expect("steps")));
+        assert_eq!(system.tracking().records().len(), seen.len());
+    }
+    let stepped = system.finish().expect("finishes");
+    assert_eq!(seen, ran.frames.iter().map(decisions).collect::<Vec<_>>(), "per-frame decisions");
+    assert_eq!(stepped.frames.iter().map(decisions).collect::<Vec<_>>(), seen);
+    assert_eq!(stepped.map, ran.map, "map: keyframes, points, trajectory, objects");
+    assert_eq!(stepped.poses, ran.poses);
+    assert_eq!(stepped.counts, ran.counts);
+    assert_eq!(ellipsoids(&stepped), ellipsoids(&ran));
+    assert!(ellipsoids(&ran).values().any(|e| e.0.is_some()), "the comparison includes a fitted object");
+}
+
+#[test]
+fn a_builder_without_a_tracker_or_an_optimiser_is_an_error() {
+    let no_tracker = SystemBuilder::new(K, B).optimizer(lm()).build();
+    assert!(matches!(no_tracker, Err(SystemError::Missing("tracker"))));
+    let no_optimizer = SystemBuilder::new(K, B).tracker(Box::new(Scripted::new())).build();
+    assert!(matches!(no_optimizer, Err(SystemError::Missing("optimizer"))));
+    // run needs a source
+    let no_source = SystemBuilder::new(K, B).tracker(Box::new(Scripted::new())).optimizer(lm()).build().expect("builds");
+    assert!(matches!(no_source.run(&mut |_| {}), Err(SystemError::Missing("frame source"))));
 }
 
 /// The optimiser of these tests (the project's Levenberg–Marquardt).

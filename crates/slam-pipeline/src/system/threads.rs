@@ -1,0 +1,108 @@
+//! The system's worker threads: detection (ahead of tracking) and local mapping (the map's only
+//! owner), with the messages they exchange with the tracking thread.
+
+use std::time::Instant;
+
+use crossbeam_channel::{Receiver, Sender};
+use nalgebra::Vector3;
+use slam_core::{Detection, DetectError, DetectionSource, KeyframeCorrection, KeyframeData};
+
+use super::FrameInput;
+use crate::{
+    map::Map,
+    mapping::LocalMapper,
+    objects::{FitJob, FitResult},
+    texture::{texture_planes, TextureConfig},
+};
+
+/// A frame after the detection thread: its input, its detections (or why there are none) and the
+/// detector's time, milliseconds.
+pub(crate) type Detected = (FrameInput, Result<Vec<Detection>, DetectError>, f64);
+
+/// Requests to the local-mapping thread.
+pub enum MapperRequest {
+    /// A new keyframe and the object fits due at it.
+    Keyframe(Box<KeyframeData>, Vec<FitJob>),
+    /// Stop and hand the map over.
+    Finish,
+}
+
+/// The local-mapping thread's answer to a keyframe.
+pub(crate) struct MapperReply {
+    pub(crate) correction: KeyframeCorrection,
+    pub(crate) fits: Vec<FitResult>,
+    pub(crate) ba_ms: f64,
+    pub(crate) fit_ms: f64,
+    pub(crate) culled: usize,
+}
+
+/// The detection thread: runs `detector` on every `detect_every`-th frame id of `frames` (an unreadable
+/// frame is not tracked, so it gets no boxes) and passes each frame on with its boxes.
+pub(crate) fn detection_thread(
+    mut detector: Option<Box<dyn DetectionSource>>,
+    detect_every: usize,
+    frames: Receiver<FrameInput>,
+    detected: Sender<Detected>,
+) {
+    let detect_every = detect_every.max(1);
+    for f in frames {
+        let t = Instant::now();
+        let dets = match (&mut detector, &f.images) {
+            (Some(d), Ok((left, _))) if f.index % detect_every == 0 => {
+                let img = d.needs_image().then_some(left);
+                d.detect(f.index, img)
+            }
+            _ => Ok(Vec::new()),
+        };
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        if detected.send((f, dets, ms)).is_err() {
+            break;
+        }
+    }
+}
+
+/// The local-mapping thread: inserts each keyframe (local bundle adjustment, culling), then runs the
+/// object fits due at it on the refined poses, and replies; hands the map over at the end.
+pub(crate) fn mapping_thread(
+    mut mapper: LocalMapper,
+    texture: TextureConfig,
+    requests: Receiver<MapperRequest>,
+    replies: Sender<MapperReply>,
+) -> Map {
+    for req in requests {
+        match req {
+            MapperRequest::Keyframe(kf, mut jobs) => {
+                let report = mapper.insert_keyframe(&kf);
+                for job in &mut jobs {
+                    job.repose(|k| mapper.keyframe_pose(k));
+                }
+                let t = Instant::now();
+                let fits = jobs.iter().map(|job| run_fit(&mapper, &texture, job)).collect();
+                let reply = MapperReply {
+                    correction: report.correction,
+                    fits,
+                    ba_ms: report.ba_ms,
+                    fit_ms: t.elapsed().as_secs_f64() * 1e3,
+                    culled: report.culled_observations,
+                };
+                if replies.send(reply).is_err() {
+                    break;
+                }
+            }
+            MapperRequest::Finish => break,
+        }
+    }
+    mapper.into_map()
+}
+
+/// One object fit, with texture planes from the object's map points as seen by its latest view.
+fn run_fit(mapper: &LocalMapper, texture: &TextureConfig, job: &FitJob) -> FitResult {
+    let planes = match job.views.last() {
+        Some(v) if job.uses_planes() => {
+            let points: Vec<Vector3<f64>> = job.points.iter().filter_map(|p| mapper.map().point(*p)).collect();
+            texture_planes(&points, &v.camera, texture)
+        }
+        _ => Vec::new(),
+    };
+    job.run(&planes)
+}

@@ -1,0 +1,399 @@
+//! The tracking thread's state and its per-frame step: the stereo tracker, the object mapper's
+//! association and the hand-over of keyframes to local mapping.
+
+use std::{collections::VecDeque, time::Instant};
+
+use crossbeam_channel::{Receiver, Sender};
+use nalgebra::{Isometry3, Point3, Vector3};
+use slam_core::{
+    geometry::{BBox, Camera, ImageSize, Intrinsics},
+    ClassId, DetectError, Detection, KeyframeData, StereoTracker, TrackState, TrackedFrame,
+};
+
+use super::{
+    threads::{Detected, MapperReply, MapperRequest},
+    FrameRecord, FrameTimes, RunCounts, SystemConfig, SystemError,
+};
+use crate::{
+    map::{pose_to_array, FramePose},
+    objects::{class_prior, suppress_duplicate_boxes, ObjectMapper, PointsCentroid},
+};
+
+/// The tracking thread's state: what one [`Tracking::step`] per frame reads and updates.
+pub struct Tracking {
+    pub(crate) tracker: Box<dyn StereoTracker>,
+    pub(crate) objects: ObjectMapper,
+    intrinsics: Intrinsics,
+    baseline: f64,
+    config: SystemConfig,
+    requests: Sender<MapperRequest>,
+    replies: Receiver<MapperReply>,
+    pub(crate) records: Vec<FrameRecord>,
+    pub(crate) trajectory: Vec<FramePose>,
+    pub(crate) counts: RunCounts,
+    /// Records of keyframes whose mapper reply has not been applied yet, oldest first.
+    pending: VecDeque<usize>,
+    last_reference: Option<(u64, Isometry3<f64>)>,
+    prev_boxes: Vec<BBox>,
+    moving_boxes: Vec<BBox>,
+    last_done: Instant,
+}
+
+impl Tracking {
+    /// Tracking state talking to local mapping through `requests` and `replies`.
+    pub(crate) fn new(
+        tracker: Box<dyn StereoTracker>,
+        objects: ObjectMapper,
+        intrinsics: Intrinsics,
+        baseline: f64,
+        config: SystemConfig,
+        requests: Sender<MapperRequest>,
+        replies: Receiver<MapperReply>,
+    ) -> Self {
+        Self {
+            tracker,
+            objects,
+            intrinsics,
+            baseline,
+            config,
+            requests,
+            replies,
+            records: Vec::new(),
+            trajectory: Vec::new(),
+            counts: RunCounts::default(),
+            pending: VecDeque::new(),
+            last_reference: None,
+            prev_boxes: Vec::new(),
+            moving_boxes: Vec::new(),
+            last_done: Instant::now(),
+        }
+    }
+
+    /// Records of the frames stepped so far.
+    pub fn records(&self) -> &[FrameRecord] {
+        &self.records
+    }
+
+    /// Counts so far.
+    pub fn counts(&self) -> &RunCounts {
+        &self.counts
+    }
+
+    /// The object mapper (objects so far).
+    pub fn objects(&self) -> &ObjectMapper {
+        &self.objects
+    }
+
+    /// One frame after detection: apply the mapper's replies that are due, track the pair, associate
+    /// the boxes, hand a keyframe and its fit jobs to local mapping; returns the frame's record.
+    pub(crate) fn step(&mut self, (input, dets, det_ms): Detected) -> Result<&FrameRecord, SystemError> {
+        let i = input.index;
+        self.apply_due_replies()?;
+        self.counts.frames += 1;
+        let detections = self.accept_detections(i, dets);
+        let times = FrameTimes { detection: det_ms, ..FrameTimes::default() };
+        let record = match input.images {
+            Ok((left, right)) => self.track_pair(i, &left, &right, detections, times)?,
+            Err(why) => self.unreadable(i, &why, times),
+        };
+        self.records.push(record);
+        Ok(&self.records[self.records.len() - 1])
+    }
+
+    /// Apply the replies to keyframes made `correction_lag` played frames ago or earlier (counted in
+    /// records, not frame ids: with a stride or gaps in the ids the lag stays the same number of
+    /// tracked frames), waiting for them if need be.
+    fn apply_due_replies(&mut self) -> Result<(), SystemError> {
+        while let Some(&rec) = self.pending.front() {
+            if rec + self.config.correction_lag > self.records.len() {
+                break;
+            }
+            self.apply_next_reply(rec)?;
+            self.pending.pop_front();
+        }
+        Ok(())
+    }
+
+    /// Wait for the next reply of local mapping (to the keyframe of record `rec`) and apply it.
+    fn apply_next_reply(&mut self, rec: usize) -> Result<(), SystemError> {
+        let reply = self.replies.recv().map_err(|_| SystemError::Thread("local mapping"))?;
+        self.tracker.correct(&reply.correction);
+        for fit in reply.fits {
+            self.objects.apply(fit);
+        }
+        self.counts.culled_observations += reply.culled;
+        if let Some(r) = self.records.get_mut(rec) {
+            r.times.bundle_adjustment = reply.ba_ms;
+            r.times.objects = reply.fit_ms;
+        }
+        Ok(())
+    }
+
+    /// Apply every outstanding reply (end of input).
+    pub(crate) fn drain_replies(&mut self) -> Result<(), SystemError> {
+        while let Some(rec) = self.pending.pop_front() {
+            self.apply_next_reply(rec)?;
+        }
+        Ok(())
+    }
+
+    /// Stop local mapping (after [`Tracking::drain_replies`]).
+    pub(crate) fn stop_mapping(&self) {
+        // the thread may have stopped already; joining it reports that
+        let _ = self.requests.send(MapperRequest::Finish);
+    }
+
+    /// The frame's detections: duplicates suppressed (counted), a detector failure counted and logged.
+    fn accept_detections(&mut self, frame: usize, dets: Result<Vec<Detection>, DetectError>) -> Vec<Detection> {
+        match dets {
+            Ok(d) if self.config.suppress_duplicates => {
+                let (kept, dropped) = suppress_duplicate_boxes(d);
+                self.counts.suppressed_boxes += dropped;
+                kept
+            }
+            Ok(d) => d,
+            Err(e) => {
+                self.counts.detector_errors += 1;
+                tracing::warn!(frame, "detector failed: {e}; frame has no boxes");
+                Vec::new()
+            }
+        }
+    }
+
+    /// An unreadable frame: counted and logged, its pose held at the last reference.
+    fn unreadable(&mut self, i: usize, why: &str, times: FrameTimes) -> FrameRecord {
+        self.counts.unreadable += 1;
+        tracing::warn!(frame = i, "unreadable: {why}; pose held");
+        let (kf, rel) = self.last_reference.unwrap_or((0, Isometry3::identity()));
+        self.trajectory.push(FramePose { frame: i, keyframe: kf, relative: pose_to_array(&rel), state: "unreadable".into() });
+        self.prev_boxes.clear();
+        FrameRecord {
+            index: i,
+            state: None,
+            keyframe: false,
+            tracked_map_points: 0,
+            reprojection_rms_px: f64::NAN,
+            detections: Vec::new(),
+            tracks: Vec::new(),
+            times,
+        }
+    }
+
+    /// Track a readable pair and map its boxes.
+    fn track_pair(
+        &mut self,
+        i: usize,
+        left: &slam_core::Image,
+        right: &slam_core::Image,
+        detections: Vec<Detection>,
+        mut times: FrameTimes,
+    ) -> Result<FrameRecord, SystemError> {
+        let exclude: &[BBox] = if self.config.exclude_moving { &self.moving_boxes } else { &[] };
+        let tf = self.tracker.track(i, left, right, exclude).map_err(|source| SystemError::Tracker { frame: i, source })?;
+        times.extraction = tf.times.extraction;
+        times.stereo = tf.times.stereo;
+        times.tracking = tf.times.tracking;
+        self.count_state(i, &tf);
+        let tracks = self.map_boxes(i, &tf, &detections, &mut times);
+        self.last_reference = Some(tf.reference);
+        self.trajectory.push(FramePose {
+            frame: i,
+            keyframe: tf.reference.0,
+            relative: pose_to_array(&tf.reference.1),
+            state: tf.state.name().into(),
+        });
+        let is_kf = tf.keyframe.is_some();
+        if let Some(kf) = tf.keyframe {
+            self.counts.keyframes += 1;
+            let jobs = self.objects.fit_jobs();
+            self.requests
+                .send(MapperRequest::Keyframe(Box::new(kf), jobs))
+                .map_err(|_| SystemError::Thread("local mapping"))?;
+            self.pending.push_back(self.records.len());
+        }
+        times.interval = self.last_done.elapsed().as_secs_f64() * 1e3;
+        self.last_done = Instant::now();
+        Ok(FrameRecord {
+            index: i,
+            state: Some(tf.state),
+            keyframe: is_kf,
+            tracked_map_points: tf.tracked_map_points,
+            reprojection_rms_px: tf.reprojection_rms_px,
+            detections,
+            tracks,
+            times,
+        })
+    }
+
+    /// Count the frame's tracking state (a lost frame is logged).
+    fn count_state(&mut self, i: usize, tf: &TrackedFrame) {
+        match tf.state {
+            TrackState::Initialised => {}
+            TrackState::Tracked { .. } => self.counts.tracked += 1,
+            TrackState::Weak { .. } => self.counts.weak += 1,
+            TrackState::Lost => {
+                self.counts.lost += 1;
+                tracing::warn!(frame = i, stereo_points = tf.stereo_points, "tracking lost");
+            }
+            TrackState::Predicted => self.counts.predicted += 1,
+            TrackState::Relocalised { .. } => self.counts.relocalised += 1,
+        }
+    }
+
+    /// Optical flow from the previous frame's boxes, association of the detections with the objects,
+    /// their stereo points on a keyframe, and the boxes of moving objects kept out of the next frame's
+    /// tracking. Returns each detection's object.
+    fn map_boxes(
+        &mut self,
+        i: usize,
+        tf: &TrackedFrame,
+        detections: &[Detection],
+        times: &mut FrameTimes,
+    ) -> Vec<Option<slam_core::TrackId>> {
+        let t = Instant::now();
+        let flow = if self.prev_boxes.is_empty() {
+            Vec::new()
+        } else {
+            self.tracker.flow(&self.prev_boxes).unwrap_or_else(|e| {
+                tracing::debug!(frame = i, "optical flow failed: {e}");
+                Vec::new()
+            })
+        };
+        times.flow = t.elapsed().as_secs_f64() * 1e3;
+        let t = Instant::now();
+        let camera = Camera::new(self.intrinsics, tf.world_from_camera);
+        let tracks = self.objects.associate(i, &camera, Some(tf.reference), detections, &flow);
+        if let Some(kf) = &tf.keyframe {
+            if kf.parent.is_none() && kf.id > 0 {
+                self.counts.new_segments += 1;
+            }
+            self.attach_points(kf, detections, &tracks);
+        }
+        let objects = &self.objects;
+        self.moving_boxes = detections
+            .iter()
+            .zip(&tracks)
+            .filter(|(_, t)| t.and_then(|id| objects.object(id)).is_some_and(|o| o.moving))
+            .map(|(d, _)| {
+                let b = d.bbox;
+                let (mx, my) = (0.1 * (b.xmax - b.xmin), 0.1 * (b.ymax - b.ymin));
+                BBox::new(b.xmin - mx, b.ymin - my, b.xmax + mx, b.ymax + my)
+            })
+            .collect();
+        self.prev_boxes = detections.iter().map(|d| d.bbox).collect();
+        times.association = t.elapsed().as_secs_f64() * 1e3;
+        tracks
+    }
+
+    /// Give each associated object the keyframe's stereo points on it (and where they put it).
+    fn attach_points(&mut self, kf: &KeyframeData, detections: &[Detection], tracks: &[Option<slam_core::TrackId>]) {
+        let c = &self.config;
+        let geometry = PointGeometry {
+            core: c.object_core,
+            k: self.intrinsics,
+            baseline: self.baseline,
+            disparity_sigma: c.disparity_sigma_px,
+            image: c.objects.image,
+        };
+        for (d, t) in detections.iter().zip(tracks) {
+            if let Some(id) = t {
+                let (pts, centroid) = object_points(kf, &d.bbox, d.class, &geometry);
+                self.objects.add_points(*id, &pts, centroid);
+            }
+        }
+    }
+}
+
+/// Fewest map points in a box for its centroid to count.
+const MIN_OBJECT_POINTS: usize = 5;
+
+/// Heights an object of a class group can have, metres: vehicles from a low car to a lorry (1.2–4.5),
+/// people and riders 0.9–2.1, anything else 0.3–5.
+fn height_range(class: ClassId) -> (f64, f64) {
+    match class.0 {
+        2 | 5 | 7 => (1.2, 4.5),
+        0 | 1 | 3 => (0.9, 2.1),
+        _ => (0.3, 5.0),
+    }
+}
+
+/// What [`object_points`] needs besides the keyframe and the box.
+struct PointGeometry {
+    /// Central part of the box (share of its width and height) whose points count.
+    core: f64,
+    k: Intrinsics,
+    baseline: f64,
+    /// Stereo disparity noise, pixels.
+    disparity_sigma: f64,
+    image: ImageSize,
+}
+
+/// The stereo points of a keyframe that lie on the object of a box, and where they put it.
+///
+/// Candidates: points inside the central part of the box (`core` of its width and height) whose depth
+/// fits the box height for some height the class can have (no near limit for a box cut by the image
+/// border: its height understates the object's). Among them the object is the densest depth cluster:
+/// windows `[z, z + 2w]` with `w = max(a, 2 σ_z(z))`, `a` the class's half-length (a car seen obliquely
+/// spans its length in depth) and `σ_z = z² σ_d / (f b)` the stereo depth noise; the object is the
+/// nearest window holding at least half as many points as the densest one (it hides what lies behind
+/// it). The centroid is the points' median world position (`None` below [`MIN_OBJECT_POINTS`] points).
+fn object_points(kf: &KeyframeData, b: &BBox, class: ClassId, g: &PointGeometry) -> (Vec<u64>, Option<PointsCentroid>) {
+    let sigma_z = |z: f64| z * z * g.disparity_sigma / (g.k.fx * g.baseline);
+    let cand = box_candidates(kf, b, class, g);
+    let half_length = class_prior(class).axes.x;
+    let windows: Vec<usize> = (0..cand.len())
+        .map(|i| {
+            let z0 = cand[i].camera_point.z;
+            let top = z0 + 2.0 * half_length.max(2.0 * sigma_z(z0));
+            cand[i..].iter().take_while(|p| p.camera_point.z <= top).count()
+        })
+        .collect();
+    // the nearest window holding at least half as many points as the densest one: the object hides
+    // what lies behind it, and a textured facade behind a plain car can outnumber the car's points
+    let densest = windows.iter().copied().max().unwrap_or(0);
+    let best = windows
+        .iter()
+        .position(|&n| n >= MIN_OBJECT_POINTS && 2 * n >= densest)
+        .map_or((0, 0), |i| (windows[i], i));
+    let kept: Vec<(u64, Vector3<f64>, f64)> = cand[best.1..best.1 + best.0]
+        .iter()
+        .map(|p| (p.id, (kf.world_from_camera * Point3::from(p.camera_point)).coords, p.camera_point.z))
+        .collect();
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(|a, b| a.total_cmp(b));
+        v[v.len() / 2]
+    };
+    // a centroid needs a few points: one stray point of the background would fake a motion
+    let centroid = (kept.len() >= MIN_OBJECT_POINTS).then(|| {
+        let m = |k: usize| median(kept.iter().map(|p| p.1[k]).collect());
+        PointsCentroid {
+            position: Vector3::new(m(0), m(1), m(2)),
+            depth_sigma: sigma_z(median(kept.iter().map(|p| p.2).collect())),
+        }
+    });
+    (kept.iter().map(|p| p.0).collect(), centroid)
+}
+
+/// The keyframe's points inside the box's core at a depth its height allows for the class, nearest
+/// first (ties by id).
+fn box_candidates<'a>(
+    kf: &'a KeyframeData,
+    b: &BBox,
+    class: ClassId,
+    g: &PointGeometry,
+) -> Vec<&'a slam_core::KeyframePoint> {
+    let (cx, cy) = (0.5 * (b.xmin + b.xmax), 0.5 * (b.ymin + b.ymax));
+    let (hw, hh) = (0.5 * g.core * (b.xmax - b.xmin), 0.5 * g.core * (b.ymax - b.ymin));
+    let (hmin, hmax) = height_range(class);
+    let bh = b.height().max(1.0);
+    let cut = b.touches_border(&g.image, 2.0);
+    let (near, far) = (if cut { 0.0 } else { g.k.fy * hmin / bh }, g.k.fy * hmax / bh);
+    let mut cand: Vec<&slam_core::KeyframePoint> = kf
+        .points
+        .iter()
+        .filter(|p| (p.observation[0] - cx).abs() <= hw && (p.observation[1] - cy).abs() <= hh)
+        .filter(|p| p.camera_point.z > 0.0 && (near..=far).contains(&p.camera_point.z))
+        .collect();
+    cand.sort_by(|a, b| a.camera_point.z.total_cmp(&b.camera_point.z).then(a.id.cmp(&b.id)));
+    cand
+}
