@@ -109,7 +109,8 @@ fn kitti(a: &KittiArgs) -> anyhow::Result<()> {
         header.push_str(&format!(" | {:>20}", format!("{} ODA/IoU", c.name)));
     }
     println!("{header}");
-    let mut csv = String::from("sequence,objects,detections,condition,associator,id_switches\n");
+    let mut csv = csv::Writer::from_writer(Vec::new());
+    csv.write_record(["sequence", "objects", "detections", "condition", "associator", "id_switches"])?;
     let mut totals = vec![[0usize; 2]; CONDITIONS.len()];
     for seq in &seqs {
         let name = seq.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
@@ -132,7 +133,14 @@ fn kitti(a: &KittiArgs) -> anyhow::Result<()> {
                 let r = id_switches_on_labels(&frames, n_frames, noise, seed, make());
                 totals[ci][k] += r.id_switches;
                 cells.push(r.id_switches);
-                csv.push_str(&format!("{name},{},{},{},{aname},{}\n", objects.len(), r.detections, cond.name, r.id_switches));
+                csv.write_record([
+                    name.clone(),
+                    objects.len().to_string(),
+                    r.detections.to_string(),
+                    cond.name.to_string(),
+                    aname.to_string(),
+                    r.id_switches.to_string(),
+                ])?;
             }
             row.push_str(&format!(" | {:>20}", format!("{} / {}", cells[0], cells[1])));
         }
@@ -144,7 +152,7 @@ fn kitti(a: &KittiArgs) -> anyhow::Result<()> {
     }
     println!("{row}");
     if let Some(path) = &a.csv {
-        crate::output::write_file(path, csv.as_bytes())?;
+        crate::output::write_file(path, &csv.into_inner().map_err(|e| e.into_error())?)?;
         println!("CSV written to {}", path.display());
     }
     Ok(())

@@ -1,5 +1,23 @@
 //! `slam-app`: the command-line front of the quadric-SLAM workspace.
 
+// Every module prints through these two, which shadow the standard macros of the same name (they
+// are defined before the modules, so the modules see them): a reader that closed the pipe early
+// (`slam-app … | head`) ends the program quietly with status 0, as Unix tools do, told apart from
+// other write errors by `std::io::ErrorKind::BrokenPipe`.
+macro_rules! println {
+    () => {
+        $crate::stdout::write(format_args!("\n"))
+    };
+    ($($arg:tt)*) => {
+        $crate::stdout::write(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+macro_rules! print {
+    ($($arg:tt)*) => {
+        $crate::stdout::write(format_args!($($arg)*))
+    };
+}
+
 mod assoc_cmd;
 mod config;
 mod detect_cmd;
@@ -10,6 +28,7 @@ mod output;
 mod progress;
 mod run_cmd;
 mod sim_cmd;
+mod stdout;
 mod validate;
 
 use std::{io::IsTerminal, path::PathBuf};
@@ -104,20 +123,6 @@ fn main() -> std::process::ExitCode {
 }
 
 fn run() -> anyhow::Result<()> {
-    // `slam-app … | head` closes the pipe early: stop quietly, as Unix tools do, instead of a panic
-    let default_hook = std::panic::take_hook();
-    std::panic::set_hook(Box::new(move |info| {
-        let text = info
-            .payload()
-            .downcast_ref::<String>()
-            .map(String::as_str)
-            .or_else(|| info.payload().downcast_ref::<&str>().copied())
-            .unwrap_or("");
-        if text.contains("failed printing to stdout") && text.contains("Broken pipe") {
-            std::process::exit(0);
-        }
-        default_hook(info);
-    }));
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()

@@ -8,7 +8,7 @@ use clap::Args;
 use slam_dataset::kitti::{poses::read_kitti_poses, tracking::read_tracking_labels};
 use slam_eval::labelled::{
     run_mapper, score_sequence, table_header, DetectionTruth, LabelNoise, LabelledSequence, Study, VehicleCriteria,
-    CSV_HEADER,
+    CSV_COLUMNS,
 };
 use slam_pipeline::objects::{write_object_map, FitMethod, MapperConfig, ObjectMapper};
 use slam_quadric::ImageSize;
@@ -268,7 +268,8 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         a.min_frames, a.static_m
     );
     println!("{}", table_header());
-    let mut csv = String::from(CSV_HEADER);
+    let mut csv = csv::Writer::from_writer(Vec::new());
+    csv.write_record(CSV_COLUMNS)?;
     let mut study = Study::default();
     let criteria = VehicleCriteria { min_frames: a.min_frames, static_m: a.static_m, moving_m: a.moving_m };
     let image = ImageSize::new(1242.0, 375.0);
@@ -280,14 +281,15 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         let (mapper, truth) = run(&seq, &a.input);
         let score = score_sequence(&name, &seq, &mapper, &truth, &criteria, &image);
         bar.println(&score.row.table_line(&name));
-        csv.push_str(&score.row.csv_line(&name));
+        csv.write_record(score.row.csv_record(&name))?;
         study.add(&score);
         bar.inc();
     }
     bar.finish();
     print!("{}", study.report(a.moving_m));
     if let Some(f) = csv_out {
-        f.write_with(|tmp| std::fs::write(tmp, csv))?;
+        let bytes = csv.into_inner().map_err(|e| e.into_error())?;
+        f.write_with(|tmp| std::fs::write(tmp, bytes))?;
     }
     Ok(())
 }

@@ -476,7 +476,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     // one pose per played frame, in id order; TUM lines carry the frames' own times
     write_kitti_poses(w.join("trajectory.kitti.txt"), &out.poses)?;
     write_tum(w.join("trajectory.tum.txt"), &seq.times, &out.poses)?;
-    std::fs::write(w.join("tracking.csv"), tracking_csv(&out)).with_context(|| format!("writing {}", w.join("tracking.csv").display()))?;
+    std::fs::write(w.join("tracking.csv"), tracking_csv(&out)?).with_context(|| format!("writing {}", w.join("tracking.csv").display()))?;
     out.map.save(&w.join("map.json"))?;
     let objects: Vec<&MappedObject> = out.objects.iter().collect();
     slam_pipeline::objects::write_object_map_in(&w.join("objects.json"), &objects, slam_pipeline::map::MAP_WORLD)

@@ -63,7 +63,7 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
         }
     }
     print!("{}", report::breakdown_table(&cells, &config));
-    crate::output::write_file(&dir.path().join("simulation.csv"), report::csv(&cells).as_bytes())?;
+    crate::output::write_file(&dir.path().join("simulation.csv"), report::csv(&cells)?.as_bytes())?;
     let mut plots = Vec::new();
     if !a.no_plots {
         for &g in &config.geometries {

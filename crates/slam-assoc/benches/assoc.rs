@@ -6,13 +6,13 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use slam_assoc::{eval::Lcg, IouAssociator, Oda};
+use slam_assoc::{eval::SimRng, IouAssociator, Oda};
 use slam_core::{
     geometry::BBox, AssociationInput, Associator, ClassId, Detection, PointPair, Region, TrackId, TrackView,
 };
 
 fn scene(n: usize) -> (Vec<Detection>, Vec<TrackView<'static>>, Vec<PointPair>) {
-    let mut rng = Lcg::new(5);
+    let mut rng = SimRng::new(5);
     let mut dets = Vec::new();
     let mut tracks = Vec::new();
     let mut flow = Vec::new();

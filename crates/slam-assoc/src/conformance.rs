@@ -9,7 +9,7 @@ use slam_core::{
     geometry::BBox, Assignment, AssociationInput, Associator, ClassId, Detection, PointPair, Region, TrackId, TrackView,
 };
 
-use crate::eval::Lcg;
+use crate::eval::SimRng;
 
 /// A factory of fresh associators (associators may keep state between frames).
 pub type Factory<'a> = &'a mut dyn FnMut() -> Box<dyn Associator>;
@@ -25,7 +25,7 @@ pub fn check_all(make: Factory<'_>) -> Result<(), String> {
 }
 
 /// Random scene: tracks and detections near them (some moved, some new), two classes.
-fn scene(rng: &mut Lcg, n_tracks: usize, n_dets: usize) -> (Vec<Detection>, Vec<(TrackId, ClassId, BBox)>) {
+fn scene(rng: &mut SimRng, n_tracks: usize, n_dets: usize) -> (Vec<Detection>, Vec<(TrackId, ClassId, BBox)>) {
     let tracks: Vec<(TrackId, ClassId, BBox)> = (0..n_tracks)
         .map(|k| {
             let x = rng.uniform(0.0, 1100.0);
@@ -70,7 +70,7 @@ fn views(tracks: &[(TrackId, ClassId, BBox)]) -> Vec<TrackView<'static>> {
         .collect()
 }
 
-fn flow_for(dets: &[Detection], rng: &mut Lcg) -> Vec<PointPair> {
+fn flow_for(dets: &[Detection], rng: &mut SimRng) -> Vec<PointPair> {
     let mut out = Vec::new();
     for d in dets {
         for _ in 0..8 {
@@ -115,7 +115,7 @@ fn validate(a: &Assignment, dets: &[Detection], tracks: &[TrackView<'_>]) -> Res
 
 /// Assignment invariants on 200 random scenes of up to 30 × 30.
 pub fn check_invariants(make: Factory<'_>) -> Result<(), String> {
-    let mut rng = Lcg::new(1);
+    let mut rng = SimRng::new(1);
     for trial in 0..200 {
         let (n_t, n_d) = (rng.below(30), rng.below(30));
         let (dets, tracks) = scene(&mut rng, n_t, n_d);
@@ -129,7 +129,7 @@ pub fn check_invariants(make: Factory<'_>) -> Result<(), String> {
 
 /// Shuffling detections and tracks shuffles the answer accordingly.
 pub fn check_permutation_invariance(make: Factory<'_>) -> Result<(), String> {
-    let mut rng = Lcg::new(2);
+    let mut rng = SimRng::new(2);
     for trial in 0..100 {
         let (n_t, n_d) = (1 + rng.below(20), 1 + rng.below(20));
         let (dets, tracks) = scene(&mut rng, n_t, n_d);

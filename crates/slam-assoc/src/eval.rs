@@ -14,7 +14,7 @@ use slam_core::{geometry::BBox, ClassId, Detection, Mask, PointPair, TrackId};
 use crate::tracker::{ObjectTracker, TrackerInput};
 
 /// The seeded generator used by the simulations (from `slam-core`).
-pub use slam_core::rng::SimRng as Lcg;
+pub use slam_core::rng::SimRng;
 
 /// Settings of [`simulate`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -90,7 +90,7 @@ const HEIGHT: f64 = 375.0;
 /// Simulate a scene. All objects are of one class, and lie in two horizontal lanes, so boxes overlap
 /// and cross often: the hard case for association.
 pub fn simulate(config: &SimConfig, seed: u64) -> Vec<SimFrame> {
-    let mut rng = Lcg::new(seed);
+    let mut rng = SimRng::new(seed);
     let mut objs: Vec<Obj> = (0..config.objects)
         .map(|k| {
             let w = rng.uniform(60.0, 130.0);

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use slam_core::{geometry::BBox, Associator, Detection};
 
 use crate::{
-    eval::{run, simulate, IdSwitchCounter, Lcg, MotCounts, SimConfig},
+    eval::{run, simulate, IdSwitchCounter, MotCounts, SimRng, SimConfig},
     ObjectTracker, TrackerConfig, TrackerInput,
 };
 
@@ -58,7 +58,7 @@ pub fn id_switches_on_labels(
     seed: u64,
     associator: Box<dyn Associator>,
 ) -> LabelRun {
-    let mut rng = Lcg::new(seed);
+    let mut rng = SimRng::new(seed);
     let mut tracker = ObjectTracker::new(associator, TrackerConfig::default());
     let mut ids = IdSwitchCounter::default();
     let mut n_det = 0;

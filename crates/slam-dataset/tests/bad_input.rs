@@ -196,6 +196,24 @@ fn every_reader_names_file_and_line() {
             "<tx> is not a finite number",
         ),
         ("tl-empty.xml", unit(parse_tracklets(&p("tl-empty.xml"), "")), None, ""),
+        (
+            "tl-mismatch.xml",
+            unit(parse_tracklets(&p("tl-mismatch.xml"), "<?xml version=\"1.0\"?>\n<tracklets>\n<count>1</item>\n")),
+            Some(3),
+            "",
+        ),
+        (
+            "tl-deep.xml",
+            unit(parse_tracklets(&p("tl-deep.xml"), &format!("\n{}{}", "<a>".repeat(5000), "</a>".repeat(5000)))),
+            Some(2),
+            "nest deeper than 64",
+        ),
+        (
+            "tl-no-tracklets.xml",
+            unit(parse_tracklets(&p("tl-no-tracklets.xml"), "<!DOCTYPE boost_serialization>\n<boost_serialization>\n</boost_serialization>")),
+            Some(2),
+            "no <tracklets> element",
+        ),
         // detection files
         (
             "det-neg-score.json",

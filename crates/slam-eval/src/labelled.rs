@@ -435,21 +435,21 @@ impl Row {
         )
     }
 
-    /// The sequence's CSV line ([`CSV_HEADER`]'s columns), with a line end.
-    pub fn csv_line(&self, name: &str) -> String {
+    /// The sequence's CSV record ([`CSV_COLUMNS`]' fields), for a `csv` writer.
+    pub fn csv_record(&self, name: &str) -> [String; 10] {
         let f = self.found.max(1) as f64;
-        format!(
-            "{name},{},{},{},{},{},{},{},{},{}\n",
-            self.vehicles,
-            self.found,
-            self.success(),
-            self.iou / f,
-            self.e_trans / f,
-            self.e_axe / f,
-            self.e_ray_mean(),
-            self.e_yaw / f,
-            self.yaw_within as f64 / f
-        )
+        [
+            name.to_string(),
+            self.vehicles.to_string(),
+            self.found.to_string(),
+            self.success().to_string(),
+            (self.iou / f).to_string(),
+            (self.e_trans / f).to_string(),
+            (self.e_axe / f).to_string(),
+            self.e_ray_mean().to_string(),
+            (self.e_yaw / f).to_string(),
+            (self.yaw_within as f64 / f).to_string(),
+        ]
     }
 }
 
@@ -461,8 +461,9 @@ pub fn table_header() -> String {
     )
 }
 
-/// Column names of [`Row::csv_line`], with a line end.
-pub const CSV_HEADER: &str = "sequence,vehicles,found,success,iou2d,e_trans,e_axe,e_ray,e_yaw,yaw_within_15\n";
+/// Column names of [`Row::csv_record`].
+pub const CSV_COLUMNS: [&str; 10] =
+    ["sequence", "vehicles", "found", "success", "iou2d", "e_trans", "e_axe", "e_ray", "e_yaw", "yaw_within_15"];
 
 /// The study over several sequences: means of the sequences' means and figures pooled over vehicles.
 #[derive(Debug, Default, Clone)]
@@ -617,7 +618,7 @@ mod tests {
         let all: Vec<String> = line("all").split_whitespace().map(str::to_string).collect();
         assert_eq!(&all[1..6], ["5", "4", "0.800", "0.575", "1.750"], "{report}");
         assert!(report.contains("moving vehicles (world centre moves more than 3 m): 3; mapped as a static ellipsoid: 0, flagged dynamic: 3, never fitted: 0"), "{report}");
-        assert_eq!(a.csv_line("0001").split(',').count(), CSV_HEADER.split(',').count());
+        assert_eq!(a.csv_record("0001").len(), CSV_COLUMNS.len());
         assert_eq!(a.table_line("0001").split_whitespace().count(), table_header().split_whitespace().count());
     }
 }

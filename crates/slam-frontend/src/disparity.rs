@@ -41,43 +41,47 @@ pub struct OffsetEstimate {
     pub interior: bool,
 }
 
-/// Total robust cost of the pairs' two-view adjustments with `offset` added to every disparity.
-fn cost_at(rig: &StereoRig, pairs: &[DisparityPair], offset: f64, optimizer: &dyn Optimizer) -> f64 {
+/// Robust cost of one pair's two-view adjustment with `offset` added to every disparity; an error when
+/// its graph cannot be built or solved.
+fn pair_cost(
+    rig: &StereoRig,
+    pair: &DisparityPair,
+    offset: f64,
+    optimizer: &dyn Optimizer,
+) -> Result<f64, slam_optim::OptimError> {
     let shift = |o: &[f64; 3]| [o[0], o[1], o[2] - offset];
-    let mut total = 0.0;
-    for pair in pairs {
-        let mut values = Values::new();
-        let kf = values.add(Var::Pose(Isometry3::identity()));
-        let fr = values.add(Var::Pose(pair.frame_from_keyframe.inverse()));
-        let mut graph = Graph::new();
-        graph.fix(kf);
-        for (a, b) in pair.keyframe.iter().zip(&pair.frame) {
-            let a = shift(a);
-            let d = a[0] - a[2];
-            if d <= 0.0 {
-                continue;
-            }
-            let z = rig.k.fx * rig.baseline / d;
-            let p = nalgebra::Vector3::new((a[0] - rig.k.cx) * z / rig.k.fx, (a[1] - rig.k.cy) * z / rig.k.fy, z);
-            let x = values.add(Var::Point(p));
-            graph.eliminate(x);
-            for (pose, obs) in [(kf, a), (fr, shift(b))] {
-                let _ = graph.add(
-                    StereoReprojection::new(pose, x, rig.k, rig.baseline, obs),
-                    NoiseModel::Isotropic(1.0),
-                    Huber(2.0),
-                );
-            }
+    let mut values = Values::new();
+    let kf = values.add(Var::Pose(Isometry3::identity()));
+    let fr = values.add(Var::Pose(pair.frame_from_keyframe.inverse()));
+    let mut graph = Graph::new();
+    graph.fix(kf);
+    for (a, b) in pair.keyframe.iter().zip(&pair.frame) {
+        let a = shift(a);
+        let d = a[0] - a[2];
+        if d <= 0.0 {
+            continue;
         }
-        if let Ok(summary) = optimizer.optimize(&graph, &mut values, &Options::with_max_iterations(15), None) {
-            total += summary.final_cost;
+        let z = rig.k.fx * rig.baseline / d;
+        let p = nalgebra::Vector3::new((a[0] - rig.k.cx) * z / rig.k.fx, (a[1] - rig.k.cy) * z / rig.k.fy, z);
+        let x = values.add(Var::Point(p));
+        graph.eliminate(x);
+        for (pose, obs) in [(kf, a), (fr, shift(b))] {
+            graph.add(
+                StereoReprojection::new(pose, x, rig.k, rig.baseline, obs),
+                NoiseModel::Isotropic(1.0),
+                Huber(2.0),
+            )?;
         }
     }
-    total
+    Ok(optimizer.optimize(&graph, &mut values, &Options::with_max_iterations(15), None)?.final_cost)
 }
 
 /// Estimate the disparity offset from frame pairs by scanning `range` (pixels) in steps of `step`,
 /// re-solving each pair with `optimizer`. `None` without pairs or with a degenerate range.
+///
+/// A pair whose adjustment fails at any candidate offset is left out at every offset (a sum over fewer
+/// pairs would look cheaper and win the scan); such pairs are counted and logged, and
+/// [`OffsetEstimate::pairs`] counts only the pairs used. `None` too when no pair is left.
 pub fn estimate_disparity_offset(
     rig: &StereoRig,
     pairs: &[DisparityPair],
@@ -90,11 +94,27 @@ pub fn estimate_disparity_offset(
         return None;
     }
     let n = ((range.1 - range.0) / step).round() as usize + 1;
-    let curve: Vec<(f64, f64)> = (0..n)
-        .map(|i| {
-            let e = range.0 + i as f64 * step;
-            (e, cost_at(rig, pairs, e, optimizer))
-        })
+    let offsets: Vec<f64> = (0..n).map(|i| range.0 + i as f64 * step).collect();
+    // costs[pair][offset]
+    let costs: Vec<Vec<Result<f64, slam_optim::OptimError>>> =
+        pairs.iter().map(|p| offsets.iter().map(|&e| pair_cost(rig, p, e, optimizer)).collect()).collect();
+    let used: Vec<usize> = (0..pairs.len()).filter(|&i| costs[i].iter().all(Result::is_ok)).collect();
+    if used.len() < pairs.len() {
+        let first = costs.iter().flatten().find_map(|c| c.as_ref().err());
+        tracing::warn!(
+            skipped = pairs.len() - used.len(),
+            pairs = pairs.len(),
+            "disparity offset: frame pairs left out, their adjustment failed at some offset (first: {})",
+            first.map_or_else(String::new, ToString::to_string)
+        );
+    }
+    if used.is_empty() {
+        return None;
+    }
+    let curve: Vec<(f64, f64)> = offsets
+        .iter()
+        .enumerate()
+        .map(|(j, &e)| (e, used.iter().map(|&i| costs[i][j].as_ref().map_or(0.0, |c| *c)).sum()))
         .collect();
     let best = (0..n).min_by(|&a, &b| curve[a].1.total_cmp(&curve[b].1))?;
     let interior = best > 0 && best + 1 < n;
@@ -108,8 +128,8 @@ pub fn estimate_disparity_offset(
     }
     Some(OffsetEstimate {
         offset,
-        pairs: pairs.len(),
-        points: pairs.iter().map(|p| p.keyframe.len()).sum(),
+        pairs: used.len(),
+        points: used.iter().map(|&i| pairs[i].keyframe.len()).sum(),
         curve,
         interior,
     })
@@ -182,5 +202,20 @@ mod tests {
         assert!((e.offset - 0.3).abs() < 1e-9);
         assert!(estimate_disparity_offset(&rig(), &[], (-0.3, 0.3), 0.1, &lm()).is_none());
         assert!(estimate_disparity_offset(&rig(), &pairs(0.0, 0.1, 5), (0.3, -0.3), 0.1, &lm()).is_none());
+    }
+
+    #[test]
+    fn a_pair_that_cannot_be_solved_is_left_out_at_every_offset() {
+        let good = pairs(0.3, 0.15, 7);
+        let mut with_bad = good.clone();
+        let mut bad = good[0].clone();
+        bad.frame[0][0] = f64::NAN; // its initial cost is not finite: the optimiser refuses it
+        with_bad.insert(2, bad);
+        let clean = estimate_disparity_offset(&rig(), &good, (-1.0, 1.0), 0.1, &lm()).unwrap();
+        let e = estimate_disparity_offset(&rig(), &with_bad, (-1.0, 1.0), 0.1, &lm()).unwrap();
+        assert_eq!(e, clean, "the unsolvable pair changed the estimate");
+        assert_eq!((e.pairs, e.points), (6, 1500));
+        let only_bad = vec![with_bad[2].clone()];
+        assert!(estimate_disparity_offset(&rig(), &only_bad, (-1.0, 1.0), 0.1, &lm()).is_none());
     }
 }

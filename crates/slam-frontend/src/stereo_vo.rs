@@ -872,7 +872,10 @@ impl StereoVo {
         };
         let kernel: Box<dyn slam_optim::RobustKernel> =
             if robust { Box::new(Huber(CHI2_STEREO.sqrt())) } else { Box::new(slam_optim::L2) };
-        graph.add_boxed(f, self.noise(&o), kernel).ok()
+        graph
+            .add_boxed(f, self.noise(&o), kernel)
+            .map_err(|e| tracing::warn!("pose refinement: observation left out: {e}"))
+            .ok()
     }
 
     /// The last refinement round's problem from `pose` (`curr_from_ref`): the matched points free

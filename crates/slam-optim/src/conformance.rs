@@ -151,23 +151,21 @@ pub fn check_object_fit(opt: &dyn Optimizer) -> Result<(), String> {
     Ok(())
 }
 
-/// A seeded uniform generator for the generated problems (xorshift64*; deterministic on every
-/// platform).
-struct Rng(u64);
+/// The seeded generator of the generated problems: ChaCha8 (its stream is fixed by the ChaCha
+/// specification, so the problems are the same on every platform and version) keyed by the seed
+/// through `SeedableRng::seed_from_u64`, with `rand_distr`'s normal distribution.
+struct Rng(rand::rngs::ChaCha8Rng);
 
 impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
+    fn new(seed: u64) -> Self {
+        Self(rand::SeedableRng::seed_from_u64(seed))
     }
     fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next()
+        lo + (hi - lo) * rand::RngExt::random::<f64>(&mut self.0)
     }
-    /// Approximately normal (sum of 12 uniforms − 6).
+    /// Normal with standard deviation `sigma`.
     fn normal(&mut self, sigma: f64) -> f64 {
-        sigma * ((0..12).map(|_| self.next()).sum::<f64>() - 6.0)
+        sigma * rand_distr::Distribution::<f64>::sample(&rand_distr::StandardNormal, &mut self.0)
     }
 }
 
@@ -185,7 +183,7 @@ pub fn generated_stereo_ba(n_poses: usize, points_per_pose: usize, seed: u64) ->
 }
 
 fn stereo_ba(n_poses: usize, points_per_pose: usize, fixed: usize, at_truth: bool, seed: u64) -> Generated {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let baseline = 0.54;
     let truth: Vec<Isometry3<f64>> = (0..n_poses)
         .map(|i| {

@@ -66,17 +66,26 @@ pub fn frame_period(stamped: &[(usize, f64)]) -> f64 {
 
 /// `tracking.csv`: one row per input frame (frame, state, inliers, tracked map points, RMS
 /// reprojection error in pixels, tracking time in ms: extraction + stereo + tracking).
-pub fn tracking_csv(out: &RunOutput) -> String {
-    use std::fmt::Write as _;
-    let mut text = String::from("frame,state,inliers,tracked_map_points,reprojection_rms_px,time_ms\n");
+/// Written with the `csv` crate (a field holding a comma or quote would be quoted).
+pub fn tracking_csv(out: &RunOutput) -> Result<String, csv::Error> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record(["frame", "state", "inliers", "tracked_map_points", "reprojection_rms_px", "time_ms"])?;
     for r in &out.frames {
         let (state, inliers) = r.state.map_or(("unreadable", 0), |s| (s.name(), s.inliers()));
         let rms =
             if r.reprojection_rms_px.is_finite() { format!("{:.3}", r.reprojection_rms_px) } else { String::new() };
         let ms = r.times.extraction + r.times.stereo + r.times.tracking;
-        let _ = writeln!(text, "{},{state},{inliers},{},{rms},{ms:.2}", r.index, r.tracked_map_points);
+        w.write_record([
+            r.index.to_string(),
+            state.to_string(),
+            inliers.to_string(),
+            r.tracked_map_points.to_string(),
+            rms,
+            format!("{ms:.2}"),
+        ])?;
     }
-    text
+    let bytes = w.into_inner().map_err(|e| e.into_error())?;
+    Ok(String::from_utf8_lossy(&bytes).into_owned())
 }
 
 #[cfg(test)]
@@ -135,7 +144,7 @@ mod tests {
         assert_eq!(row("ORB extraction"), ("ORB extraction", 2.0, 3));
         // local BA: keyframes 0 and 2 only (0 and 20 ms): the upper median
         assert_eq!(row("local BA"), ("local BA (keyframes, mapping thread)", 20.0, 2));
-        let csv = tracking_csv(&out);
+        let csv = tracking_csv(&out).expect("csv");
         assert_eq!(csv.lines().count(), 5);
         assert!(csv.lines().nth(4).expect("row").starts_with("3,unreadable,0,7,,"), "{csv}");
     }

@@ -130,7 +130,7 @@ proptest! {
 fn box_jacobians_match_central_differences() {
     let h = 1e-6;
     let mut checked = [0usize; 2];
-    let mut rng = Lcg(7);
+    let mut rng = TestRng::new(7);
     for trial in 0..400 {
         let e = Ellipsoid::new(
             Isometry3::from_parts(
@@ -230,13 +230,16 @@ fn clipped_jacobian_on_truncated_object() {
     }
 }
 
-/// Deterministic generator for tests that are not proptests.
-struct Lcg(u64);
+/// Deterministic generator for tests that are not proptests (ChaCha8: the same stream on every
+/// platform and version).
+struct TestRng(rand::rngs::ChaCha8Rng);
 
-impl Lcg {
+impl TestRng {
+    fn new(seed: u64) -> Self {
+        Self(rand::SeedableRng::seed_from_u64(seed))
+    }
     fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        rand::RngExt::random::<f64>(&mut self.0)
     }
     fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
         lo + (hi - lo) * self.next()
@@ -270,7 +273,7 @@ fn arc_scene(yaw: f64, axes: Vector3<f64>) -> (Ellipsoid, Vec<BoxView>) {
 
 #[test]
 fn initialisers_on_the_arc_with_small_yaw() {
-    let mut rng = Lcg(11);
+    let mut rng = TestRng::new(11);
     for trial in 0..20 {
         let yaw = rng.uniform(-5.0, 5.0).to_radians();
         let axes = Vector3::new(rng.uniform(1.8, 2.4), rng.uniform(0.7, 0.9), rng.uniform(0.75, 0.95));
@@ -358,7 +361,7 @@ fn degenerate_views_give_errors() {
 #[test]
 fn results_are_in_front_of_every_camera_or_errors() {
     // Random boxes: whatever comes out must satisfy the trait contract.
-    let mut rng = Lcg(3);
+    let mut rng = TestRng::new(3);
     let (_, views) = arc_scene(0.0, Vector3::new(2.0, 0.8, 0.9));
     for _ in 0..200 {
         let noisy: Vec<BoxView> = views

@@ -77,27 +77,40 @@ pub fn breakdown_table(cells: &[CellStats], config: &SweepConfig) -> String {
 }
 
 /// The cells as CSV (a header, one row per cell).
-pub fn csv(cells: &[CellStats]) -> String {
-    let mut s = String::from("geometry,noise,level_percent,method,trials,success,e_trans_mean,e_trans_median,e_axe_mean,e_axe_median,iou_mean,iou_median\n");
+pub fn csv(cells: &[CellStats]) -> Result<String, csv::Error> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record([
+        "geometry",
+        "noise",
+        "level_percent",
+        "method",
+        "trials",
+        "success",
+        "e_trans_mean",
+        "e_trans_median",
+        "e_axe_mean",
+        "e_axe_median",
+        "iou_mean",
+        "iou_median",
+    ])?;
     for c in cells {
-        let _ = writeln!(
-            s,
-            "{},{},{},{},{},{},{},{},{},{},{},{}",
-            c.geometry.name(),
-            c.noise.name(),
-            c.level,
-            c.method.name(),
-            c.trials,
-            c.success,
-            c.e_trans_mean,
-            c.e_trans_median,
-            c.e_axe_mean,
-            c.e_axe_median,
-            c.iou_mean,
-            c.iou_median
-        );
+        w.write_record([
+            c.geometry.name().to_string(),
+            c.noise.name().to_string(),
+            c.level.to_string(),
+            c.method.name().to_string(),
+            c.trials.to_string(),
+            c.success.to_string(),
+            c.e_trans_mean.to_string(),
+            c.e_trans_median.to_string(),
+            c.e_axe_mean.to_string(),
+            c.e_axe_median.to_string(),
+            c.iou_mean.to_string(),
+            c.iou_median.to_string(),
+        ])?;
     }
-    s
+    let bytes = w.into_inner().map_err(|e| e.into_error())?;
+    Ok(String::from_utf8_lossy(&bytes).into_owned())
 }
 
 #[cfg(test)]
@@ -145,7 +158,7 @@ mod tests {
         let b = breakdown_table(&cells, &config);
         let third = NoiseKind::Box.levels()[2];
         assert!(b.lines().nth(3).expect("row").trim_end().ends_with(&format!("{third}%")), "{b}");
-        let c = csv(&cells);
+        let c = csv(&cells).expect("csv");
         assert_eq!(c.lines().count(), 1 + cells.len());
         assert!(c.lines().nth(1).expect("row").contains(",NaN,"), "{c}");
     }

@@ -1,7 +1,7 @@
 //! KITTI raw `tracklet_labels.xml` (boost-serialisation XML) turned into per-frame 3-D boxes.
 //!
-//! A small reader for the subset of XML this file uses (nested elements with text, attributes
-//! ignored, `<?xml …?>` and `<!DOCTYPE …>` skipped); errors give the file and line.
+//! The XML is parsed by `roxmltree` (attributes are ignored; the file's `<!DOCTYPE>` is allowed);
+//! errors give the file and line.
 
 use std::path::Path;
 
@@ -61,64 +61,66 @@ impl Element {
     }
 }
 
+/// Parse the document into the element tree below; the returned element is a nameless root whose one
+/// child is the document's root element.
 fn parse_xml(path: &Path, text: &str) -> Result<Element, DatasetError> {
-    let err = |line: usize, m: String| DatasetError::Parse { path: path.to_path_buf(), line, message: m };
-    // line numbers are tracked incrementally (the files have tens of thousands of tags)
-    let mut line = 1usize;
-    let mut counted = 0usize;
-    let mut line_of = |pos: usize| {
-        line += text.as_bytes()[counted..pos].iter().filter(|&&b| b == b'\n').count();
-        counted = pos;
-        line
-    };
-    let mut stack: Vec<Element> =
-        vec![Element { name: String::new(), line: 0, text: String::new(), children: Vec::new() }];
-    let mut pos = 0;
-    while let Some(off) = text[pos..].find('<') {
-        let start = pos + off;
-        if let Some(top) = stack.last_mut() {
-            top.text.push_str(text[pos..start].trim());
-        }
-        let Some(end_off) = text[start..].find('>') else {
-            return Err(err(line_of(start), "unterminated tag".into()));
-        };
-        let end = start + end_off;
-        let tag = &text[start + 1..end];
-        pos = end + 1;
-        if tag.starts_with('?') || tag.starts_with('!') {
-            continue;
-        }
-        if let Some(name) = tag.strip_prefix('/') {
-            let name = name.trim();
-            let Some(done) = stack.pop() else { return Err(err(line_of(start), "unbalanced close tag".into())) };
-            if done.name != name {
-                return Err(err(line_of(start), format!("</{name}> closes <{}>", done.name)));
-            }
-            match stack.last_mut() {
-                Some(parent) => parent.children.push(done),
-                None => return Err(err(line_of(start), "unbalanced close tag".into())),
-            }
-        } else {
-            let self_closing = tag.ends_with('/');
-            let name = tag.trim_end_matches('/').split_whitespace().next().unwrap_or_default().to_string();
-            if name.is_empty() {
-                return Err(err(line_of(start), "empty tag name".into()));
-            }
-            let el = Element { name, line: line_of(start), text: String::new(), children: Vec::new() };
-            if self_closing {
-                if let Some(parent) = stack.last_mut() {
-                    parent.children.push(el);
-                }
-            } else {
-                stack.push(el);
-            }
+    let options = roxmltree::ParsingOptions { allow_dtd: true, ..roxmltree::ParsingOptions::default() };
+    let doc = roxmltree::Document::parse_with_options(text, options).map_err(|e| DatasetError::Parse {
+        path: path.to_path_buf(),
+        line: e.pos().row as usize,
+        message: e.to_string(),
+    })?;
+    // elements are visited in document order, so line numbers are counted incrementally (the files
+    // have tens of thousands of tags; a count from the start for each would be quadratic)
+    let mut lines = LineCounter { text, line: 1, counted: 0 };
+    let root = convert(doc.root_element(), &mut lines, 0).map_err(|(line, message)| DatasetError::Parse {
+        path: path.to_path_buf(),
+        line,
+        message,
+    })?;
+    Ok(Element { name: String::new(), line: 0, text: String::new(), children: vec![root] })
+}
+
+/// Line numbers of increasing byte positions.
+struct LineCounter<'a> {
+    text: &'a str,
+    line: usize,
+    counted: usize,
+}
+
+impl LineCounter<'_> {
+    fn line_of(&mut self, pos: usize) -> usize {
+        let pos = pos.max(self.counted);
+        self.line += self.text.as_bytes()[self.counted..pos].iter().filter(|&&b| b == b'\n').count();
+        self.counted = pos;
+        self.line
+    }
+}
+
+/// Deepest element nesting accepted. A tracklet file nests six deep (document, tracklets, item,
+/// poses, item, value); the limit only keeps a hostile file from exhausting the stack.
+const MAX_DEPTH: usize = 64;
+
+/// An element and its descendants; its text is the trimmed text of its own text nodes, joined.
+/// Fails with (line, message) past [`MAX_DEPTH`].
+fn convert(
+    node: roxmltree::Node<'_, '_>,
+    lines: &mut LineCounter<'_>,
+    depth: usize,
+) -> Result<Element, (usize, String)> {
+    let line = lines.line_of(node.range().start);
+    if depth >= MAX_DEPTH {
+        return Err((line, format!("elements nest deeper than {MAX_DEPTH}")));
+    }
+    let mut el = Element { name: node.tag_name().name().to_string(), line, text: String::new(), children: Vec::new() };
+    for child in node.children() {
+        if child.is_element() {
+            el.children.push(convert(child, lines, depth + 1)?);
+        } else if let Some(t) = child.text().filter(|_| child.is_text()) {
+            el.text.push_str(t.trim());
         }
     }
-    if stack.len() != 1 {
-        let open = stack.last().map(|e| (e.line, e.name.clone())).unwrap_or_default();
-        return Err(err(open.0, format!("<{}> is never closed", open.1)));
-    }
-    stack.pop().ok_or_else(|| err(0, "empty document".into()))
+    Ok(el)
 }
 
 /// Read a tracklet file. Checks the declared counts against the items found.
