@@ -150,16 +150,28 @@ pub fn unused_frames(
 ) -> Option<String> {
     let (Some(&first), Some(&last)) = (played.first(), played.last()) else { return None };
     let (mut after, mut after_boxes, mut other, mut other_boxes) = (Vec::new(), 0, 0, 0);
+    let (mut before, mut before_boxes) = (Vec::new(), 0);
     for (f, n) in per_frame {
         if f > last {
             after.push(f);
             after_boxes += n;
+        } else if f < first {
+            before.push(f);
+            before_boxes += n;
         } else if played.binary_search(&f).is_err() {
             other += 1;
             other_boxes += n;
         }
     }
     let mut parts = Vec::new();
+    if !before.is_empty() {
+        before.sort_unstable();
+        parts.push(format!(
+            "{} frames ({before_boxes} boxes) lie before the first frame played, {first} (last: frame {}), not used",
+            before.len(),
+            before[before.len() - 1]
+        ));
+    }
     if !after.is_empty() {
         after.sort_unstable();
         parts.push(format!(
@@ -263,5 +275,11 @@ mod tests {
             unused_frames("f.json", [(0, 3), (7, 2), (9, 1), (2, 5)].into_iter(), &[0, 1, 3, 4, 5]).expect("reported");
         assert!(m.contains("2 frames (3 boxes) lie after the last frame played, 5 (first: frame 7)"), "{m}");
         assert!(m.contains("1 frames (5 boxes) within ids 0..=5 are not played"), "{m}");
+        // a run starting at frame 20 (`--frames 20..`): frames 0..=19 are before it, not "within" it
+        let m = unused_frames("l.txt", [(3, 2), (19, 1), (20, 4), (22, 1)].into_iter(), &[20, 21, 23])
+            .expect("reported");
+        assert!(m.contains("2 frames (3 boxes) lie before the first frame played, 20 (last: frame 19)"), "{m}");
+        assert!(m.contains("1 frames (1 boxes) within ids 20..=23 are not played"), "{m}");
+        assert!(!m.contains("after"), "{m}");
     }
 }
