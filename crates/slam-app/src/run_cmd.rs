@@ -19,7 +19,7 @@ use slam_eval::{trajectory::PoseFile, LabelGeometry};
 use slam_frontend::{read_image, StereoRig, StereoVo};
 use slam_pipeline::{
     eval::trajectory_errors,
-    report::{frame_period, median, median_fps, stage_table, tracking_csv},
+    report::{frame_period, median, median_fps, stage_table, state_counts, tracking_csv, STATE_NAMES},
     map::Map,
     objects::MappedObject,
     system::{self, FrameInput, RunOutput, SystemBuilder},
@@ -430,24 +430,6 @@ fn run_output_name(name: &str) -> bool {
     ) || name.ends_with(".tmp")
 }
 
-/// Every state a frame's row of `tracking.csv` can name, in the order of `track-bench`'s columns.
-const STATE_NAMES: [&str; 7] = ["initialised", "tracked", "weak", "relocalised", "predicted", "lost", "unreadable"];
-
-/// The state of a frame as `tracking.csv` names it ("unreadable": the images could not be read).
-fn state_name(r: &system::FrameRecord) -> &'static str {
-    r.state.map_or("unreadable", |s| s.name())
-}
-
-/// Frames in each state of [`STATE_NAMES`], counted from the records `tracking.csv` is written from.
-fn state_counts(frames: &[system::FrameRecord]) -> [usize; STATE_NAMES.len()] {
-    let mut counts = [0; STATE_NAMES.len()];
-    for r in frames {
-        if let Some(k) = STATE_NAMES.iter().position(|n| *n == state_name(r)) {
-            counts[k] += 1;
-        }
-    }
-    counts
-}
 
 pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     let cfg = settings(a)?;

@@ -1,7 +1,7 @@
 //! Summaries of a finished run for reports: frames per second, per-stage medians, the frame period of
 //! a sequence's timestamps, and the per-frame `tracking.csv`.
 
-use crate::system::{FrameTimes, RunOutput};
+use crate::system::{FrameRecord, FrameTimes, RunOutput};
 
 /// Frames per second from the median interval between consecutive frames (start-up and the first frame
 /// excluded).
@@ -71,7 +71,7 @@ pub fn tracking_csv(out: &RunOutput) -> Result<String, csv::Error> {
     let mut w = csv::Writer::from_writer(Vec::new());
     w.write_record(["frame", "state", "inliers", "tracked_map_points", "reprojection_rms_px", "time_ms"])?;
     for r in &out.frames {
-        let (state, inliers) = r.state.map_or(("unreadable", 0), |s| (s.name(), s.inliers()));
+        let (state, inliers) = (state_name(r), r.state.map_or(0, |s| s.inliers()));
         let rms =
             if r.reprojection_rms_px.is_finite() { format!("{:.3}", r.reprojection_rms_px) } else { String::new() };
         let ms = r.times.extraction + r.times.stereo + r.times.tracking;
@@ -86,6 +86,25 @@ pub fn tracking_csv(out: &RunOutput) -> Result<String, csv::Error> {
     }
     let bytes = w.into_inner().map_err(|e| e.into_error())?;
     Ok(String::from_utf8_lossy(&bytes).into_owned())
+}
+
+/// Every state a frame's row of `tracking.csv` can name, in the order of `track-bench`'s columns.
+pub const STATE_NAMES: [&str; 7] = ["initialised", "tracked", "weak", "relocalised", "predicted", "lost", "unreadable"];
+
+/// The state of a frame as `tracking.csv` names it ("unreadable": the images could not be read).
+pub fn state_name(r: &FrameRecord) -> &'static str {
+    r.state.map_or("unreadable", |s| s.name())
+}
+
+/// Frames in each state of [`STATE_NAMES`], counted from the records `tracking.csv` is written from.
+pub fn state_counts(frames: &[FrameRecord]) -> [usize; STATE_NAMES.len()] {
+    let mut counts = [0; STATE_NAMES.len()];
+    for r in frames {
+        if let Some(k) = STATE_NAMES.iter().position(|n| *n == state_name(r)) {
+            counts[k] += 1;
+        }
+    }
+    counts
 }
 
 #[cfg(test)]
