@@ -1,14 +1,11 @@
-//! `slam-app assoc …`: association accuracy studies.
+//! `slam-app assoc …`: association accuracy studies (`slam_assoc::study`).
 
 use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
-use slam_assoc::{
-    eval::SimConfig,
-    study::{id_switches_on_labels, simulated_totals, BoxNoise, LabelledFrames},
-    IouAssociator, Oda,
+use slam_assoc::study::{
+    compared_associators, label_study, labelled_frames, sim_variants, simulated_totals, CONDITIONS,
 };
-use slam_core::{Associator, Detection};
 use slam_dataset::kitti::tracking::read_tracking_labels;
 
 #[derive(Subcommand, Debug)]
@@ -49,50 +46,24 @@ pub fn run(cmd: AssocCommand) -> anyhow::Result<()> {
     }
 }
 
-/// Builds a fresh associator.
-type Make = fn() -> Box<dyn Associator>;
-
-fn associators() -> [(&'static str, Make); 2] {
-    [("ODA", || Box::new(Oda::default())), ("IoU", || Box::new(IouAssociator::default()))]
-}
-
 fn sim(a: &SimArgs) -> anyhow::Result<()> {
     crate::validate::count("--scenes", a.scenes as usize, 1, 100_000)?;
     crate::validate::count("--frames", a.frames, 1, 1_000_000)?;
-    let variants = [
-        ("masks, 5-12 px/frame", SimConfig { frames: a.frames, ..SimConfig::default() }),
-        ("boxes only", SimConfig { frames: a.frames, masks: false, ..SimConfig::default() }),
-        ("slow, 2-7 px/frame", SimConfig { frames: a.frames, speed: (2.0, 7.0), ..SimConfig::default() }),
-        ("no dropout, no clutter", SimConfig { frames: a.frames, dropout: 0.0, clutter: 0.0, ..SimConfig::default() }),
-    ];
     println!("Simulated association, {} scenes x {} frames, 8 objects of one class in two lanes", a.scenes, a.frames);
     println!("{:<24} {:>10} {:>8} {:>10} {:>8}", "scene", "ODA IDSW", "ODA MOTA", "IoU IDSW", "IoU MOTA");
-    for (name, cfg) in variants {
-        let [oda, iou] = associators().map(|(_, make)| simulated_totals(&cfg, a.scenes, make));
-        println!(
-            "{:<24} {:>10} {:>8.4} {:>10} {:>8.4}",
-            name,
-            oda.id_switches,
-            oda.mota(),
-            iou.id_switches,
-            iou.mota()
-        );
+    for (name, cfg) in sim_variants(a.frames) {
+        let [oda, iou] = compared_associators().map(|(_, make)| simulated_totals(&cfg, a.scenes, make));
+        println!("{name:<24} {:>10} {:>8.4} {:>10} {:>8.4}", oda.id_switches, oda.mota(), iou.id_switches, iou.mota());
     }
     Ok(())
 }
 
-/// Noise settings of one KITTI condition.
-struct Condition {
-    name: &'static str,
-    noise_frac: f64,
-    dropout: f64,
+/// The `ODA / IoU` cells of one table row.
+fn cells(row: &mut String, pairs: impl Iterator<Item = [usize; 2]>) {
+    for [oda, iou] in pairs {
+        row.push_str(&format!(" | {:>20}", format!("{oda} / {iou}")));
+    }
 }
-
-const CONDITIONS: [Condition; 3] = [
-    Condition { name: "clean", noise_frac: 0.0, dropout: 0.0 },
-    Condition { name: "noise 5%", noise_frac: 0.05, dropout: 0.0 },
-    Condition { name: "noise 5% + drop 20%", noise_frac: 0.05, dropout: 0.2 },
-];
 
 fn kitti(a: &KittiArgs) -> anyhow::Result<()> {
     if let Some(p) = &a.csv {
@@ -115,41 +86,22 @@ fn kitti(a: &KittiArgs) -> anyhow::Result<()> {
     for seq in &seqs {
         let name = seq.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let labels = read_tracking_labels(seq.join("label_02.txt"))?;
-        let mut frames = LabelledFrames::new();
-        let n_frames = labels.iter().map(|l| l.frame + 1).max().unwrap_or(0);
-        let mut objects = std::collections::BTreeSet::new();
-        for l in &labels {
-            if let (Some(class), true) = (l.class, l.track_id >= 0) {
-                frames.entry(l.frame).or_default().push((l.track_id as u64, Detection::new(class, 1.0, l.bbox)));
-                objects.insert(l.track_id);
+        let (frames, n_frames, objects) =
+            labelled_frames(labels.iter().map(|l| (l.frame, l.track_id, l.class, l.bbox)));
+        let runs = label_study(&frames, n_frames, a.seed);
+        for ((cond, pair), total) in CONDITIONS.iter().zip(&runs).zip(&mut totals) {
+            for ((aname, _), (r, t)) in compared_associators().iter().zip(pair.iter().zip(total.iter_mut())) {
+                *t += r.id_switches;
+                let (o, d, s) = (objects.to_string(), r.detections.to_string(), r.id_switches.to_string());
+                csv.write_record([name.as_str(), &o, &d, cond.name, aname, &s])?;
             }
         }
-        let mut row = format!("{:<6} {:>7}", name, objects.len());
-        for (ci, cond) in CONDITIONS.iter().enumerate() {
-            let mut cells = Vec::new();
-            for (k, (aname, make)) in associators().iter().enumerate() {
-                let noise = BoxNoise { noise_frac: cond.noise_frac, dropout: cond.dropout };
-                let seed = a.seed.wrapping_mul(1000).wrapping_add(ci as u64);
-                let r = id_switches_on_labels(&frames, n_frames, noise, seed, make());
-                totals[ci][k] += r.id_switches;
-                cells.push(r.id_switches);
-                csv.write_record([
-                    name.clone(),
-                    objects.len().to_string(),
-                    r.detections.to_string(),
-                    cond.name.to_string(),
-                    aname.to_string(),
-                    r.id_switches.to_string(),
-                ])?;
-            }
-            row.push_str(&format!(" | {:>20}", format!("{} / {}", cells[0], cells[1])));
-        }
+        let mut row = format!("{:<6} {:>7}", name, objects);
+        cells(&mut row, runs.iter().map(|p| p.map(|r| r.id_switches)));
         println!("{row}");
     }
     let mut row = format!("{:<6} {:>7}", "total", "");
-    for t in &totals {
-        row.push_str(&format!(" | {:>20}", format!("{} / {}", t[0], t[1])));
-    }
+    cells(&mut row, totals.iter().copied());
     println!("{row}");
     if let Some(path) = &a.csv {
         crate::output::write_file(path, &csv.into_inner().map_err(|e| e.into_error())?)?;

@@ -1,15 +1,36 @@
-//! The association studies of `slam-app assoc`: totals over simulated scenes ([`simulated_totals`]), and
-//! ID switches on labelled boxes played as detections, with box noise and dropout
-//! ([`id_switches_on_labels`]).
+//! The association studies of `slam-app assoc`: totals over simulated scenes ([`simulated_totals`],
+//! the scene variants of [`sim_variants`]), and ID switches on labelled boxes played as detections, with
+//! box noise and dropout ([`id_switches_on_labels`]), under the study's [`CONDITIONS`]
+//! ([`label_study`]). The two associators compared are [`compared_associators`].
 
 use std::collections::BTreeMap;
 
 use slam_core::{geometry::BBox, Associator, Detection};
 
 use crate::{
-    eval::{run, simulate, IdSwitchCounter, MotCounts, SimRng, SimConfig},
-    ObjectTracker, TrackerConfig, TrackerInput,
+    eval::{run, simulate, IdSwitchCounter, MotCounts, SimConfig, SimRng},
+    IouAssociator, ObjectTracker, Oda, TrackerConfig, TrackerInput,
 };
+
+/// Builds a fresh associator.
+pub type MakeAssociator = fn() -> Box<dyn Associator>;
+
+/// The associators the studies compare, with their column names: ODA (the paper's) and IoU-only (the
+/// baseline), each with its default settings.
+pub fn compared_associators() -> [(&'static str, MakeAssociator); 2] {
+    [("ODA", || Box::new(Oda::default())), ("IoU", || Box::new(IouAssociator::default()))]
+}
+
+/// The simulated scene variants of the study, each `frames` long: the default scene (masks, 5-12
+/// px/frame), boxes without masks, slower objects, and a scene without dropout and clutter.
+pub fn sim_variants(frames: usize) -> [(&'static str, SimConfig); 4] {
+    [
+        ("masks, 5-12 px/frame", SimConfig { frames, ..SimConfig::default() }),
+        ("boxes only", SimConfig { frames, masks: false, ..SimConfig::default() }),
+        ("slow, 2-7 px/frame", SimConfig { frames, speed: (2.0, 7.0), ..SimConfig::default() }),
+        ("no dropout, no clutter", SimConfig { frames, dropout: 0.0, clutter: 0.0, ..SimConfig::default() }),
+    ]
+}
 
 /// CLEAR-MOT counts summed over the simulated scenes of seeds `0..scenes`, each tracked by a fresh
 /// tracker around `make()`.
@@ -89,6 +110,55 @@ pub fn id_switches_on_labels(
     LabelRun { id_switches: ids.switches, detections: n_det }
 }
 
+/// One perturbation of the labelled-boxes study.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Condition {
+    /// Column name.
+    pub name: &'static str,
+    /// The perturbation.
+    pub noise: BoxNoise,
+}
+
+/// The conditions of the labelled-boxes study: clean boxes, 5 % box noise, and 5 % noise with 20 %
+/// of the boxes dropped.
+pub const CONDITIONS: [Condition; 3] = [
+    Condition { name: "clean", noise: BoxNoise { noise_frac: 0.0, dropout: 0.0 } },
+    Condition { name: "noise 5%", noise: BoxNoise { noise_frac: 0.05, dropout: 0.0 } },
+    Condition { name: "noise 5% + drop 20%", noise: BoxNoise { noise_frac: 0.05, dropout: 0.2 } },
+];
+
+/// Labelled boxes grouped by frame from `(frame, track id, class, box)` rows; rows without a class or
+/// with a negative track id (KITTI's DontCare) are left out. Returns the frames, the frame count
+/// (one past the last labelled frame) and the number of distinct objects.
+pub fn labelled_frames(
+    rows: impl IntoIterator<Item = (usize, i64, Option<slam_core::ClassId>, BBox)>,
+) -> (LabelledFrames, usize, usize) {
+    let mut frames = LabelledFrames::new();
+    let (mut n_frames, mut objects) = (0, std::collections::BTreeSet::new());
+    for (frame, track, class, bbox) in rows {
+        n_frames = n_frames.max(frame + 1);
+        if let (Some(class), true) = (class, track >= 0) {
+            frames.entry(frame).or_default().push((track as u64, Detection::new(class, 1.0, bbox)));
+            objects.insert(track);
+        }
+    }
+    (frames, n_frames, objects.len())
+}
+
+/// One sequence of labelled boxes under every [`CONDITIONS`] entry and with every
+/// [`compared_associators`] entry: `[condition][associator]`. Condition `i` draws its noise from seed
+/// `seed * 1000 + i`, the same stream for both associators.
+pub fn label_study(frames: &LabelledFrames, n_frames: usize, seed: u64) -> Vec<[LabelRun; 2]> {
+    CONDITIONS
+        .iter()
+        .enumerate()
+        .map(|(ci, cond)| {
+            let seed = seed.wrapping_mul(1000).wrapping_add(ci as u64);
+            compared_associators().map(|(_, make)| id_switches_on_labels(frames, n_frames, cond.noise, seed, make()))
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -135,5 +205,30 @@ mod tests {
         assert_eq!(two.ground_truth, one.ground_truth + second.ground_truth);
         assert_eq!(two.id_switches, one.id_switches + second.id_switches);
         assert!(one.ground_truth > 0);
+    }
+
+    #[test]
+    fn labelled_frames_drop_unclassed_and_dontcare_rows_and_count_objects() {
+        let b = BBox::new(10.0, 10.0, 50.0, 40.0);
+        let rows =
+            [(0, 1, Some(ClassId(2)), b), (0, -1, Some(ClassId(2)), b), (3, 2, None, b), (4, 1, Some(ClassId(2)), b)];
+        let (frames, n_frames, objects) = labelled_frames(rows);
+        assert_eq!(n_frames, 5, "the last frame counts even when its row is dropped");
+        assert_eq!(objects, 1);
+        assert_eq!(frames.keys().copied().collect::<Vec<_>>(), [0, 4]);
+        assert_eq!(frames[&0].len(), 1);
+    }
+
+    #[test]
+    fn the_label_study_runs_every_condition_with_both_associators_on_their_own_seeds() {
+        let frames = two_cars(30);
+        let runs = label_study(&frames, 30, 7);
+        assert_eq!(runs.len(), CONDITIONS.len());
+        // clean boxes: every box played, no switch, for both associators
+        assert_eq!(runs[0], [LabelRun { id_switches: 0, detections: 60 }; 2]);
+        // the dropout condition draws from seed 7 * 1000 + 2, the same for both associators
+        let direct = id_switches_on_labels(&frames, 30, CONDITIONS[2].noise, 7002, Box::new(IouAssociator::default()));
+        assert_eq!(runs[2][1], direct);
+        assert!(runs[2][0].detections < 60 && runs[2][0].detections == direct.detections);
     }
 }

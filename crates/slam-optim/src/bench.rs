@@ -1,8 +1,356 @@
-//! Helpers for benchmark commands (`slam-app optim-bench`): process CPU time and peak memory from
-//! Linux's `/proc`, and the generated bundle adjustment used to compare the dense and sparse paths of
-//! the reduced system. Nothing here is used by the solvers.
+//! The optimiser benchmark behind `slam-app optim-bench`: the anchor problems of
+//! `fixtures/optim/ANCHORS.md` with their reference figures ([`ANCHORS`], [`run_anchor`], the table
+//! rows), the generated bundle adjustment that compares the dense and sparse paths of the reduced
+//! system ([`generated_solve`], one machine-readable line per solve, [`GeneratedRun`]), and process CPU
+//! time and peak memory from Linux's `/proc`. Nothing here is used by the solvers.
 
-use crate::{conformance, Graph, Values};
+use std::{path::Path, time::Duration};
+
+use crate::{
+    conformance,
+    io::{read_bal, read_g2o, Problem, ProblemError},
+    Graph, OptimError, Optimizer, Options, Summary, Values,
+};
+
+/// Errors of the benchmark: a problem file that cannot be loaded, a solve that fails, or a result line
+/// of a child process that cannot be read.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    /// An anchor problem's file.
+    #[error("loading {file}")]
+    Load {
+        /// The file name inside the data folder.
+        file: String,
+        /// Why.
+        #[source]
+        source: ProblemError,
+    },
+    /// The optimiser refused the problem.
+    #[error("solving {name}")]
+    Solve {
+        /// The problem's name.
+        name: String,
+        /// Why.
+        #[source]
+        source: OptimError,
+    },
+    /// A [`GeneratedRun`] line without one of its fields.
+    #[error("field {field} missing in {line:?}")]
+    Field {
+        /// The missing field.
+        field: &'static str,
+        /// The line read.
+        line: String,
+    },
+}
+
+/// One anchor problem and the reference figures measured with Ceres 2.1.0 / GTSAM 4.3.0 on this
+/// machine (fixtures/optim/ANCHORS.md).
+#[derive(Debug, Clone, Copy)]
+pub struct Anchor {
+    /// Row name.
+    pub name: &'static str,
+    /// File in the data folder (`.g2o`: a pose graph; else a BAL problem).
+    pub file: &'static str,
+    /// Huber threshold of the BAL reprojection errors (`None`: squared loss).
+    pub huber: Option<f64>,
+    /// Lowest cost known for the problem.
+    pub best_known: f64,
+    /// The reference solver's final cost.
+    pub reference_cost: f64,
+    /// The reference solver.
+    pub reference: &'static str,
+    /// The reference solver's single-thread median time, seconds.
+    pub reference_seconds: f64,
+}
+
+/// The anchor problems, in table order.
+pub const ANCHORS: [Anchor; 6] = [
+    Anchor {
+        name: "problem-49 L2",
+        file: "problem-49-7776-pre.txt",
+        huber: None,
+        best_known: 1.334424e4,
+        reference_cost: 1.334432e4,
+        reference: "Ceres 1T",
+        reference_seconds: 1.95,
+    },
+    Anchor {
+        name: "problem-49 Huber",
+        file: "problem-49-7776-pre.txt",
+        huber: Some(1.0),
+        best_known: 7.647950e3,
+        reference_cost: 7.648723e3,
+        reference: "Ceres 1T",
+        reference_seconds: 2.41,
+    },
+    Anchor {
+        name: "problem-16 L2",
+        file: "problem-16-22106-pre.txt",
+        huber: None,
+        best_known: 1.803390e4,
+        reference_cost: 1.803390e4,
+        reference: "Ceres 1T",
+        reference_seconds: 0.71,
+    },
+    Anchor {
+        name: "problem-16 Huber",
+        file: "problem-16-22106-pre.txt",
+        huber: Some(1.0),
+        best_known: 1.233667e4,
+        reference_cost: 1.233701e4,
+        reference: "Ceres 1T",
+        reference_seconds: 5.66,
+    },
+    Anchor {
+        name: "sphere2500",
+        file: "sphere2500.g2o",
+        huber: None,
+        best_known: 6.757010e2,
+        reference_cost: 6.757010e2,
+        reference: "GTSAM",
+        reference_seconds: 0.30,
+    },
+    Anchor {
+        name: "parking-garage",
+        file: "parking-garage.g2o",
+        huber: None,
+        best_known: 6.341924e-1,
+        reference_cost: 6.341924e-1,
+        reference: "GTSAM",
+        reference_seconds: 0.25,
+    },
+];
+
+/// The anchors whose name contains `only` (all when `None`).
+pub fn anchors_matching(only: Option<&str>) -> Vec<Anchor> {
+    ANCHORS.iter().filter(|a| only.is_none_or(|o| a.name.contains(o))).copied().collect()
+}
+
+impl Anchor {
+    /// The problem and its options: a pose graph with its first vertex fixed and
+    /// [`Options::pose_graph`], or a BAL problem with its points eliminated and the default options.
+    pub fn load(&self, dir: &Path) -> Result<(Problem, Options), BenchError> {
+        let path = dir.join(self.file);
+        let err = |source| BenchError::Load { file: self.file.to_string(), source };
+        Ok(if self.file.ends_with(".g2o") {
+            let mut p = read_g2o(&path).map_err(err)?;
+            if let Some(&k) = p.cameras.first() {
+                p.graph.fix(k);
+            }
+            (p, Options::pose_graph())
+        } else {
+            let mut p = read_bal(&path, self.huber).map_err(err)?;
+            for &k in &p.points {
+                p.graph.eliminate(k);
+            }
+            (p, Options::default())
+        })
+    }
+
+    /// The table row of a run (columns of [`anchor_table_header`]).
+    pub fn row(&self, run: &AnchorRun) -> String {
+        let s = &run.summary;
+        let vs_best = (s.final_cost - self.best_known) / self.best_known;
+        let median = run.median_wall.as_secs_f64();
+        format!(
+            "{:<18} {:>13.6e} {:>13.6e} {:>13.6e} {:>+8.4}% {:>5} {:>9.3} {:>9} {:>4.2}s {:>6.2}x {:>13.6e} {:>7.2}",
+            self.name,
+            s.initial_cost,
+            s.final_cost,
+            self.best_known,
+            100.0 * vs_best,
+            s.iterations,
+            median,
+            self.reference,
+            self.reference_seconds,
+            median / self.reference_seconds,
+            self.reference_cost,
+            run.median_cpu
+        )
+    }
+}
+
+/// The header of the anchor table.
+pub fn anchor_table_header() -> String {
+    format!(
+        "{:<18} {:>13} {:>13} {:>13} {:>9} {:>5} {:>9} {:>14} {:>7} {:>13} {:>7}",
+        "problem",
+        "initial",
+        "final",
+        "best known",
+        "vs best",
+        "iters",
+        "time s",
+        "reference",
+        "ratio",
+        "ref. cost",
+        "cpu s"
+    )
+}
+
+/// `reps` solves of one anchor problem (each from a fresh load): the last summary and the median wall
+/// and CPU times.
+#[derive(Debug, Clone)]
+pub struct AnchorRun {
+    /// The last solve's summary.
+    pub summary: Summary,
+    /// Median wall time of the solves.
+    pub median_wall: Duration,
+    /// Median process CPU time of the solves, seconds.
+    pub median_cpu: f64,
+}
+
+/// Solve `anchor` `reps` times (at least once) with `optimizer`.
+pub fn run_anchor(
+    optimizer: &dyn Optimizer,
+    dir: &Path,
+    anchor: &Anchor,
+    reps: usize,
+) -> Result<AnchorRun, BenchError> {
+    let (mut wall, mut cpu, mut last) = (Vec::new(), Vec::new(), None);
+    for _ in 0..reps.max(1) {
+        let (mut p, options) = anchor.load(dir)?;
+        let c0 = cpu_seconds();
+        let s = optimizer
+            .optimize(&p.graph, &mut p.values, &options, None)
+            .map_err(|source| BenchError::Solve { name: anchor.name.to_string(), source })?;
+        cpu.push(cpu_seconds() - c0);
+        wall.push(s.elapsed);
+        last = Some(s);
+    }
+    wall.sort();
+    cpu.sort_by(f64::total_cmp);
+    let summary = last.expect("at least one solve ran");
+    Ok(AnchorRun { summary, median_wall: wall[wall.len() / 2], median_cpu: cpu[cpu.len() / 2] })
+}
+
+fn cpu_seconds() -> f64 {
+    process_cpu_seconds().unwrap_or(0.0)
+}
+
+/// Points per camera of the generated bundle adjustment of `optim-bench --generated`.
+pub const GENERATED_POINTS_PER_CAMERA: usize = 6;
+/// Seed of the generated bundle adjustment of `optim-bench --generated`.
+pub const GENERATED_SEED: u64 = 11;
+
+/// One solve of the generated bundle adjustment, as a child process prints it ([`GeneratedRun::line`])
+/// and its parent reads it back ([`GeneratedRun::parse`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GeneratedRun {
+    /// Whether the sparse path solved the reduced system.
+    pub sparse: bool,
+    /// Unknowns of the reduced system.
+    pub reduced: usize,
+    /// Iterations run.
+    pub iterations: usize,
+    /// Cost at the start.
+    pub initial: f64,
+    /// Cost at the end.
+    pub final_cost: f64,
+    /// Wall time of the solve, seconds.
+    pub seconds: f64,
+    /// Process CPU time of the solve, seconds.
+    pub cpu: f64,
+    /// Resident memory before the solve, KiB.
+    pub rss_before_kib: u64,
+    /// Peak resident memory of the process, KiB.
+    pub peak_kib: u64,
+}
+
+/// Build the generated bundle adjustment with `n` cameras and solve it in this process with `iterations`
+/// iterations on the dense (`dense`) or the sparse path, whatever its size.
+pub fn generated_solve(
+    optimizer: &dyn Optimizer,
+    n: usize,
+    iterations: usize,
+    dense: bool,
+) -> Result<GeneratedRun, BenchError> {
+    let (mut values, graph) = generated_ba(n, GENERATED_POINTS_PER_CAMERA, GENERATED_SEED);
+    let mut options = Options::with_max_iterations(iterations);
+    options.dense_limit = if dense { usize::MAX } else { 0 };
+    let rss_before_kib = status_kib("VmRSS").unwrap_or(0);
+    let c0 = cpu_seconds();
+    let s = optimizer
+        .optimize(&graph, &mut values, &options, None)
+        .map_err(|source| BenchError::Solve { name: "the generated BA".to_string(), source })?;
+    let cpu = cpu_seconds() - c0;
+    Ok(GeneratedRun {
+        sparse: s.sparse,
+        reduced: s.reduced_dim,
+        iterations: s.iterations,
+        initial: s.initial_cost,
+        final_cost: s.final_cost,
+        seconds: s.elapsed.as_secs_f64(),
+        cpu,
+        rss_before_kib,
+        peak_kib: status_kib("VmHWM").unwrap_or(0),
+    })
+}
+
+impl GeneratedRun {
+    /// The machine-readable line, starting `GENERATED `.
+    pub fn line(&self) -> String {
+        format!(
+            "GENERATED sparse={} reduced={} iterations={} initial={:e} final={:e} seconds={:.3} cpu={:.2} rss_before_kib={} peak_kib={}",
+            self.sparse,
+            self.reduced,
+            self.iterations,
+            self.initial,
+            self.final_cost,
+            self.seconds,
+            self.cpu,
+            self.rss_before_kib,
+            self.peak_kib
+        )
+    }
+
+    /// Read a [`GeneratedRun::line`] back.
+    pub fn parse(line: &str) -> Result<Self, BenchError> {
+        fn field<T: std::str::FromStr>(line: &str, name: &'static str) -> Result<T, BenchError> {
+            line.split_whitespace()
+                .find_map(|kv| kv.strip_prefix(name)?.strip_prefix('='))
+                .and_then(|v| v.parse().ok())
+                .ok_or(BenchError::Field { field: name, line: line.to_string() })
+        }
+        Ok(Self {
+            sparse: field(line, "sparse")?,
+            reduced: field(line, "reduced")?,
+            iterations: field(line, "iterations")?,
+            initial: field(line, "initial")?,
+            final_cost: field(line, "final")?,
+            seconds: field(line, "seconds")?,
+            cpu: field(line, "cpu")?,
+            rss_before_kib: field(line, "rss_before_kib")?,
+            peak_kib: field(line, "peak_kib")?,
+        })
+    }
+
+    /// The table row of this solve under `path` (`sparse` or `dense`; columns of
+    /// [`generated_table_header`]).
+    pub fn row(&self, path: &str) -> String {
+        format!(
+            "{:<7} {:>8} {:>6} {:>13.6e} {:>13.6e} {:>9.3} {:>8.2} {:>12.1} {:>12.1}",
+            path,
+            self.reduced,
+            self.iterations,
+            self.initial,
+            self.final_cost,
+            self.seconds,
+            self.cpu,
+            self.peak_kib as f64 / 1024.0,
+            (self.peak_kib as f64 - self.rss_before_kib as f64) / 1024.0
+        )
+    }
+}
+
+/// The header of the generated-problem table.
+pub fn generated_table_header() -> String {
+    format!(
+        "{:<7} {:>8} {:>6} {:>13} {:>13} {:>9} {:>8} {:>12} {:>12}",
+        "path", "unknowns", "iters", "initial", "final", "time s", "cpu s", "peak MiB", "solver MiB"
+    )
+}
 
 /// CPU time (user + system) this process has used, in seconds, from `/proc/self/stat` (clock ticks
 /// of 10 ms); `None` where `/proc` is not available. Steadier than wall time on a loaded machine.
@@ -51,6 +399,36 @@ mod tests {
         let peak = status_kib("VmHWM").expect("VmHWM");
         assert!(peak >= now && now > 0, "peak {peak} KiB, now {now} KiB");
         assert_eq!(status_kib("NoSuchField"), None);
+    }
+
+    #[test]
+    fn generated_run_lines_read_back_and_name_a_missing_field() {
+        let r = GeneratedRun {
+            sparse: true,
+            reduced: 12,
+            iterations: 3,
+            initial: 1.5e3,
+            final_cost: 2.25,
+            seconds: 0.125,
+            cpu: 0.5,
+            rss_before_kib: 1024,
+            peak_kib: 3072,
+        };
+        let back = GeneratedRun::parse(&r.line()).expect("parses");
+        assert_eq!(back, r);
+        assert!(r.row("sparse").ends_with("3.0          2.0"), "{}", r.row("sparse"));
+        let e = GeneratedRun::parse("GENERATED sparse=true reduced=12").expect_err("fields missing");
+        assert!(e.to_string().contains("field iterations missing"), "{e}");
+    }
+
+    #[test]
+    fn anchors_filter_by_name_and_a_missing_file_names_it() {
+        assert_eq!(anchors_matching(None).len(), ANCHORS.len());
+        let bal: Vec<_> = anchors_matching(Some("problem-16")).iter().map(|a| a.name).collect();
+        assert_eq!(bal, ["problem-16 L2", "problem-16 Huber"]);
+        assert!(anchors_matching(Some("no such")).is_empty());
+        let Err(e) = ANCHORS[0].load(Path::new("/nonexistent")) else { panic!("loaded a missing file") };
+        assert!(e.to_string().contains("problem-49-7776-pre.txt"), "{e}");
     }
 
     #[test]
