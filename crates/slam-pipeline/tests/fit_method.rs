@@ -7,26 +7,20 @@ use std::sync::{
     Arc, Mutex,
 };
 
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+mod common;
+
+use common::{IMAGE, K};
+use nalgebra::Isometry3;
 use slam_assoc::Oda;
 use slam_core::{ClassId, Detection};
 use slam_pipeline::objects::{FitMethod, MapperConfig, ObjectMapper};
 use slam_quadric::{
     init::{BoxView, Dqp, InitError, Initializer},
-    metrics, project, Camera, Ellipsoid, ImageSize, Intrinsics,
+    metrics, project, Camera, Ellipsoid,
 };
 
-const K: Intrinsics = Intrinsics { fx: 721.5377, fy: 721.5377, skew: 0.0, cx: 609.5593, cy: 172.854 };
-const IMAGE: ImageSize = ImageSize::new(1242.0, 375.0);
-
 fn parked() -> Ellipsoid {
-    Ellipsoid::new(
-        Isometry3::from_parts(
-            Translation3::new(5.0, 0.9, 30.0),
-            UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -std::f64::consts::FRAC_PI_2 + 0.05),
-        ),
-        Vector3::new(2.0, 0.78, 0.85),
-    )
+    common::car(5.0, 30.0, 0.05)
 }
 
 /// DQP, counting its calls and keeping its latest answer; or, with `fail`, refusing every time.
@@ -59,8 +53,9 @@ impl Initializer for Recording {
 
 /// The parked car seen over 22 frames (1 m per frame, exact boxes); the ellipsoids mapped.
 fn map_with(method: FitMethod) -> Vec<Ellipsoid> {
-    let optimizer: slam_optim::SharedOptimizer = Arc::new(slam_lm::LevenbergMarquardt::default());
-    let mut mapper = ObjectMapper::new(Box::new(Oda::default()), MapperConfig::default(), optimizer).with_method(method);
+    let optimizer = common::lm();
+    let mut mapper =
+        ObjectMapper::new(Box::new(Oda::default()), MapperConfig::default(), optimizer).with_method(method);
     for f in 0..22 {
         let cam = Camera::new(K, Isometry3::translation(0.0, 0.0, f as f64));
         let dets: Vec<Detection> = project(&parked(), &cam)

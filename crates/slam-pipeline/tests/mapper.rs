@@ -1,23 +1,17 @@
 //! The object mapper on a synthetic drive: a parked car gets an accurate ellipsoid, a car driving
 //! alongside is flagged dynamic or gets none, and the object map JSON is written.
 
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+mod common;
+
+use common::{lm, IMAGE, K};
+use nalgebra::Isometry3;
 use slam_assoc::Oda;
 use slam_core::{ClassId, Detection};
 use slam_pipeline::objects::{write_object_map, MapperConfig, ObjectMapper};
-use slam_quadric::{metrics, project, Camera, Ellipsoid, ImageSize, Intrinsics};
-
-const K: Intrinsics = Intrinsics { fx: 721.5377, fy: 721.5377, skew: 0.0, cx: 609.5593, cy: 172.854 };
-const IMAGE: ImageSize = ImageSize::new(1242.0, 375.0);
+use slam_quadric::{metrics, project, Camera, Ellipsoid};
 
 fn car(x: f64, z: f64) -> Ellipsoid {
-    Ellipsoid::new(
-        Isometry3::from_parts(
-            Translation3::new(x, 0.9, z),
-            UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -std::f64::consts::FRAC_PI_2 + 0.05),
-        ),
-        Vector3::new(2.0, 0.78, 0.85),
-    )
+    common::car(x, z, 0.05)
 }
 
 #[test]
@@ -73,11 +67,6 @@ fn a_slower_car_ahead_is_flagged_by_its_size() {
     assert_eq!(with, vec![true], "flagged dynamic by its size");
 }
 
-/// The optimiser of these tests (the project's Levenberg–Marquardt).
-fn lm() -> slam_optim::SharedOptimizer {
-    std::sync::Arc::new(slam_lm::LevenbergMarquardt::default())
-}
-
 /// A parked car boxed in three frames, fitted, then never detected again while it stays in full view
 /// (the camera slides sideways past it; another car is detected in every frame): its ellipsoid is
 /// removed after `max_misses` frames; the car that keeps being detected keeps its ellipsoid. With the
@@ -85,7 +74,8 @@ fn lm() -> slam_optim::SharedOptimizer {
 #[test]
 fn a_car_missing_where_it_should_be_visible_is_removed() {
     let run = |max_misses: Option<usize>| {
-        let mut mapper = ObjectMapper::new(Box::new(Oda::default()), MapperConfig { max_misses, ..MapperConfig::default() }, lm());
+        let mut mapper =
+            ObjectMapper::new(Box::new(Oda::default()), MapperConfig { max_misses, ..MapperConfig::default() }, lm());
         let phantom = car(0.0, 15.0);
         let kept = car(4.5, 17.0);
         let mut fitted_early = false;

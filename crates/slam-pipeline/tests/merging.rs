@@ -1,28 +1,19 @@
 //! Object merging in the mapper: one parked car boxed twice in every frame (two tracks of one object)
 //! ends as one ellipsoid; two parked cars a car length apart stay two.
 
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+mod common;
+
+use common::{lm, IMAGE, K};
+use nalgebra::Isometry3;
 use slam_assoc::Oda;
 use slam_core::{geometry::BBox, ClassId, Detection};
 use slam_pipeline::objects::{MapperConfig, ObjectMapper};
-use slam_quadric::{metrics, project, Camera, Ellipsoid, ImageSize, Intrinsics};
+use slam_quadric::{metrics, project, Camera, Ellipsoid};
 
-const K: Intrinsics = Intrinsics { fx: 721.5377, fy: 721.5377, skew: 0.0, cx: 609.5593, cy: 172.854 };
-const IMAGE: ImageSize = ImageSize::new(1242.0, 375.0);
 const FRAMES: usize = 24;
 
 fn car(x: f64, z: f64) -> Ellipsoid {
-    Ellipsoid::new(
-        Isometry3::from_parts(
-            Translation3::new(x, 0.9, z),
-            UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -std::f64::consts::FRAC_PI_2 + 0.05),
-        ),
-        Vector3::new(2.0, 0.78, 0.85),
-    )
-}
-
-fn lm() -> slam_optim::SharedOptimizer {
-    std::sync::Arc::new(slam_lm::LevenbergMarquardt::default())
+    common::car(x, z, 0.05)
 }
 
 /// Drive 1 m per frame past `cars`; `boxes` turns each car's exact box into the frame's detections.
