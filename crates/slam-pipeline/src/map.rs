@@ -697,91 +697,124 @@ mod tests {
         std::fs::remove_dir_all(&dir).ok();
     }
 
-    /// Bad-input suite, map files: each corruption is refused on load with the file and the field named.
-    #[test]
-    fn load_refuses_inconsistent_maps_naming_file_and_field() {
-        let dir = std::env::temp_dir().join(format!("map-invalid-{}", std::process::id()));
+    /// A corruption of a consistent map: its name (the file's), the change, the field the error must
+    /// name and a phrase the message must hold.
+    type Corruption = (&'static str, fn(&mut Map), &'static str, &'static str);
+
+    /// The sample map with one object (id 3, car, texture point 7), consistent.
+    fn sample_with_object() -> Map {
+        let mut m = sample();
+        m.objects.push(MapObject {
+            id: 3,
+            class: 2,
+            class_name: "car".into(),
+            center: [1.0, 0.0, 9.0],
+            semi_axes: [2.0, 0.8, 1.0],
+            rotation: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            frames: vec![0, 1],
+            dynamic: false,
+            moving: false,
+            points: vec![7],
+        });
+        m.check().expect("the sample is consistent");
+        m
+    }
+
+    /// Bad-input suite, map files: each corruption, saved, is refused on load with the file and the field
+    /// named.
+    fn assert_refused(tag: &str, cases: &[Corruption]) {
+        let dir = std::env::temp_dir().join(format!("map-invalid-{tag}-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("tmp dir");
-        type Corrupt = fn(&mut Map);
-        let cases: [(&str, Corrupt, &str, &str); 12] = [
-            (
-                "zero-quaternion",
-                |m| m.keyframes.get_mut(&1).expect("kf").pose[..4].fill(0.0),
-                "keyframes.1.pose",
-                "zero quaternion",
-            ),
-            (
-                "long-quaternion",
-                |m| m.keyframes.get_mut(&1).expect("kf").pose[3] = 2.0,
-                "keyframes.1.pose",
-                "quaternion of length",
-            ),
-            (
-                "missing-parent",
-                |m| m.keyframes.get_mut(&1).expect("kf").parent = Some(9),
-                "keyframes.1.parent",
-                "keyframe 9 does not exist",
-            ),
-            (
-                "missing-point",
-                |m| m.keyframes.get_mut(&0).expect("kf").observations[0].0 = 8,
-                "keyframes.0.observations[0]",
-                "point 8 does not exist",
-            ),
-            (
-                "point-observer",
-                |m| m.points.get_mut(&7).expect("pt").observed_by.push(5),
-                "points.7.observed_by",
-                "keyframe 5 does not exist",
-            ),
-            (
-                "trajectory-keyframe",
-                |m| m.trajectory[1].keyframe = 4,
-                "trajectory[1].keyframe",
-                "keyframe 4 does not exist",
-            ),
-            ("trajectory-order", |m| m.trajectory[1].frame = 0, "trajectory[1].frame", "frame 0 after frame 0"),
-            (
-                "trajectory-quaternion",
-                |m| m.trajectory[0].relative[..4].fill(0.0),
-                "trajectory[0].relative",
-                "zero quaternion",
-            ),
-            ("object-axes", |m| m.objects[0].semi_axes[1] = -1.0, "objects[0].semi_axes", "must be positive"),
-            ("object-rotation", |m| m.objects[0].rotation[0] = 3.0, "objects[0].rotation", "not a rotation"),
-            (
-                "object-twice",
-                |m| {
-                    let o = m.objects[0].clone();
-                    m.objects.push(o)
-                },
-                "objects[1].id",
-                "appears twice",
-            ),
-            ("object-mirror", |m| m.objects[0].rotation[0] = -1.0, "objects[0].rotation", "det -1"),
-        ];
-        for (name, corrupt, field, what) in cases {
-            let mut m = sample();
-            m.objects.push(MapObject {
-                id: 3,
-                class: 2,
-                class_name: "car".into(),
-                center: [1.0, 0.0, 9.0],
-                semi_axes: [2.0, 0.8, 1.0],
-                rotation: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-                frames: vec![0, 1],
-                dynamic: false,
-                moving: false,
-                points: vec![7],
-            });
-            m.check().expect("the sample is consistent");
+        for &(name, corrupt, field, what) in cases {
+            let mut m = sample_with_object();
             corrupt(&mut m);
             let path = dir.join(format!("{name}.json"));
             std::fs::write(&path, serde_json::to_string(&m).expect("json")).expect("write");
             let e = Map::load(&path).expect_err(name).to_string();
             assert!(e.contains(&format!("{name}.json: {field}: ")) && e.contains(what), "{name}: {e}");
         }
-        // JSON has no NaN: a non-number where a number belongs is a format error with its line
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn load_refuses_bad_keyframes_and_points_naming_file_and_field() {
+        assert_refused(
+            "graph",
+            &[
+                (
+                    "zero-quaternion",
+                    |m| m.keyframes.get_mut(&1).expect("kf").pose[..4].fill(0.0),
+                    "keyframes.1.pose",
+                    "zero quaternion",
+                ),
+                (
+                    "long-quaternion",
+                    |m| m.keyframes.get_mut(&1).expect("kf").pose[3] = 2.0,
+                    "keyframes.1.pose",
+                    "quaternion of length",
+                ),
+                (
+                    "missing-parent",
+                    |m| m.keyframes.get_mut(&1).expect("kf").parent = Some(9),
+                    "keyframes.1.parent",
+                    "keyframe 9 does not exist",
+                ),
+                (
+                    "missing-point",
+                    |m| m.keyframes.get_mut(&0).expect("kf").observations[0].0 = 8,
+                    "keyframes.0.observations[0]",
+                    "point 8 does not exist",
+                ),
+                (
+                    "point-observer",
+                    |m| m.points.get_mut(&7).expect("pt").observed_by.push(5),
+                    "points.7.observed_by",
+                    "keyframe 5 does not exist",
+                ),
+            ],
+        );
+    }
+
+    #[test]
+    fn load_refuses_a_bad_trajectory_naming_file_and_field() {
+        assert_refused(
+            "trajectory",
+            &[
+                (
+                    "trajectory-keyframe",
+                    |m| m.trajectory[1].keyframe = 4,
+                    "trajectory[1].keyframe",
+                    "keyframe 4 does not exist",
+                ),
+                ("trajectory-order", |m| m.trajectory[1].frame = 0, "trajectory[1].frame", "frame 0 after frame 0"),
+                (
+                    "trajectory-quaternion",
+                    |m| m.trajectory[0].relative[..4].fill(0.0),
+                    "trajectory[0].relative",
+                    "zero quaternion",
+                ),
+            ],
+        );
+    }
+
+    #[test]
+    fn load_refuses_bad_objects_naming_file_and_field() {
+        assert_refused(
+            "objects",
+            &[
+                ("object-axes", |m| m.objects[0].semi_axes[1] = -1.0, "objects[0].semi_axes", "must be positive"),
+                ("object-rotation", |m| m.objects[0].rotation[0] = 3.0, "objects[0].rotation", "not a rotation"),
+                ("object-twice", |m| m.objects.push(m.objects[0].clone()), "objects[1].id", "appears twice"),
+                ("object-mirror", |m| m.objects[0].rotation[0] = -1.0, "objects[0].rotation", "det -1"),
+            ],
+        );
+    }
+
+    /// JSON has no NaN: a non-number where a number belongs is a format error with its line.
+    #[test]
+    fn load_refuses_a_nan_naming_file_and_line() {
+        let dir = std::env::temp_dir().join(format!("map-nan-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("tmp dir");
         let path = dir.join("nan.json");
         let text = serde_json::to_string_pretty(&sample()).expect("json").replacen("0.5,", "NaN,", 1);
         std::fs::write(&path, text).expect("write");
