@@ -5,11 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use clap::Args;
-use slam_dataset::kitti::{poses::read_kitti_poses, tracking::read_tracking_labels};
-use slam_eval::labelled::{
-    run_mapper, score_sequence, table_header, DetectionTruth, LabelNoise, LabelledSequence, Study, VehicleCriteria,
-    CSV_COLUMNS,
-};
+use slam_eval::labelled::{run_mapper, table_header, LabelNoise, LabelledSequence, Study, VehicleCriteria, CSV_COLUMNS};
 use slam_pipeline::objects::{write_object_map, FitMethod, MapperConfig, ObjectMapper};
 use slam_quadric::ImageSize;
 
@@ -132,8 +128,8 @@ pub struct ObjectsArgs {
     input: InputArgs,
 }
 
-/// Run the object mapper over a sequence's label boxes.
-fn run(seq: &LabelledSequence, input: &InputArgs) -> (ObjectMapper, DetectionTruth) {
+/// The object mapper the options describe.
+fn mapper(input: &InputArgs) -> ObjectMapper {
     let config = MapperConfig {
         min_views_without_parallax: input.without_parallax_after,
         box_shape: input.box_shape.shape(),
@@ -142,10 +138,7 @@ fn run(seq: &LabelledSequence, input: &InputArgs) -> (ObjectMapper, DetectionTru
         max_misses: (input.max_misses > 0).then_some(input.max_misses),
         ..MapperConfig::default()
     };
-    let mapper = ObjectMapper::new(input.associator.build(None), config, input.optimizer.build())
-        .with_method(input.method.fit());
-    let noise = LabelNoise { noise: input.noise, dropout: input.dropout, seed: input.seed };
-    run_mapper(seq, &noise, mapper)
+    ObjectMapper::new(input.associator.build(None), config, input.optimizer.build()).with_method(input.method.fit())
 }
 
 pub fn objects(a: &ObjectsArgs) -> anyhow::Result<()> {
@@ -156,7 +149,8 @@ pub fn objects(a: &ObjectsArgs) -> anyhow::Result<()> {
         &a.poses.clone().unwrap_or_else(|| a.dir.join("poses_orbslam3.txt")),
         &a.calib.clone().unwrap_or_else(|| a.dir.join("calib.txt")),
     )?;
-    let (mapper, _) = run(&seq, &a.input);
+    let noise = LabelNoise { noise: a.input.noise, dropout: a.input.dropout, seed: a.input.seed };
+    let (mapper, _) = run_mapper(&seq, &noise, mapper(&a.input));
     let objs: Vec<_> = mapper.objects().collect();
     out.write_with(|tmp| write_object_map(tmp, &objs).map_err(anyhow::Error::from))?;
     let with = objs.iter().filter(|o| o.ellipsoid.is_some()).count();
@@ -196,40 +190,12 @@ pub struct EvalArgs {
     input: InputArgs,
 }
 
-/// The frame id of each line of a run's trajectory: the `frame` column of its `tracking.csv` (one row
-/// per played frame, in the trajectory's order). A run with `--frames 20..60` starts at id 20, so the
-/// line number is not the id.
-fn played_frame_ids(path: &std::path::Path, poses: usize) -> anyhow::Result<Vec<usize>> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let ids = text
-        .lines()
-        .enumerate()
-        .skip(1)
-        .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(i, l)| {
-            l.split(',')
-                .next()
-                .and_then(|f| f.trim().parse::<usize>().ok())
-                .with_context(|| format!("{}:{}: no frame id in the first column: {l:?}", path.display(), i + 1))
-        })
-        .collect::<anyhow::Result<Vec<usize>>>()?;
-    if ids.len() != poses {
-        bail!("{} has {} frames, the trajectory {poses} poses: not the same run", path.display(), ids.len());
-    }
-    Ok(ids)
-}
-
 /// `slam-app eval <run folder> --labels <label_02.txt>`: score a finished run's object map.
 fn eval_run_folder(dir: &std::path::Path, a: &EvalArgs) -> anyhow::Result<()> {
-    let labels_path = a.labels.as_ref().context("scoring a run folder needs --labels <label_02.txt>")?;
-    let labels = read_tracking_labels(labels_path)?;
-    let poses = read_kitti_poses(dir.join("trajectory.kitti.txt"))?;
-    let geometry = slam_eval::LabelGeometry::read(&dir.join("camera.json"))?;
-    let objects = slam_eval::read_object_map(&dir.join("objects.json"))?;
+    let labels = a.labels.as_ref().context("scoring a run folder needs --labels <label_02.txt>")?;
     let config =
         slam_eval::ScoreConfig { min_frames: a.min_frames, static_m: a.static_m, moving_m: a.moving_m, ..Default::default() };
-    let ids = played_frame_ids(&dir.join("tracking.csv"), poses.len())?;
-    let score = slam_eval::score_run(&labels, &poses, &ids, &geometry, &objects, &config);
+    let score = slam_eval::study::score_run_folder(dir, labels, &config)?;
     print!("{}", score.report());
     let out = dir.join("objects_score.json");
     score.write_json(&out)?;
@@ -273,13 +239,12 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let mut study = Study::default();
     let criteria = VehicleCriteria { min_frames: a.min_frames, static_m: a.static_m, moving_m: a.moving_m };
     let image = ImageSize::new(1242.0, 375.0);
+    let noise = LabelNoise { noise: a.input.noise, dropout: a.input.dropout, seed: a.input.seed };
     let mut bar = crate::progress::Progress::new("eval", seqs.len() as u64, "sequences", false);
     for sdir in &seqs {
         let name = sdir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         bar.set_message(format!("sequence {name}"));
-        let seq = LabelledSequence::load_dir(sdir)?;
-        let (mapper, truth) = run(&seq, &a.input);
-        let score = score_sequence(&name, &seq, &mapper, &truth, &criteria, &image);
+        let score = slam_eval::study::eval_sequence(sdir, &name, mapper(&a.input), &noise, &criteria, &image)?;
         bar.println(&score.row.table_line(&name));
         csv.write_record(score.row.csv_record(&name))?;
         study.add(&score);

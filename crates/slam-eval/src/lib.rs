@@ -9,6 +9,7 @@
 pub mod labelled;
 pub mod labels;
 pub mod score;
+pub mod study;
 pub mod trajectory;
 
 use std::path::Path;

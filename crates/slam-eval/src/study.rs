@@ -1,0 +1,94 @@
+//! The steps of `slam-app eval`: one image-free sequence scored with a given object mapper
+//! ([`eval_sequence`]), and a finished run's output folder scored against labels
+//! ([`score_run_folder`], with the played frame ids of its `tracking.csv`, [`played_frame_ids`]).
+
+use std::path::Path;
+
+use slam_dataset::kitti::{poses::read_kitti_poses, tracking::read_tracking_labels};
+use slam_pipeline::objects::ObjectMapper;
+use slam_quadric::ImageSize;
+
+use crate::{
+    labelled::{run_mapper, score_sequence, LabelNoise, LabelledSequence, SequenceScore, VehicleCriteria},
+    read_object_map, score_run, EvalError, LabelGeometry, RunScore, ScoreConfig,
+};
+
+/// The frame id of each line of a run's trajectory: the `frame` column of its `tracking.csv` (one row
+/// per played frame, in the trajectory's order, after a header line). A run with `--frames 20..60`
+/// starts at id 20, so the line number is not the id. Errors name the file and line; a row count that
+/// differs from `poses` is an error (the files are not of the same run).
+pub fn played_frame_ids(path: &Path, poses: usize) -> Result<Vec<usize>, EvalError> {
+    let text = std::fs::read_to_string(path).map_err(|e| EvalError::Io(format!("reading {}", path.display()), e))?;
+    let ids = text
+        .lines()
+        .enumerate()
+        .skip(1)
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| {
+            l.split(',').next().and_then(|f| f.trim().parse::<usize>().ok()).ok_or_else(|| {
+                EvalError::Invalid(format!("{}:{}: no frame id in the first column: {l:?}", path.display(), i + 1))
+            })
+        })
+        .collect::<Result<Vec<usize>, EvalError>>()?;
+    if ids.len() != poses {
+        return Err(EvalError::Invalid(format!(
+            "{} has {} frames, the trajectory {poses} poses: not the same run",
+            path.display(),
+            ids.len()
+        )));
+    }
+    Ok(ids)
+}
+
+/// Score the output folder of a run (`trajectory.kitti.txt`, `camera.json`, `objects.json`,
+/// `tracking.csv`) against the tracking labels at `labels`.
+pub fn score_run_folder(dir: &Path, labels: &Path, config: &ScoreConfig) -> Result<RunScore, EvalError> {
+    let labels = read_tracking_labels(labels)?;
+    let poses = read_kitti_poses(dir.join("trajectory.kitti.txt"))?;
+    let geometry = LabelGeometry::read(&dir.join("camera.json"))?;
+    let objects = read_object_map(&dir.join("objects.json"))?;
+    let ids = played_frame_ids(&dir.join("tracking.csv"), poses.len())?;
+    Ok(score_run(&labels, &poses, &ids, &geometry, &objects, config))
+}
+
+/// Load the image-free sequence in `dir` ([`LabelledSequence::load_dir`]), play its label boxes
+/// (perturbed by `noise`) through `mapper` and score the objects against the vehicles that meet
+/// `criteria`; `name` names the sequence in the score.
+pub fn eval_sequence(
+    dir: &Path,
+    name: &str,
+    mapper: ObjectMapper,
+    noise: &LabelNoise,
+    criteria: &VehicleCriteria,
+    image: &ImageSize,
+) -> Result<SequenceScore, EvalError> {
+    let seq = LabelledSequence::load_dir(dir)?;
+    let (mapper, truth) = run_mapper(&seq, noise, mapper);
+    Ok(score_sequence(name, &seq, &mapper, &truth, criteria, image))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(name: &str, text: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("slam-eval-study-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let p = dir.join(name);
+        std::fs::write(&p, text).expect("write");
+        p
+    }
+
+    #[test]
+    fn played_frame_ids_read_the_first_column_and_name_bad_lines() {
+        let ok = write("ok.csv", "frame,state\n20,tracking\n21,lost\n\n22,tracking\n");
+        assert_eq!(played_frame_ids(&ok, 3).expect("reads"), [20, 21, 22]);
+        let e = played_frame_ids(&ok, 4).expect_err("count differs").to_string();
+        assert!(e.contains("has 3 frames, the trajectory 4 poses"), "{e}");
+        let bad = write("bad.csv", "frame,state\n20,tracking\nx,lost\n");
+        let e = played_frame_ids(&bad, 2).expect_err("bad id").to_string();
+        assert!(e.contains("bad.csv:3: no frame id"), "{e}");
+        let e = played_frame_ids(Path::new("/no/such/tracking.csv"), 1).expect_err("missing").to_string();
+        assert!(e.starts_with("reading /no/such/tracking.csv: "), "{e}");
+    }
+}
