@@ -9,6 +9,7 @@
 #![warn(missing_docs)]
 
 pub mod assoc;
+pub mod check;
 pub mod detection;
 pub mod rng;
 pub mod source;

@@ -17,6 +17,9 @@ pub enum CheckError {
     /// The message names the value (option, settings key or file), what was given and what is valid.
     #[error("{0}")]
     Invalid(String),
+    /// A value outside its range (the message names it).
+    #[error(transparent)]
+    Value(#[from] slam_core::check::InvalidValue),
     /// The calibration file could not be read.
     #[error(transparent)]
     Dataset(#[from] DatasetError),
@@ -28,76 +31,16 @@ macro_rules! bail {
     };
 }
 
-/// An interval of valid values, printed in messages as `[lo, hi]`, `(lo, hi]`, ….
-#[derive(Debug, Clone, Copy)]
-pub struct Range {
-    lo: f64,
-    hi: f64,
-    lo_open: bool,
-    hi_open: bool,
-}
-
-impl Range {
-    /// `[lo, hi]`.
-    pub const fn closed(lo: f64, hi: f64) -> Self {
-        Self { lo, hi, lo_open: false, hi_open: false }
-    }
-    /// `(lo, hi]`.
-    pub const fn above(lo: f64, hi: f64) -> Self {
-        Self { lo, hi, lo_open: true, hi_open: false }
-    }
-    /// `(lo, hi)`.
-    pub const fn open(lo: f64, hi: f64) -> Self {
-        Self { lo, hi, lo_open: true, hi_open: true }
-    }
-
-    fn contains(&self, v: f64) -> bool {
-        v.is_finite()
-            && (if self.lo_open { v > self.lo } else { v >= self.lo })
-            && (if self.hi_open { v < self.hi } else { v <= self.hi })
-    }
-}
-
-impl std::fmt::Display for Range {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let num = |v: f64| if v.is_infinite() { "∞".to_string() } else { format!("{v}") };
-        write!(
-            f,
-            "{}{}, {}{}",
-            if self.lo_open { "(" } else { "[" },
-            num(self.lo),
-            num(self.hi),
-            if self.hi_open || self.hi.is_infinite() { ")" } else { "]" }
-        )
-    }
-}
+pub use slam_core::check::Range;
 
 /// `what` (e.g. `--noise`) must be a finite number in `range`; `unit` is appended to the range.
 pub fn number(what: &str, v: f64, range: Range, unit: &str) -> Result<(), CheckError> {
-    if range.contains(v) {
-        return Ok(());
-    }
-    let unit = if unit.is_empty() { String::new() } else { format!(" {unit}") };
-    bail!("{what} {v}: must be a finite number in {range}{unit}")
+    slam_core::check::number(what, v, range, unit).map_err(CheckError::from)
 }
 
 /// A count `what` must lie in `[lo, hi]`.
 pub fn count(what: &str, v: usize, lo: usize, hi: usize) -> Result<(), CheckError> {
-    if (lo..=hi).contains(&v) {
-        return Ok(());
-    }
-    if hi == usize::MAX {
-        bail!("{what} {v}: must be at least {lo}")
-    }
-    bail!("{what} {v}: must be an integer in [{lo}, {hi}]")
-}
-
-impl Range {
-    /// The same range without its upper end: `[lo, hi)`.
-    pub const fn with_hi_open(mut self) -> Self {
-        self.hi_open = true;
-        self
-    }
+    slam_core::check::count(what, v, lo, hi).map_err(CheckError::from)
 }
 
 /// Calibration sanity against the image it describes: focal lengths that give a field of view between

@@ -1,5 +1,92 @@
-//! Serde helpers of the settings structs: how an optional threshold and the box model are written in a
-//! settings file (TOML has no `null`, so "off" is written as 0).
+//! The settings structs of the pipeline in a settings file: serde helpers for how an optional threshold
+//! and the box model are written (TOML has no `null`, so "off" is written as 0), and the valid range of
+//! every range-limited setting (`validate()` of [`MappingConfig`], [`MapperConfig`], [`TextureConfig`]
+//! and [`SystemConfig`], each over its own fields; errors name the field).
+
+use slam_core::check::{count, number, InvalidValue, Range};
+
+use crate::{mapping::MappingConfig, objects::MapperConfig, system::SystemConfig, texture::TextureConfig};
+
+const POSITIVE: Range = Range::above(0.0, f64::INFINITY);
+
+impl MappingConfig {
+    /// Check the local-mapping settings.
+    pub fn validate(&self) -> Result<(), InvalidValue> {
+        count("window", self.window, 1, usize::MAX)?;
+        number("huber_px", self.huber_px, POSITIVE, "px")?;
+        number("cull_chi2", self.cull_chi2, POSITIVE, "px²")?;
+        number("cull_chi2_mono", self.cull_chi2_mono, POSITIVE, "px²")?;
+        count("iterations", self.iterations, 1, 100_000)
+    }
+}
+
+impl MapperConfig {
+    /// Check the object settings the file sets (the image size is the caller's).
+    pub fn validate(&self) -> Result<(), InvalidValue> {
+        count("min_views", self.min_views, 1, usize::MAX)?;
+        let min_views = self.min_views.max(1);
+        count("max_views", self.max_views, min_views, usize::MAX)
+            .map_err(|e| InvalidValue { valid: format!("at least min_views ({min_views})"), ..e })?;
+        number("min_parallax_deg", self.min_parallax_deg, Range::closed(0.0, 90.0).with_hi_open(), "degrees")?;
+        number("border_margin_px", self.border_margin_px, Range::closed(0.0, 10_000.0), "px")?;
+        count("refit_every", self.refit_every, 1, usize::MAX)?;
+        number("dynamic_rms_px", self.dynamic_rms_px, POSITIVE, "px")?;
+        number("dynamic_motion_sigmas", self.dynamic_motion_sigmas, POSITIVE, "σ")?;
+        let prior = self.dynamic_prior_sigmas.unwrap_or(0.0);
+        number("dynamic_prior_sigmas", prior, Range::closed(0.0, f64::INFINITY), "(0: off)")?;
+        number("max_depth_m", self.max_depth_m, POSITIVE, "m")?;
+        number("merge_distance_m", self.merge_distance_m, Range::closed(0.0, f64::INFINITY), "m")
+    }
+}
+
+impl TextureConfig {
+    /// Check the texture-plane settings.
+    pub fn validate(&self) -> Result<(), InvalidValue> {
+        number("max_edge_m", self.max_edge_m, POSITIVE, "m")?;
+        number("min_facing", self.min_facing, Range::closed(0.0, 1.0), "(|cos|)")?;
+        // a Delaunay triangulation needs three points
+        count("min_points", self.min_points, 3, usize::MAX)
+    }
+}
+
+impl SystemConfig {
+    /// Check the system's own settings (the stage settings it holds check themselves).
+    pub fn validate(&self) -> Result<(), InvalidValue> {
+        count("correction_lag", self.correction_lag, 0, 1000)?;
+        count("detect_every", self.detect_every, 1, usize::MAX)?;
+        number("object_core", self.object_core, Range::above(0.0, 1.0), "(share of the box)")?;
+        let gate = self.projected_gate.unwrap_or(0.0);
+        number("projected_gate", gate, Range::closed(0.0, 1.0), "(IoU; 0: off)")?;
+        count("max_detections", self.max_detections, 1, 10_000)
+    }
+}
+
+#[cfg(test)]
+mod validate_tests {
+    use super::*;
+
+    #[test]
+    fn the_defaults_pass_and_each_table_names_its_bad_field() {
+        let s = SystemConfig::default();
+        s.validate().and(s.mapping.validate()).and(s.objects.validate()).and(s.texture.validate()).expect("defaults");
+        let mut m = MappingConfig::default();
+        m.huber_px = -1.0;
+        assert_eq!(m.validate().expect_err("huber").to_string(), "huber_px -1: must be a finite number in (0, ∞) px");
+        let mut o = MapperConfig { min_views: 5, max_views: 3, ..MapperConfig::default() };
+        assert_eq!(o.validate().expect_err("views").to_string(), "max_views 3: must be at least min_views (5)");
+        o.max_views = 5;
+        o.dynamic_prior_sigmas = Some(-2.0);
+        assert_eq!(o.validate().expect_err("prior").key, "dynamic_prior_sigmas");
+        let t = TextureConfig { min_facing: 1.5, ..TextureConfig::default() };
+        assert_eq!(t.validate().expect_err("facing").key, "min_facing");
+        let t = TextureConfig { min_points: 2, ..TextureConfig::default() };
+        assert_eq!(t.validate().expect_err("points").to_string(), "min_points 2: must be at least 3");
+        let sys = SystemConfig { object_core: 0.0, ..SystemConfig::default() };
+        assert_eq!(sys.validate().expect_err("core").key, "object_core");
+        let sys = SystemConfig { max_detections: 0, ..SystemConfig::default() };
+        assert_eq!(sys.validate().expect_err("max").to_string(), "max_detections 0: must be an integer in [1, 10000]");
+    }
+}
 
 /// `Option<f64>` as a number, 0 meaning `None` (a test switched off).
 pub mod zero_is_off {
