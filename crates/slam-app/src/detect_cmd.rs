@@ -1,16 +1,13 @@
 //! `slam-app detect` and `slam-app detect-recall`.
 
-use std::{
-    collections::BTreeMap,
-    path::PathBuf,
-    time::Instant,
-};
+use std::{path::PathBuf, time::Instant};
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 use clap::{Args, ValueEnum};
-use slam_core::{geometry::BBox, DetectionSource};
-use slam_dataset::{classes, detections::DetectionFile};
-use slam_frontend::{draw_detections, read_image, write_image, DetectorConfig, DnnDetector, InputMode};
+use slam_core::DetectionSource;
+use slam_dataset::detections::DetectionFile;
+use slam_eval::recall::RecallSet;
+use slam_frontend::{batch::detect_images, read_image, DetectorConfig, DnnDetector, InputMode};
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum Mode {
@@ -152,36 +149,19 @@ pub fn detect(a: &DetectArgs) -> anyhow::Result<()> {
         .transpose()?;
     let mut det = a.model.load()?;
     let mut bar = crate::progress::Progress::new("detect", images.len() as u64, "frames", false);
-    let mut file = DetectionFile::default();
-    let (mut skipped, mut total) = (0usize, 0usize);
-    for (&i, path) in ids.iter().zip(&images) {
-        let img = match read_image(path, true) {
-            Ok(img) => img,
-            Err(e) => {
-                tracing::warn!("frame {i} skipped: {e}");
-                skipped += 1;
-                bar.inc();
-                continue;
-            }
-        };
-        file.image_size.get_or_insert([img.width, img.height]);
-        let d = det.detect(i, Some(&img)).with_context(|| format!("detecting in {}", path.display()))?;
-        total += d.len();
-        if let Some(o) = overlays.as_ref().map(|o| o.path()) {
-            let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| format!("{i:06}"));
-            write_image(o.join(format!("{name}.png")), &draw_detections(&img, &d, |c| c.name().to_string())?)?;
-        }
-        file.frames.insert(i, d);
-        bar.inc();
-    }
+    let frames: Vec<(usize, PathBuf)> = ids.into_iter().zip(images).collect();
+    let out = detect_images(&mut det, &frames, overlays.as_ref().map(|o| o.path()), &mut || bar.inc())?;
     bar.finish();
+    let file = DetectionFile { image_size: out.image_size, frames: out.frames };
     json.write_with(|tmp| file.write(tmp).map_err(anyhow::Error::from))?;
     if let Some(o) = overlays {
         o.commit()?;
     }
     println!(
-        "{} frames, {total} detections, {skipped} unreadable frames skipped; wrote {}",
-        images.len(),
+        "{} frames, {} detections, {} unreadable frames skipped; wrote {}",
+        frames.len(),
+        out.total,
+        out.skipped,
         a.out.display()
     );
     Ok(())
@@ -197,61 +177,11 @@ pub struct RecallArgs {
     mode: Option<Mode>,
 }
 
-/// Greedy one-to-one matching of labelled boxes to detections at IoU > 0.5; returns the matched count.
-fn matched(labels: &[BBox], dets: &[BBox]) -> usize {
-    let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
-    for (i, l) in labels.iter().enumerate() {
-        for (j, d) in dets.iter().enumerate() {
-            let iou = l.iou(d);
-            if iou > 0.5 {
-                pairs.push((iou, i, j));
-            }
-        }
-    }
-    pairs.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
-    let (mut used_l, mut used_d) = (vec![false; labels.len()], vec![false; dets.len()]);
-    let mut n = 0;
-    for (_, i, j) in pairs {
-        if !used_l[i] && !used_d[j] {
-            used_l[i] = true;
-            used_d[j] = true;
-            n += 1;
-        }
-    }
-    n
-}
-
 pub fn recall(a: &RecallArgs) -> anyhow::Result<()> {
     let data = a.data.clone().unwrap_or_else(|| crate::fixture("kitti_raw_0052"));
-    let map = std::fs::read_to_string(data.join("object/drive_0052_frame_to_object_id.txt"))
-        .with_context(|| format!("cannot read the frame map in {}", data.display()))?;
-    let mut frames = Vec::new();
-    for line in map.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()) {
-        let f: Vec<&str> = line.split_whitespace().collect();
-        if f.len() != 2 {
-            bail!("malformed line in drive_0052_frame_to_object_id.txt: '{line}'");
-        }
-        let img = data.join(format!("2011_09_26/2011_09_26_drive_0052_sync/image_02/data/{}.png", f[0]));
-        let label = data.join(format!("object/training/label_2/{}.txt", f[1]));
-        frames.push((img, label));
-    }
-    let mut labelled: BTreeMap<usize, Vec<BBox>> = BTreeMap::new();
-    for (i, (_, label)) in frames.iter().enumerate() {
-        let text = std::fs::read_to_string(label).with_context(|| format!("cannot read {}", label.display()))?;
-        for (ln, line) in text.lines().enumerate() {
-            let f: Vec<&str> = line.split_whitespace().collect();
-            if f.len() < 8 {
-                bail!("{}:{}: expected a KITTI object label", label.display(), ln + 1);
-            }
-            if f[0] == "Car" || f[0] == "Van" {
-                let v: Result<Vec<f64>, _> = f[4..8].iter().map(|s| s.parse::<f64>()).collect();
-                let v = v.with_context(|| format!("{}:{}: bad box", label.display(), ln + 1))?;
-                labelled.entry(i).or_default().push(BBox::new(v[0], v[1], v[2], v[3]));
-            }
-        }
-    }
-    let n_labels: usize = labelled.values().map(|v| v.len()).sum();
-    let images: Vec<_> = frames.iter().map(|(p, _)| read_image(p, true)).collect::<Result<_, _>>()?;
+    let set = RecallSet::load(&data)?;
+    let n_labels = set.label_count();
+    let images: Vec<_> = set.images.iter().map(|p| read_image(p, true)).collect::<Result<_, _>>()?;
     println!("Detector recall on KITTI raw 2011_09_26_drive_0052, frames 7/14/21/31: {n_labels} labelled vehicles (Car, Van)");
     println!("A label counts as found when a car/truck/bus detection overlaps it with IoU > 0.5 (one-to-one).");
     println!("{:<12} {:>7} {:>10} {:>12}", "mode", "found", "recall", "ms / frame");
@@ -260,28 +190,15 @@ pub fn recall(a: &RecallArgs) -> anyhow::Result<()> {
         None => vec![Mode::Squash, Mode::Letterbox, Mode::Tiles],
     };
     for m in modes {
-        let args = ModelArgs::shipped(m);
-        let mut det = args.load()?;
+        let mut det = ModelArgs::shipped(m).load()?;
         let mut found = 0;
         let start = Instant::now();
         for (i, img) in images.iter().enumerate() {
-            let d = det.detect(i, Some(img))?;
-            let vehicles: Vec<BBox> = d
-                .iter()
-                .filter(|d| [classes::CAR, classes::TRUCK, classes::BUS].contains(&d.class))
-                .map(|d| d.bbox)
-                .collect();
-            found += matched(labelled.get(&i).map(|v| v.as_slice()).unwrap_or(&[]), &vehicles);
+            found += set.found(i, &det.detect(i, Some(img))?);
         }
         let ms = start.elapsed().as_secs_f64() * 1000.0 / images.len() as f64;
-        println!(
-            "{:<12} {:>4}/{:<2} {:>10.2} {:>12.0}",
-            format!("{m:?}").to_lowercase(),
-            found,
-            n_labels,
-            found as f64 / n_labels as f64,
-            ms
-        );
+        let name = format!("{m:?}").to_lowercase();
+        println!("{name:<12} {found:>4}/{n_labels:<2} {:>10.2} {ms:>12.0}", found as f64 / n_labels as f64);
     }
     Ok(())
 }

@@ -8,6 +8,7 @@
 
 pub mod labelled;
 pub mod labels;
+pub mod recall;
 pub mod score;
 pub mod study;
 pub mod trajectory;

@@ -6,6 +6,7 @@
 
 #![warn(missing_docs)]
 
+pub mod batch;
 pub mod detector;
 pub mod detectors;
 pub mod disparity;

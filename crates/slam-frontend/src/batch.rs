@@ -1,0 +1,118 @@
+//! A detector over a list of image files (`slam-app detect`): each readable image is detected and, on
+//! request, drawn with its boxes into an overlay folder; an unreadable image is counted, logged and
+//! skipped.
+
+use std::{
+    collections::BTreeMap,
+    path::{Path, PathBuf},
+};
+
+use slam_core::{DetectError, Detection, DetectionSource};
+
+use crate::{draw_detections, read_image, write_image, FrontendError};
+
+/// Errors of [`detect_images`].
+#[derive(Debug, thiserror::Error)]
+pub enum BatchError {
+    /// The detector failed on an image.
+    #[error("detecting in {path}")]
+    Detect {
+        /// The image.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: DetectError,
+    },
+    /// An overlay could not be drawn or written.
+    #[error(transparent)]
+    Frontend(#[from] FrontendError),
+}
+
+/// What [`detect_images`] found.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct BatchDetections {
+    /// Detections per frame id (every readable frame, also those without detections).
+    pub frames: BTreeMap<usize, Vec<Detection>>,
+    /// `[width, height]` of the first readable image.
+    pub image_size: Option<[u32; 2]>,
+    /// Unreadable images skipped.
+    pub skipped: usize,
+    /// Detections in all frames.
+    pub total: usize,
+}
+
+/// Run `detector` over `images` (`(frame id, file)`), in order; with `overlays`, write each frame drawn
+/// with its boxes there as `<file stem>.png`. `tick` is called once per image (progress).
+pub fn detect_images(
+    detector: &mut dyn DetectionSource,
+    images: &[(usize, PathBuf)],
+    overlays: Option<&Path>,
+    tick: &mut dyn FnMut(),
+) -> Result<BatchDetections, BatchError> {
+    let mut out = BatchDetections::default();
+    for (i, path) in images {
+        let i = *i;
+        let img = match read_image(path, true) {
+            Ok(img) => img,
+            Err(e) => {
+                tracing::warn!("frame {i} skipped: {e}");
+                out.skipped += 1;
+                tick();
+                continue;
+            }
+        };
+        out.image_size.get_or_insert([img.width, img.height]);
+        let d = detector
+            .detect(i, Some(&img))
+            .map_err(|source| BatchError::Detect { path: path.clone(), source })?;
+        out.total += d.len();
+        if let Some(o) = overlays {
+            let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| format!("{i:06}"));
+            write_image(o.join(format!("{name}.png")), &draw_detections(&img, &d, |c| c.name().to_string())?)?;
+        }
+        out.frames.insert(i, d);
+        tick();
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use slam_core::{geometry::BBox, ClassId, Image};
+
+    /// One box per frame, the frame id as its left edge.
+    struct OneBox;
+
+    impl DetectionSource for OneBox {
+        fn name(&self) -> &str {
+            "one box"
+        }
+        fn needs_image(&self) -> bool {
+            true
+        }
+        fn detect(&mut self, frame: usize, image: Option<&Image>) -> Result<Vec<Detection>, DetectError> {
+            assert!(image.is_some());
+            let x = frame as f64;
+            Ok(vec![Detection::new(ClassId(2), 0.9, BBox::new(x, 1.0, x + 4.0, 5.0))])
+        }
+    }
+
+    #[test]
+    fn readable_images_are_detected_and_drawn_and_unreadable_ones_skipped() {
+        let dir = std::env::temp_dir().join(format!("batch-detect-{}", std::process::id()));
+        let overlays = dir.join("overlays");
+        std::fs::create_dir_all(&overlays).expect("dir");
+        let img = Image::new(16, 8, 3, vec![90; 16 * 8 * 3]).expect("image");
+        write_image(dir.join("a.png"), &img).expect("write");
+        let images = vec![(3, dir.join("a.png")), (4, dir.join("missing.png"))];
+        let mut ticks = 0;
+        let out = detect_images(&mut OneBox, &images, Some(&overlays), &mut || ticks += 1).expect("runs");
+        assert_eq!((out.skipped, out.total, ticks), (1, 1, 2));
+        assert_eq!(out.image_size, Some([16, 8]));
+        assert_eq!(out.frames.keys().copied().collect::<Vec<_>>(), [3]);
+        assert_eq!(out.frames[&3][0].bbox.xmin, 3.0, "the frame id reaches the detector");
+        assert!(overlays.join("a.png").is_file());
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
