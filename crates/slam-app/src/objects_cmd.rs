@@ -62,14 +62,19 @@ impl InputArgs {
     /// Range checks (before any file is read).
     fn check(&self) -> anyhow::Result<()> {
         use crate::validate::{count, number, Range};
-        number("--noise", self.noise, Range::closed(0.0, 1.0), "(σ as a share of the box size)")?;
-        number("--dropout", self.dropout, Range::closed(0.0, 1.0), "(a probability)")?;
+        self.noise().validate().map_err(crate::validate::flag)?;
         number("--min-parallax-deg", self.min_parallax_deg, Range::closed(0.0, 90.0), "degrees")?;
         number("--dynamic-prior-sigmas", self.dynamic_prior_sigmas, Range::closed(0.0, 1.0e6), "(0: off)")?;
         if let Some(n) = self.without_parallax_after {
             count("--without-parallax-after", n, 1, usize::MAX)?;
         }
         Ok(())
+    }
+}
+
+impl InputArgs {
+    fn noise(&self) -> LabelNoise {
+        LabelNoise { noise: self.noise, dropout: self.dropout, seed: self.seed }
     }
 }
 
@@ -149,8 +154,7 @@ pub fn objects(a: &ObjectsArgs) -> anyhow::Result<()> {
         &a.poses.clone().unwrap_or_else(|| a.dir.join("poses_orbslam3.txt")),
         &a.calib.clone().unwrap_or_else(|| a.dir.join("calib.txt")),
     )?;
-    let noise = LabelNoise { noise: a.input.noise, dropout: a.input.dropout, seed: a.input.seed };
-    let (mapper, _) = run_mapper(&seq, &noise, mapper(&a.input));
+    let (mapper, _) = run_mapper(&seq, &a.input.noise(), mapper(&a.input));
     let objs: Vec<_> = mapper.objects().collect();
     out.write_with(|tmp| write_object_map(tmp, &objs).map_err(anyhow::Error::from))?;
     let with = objs.iter().filter(|o| o.ellipsoid.is_some()).count();
@@ -204,17 +208,16 @@ fn eval_run_folder(dir: &std::path::Path, a: &EvalArgs) -> anyhow::Result<()> {
 }
 
 pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
-    use crate::validate::{count, number, Range};
     a.input.check()?;
-    count("--min-frames", a.min_frames, 1, usize::MAX)?;
-    number("--static-m", a.static_m, Range::closed(0.0, 1000.0), "m")?;
-    number("--moving-m", a.moving_m, Range::above(0.0, 1000.0), "m")?;
-    if a.static_m > a.moving_m {
-        bail!(
+    let criteria = VehicleCriteria { min_frames: a.min_frames, static_m: a.static_m, moving_m: a.moving_m };
+    match criteria.validate() {
+        // the ranges passed: only the order of the two spreads is wrong
+        Err(e) if e.key == "static_m" && e.valid.starts_with("at most moving_m") => bail!(
             "--static-m {} exceeds --moving-m {}: a vehicle would count as static and moving",
             a.static_m,
             a.moving_m
-        );
+        ),
+        r => r.map_err(crate::validate::flag)?,
     }
     let csv_out = a.csv.as_deref().map(crate::output::AtomicFile::new).transpose()?;
     let dir = a.dir.clone().unwrap_or_else(|| crate::fixture("kitti_tracking"));
@@ -237,9 +240,8 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let mut csv = csv::Writer::from_writer(Vec::new());
     csv.write_record(CSV_COLUMNS)?;
     let mut study = Study::default();
-    let criteria = VehicleCriteria { min_frames: a.min_frames, static_m: a.static_m, moving_m: a.moving_m };
     let image = ImageSize::new(1242.0, 375.0);
-    let noise = LabelNoise { noise: a.input.noise, dropout: a.input.dropout, seed: a.input.seed };
+    let noise = a.input.noise();
     let mut bar = crate::progress::Progress::new("eval", seqs.len() as u64, "sequences", false);
     for sdir in &seqs {
         let name = sdir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();

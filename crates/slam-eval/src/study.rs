@@ -1,9 +1,11 @@
 //! The steps of `slam-app eval`: one image-free sequence scored with a given object mapper
 //! ([`eval_sequence`]), and a finished run's output folder scored against labels
-//! ([`score_run_folder`], with the played frame ids of its `tracking.csv`, [`played_frame_ids`]).
+//! ([`score_run_folder`], with the played frame ids of its `tracking.csv`, [`played_frame_ids`]); and
+//! the valid ranges of the study's settings ([`LabelNoise::validate`], [`VehicleCriteria::validate`]).
 
 use std::path::Path;
 
+use slam_core::check::{count, number, InvalidValue, Range};
 use slam_dataset::kitti::{poses::read_kitti_poses, tracking::read_tracking_labels};
 use slam_pipeline::objects::ObjectMapper;
 use slam_quadric::ImageSize;
@@ -67,9 +69,47 @@ pub fn eval_sequence(
     Ok(score_sequence(name, &seq, &mapper, &truth, criteria, image))
 }
 
+impl LabelNoise {
+    /// Check the noise (a share of the box size) and the dropout (a probability); errors name the field.
+    pub fn validate(&self) -> Result<(), InvalidValue> {
+        number("noise", self.noise, Range::closed(0.0, 1.0), "(σ as a share of the box size)")?;
+        number("dropout", self.dropout, Range::closed(0.0, 1.0), "(a probability)")
+    }
+}
+
+impl VehicleCriteria {
+    /// Check the criteria: at least one frame, spreads within a kilometre, and the static spread not
+    /// above the moving one (a vehicle would count as both); errors name the field.
+    pub fn validate(&self) -> Result<(), InvalidValue> {
+        count("min_frames", self.min_frames, 1, usize::MAX)?;
+        number("static_m", self.static_m, Range::closed(0.0, 1000.0), "m")?;
+        number("moving_m", self.moving_m, Range::above(0.0, 1000.0), "m")?;
+        if self.static_m > self.moving_m {
+            let valid = format!("at most moving_m ({}): a vehicle would count as static and moving", self.moving_m);
+            return Err(InvalidValue { key: "static_m".into(), value: self.static_m.to_string(), valid });
+        }
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn study_settings_name_their_bad_field() {
+        let noise = LabelNoise { noise: 0.05, dropout: 0.2, seed: 1 };
+        noise.validate().expect("valid");
+        let e = LabelNoise { noise: f64::NAN, ..noise }.validate().expect_err("NaN");
+        assert_eq!(e.to_string(), "noise NaN: must be a finite number in [0, 1] (σ as a share of the box size)");
+        assert_eq!(LabelNoise { dropout: 2.0, ..noise }.validate().expect_err("dropout").key, "dropout");
+        let c = VehicleCriteria { min_frames: 10, static_m: 1.0, moving_m: 3.0 };
+        c.validate().expect("valid");
+        assert_eq!(VehicleCriteria { min_frames: 0, ..c }.validate().expect_err("frames").key, "min_frames");
+        assert_eq!(VehicleCriteria { moving_m: 0.0, ..c }.validate().expect_err("moving").key, "moving_m");
+        let e = VehicleCriteria { static_m: 5.0, ..c }.validate().expect_err("static above moving");
+        assert!(e.key == "static_m" && e.valid.starts_with("at most moving_m (3)"), "{e}");
+    }
 
     fn write(name: &str, text: &str) -> std::path::PathBuf {
         let dir = std::env::temp_dir().join(format!("slam-eval-study-{}", std::process::id()));

@@ -12,6 +12,7 @@ pub mod detectors;
 pub mod disparity;
 pub use detector::nms;
 pub mod image_io;
+pub mod image_size;
 mod settings;
 mod matching;
 mod pose_only;
