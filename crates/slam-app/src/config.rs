@@ -5,10 +5,12 @@
 use std::path::Path;
 
 use anyhow::Context;
-use documented::DocumentedFieldsOpt;
 use serde::{Deserialize, Serialize};
 use slam_frontend::VoConfig;
-use slam_pipeline::{mapping::MappingConfig, objects::MapperConfig, system::SystemConfig, texture::TextureConfig};
+use slam_pipeline::{
+    mapping::MappingConfig, objects::MapperConfig, settings::commented_table, system::SystemConfig,
+    texture::TextureConfig,
+};
 
 /// All settings of a run.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize)]
@@ -40,42 +42,6 @@ impl Default for RunConfig {
     }
 }
 
-/// Put `over`'s keys onto `base`, table by table.
-fn overlay(base: &mut toml::Value, over: toml::Value) {
-    match (base, over) {
-        (toml::Value::Table(b), toml::Value::Table(o)) => {
-            for (k, v) in o {
-                match b.get_mut(&k) {
-                    Some(slot) => overlay(slot, v),
-                    None => {
-                        b.insert(k, v);
-                    }
-                }
-            }
-        }
-        (slot, v) => *slot = v,
-    }
-}
-
-/// One table of the settings file, each key preceded by its doc comment as `#` lines.
-fn commented_table<T: Serialize + DocumentedFieldsOpt>(name: &str, what: &str, value: &T) -> String {
-    let body = toml::to_string(value).unwrap_or_default();
-    let mut s = format!("[{name}]  # {what}\n");
-    for line in body.lines() {
-        let key = line.split('=').next().unwrap_or("").trim();
-        if let Ok(doc) = T::get_field_docs(key) {
-            for d in doc.lines() {
-                // rustdoc links read as plain code names here
-                let d = d.trim().replace("[`", "`").replace("`]", "`");
-                s.push_str(&format!("# {d}\n").replace("# \n", "#\n"));
-            }
-        }
-        s.push_str(line);
-        s.push('\n');
-    }
-    s
-}
-
 impl RunConfig {
     /// Read a settings file; every value is checked ([`crate::validate::run_config`]).
     pub fn read(path: &Path) -> anyhow::Result<Self> {
@@ -88,11 +54,7 @@ impl RunConfig {
     /// Settings from TOML text, overlaid key by key on the defaults (a table that sets one key keeps
     /// the running system's defaults for the others).
     pub fn parse(text: &str) -> anyhow::Result<Self> {
-        // parsed as written first: errors then name the line
-        toml::from_str::<RunConfig>(text)?;
-        let mut merged = toml::Value::try_from(RunConfig::default())?;
-        overlay(&mut merged, toml::from_str::<toml::Value>(text)?);
-        Ok(merged.try_into()?)
+        Ok(slam_pipeline::settings::parse_over_defaults(text, &RunConfig::default())?)
     }
 
     /// The settings as TOML, with every key's doc comment from the library that defines it.

@@ -1,11 +1,72 @@
 //! The settings structs of the pipeline in a settings file: serde helpers for how an optional threshold
 //! and the box model are written (TOML has no `null`, so "off" is written as 0), and the valid range of
 //! every range-limited setting (`validate()` of [`MappingConfig`], [`MapperConfig`], [`TextureConfig`]
-//! and [`SystemConfig`], each over its own fields; errors name the field).
+//! and [`SystemConfig`], each over its own fields; errors name the field). A settings file is read
+//! key by key over the defaults ([`parse_over_defaults`]) and written with every key's doc comment
+//! ([`commented_table`]).
 
 use slam_core::check::{count, number, InvalidValue, Range};
 
 use crate::{mapping::MappingConfig, objects::MapperConfig, system::SystemConfig, texture::TextureConfig};
+
+/// Errors of reading settings from TOML.
+#[derive(Debug, thiserror::Error)]
+pub enum SettingsError {
+    /// The text is not valid TOML or has a wrong or unknown key (the message names the line).
+    #[error(transparent)]
+    Parse(#[from] toml::de::Error),
+    /// The defaults could not be written as TOML.
+    #[error(transparent)]
+    Defaults(#[from] toml::ser::Error),
+}
+
+/// Settings from TOML text, overlaid key by key on `defaults`: a table that sets one key keeps the
+/// defaults of the others. The text is first read as written, so that errors name its line.
+pub fn parse_over_defaults<T>(text: &str, defaults: &T) -> Result<T, SettingsError>
+where
+    T: serde::Serialize + serde::de::DeserializeOwned,
+{
+    toml::from_str::<T>(text)?;
+    let mut merged = toml::Value::try_from(defaults)?;
+    overlay(&mut merged, toml::from_str::<toml::Value>(text)?);
+    Ok(merged.try_into()?)
+}
+
+/// Put `over`'s keys onto `base`, table by table.
+fn overlay(base: &mut toml::Value, over: toml::Value) {
+    match (base, over) {
+        (toml::Value::Table(b), toml::Value::Table(o)) => {
+            for (k, v) in o {
+                match b.get_mut(&k) {
+                    Some(slot) => overlay(slot, v),
+                    None => {
+                        b.insert(k, v);
+                    }
+                }
+            }
+        }
+        (slot, v) => *slot = v,
+    }
+}
+
+/// One table of a settings file, `[name]  # what`, each key preceded by its doc comment as `#` lines
+/// (rustdoc links as plain code names).
+pub fn commented_table<T: serde::Serialize + documented::DocumentedFieldsOpt>(name: &str, what: &str, value: &T) -> String {
+    let body = toml::to_string(value).unwrap_or_default();
+    let mut s = format!("[{name}]  # {what}\n");
+    for line in body.lines() {
+        let key = line.split('=').next().unwrap_or("").trim();
+        if let Ok(doc) = T::get_field_docs(key) {
+            for d in doc.lines() {
+                let d = d.trim().replace("[`", "`").replace("`]", "`");
+                s.push_str(&format!("# {d}\n").replace("# \n", "#\n"));
+            }
+        }
+        s.push_str(line);
+        s.push('\n');
+    }
+    s
+}
 
 const POSITIVE: Range = Range::above(0.0, f64::INFINITY);
 
@@ -64,6 +125,20 @@ impl SystemConfig {
 #[cfg(test)]
 mod validate_tests {
     use super::*;
+
+    #[test]
+    fn a_file_overlays_the_defaults_key_by_key_and_comments_name_each_key() {
+        let defaults = TextureConfig { max_planes: 7, ..TextureConfig::default() };
+        let t: TextureConfig = parse_over_defaults("min_points = 9\n", &defaults).expect("parses");
+        assert_eq!((t.min_points, t.max_planes), (9, 7), "unset keys keep the given defaults");
+        let e = parse_over_defaults::<TextureConfig>("min_points = 9\nmin_pints = 3\n", &defaults).expect_err("typo");
+        assert!(e.to_string().contains("min_pints") && e.to_string().contains("line 2"), "{e}");
+        let text = commented_table("texture", "slam-pipeline TextureConfig", &defaults);
+        assert!(text.starts_with("[texture]  # slam-pipeline TextureConfig\n#"), "{text}");
+        assert!(text.contains("\nmax_planes = 7\n"), "{text}");
+        let back: TextureConfig = toml::from_str(text.split_once('\n').expect("header").1).expect("reads back");
+        assert_eq!(back, defaults);
+    }
 
     #[test]
     fn the_defaults_pass_and_each_table_names_its_bad_field() {
