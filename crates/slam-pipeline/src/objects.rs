@@ -125,7 +125,8 @@ impl FitMethod {
 #[serde(default, deny_unknown_fields)]
 pub struct MapperConfig {
     /// What a box bounds in the object optimisation: "ellipse" (the ellipsoid's projected ellipse, the
-    /// paper's model, default) or "cuboid" (its circumscribed cuboid, docs/objects.md).
+    /// paper's model, default), "cuboid" (its circumscribed cuboid) or "two-stage" (yaw from the cuboid
+    /// model, then the ellipse model with that yaw held); docs/objects.md.
     #[serde(with = "crate::settings::box_shape")]
     pub box_shape: BoxShape,
     /// Image size (for clipped bounds and the border test).
@@ -185,7 +186,8 @@ pub struct MapperConfig {
     pub stereo_evidence: bool,
     /// Use the stereo-point yaw cue in fits that have map points (the running system): the principal
     /// horizontal direction of the object's points as a soft prior on its length axis, when confident
-    /// ([`crate::yaw_cue`]). Default true; no effect without points (the image-free mode).
+    /// ([`crate::yaw_cue`]). Default false: on the drives measured it fires for no parked car it could
+    /// help (docs/objects.md); no effect without points (the image-free mode).
     pub point_yaw: bool,
     /// Tracker settings.
     #[serde(skip)]
@@ -211,7 +213,7 @@ impl Default for MapperConfig {
             max_misses: Some(5),
             visible_depth_m: 40.0,
             stereo_evidence: false,
-            point_yaw: true,
+            point_yaw: false,
             tracker: TrackerConfig::default(),
         }
     }
