@@ -8,7 +8,7 @@
 //!
 //! The thresholds and why they hold beyond one sequence are in `docs/system.md` ("Tracking").
 
-use std::collections::{HashMap, HashSet, VecDeque};
+use std::collections::{BTreeMap, HashMap, HashSet, VecDeque};
 use std::time::Instant;
 
 use nalgebra::{Isometry3, Matrix3, Vector3};
@@ -25,6 +25,7 @@ use slam_quadric::{se3, Intrinsics};
 
 use crate::disparity::DisparityPair;
 use crate::image_io::{image_to_mat, FrontendError};
+use crate::keyframe_index::KeyframeIndex;
 use crate::matching::{hamming, KeypointGrid};
 use crate::pose_only;
 
@@ -164,6 +165,7 @@ impl Default for VoConfig {
     }
 }
 
+#[derive(Clone)]
 struct Frame {
     points: Vec<Vector3<f64>>,
     desc: Vec<[u8; 32]>,
@@ -199,6 +201,7 @@ impl Frame {
 }
 
 /// A keyframe.
+#[derive(Clone)]
 struct Reference {
     frame: Frame,
     id: KeyframeId,
@@ -256,14 +259,23 @@ enum Route {
     Along(usize),
     /// Relocalisation by descriptors alone.
     Descriptors,
+    /// Relocalisation against a keyframe retrieved from the keyframe index (any keyframe of the run,
+    /// a revisit included); accepted on its own support, not the motion model.
+    Retrieved(KeyframeId),
 }
 
 /// A pose found by PnP RANSAC (`curr_from_ref`) and its inlier matches (local-map point, keypoint).
 type Solved = (Isometry3<f64>, Vec<(usize, usize)>);
 
-/// What relocalisation found: the accepted candidate (refined pose, RANSAC inliers, route), and the
-/// first candidate pose whether accepted or not.
-type Relocalisation = (Option<(Refined, usize, Route)>, Option<Isometry3<f64>>);
+/// What relocalisation found: the accepted candidate (refined pose, RANSAC inliers, route), the
+/// first candidate pose whether accepted or not, and for a retrieved keyframe, the map its inliers
+/// index (that keyframe's points in the reference keyframe's frame).
+type Relocalisation = (Option<(Refined, usize, Route)>, Option<Isometry3<f64>>, Option<LocalMap>);
+
+/// Keyframes tried by retrieval ([`StereoVo::retrieve`]): the best few by votes, since the keyframes
+/// just before and after a place share most of its descriptors and the votes rank the right one near
+/// the top, not always first; each costs one brute-force matching and PnP RANSAC, on a lost frame only.
+const RETRIEVAL_CANDIDATES: usize = 3;
 
 /// 95 % bounds of χ² with 3 (stereo) and 2 (left image only) degrees of freedom, σ = 1 px.
 const CHI2_STEREO: f64 = 7.815;
@@ -374,6 +386,10 @@ pub struct StereoVo {
     pairs: Vec<DisparityPair>,
     /// Solves the two-frame stereo bundle adjustments.
     optimizer: SharedOptimizer,
+    /// The descriptors of every keyframe of the run (relocalisation by retrieval), and the keyframes
+    /// themselves by id (their map points; keypoints dropped).
+    index: KeyframeIndex,
+    archive: BTreeMap<KeyframeId, Reference>,
 }
 
 /// A borrowed 8-bit grey image.
@@ -584,6 +600,8 @@ impl StereoVo {
             keypoints: [Vec::new(), Vec::new()],
             pairs: Vec::new(),
             optimizer,
+            index: KeyframeIndex::default(),
+            archive: BTreeMap::new(),
         })
     }
 
@@ -1147,7 +1165,9 @@ impl StereoVo {
                 })
                 .collect(),
         };
-        let old = self.reference.replace(Reference { frame, id, world_from_kf, parent });
+        let kf = Reference { frame, id, world_from_kf, parent };
+        self.archive_keyframe(&kf);
+        let old = self.reference.replace(kf);
         match (old, parent) {
             (Some(old), Some(_)) => {
                 self.local.push_front(old);
@@ -1161,6 +1181,17 @@ impl StereoVo {
         self.kf_inliers = None;
         self.since_kf = 0;
         data
+    }
+
+    /// Keep a keyframe for retrieval: all its keypoints' descriptors in the index and its map points
+    /// in the archive.
+    fn archive_keyframe(&mut self, kf: &Reference) {
+        self.index.insert(kf.id, &kf.frame.keypoint_desc);
+        let mut kept = kf.clone();
+        kept.frame.keypoints = Vec::new();
+        kept.frame.keypoint_desc = Vec::new();
+        kept.frame.grid = KeypointGrid::default();
+        self.archive.insert(kf.id, kept);
     }
 
     fn grey_of(img: &Image) -> Result<Mat, FrontendError> {
@@ -1202,11 +1233,11 @@ impl StereoVo {
                 tracing::debug!(steps = k, inliers = r.inliers.len(), "relocalisation along the motion");
                 first.get_or_insert(r.pose);
                 if accept(&r, Route::Along(k)) {
-                    return Ok((Some((r, n, Route::Along(k))), first));
+                    return Ok((Some((r, n, Route::Along(k))), first, None));
                 }
             }
         }
-        let Some(reference) = &self.reference else { return Ok((None, first)) };
+        let Some(reference) = &self.reference else { return Ok((None, first, None)) };
         let ref_from_world = reference.world_from_kf.inverse();
         let mut maps = vec![None];
         for kf in self.local.iter().skip(self.config.local_keyframes) {
@@ -1235,11 +1266,54 @@ impl StereoVo {
                 tracing::debug!(inliers = r.inliers.len(), "relocalisation by descriptors");
                 first.get_or_insert(r.pose);
                 if accept(&r, Route::Descriptors) {
-                    return Ok((Some((r, n, Route::Descriptors)), first));
+                    return Ok((Some((r, n, Route::Descriptors)), first, None));
                 }
             }
         }
-        Ok((None, first))
+        let (found, retrieved) =
+            self.retrieve(frame)?.map_or((None, None), |(r, n, id, m)| (Some((r, n, Route::Retrieved(id))), Some(m)));
+        Ok((found, first, retrieved))
+    }
+
+    /// Relocalisation by retrieval: the [`RETRIEVAL_CANDIDATES`] keyframes of the whole run that the
+    /// descriptor index ([`crate::keyframe_index`]) ranks best for the frame's descriptors, each tried alone (its map points matched by descriptors, PnP RANSAC
+    /// as in [`StereoVo::relocalise`], a second search at the pose found, the refinement) and accepted
+    /// only with full support ([`Support::Full`]: inliers, their spread, their error). The motion
+    /// model is not consulted: a revisit or a long gap breaks it legitimately. Returns the refined
+    /// pose as `curr_from_ref`, the RANSAC inliers, the keyframe's id and the map the inliers index.
+    fn retrieve(&self, frame: &Frame) -> Result<Option<(Refined, usize, KeyframeId, LocalMap)>, FrontendError> {
+        let Some(reference) = &self.reference else { return Ok(None) };
+        if frame.points.len() < self.config.min_inliers {
+            return Ok(None);
+        }
+        let ref_from_world = reference.world_from_kf.inverse();
+        for (id, score) in self.index.query(&frame.keypoint_desc, RETRIEVAL_CANDIDATES) {
+            let Some(kf) = self.archive.get(&id) else { continue };
+            let ref_from_kf = ref_from_world * kf.world_from_kf;
+            let mut map = LocalMap::default();
+            map.add_keyframe(kf, ref_from_kf, &mut HashMap::new());
+            let all = self.match_all(&map, frame);
+            let Some((pose, _)) = self.pnp_ransac(&map, frame, &all, (2.0 * self.config.ransac_px, 5000, 12))? else {
+                tracing::debug!(keyframe = id, score, matches = all.len(), "retrieved keyframe: no PnP pose");
+                continue;
+            };
+            let skip = vec![false; map.points.len()];
+            let taken = vec![false; frame.keypoints.len()];
+            let radius = 2.0 * self.config.local_radius;
+            let matches = self.search(&map, &pose, frame, &|_, o| radius * 1.2f64.powi(o), &skip, &taken);
+            let Some((pose, inliers)) =
+                self.pnp_ransac(&map, frame, &matches, (self.config.ransac_px, 200, self.config.weak_inliers))?
+            else {
+                continue;
+            };
+            let Some((r, n)) = self.extend_and_refine(&map, frame, &pose, inliers) else { continue };
+            let support = self.judge(&r, Route::Retrieved(id), frame);
+            tracing::debug!(keyframe = id, score, inliers = r.inliers.len(), ?support, "retrieved keyframe");
+            if support == Support::Full {
+                return Ok(Some((r, n, id, map)));
+            }
+        }
+        Ok(None)
     }
 
     /// Frame-id steps as velocity steps (the velocity was measured over `velocity_gap` ids), at least 1.
@@ -1257,6 +1331,9 @@ impl StereoVo {
     fn judge(&self, r: &Refined, route: Route, frame: &Frame) -> Support {
         let cells = spread_cells(r.inliers.iter().map(|&(_, c)| frame.keypoints[c]), self.image_size);
         let support = Self::support(&self.config, r.inliers.len(), cells, r.rms);
+        if let Route::Retrieved(_) = route {
+            return if support == Support::Full { support } else { Support::Rejected };
+        }
         if support == Support::Rejected {
             tracing::debug!(inliers = r.inliers.len(), cells, rms = r.rms, "pose rejected: support");
             return support;
@@ -1369,11 +1446,16 @@ impl StereoVo {
             }
         }
         // 3. relocalisation
+        let mut retrieved = None;
         if found.is_none() {
-            let (r, first) = self.relocalise(&map, &frame, &accept)?;
+            let (r, first, m) = self.relocalise(&map, &frame, &accept)?;
             found = r;
             fallback = fallback.or(first);
+            retrieved = m;
         }
+        // the map the inliers index: a retrieved keyframe's, else the local map
+        let map = retrieved.unwrap_or(map);
+        let route = found.as_ref().map(|f| f.2);
         let support = found.as_ref().map(|(r, _, route)| self.judge(r, *route, &frame));
         let was_measured = !self.failed;
         let (state, curr_from_ref, refined) = match (found, support) {
@@ -1447,14 +1529,19 @@ impl StereoVo {
         let keyframe = if want_keyframe {
             // a frame lost for too long starts a new map segment: no parent, no carried points, at the
             // first unverified candidate pose when there was one, else at the motion prediction
-            let (parent, world_from_kf) = if measured {
+            let (parent, world_from_kf) = if let (true, Some(Route::Retrieved(id))) = (measured, route) {
+                // the pose was measured against the retrieved keyframe: it is the parent
+                let world_from_parent = self.archive.get(&id).map_or(world_from_ref, |k| k.world_from_kf);
+                (Some((id, world_from_parent.inverse() * world_from_curr)), world_from_curr)
+            } else if measured {
                 ((Some((ref_id, kf_from_curr))), world_from_curr)
             } else {
                 tracing::warn!(frame = frame_index, "tracking lost: new map segment from this frame");
                 (None, world_from_ref * fallback.unwrap_or(curr_from_ref).inverse())
             };
             let mut frame = frame;
-            let earlier = match (measured && self.config.triangulate, self.reference.as_ref()) {
+            let retrieved = matches!(route, Some(Route::Retrieved(_)));
+            let earlier = match (measured && self.config.triangulate && !retrieved, self.reference.as_ref()) {
                 (true, Some(r)) => Self::triangulate(
                     &self.rig.k,
                     &r.frame,
@@ -1656,12 +1743,18 @@ impl StereoTracker for StereoVo {
         for kf in self.local.iter_mut().filter(|k| k.id == c.id) {
             apply_correction(kf, c);
         }
+        if let Some(kf) = self.archive.get_mut(&c.id) {
+            apply_correction(kf, c);
+        }
         let Some(r) = self.reference.as_mut() else { return };
         if r.id == c.id {
             apply_correction(r, c);
         } else if let Some((parent, parent_from_ref)) = r.parent {
             if parent == c.id {
                 r.world_from_kf = c.world_from_camera * parent_from_ref;
+                if let Some(kf) = self.archive.get_mut(&r.id) {
+                    kf.world_from_kf = r.world_from_kf;
+                }
             }
         }
     }
@@ -1853,6 +1946,40 @@ mod tests {
                 rms: r.rms,
             };
             assert_eq!(vo.judge(&jump, Route::Motion, &frame), Support::Rejected, "a 5 m jump");
+        }
+    }
+
+    /// The keyframe index on real frames: after tracking odometry 06 frames 0-30, every frame's own
+    /// descriptors (keyframe or not) retrieve, as the best candidate, a keyframe taken within a few
+    /// frames of it, never one of the far end of the run.
+    #[test]
+    fn the_index_retrieves_a_nearby_keyframe_for_real_frames() {
+        let root =
+            std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06/sequences/06"));
+        let read = |cam: &str, i: usize| {
+            crate::read_image(root.join(cam).join(format!("{i:06}.png")), false).expect("fixture image")
+        };
+        let k = Intrinsics::new(707.0912, 707.0912, 601.8873, 183.1104);
+        let rig = StereoRig { k, baseline: 379.8145 / 707.0912 };
+        let mut vo =
+            StereoVo::new(rig, VoConfig::default(), std::sync::Arc::new(slam_lm::LevenbergMarquardt::default()))
+                .expect("ORB");
+        let mut keyframe_at: HashMap<KeyframeId, usize> = HashMap::new();
+        let frames = 31;
+        for i in 0..frames {
+            let t = vo.process(i, &read("image_0", i), &read("image_1", i), &[]).expect("tracks");
+            if let Some(kf) = t.keyframe {
+                keyframe_at.insert(kf.id, kf.frame);
+            }
+        }
+        assert!(keyframe_at.len() >= 6, "{keyframe_at:?}");
+        assert_eq!(vo.index.len(), keyframe_at.len(), "every keyframe indexed");
+        for i in (1..frames).step_by(3) {
+            let grey = StereoVo::grey_of(&read("image_0", i)).expect("grey");
+            let f = extract(&mut vo.orb, &grey).expect("ORB");
+            let best = vo.index.query(&f.desc, 3);
+            let at = keyframe_at[&best[0].0];
+            assert!(at.abs_diff(i) <= 4, "frame {i}: best keyframe at frame {at}: {best:?}");
         }
     }
 
