@@ -11,8 +11,6 @@
 //! which keyframes are tried; a candidate is accepted by the pose verification in
 //! [`crate::stereo_vo`], never by its votes.
 
-use std::collections::HashMap;
-
 use crate::matching::hamming;
 
 /// A binary descriptor (ORB: 256 bits).
@@ -25,16 +23,24 @@ const CHUNKS: usize = 16;
 /// ORB descriptors differ by (σ ≈ 8), and under the 60 of a tracking match, so chance votes are rare.
 const MAX_HAMMING: u32 = 50;
 
-/// Keyframes' descriptors with one hash table per 16-bit substring.
+/// Keyframes' descriptors with one table per 16-bit substring, addressed directly by the substring's
+/// value: each of its 65 536 slots heads a chain of the stored descriptors holding that value, linked
+/// through `next`. An insert is two writes per substring and allocates nothing per value (a hash map
+/// of small vectors cost ~10 ms per keyframe); the tables take 16 × 256 KiB.
 #[derive(Debug, Default)]
 pub(crate) struct KeyframeIndex {
     /// Each keyframe's key (the caller's) and its number of descriptors.
     entries: Vec<(u64, usize)>,
     /// Every stored descriptor and its keyframe (slot in `entries`).
     descriptors: Vec<(Descriptor, u32)>,
-    /// Per substring: its value → the stored descriptors holding it.
-    tables: Vec<HashMap<u16, Vec<u32>>>,
+    /// Per substring: the newest stored descriptor holding each value (`NONE`: none).
+    heads: Vec<Vec<u32>>,
+    /// Per stored descriptor and substring: the next older descriptor holding the same value.
+    next: Vec<[u32; CHUNKS]>,
 }
+
+/// The end of a chain.
+const NONE: u32 = u32::MAX;
 
 fn chunk(d: &Descriptor, c: usize) -> u16 {
     u16::from_le_bytes([d[2 * c], d[2 * c + 1]])
@@ -49,17 +55,21 @@ impl KeyframeIndex {
 
     /// Add a keyframe under `key` with its descriptors.
     pub(crate) fn insert(&mut self, key: u64, descriptors: &[Descriptor]) {
-        if self.tables.is_empty() {
-            self.tables = vec![HashMap::new(); CHUNKS];
+        if self.heads.is_empty() {
+            self.heads = vec![vec![NONE; 1 << 16]; CHUNKS];
         }
         let slot = self.entries.len() as u32;
         self.entries.push((key, descriptors.len()));
         for d in descriptors {
             let id = self.descriptors.len() as u32;
             self.descriptors.push((*d, slot));
-            for (c, table) in self.tables.iter_mut().enumerate() {
-                table.entry(chunk(d, c)).or_default().push(id);
+            let mut links = [NONE; CHUNKS];
+            for (c, (head, link)) in self.heads.iter_mut().zip(links.iter_mut()).enumerate() {
+                let h = &mut head[chunk(d, c) as usize];
+                *link = *h;
+                *h = id;
             }
+            self.next.push(links);
         }
     }
 
@@ -72,12 +82,14 @@ impl KeyframeIndex {
         let mut voted: Vec<u32> = Vec::new();
         for q in descriptors {
             voted.clear();
-            for (c, table) in self.tables.iter().enumerate() {
-                for &id in table.get(&chunk(q, c)).map_or(&[][..], |v| v.as_slice()) {
+            for (c, head) in self.heads.iter().enumerate() {
+                let mut id = head[chunk(q, c) as usize];
+                while id != NONE {
                     let (d, slot) = &self.descriptors[id as usize];
                     if !voted.contains(slot) && hamming(q, d) <= MAX_HAMMING {
                         voted.push(*slot);
                     }
+                    id = self.next[id as usize][c];
                 }
             }
             for &slot in &voted {

@@ -1186,12 +1186,14 @@ impl StereoVo {
     /// Keep a keyframe for retrieval: all its keypoints' descriptors in the index and its map points
     /// in the archive.
     fn archive_keyframe(&mut self, kf: &Reference) {
+        let t0 = Instant::now();
         self.index.insert(kf.id, &kf.frame.keypoint_desc);
         let mut kept = kf.clone();
         kept.frame.keypoints = Vec::new();
         kept.frame.keypoint_desc = Vec::new();
         kept.frame.grid = KeypointGrid::default();
         self.archive.insert(kf.id, kept);
+        tracing::debug!(keyframe = kf.id, ms = t0.elapsed().as_secs_f64() * 1e3, "keyframe indexed");
     }
 
     fn grey_of(img: &Image) -> Result<Mat, FrontendError> {
