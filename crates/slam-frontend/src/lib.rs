@@ -13,6 +13,7 @@ pub mod disparity;
 pub use detector::nms;
 pub mod image_io;
 pub mod image_size;
+mod keyframe_index;
 mod settings;
 mod matching;
 mod pose_only;
