@@ -128,9 +128,9 @@ impl DetectorArgs {
         Ok(match self.kind()? {
             DetectorKind::None => DetectorChoice::None,
             DetectorKind::Dnn => network(&self.model),
-            DetectorKind::File => DetectorChoice::File(
-                self.detections.clone().context("--detector file needs --detections <file.json>")?,
-            ),
+            DetectorKind::File => {
+                DetectorChoice::File(self.detections.clone().context("--detector file needs --detections <file.json>")?)
+            }
             DetectorKind::Labels => DetectorChoice::Labels { noise: self.label_noise.unwrap_or(0.0) },
         })
     }
@@ -168,10 +168,7 @@ pub struct SettingsArgs {
 impl SettingsArgs {
     /// The library defaults, overlaid by --config and the overriding options.
     pub fn load(&self) -> anyhow::Result<RunConfig> {
-        let mut cfg = match &self.config {
-            Some(p) => RunConfig::read(p)?,
-            None => RunConfig::default(),
-        };
+        let mut cfg = read_config(self.config.as_deref())?;
         if let Some(g) = self.keyframe_gap {
             cfg.tracking.keyframe_max_gap = g as usize;
         }
@@ -183,6 +180,11 @@ impl SettingsArgs {
         }
         Ok(cfg)
     }
+}
+
+/// The settings file at `path` over the library defaults, or the defaults.
+pub fn read_config(path: Option<&std::path::Path>) -> anyhow::Result<RunConfig> {
+    path.map_or_else(|| Ok(RunConfig::default()), RunConfig::read)
 }
 
 /// Which implementations behind the seams a run wires together.
@@ -230,6 +232,12 @@ impl OutputArgs {
             format: self.overlay_format.clone().unwrap_or_else(|| "png".into()),
         })
     }
+}
+
+/// The shipped sequence, every frame, the default wiring and no detector, with settings `cfg`.
+pub fn shipped_run(cfg: &RunConfig, max_frames: Option<usize>) -> slam_runner::RunSettings {
+    let seq = SequenceArgs { path: None, frames: None, stride: 1, max_frames };
+    run_settings(&seq, cfg, &WiringArgs::default(), DetectorChoice::None, None)
 }
 
 /// The library's run settings from the option groups and the effective settings.

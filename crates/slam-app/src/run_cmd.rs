@@ -9,7 +9,7 @@ use slam_pipeline::{map::Map, system::FrameRecord};
 use slam_runner::{bench, inspect, report::run_output_name, stereo, RunSettings};
 
 use crate::{
-    args::{run_settings, DetectorArgs, OutputArgs, SequenceArgs, SettingsArgs, WiringArgs},
+    args::{read_config, run_settings, shipped_run, DetectorArgs, OutputArgs, SequenceArgs, SettingsArgs, WiringArgs},
     config::RunConfig,
 };
 
@@ -113,19 +113,13 @@ pub struct RunBenchArgs {
     max_frames: Option<usize>,
 }
 
-/// The shipped sequence with the library defaults and the default wiring, no detector.
-fn shipped_defaults(max_frames: Option<usize>) -> anyhow::Result<RunSettings> {
-    if let Some(n) = max_frames {
-        crate::validate::count("--max-frames", n, 1, usize::MAX)?;
-    }
-    let seq = SequenceArgs { path: None, frames: None, stride: 1, max_frames };
-    Ok(run_settings(&seq, &RunConfig::default(), &WiringArgs::default(), slam_runner::DetectorChoice::None, None))
-}
-
 /// `slam-app run-bench`: the system on the shipped sequence without objects, with detections from the
 /// shipped file, and with the shipped detector on every frame; medians over repeated runs.
 pub fn run_bench(b: &RunBenchArgs) -> anyhow::Result<()> {
-    let base = shipped_defaults(b.max_frames)?;
+    if let Some(n) = b.max_frames {
+        crate::validate::count("--max-frames", n, 1, usize::MAX)?;
+    }
+    let base = shipped_run(&RunConfig::default(), b.max_frames);
     let file = crate::fixture("kitti_odom_06/detections/yolo_fastest_tiles3.json");
     let model = crate::detect_cmd::ModelArgs::default();
     println!("{}", bench::RUN_BENCH_HEADER);
@@ -168,10 +162,7 @@ pub fn track_bench(b: &TrackBenchArgs) -> anyhow::Result<()> {
     if cases.is_empty() {
         bail!("no cases: --only-cases needs at least one --case PATH[:STRIDE]");
     }
-    let cfg = SettingsArgs { config: b.config.clone(), print_config: false, keyframe_gap: None, no_ba: false, detect_every: None }
-        .load()?;
-    let seq = SequenceArgs { path: None, frames: None, stride: 1, max_frames: None };
-    let base = run_settings(&seq, &cfg, &WiringArgs::default(), slam_runner::DetectorChoice::None, None);
+    let base = shipped_run(&read_config(b.config.as_deref())?, None);
     println!("{}", bench::track_bench_header());
     let mut notes = Vec::new();
     for c in &cases {
@@ -239,12 +230,14 @@ pub fn stereo_check(a: &StereoCheckArgs) -> anyhow::Result<()> {
     use crate::validate::{count, number, Range};
     // a rectification error of more than 10 px is a wrong calibration, not an offset to estimate
     number("--range", a.range, Range::above(0.0, 10.0), "px")?;
-    number("--step", a.step, Range::above(a.range / 10_000.0, a.range), "px (at most --range, at least --range / 10000)")?;
+    number(
+        "--step",
+        a.step,
+        Range::above(a.range / 10_000.0, a.range),
+        "px (at most --range, at least --range / 10000)",
+    )?;
     count("--rounds", a.rounds, 1, 100)?;
-    let cfg = match &a.config {
-        Some(p) => RunConfig::read(p)?,
-        None => RunConfig::default(),
-    };
+    let cfg = read_config(a.config.as_deref())?;
     let check = stereo::StereoCheck {
         path: a.path.clone().unwrap_or_else(|| crate::fixture("kitti_odom_06/sequences/06")),
         frames: a.frames,
@@ -255,14 +248,11 @@ pub fn stereo_check(a: &StereoCheckArgs) -> anyhow::Result<()> {
         optimizer: std::sync::Arc::new(|| crate::optimizer_choice::OptimizerKind::default().build()),
     };
     let mut number = 0;
-    let report = stereo::stereo_check(
-        &check,
-        &mut |header| println!("{header}\n{}", stereo::ROUND_HEADER),
-        &mut |round| {
+    let report =
+        stereo::stereo_check(&check, &mut |header| println!("{header}\n{}", stereo::ROUND_HEADER), &mut |round| {
             number += 1;
             println!("{}", round.row(number));
-        },
-    )?;
+        })?;
     println!("{}", report.conclusion(a.curve));
     Ok(())
 }

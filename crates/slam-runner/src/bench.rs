@@ -53,7 +53,15 @@ pub struct BenchRow {
 impl std::fmt::Display for BenchRow {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let cells: Vec<String> = self.stages.iter().map(|v| format!("{v:.1}")).collect();
-        write!(f, "| {} | {:.1} | {:.1} | {} | {:.3} |", self.name, self.fps_median, self.fps_overall, cells.join(" | "), self.ate)
+        write!(
+            f,
+            "| {} | {:.1} | {:.1} | {} | {:.3} |",
+            self.name,
+            self.fps_median,
+            self.fps_overall,
+            cells.join(" | "),
+            self.ate
+        )
     }
 }
 
@@ -221,9 +229,15 @@ mod tests {
         let cols = lines.next().expect("head").matches('|').count();
         assert_eq!(lines.next().expect("rule").matches('|').count(), cols);
         assert_eq!(cols, 8 + STATE_NAMES.len());
-        let row = BenchRow { name: "x".into(), fps_median: 30.04, fps_overall: 20.0, stages: vec![1.0; 8], ate: 0.1234 };
-        assert_eq!(row.to_string().matches('|').count(), RUN_BENCH_HEADER.lines().next().expect("head").matches('|').count());
+        let row =
+            BenchRow { name: "x".into(), fps_median: 30.04, fps_overall: 20.0, stages: vec![1.0; 8], ate: 0.1234 };
+        assert_eq!(
+            row.to_string().matches('|').count(),
+            RUN_BENCH_HEADER.lines().next().expect("head").matches('|').count()
+        );
         assert!(row.to_string().starts_with("| x | 30.0 | 20.0 | 1.0 |") && row.to_string().ends_with("| 0.123 |"));
-        assert!(run_bench_footer(3, &[row.clone(), row.clone(), row]).contains("(30.0), >= 10 with the detector (30.0)"));
+        assert!(
+            run_bench_footer(3, &[row.clone(), row.clone(), row]).contains("(30.0), >= 10 with the detector (30.0)")
+        );
     }
 }

@@ -25,12 +25,15 @@ pub fn trajectory_eval(estimate: &Path, truth: &Path, max_diff: f64) -> Result<S
         gt.poses().len(),
         c.how
     )];
-    let e = c.errors.ok_or_else(|| {
-        RunnerError::Invalid(format!("fewer than two matched poses ({} matched)", c.pairs.len()))
-    })?;
+    let e = c
+        .errors
+        .ok_or_else(|| RunnerError::Invalid(format!("fewer than two matched poses ({} matched)", c.pairs.len())))?;
     lines.push("| metric | value |\n|---|---:|".into());
     lines.push(format!("| poses compared | {} |\n| path (ground truth) | {:.1} m |", e.frames, e.path_m));
-    lines.push(format!("| ATE (first poses aligned) | {:.3} m |\n| ATE (rigid alignment) | {:.3} m |", e.ate_m, e.ate_aligned_m));
+    lines.push(format!(
+        "| ATE (first poses aligned) | {:.3} m |\n| ATE (rigid alignment) | {:.3} m |",
+        e.ate_m, e.ate_aligned_m
+    ));
     lines.push(format!("| end-point drift | {:.2} % |\n| scale (similarity fit) | {:.4} |", e.end_drift_pct, e.scale));
     for (len, t, r, count) in e.rpe {
         lines.push(format!("| RPE {len:.0} m ({count} segments) | {t:.2} % / {r:.2} deg/100 m |"));
@@ -150,8 +153,7 @@ mod tests {
     use super::*;
 
     fn write_kitti(path: &Path, xs: &[f64]) {
-        let text: String =
-            xs.iter().map(|x| format!("1 0 0 {x} 0 1 0 0 0 0 1 0\n")).collect();
+        let text: String = xs.iter().map(|x| format!("1 0 0 {x} 0 1 0 0 0 0 1 0\n")).collect();
         std::fs::write(path, text).expect("write");
     }
 

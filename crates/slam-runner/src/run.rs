@@ -169,12 +169,7 @@ impl Prepared {
 
     /// Run the system over the frames. `on_frame` sees every finished frame (progress); `stop` is polled
     /// before each frame is read (Ctrl-C: the input ends, the system finishes what it has).
-    pub fn run(
-        self,
-        s: &RunSettings,
-        on_frame: &mut dyn FnMut(&FrameRecord),
-        stop: fn() -> bool,
-    ) -> Result<Outcome> {
+    pub fn run(self, s: &RunSettings, on_frame: &mut dyn FnMut(&FrameRecord), stop: fn() -> bool) -> Result<Outcome> {
         let Prepared { seq, k, colour, selection } = self;
         // the image size comes from the first frame whose left image exists
         let first_left = seq.left.iter().find(|p| p.is_file()).unwrap_or(&seq.left[0]);
@@ -252,10 +247,14 @@ fn guarded(
 }
 
 /// Both images of a frame, of one size and of the sequence's first frame's size.
-fn read_pair(l: &std::path::Path, r: &std::path::Path, colour: bool, first: (u32, u32)) -> std::result::Result<(Image, Image), String> {
-    let (li, ri) = read_image(l, colour)
-        .and_then(|li| read_image(r, colour).map(|ri| (li, ri)))
-        .map_err(|e| e.to_string())?;
+fn read_pair(
+    l: &std::path::Path,
+    r: &std::path::Path,
+    colour: bool,
+    first: (u32, u32),
+) -> std::result::Result<(Image, Image), String> {
+    let (li, ri) =
+        read_image(l, colour).and_then(|li| read_image(r, colour).map(|ri| (li, ri))).map_err(|e| e.to_string())?;
     if (li.width, li.height) != (ri.width, ri.height) {
         Err(format!(
             "left {} is {}×{}, right {} is {}×{}",
@@ -267,7 +266,14 @@ fn read_pair(l: &std::path::Path, r: &std::path::Path, colour: bool, first: (u32
             ri.height
         ))
     } else if (li.width, li.height) != first {
-        Err(format!("{} is {}×{}, the sequence's first frame {}×{}", l.display(), li.width, li.height, first.0, first.1))
+        Err(format!(
+            "{} is {}×{}, the sequence's first frame {}×{}",
+            l.display(),
+            li.width,
+            li.height,
+            first.0,
+            first.1
+        ))
     } else {
         Ok((li, ri))
     }

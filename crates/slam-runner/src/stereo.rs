@@ -103,7 +103,11 @@ fn read_pair(
 }
 
 /// Run the rounds; `on_round` sees each round as it finishes (the header first, once).
-pub fn stereo_check(c: &StereoCheck, on_header: &mut dyn FnMut(&str), on_round: &mut dyn FnMut(&Round)) -> Result<StereoReport> {
+pub fn stereo_check(
+    c: &StereoCheck,
+    on_header: &mut dyn FnMut(&str),
+    on_round: &mut dyn FnMut(&Round),
+) -> Result<StereoReport> {
     let (seq, rig, readable, n) = open_checked(c)?;
     let header = format!(
         "{}: {n} frames ({} unreadable), fx {:.1} px, baseline {:.4} m",
@@ -136,7 +140,9 @@ pub fn stereo_check(c: &StereoCheck, on_header: &mut dyn FnMut(&str), on_round: 
             c.step,
             &*optimizer,
         )
-        .ok_or_else(|| RunnerError::Invalid(format!("no tracked frame pairs in {n} frames of {}", seq.dir.display())))?;
+        .ok_or_else(|| {
+            RunnerError::Invalid(format!("no tracked frame pairs in {n} frames of {}", seq.dir.display()))
+        })?;
         let round = Round { applied, pairs: e.pairs, points: e.points, residual: e.offset };
         on_round(&round);
         rounds.push(round);
