@@ -4,8 +4,7 @@
 
 use crate::config::RunConfig;
 
-pub use slam_dataset::check::{calibration, count, declared_size, first_pair, number, Range};
-pub use slam_frontend::image_size::stereo_pair;
+pub use slam_dataset::check::{count, number, Range};
 
 /// Largest square network input accepted, pixels. Memory and time grow with its square (the input blob
 /// and every activation map): 320 is the shipped model's size, 2048 keeps a CPU forward pass within a few
