@@ -471,8 +471,8 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
         median_fps(&out)
     );
     println!(
-        "keyframes {}, lost {}, relocalised {}, new map segments {}, unreadable {}, detector errors {}, culled observations {}, duplicate or part boxes suppressed {}",
-        c.keyframes, c.lost, c.relocalised, c.new_segments, c.unreadable, c.detector_errors, c.culled_observations, c.suppressed_boxes
+        "keyframes {}, lost {}, relocalised {}, new map segments {}, unreadable {}, detector errors {}, culled observations {}, duplicate or part boxes suppressed {}, ellipsoids of impossible size refused {}",
+        c.keyframes, c.lost, c.relocalised, c.new_segments, c.unreadable, c.detector_errors, c.culled_observations, c.suppressed_boxes, c.implausible_fits
     );
     println!(
         "tracking states: tracked {}, weak {}, relocalised {}, lost {}, predicted {}, unreadable {} (tracking.csv has one row per frame)",
