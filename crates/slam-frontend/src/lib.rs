@@ -11,6 +11,7 @@ pub mod detectors;
 pub mod disparity;
 pub use detector::nms;
 pub mod image_io;
+mod keyframe_index;
 mod matching;
 mod pose_only;
 pub mod stereo_vo;

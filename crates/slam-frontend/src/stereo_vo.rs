@@ -8,7 +8,7 @@
 //!
 //! The thresholds and why they hold beyond one sequence are in `docs/system.md` ("Tracking").
 
-use std::collections::{HashMap, HashSet, VecDeque};
+use std::collections::{BTreeMap, HashMap, HashSet, VecDeque};
 use std::time::Instant;
 
 use nalgebra::{Isometry3, Matrix3, Vector3};
@@ -25,6 +25,7 @@ use slam_quadric::{se3, Intrinsics};
 
 use crate::disparity::DisparityPair;
 use crate::image_io::{image_to_mat, FrontendError};
+use crate::keyframe_index::KeyframeIndex;
 use crate::matching::{hamming, KeypointGrid};
 use crate::pose_only;
 
@@ -164,6 +165,7 @@ impl Default for VoConfig {
     }
 }
 
+#[derive(Clone)]
 struct Frame {
     points: Vec<Vector3<f64>>,
     desc: Vec<[u8; 32]>,
@@ -199,6 +201,7 @@ impl Frame {
 }
 
 /// A keyframe.
+#[derive(Clone)]
 struct Reference {
     frame: Frame,
     id: KeyframeId,
@@ -256,14 +259,23 @@ enum Route {
     Along(usize),
     /// Relocalisation by descriptors alone.
     Descriptors,
+    /// Relocalisation against a keyframe retrieved from the keyframe index (any keyframe of the run,
+    /// a revisit included); accepted on its own support, not the motion model.
+    Retrieved(KeyframeId),
 }
 
 /// A pose found by PnP RANSAC (`curr_from_ref`) and its inlier matches (local-map point, keypoint).
 type Solved = (Isometry3<f64>, Vec<(usize, usize)>);
 
-/// What relocalisation found: the accepted candidate (refined pose, RANSAC inliers, route), and the
-/// first candidate pose whether accepted or not.
-type Relocalisation = (Option<(Refined, usize, Route)>, Option<Isometry3<f64>>);
+/// What relocalisation found: the accepted candidate (refined pose, RANSAC inliers, route), the
+/// first candidate pose whether accepted or not, and for a retrieved keyframe, the map its inliers
+/// index (that keyframe's points in the reference keyframe's frame).
+type Relocalisation = (Option<(Refined, usize, Route)>, Option<Isometry3<f64>>, Option<LocalMap>);
+
+/// Keyframes tried by retrieval ([`StereoVo::retrieve`]): the best few by votes, since the keyframes
+/// just before and after a place share most of its descriptors and the votes rank the right one near
+/// the top, not always first; each costs one brute-force matching and PnP RANSAC, on a lost frame only.
+const RETRIEVAL_CANDIDATES: usize = 3;
 
 /// 95 % bounds of χ² with 3 (stereo) and 2 (left image only) degrees of freedom, σ = 1 px.
 const CHI2_STEREO: f64 = 7.815;
@@ -374,6 +386,10 @@ pub struct StereoVo {
     pairs: Vec<DisparityPair>,
     /// Solves the two-frame stereo bundle adjustments.
     optimizer: SharedOptimizer,
+    /// The descriptors of every keyframe of the run (relocalisation by retrieval), and the keyframes
+    /// themselves by id (their map points; keypoints dropped).
+    index: KeyframeIndex,
+    archive: BTreeMap<KeyframeId, Reference>,
 }
 
 /// A borrowed 8-bit grey image.
@@ -584,6 +600,8 @@ impl StereoVo {
             keypoints: [Vec::new(), Vec::new()],
             pairs: Vec::new(),
             optimizer,
+            index: KeyframeIndex::default(),
+            archive: BTreeMap::new(),
         })
     }
 
@@ -1147,7 +1165,9 @@ impl StereoVo {
                 })
                 .collect(),
         };
-        let old = self.reference.replace(Reference { frame, id, world_from_kf, parent });
+        let kf = Reference { frame, id, world_from_kf, parent };
+        self.archive_keyframe(&kf);
+        let old = self.reference.replace(kf);
         match (old, parent) {
             (Some(old), Some(_)) => {
                 self.local.push_front(old);
@@ -1161,6 +1181,19 @@ impl StereoVo {
         self.kf_inliers = None;
         self.since_kf = 0;
         data
+    }
+
+    /// Keep a keyframe for retrieval: all its keypoints' descriptors in the index and its map points
+    /// in the archive.
+    fn archive_keyframe(&mut self, kf: &Reference) {
+        let t0 = Instant::now();
+        self.index.insert(kf.id, &kf.frame.keypoint_desc);
+        let mut kept = kf.clone();
+        kept.frame.keypoints = Vec::new();
+        kept.frame.keypoint_desc = Vec::new();
+        kept.frame.grid = KeypointGrid::default();
+        self.archive.insert(kf.id, kept);
+        tracing::debug!(keyframe = kf.id, ms = t0.elapsed().as_secs_f64() * 1e3, "keyframe indexed");
     }
 
     fn grey_of(img: &Image) -> Result<Mat, FrontendError> {
@@ -1202,11 +1235,11 @@ impl StereoVo {
                 tracing::debug!(steps = k, inliers = r.inliers.len(), "relocalisation along the motion");
                 first.get_or_insert(r.pose);
                 if accept(&r, Route::Along(k)) {
-                    return Ok((Some((r, n, Route::Along(k))), first));
+                    return Ok((Some((r, n, Route::Along(k))), first, None));
                 }
             }
         }
-        let Some(reference) = &self.reference else { return Ok((None, first)) };
+        let Some(reference) = &self.reference else { return Ok((None, first, None)) };
         let ref_from_world = reference.world_from_kf.inverse();
         let mut maps = vec![None];
         for kf in self.local.iter().skip(self.config.local_keyframes) {
@@ -1235,11 +1268,54 @@ impl StereoVo {
                 tracing::debug!(inliers = r.inliers.len(), "relocalisation by descriptors");
                 first.get_or_insert(r.pose);
                 if accept(&r, Route::Descriptors) {
-                    return Ok((Some((r, n, Route::Descriptors)), first));
+                    return Ok((Some((r, n, Route::Descriptors)), first, None));
                 }
             }
         }
-        Ok((None, first))
+        let (found, retrieved) =
+            self.retrieve(frame)?.map_or((None, None), |(r, n, id, m)| (Some((r, n, Route::Retrieved(id))), Some(m)));
+        Ok((found, first, retrieved))
+    }
+
+    /// Relocalisation by retrieval: the [`RETRIEVAL_CANDIDATES`] keyframes of the whole run that the
+    /// descriptor index ([`crate::keyframe_index`]) ranks best for the frame's descriptors, each tried alone (its map points matched by descriptors, PnP RANSAC
+    /// as in [`StereoVo::relocalise`], a second search at the pose found, the refinement) and accepted
+    /// only with full support ([`Support::Full`]: inliers, their spread, their error). The motion
+    /// model is not consulted: a revisit or a long gap breaks it legitimately. Returns the refined
+    /// pose as `curr_from_ref`, the RANSAC inliers, the keyframe's id and the map the inliers index.
+    fn retrieve(&self, frame: &Frame) -> Result<Option<(Refined, usize, KeyframeId, LocalMap)>, FrontendError> {
+        let Some(reference) = &self.reference else { return Ok(None) };
+        if frame.points.len() < self.config.min_inliers {
+            return Ok(None);
+        }
+        let ref_from_world = reference.world_from_kf.inverse();
+        for (id, score) in self.index.query(&frame.keypoint_desc, RETRIEVAL_CANDIDATES) {
+            let Some(kf) = self.archive.get(&id) else { continue };
+            let ref_from_kf = ref_from_world * kf.world_from_kf;
+            let mut map = LocalMap::default();
+            map.add_keyframe(kf, ref_from_kf, &mut HashMap::new());
+            let all = self.match_all(&map, frame);
+            let Some((pose, _)) = self.pnp_ransac(&map, frame, &all, (2.0 * self.config.ransac_px, 5000, 12))? else {
+                tracing::debug!(keyframe = id, score, matches = all.len(), "retrieved keyframe: no PnP pose");
+                continue;
+            };
+            let skip = vec![false; map.points.len()];
+            let taken = vec![false; frame.keypoints.len()];
+            let radius = 2.0 * self.config.local_radius;
+            let matches = self.search(&map, &pose, frame, &|_, o| radius * 1.2f64.powi(o), &skip, &taken);
+            let Some((pose, inliers)) =
+                self.pnp_ransac(&map, frame, &matches, (self.config.ransac_px, 200, self.config.weak_inliers))?
+            else {
+                continue;
+            };
+            let Some((r, n)) = self.extend_and_refine(&map, frame, &pose, inliers) else { continue };
+            let support = self.judge(&r, Route::Retrieved(id), frame);
+            tracing::debug!(keyframe = id, score, inliers = r.inliers.len(), ?support, "retrieved keyframe");
+            if support == Support::Full {
+                return Ok(Some((r, n, id, map)));
+            }
+        }
+        Ok(None)
     }
 
     /// Frame-id steps as velocity steps (the velocity was measured over `velocity_gap` ids), at least 1.
@@ -1257,6 +1333,9 @@ impl StereoVo {
     fn judge(&self, r: &Refined, route: Route, frame: &Frame) -> Support {
         let cells = spread_cells(r.inliers.iter().map(|&(_, c)| frame.keypoints[c]), self.image_size);
         let support = Self::support(&self.config, r.inliers.len(), cells, r.rms);
+        if let Route::Retrieved(_) = route {
+            return if support == Support::Full { support } else { Support::Rejected };
+        }
         if support == Support::Rejected {
             tracing::debug!(inliers = r.inliers.len(), cells, rms = r.rms, "pose rejected: support");
             return support;
@@ -1290,7 +1369,10 @@ impl StereoVo {
         }
     }
 
-    /// Track one rectified stereo pair (grey or colour; colour is converted).
+    /// Track one rectified stereo pair (grey or colour; colour is converted): features and stereo
+    /// points ([`StereoVo::prepare`]), the pose ([`StereoVo::find_pose`]) and its state
+    /// ([`StereoVo::decide`]), the motion model ([`StereoVo::record`]), and a keyframe when one is due
+    /// ([`StereoVo::wants_keyframe`], [`StereoVo::new_keyframe`]).
     pub fn process(
         &mut self,
         frame_index: usize,
@@ -1298,47 +1380,14 @@ impl StereoVo {
         right: &Image,
         exclude: &[BBox],
     ) -> Result<TrackedFrame, FrontendError> {
-        let t0 = Instant::now();
-        let (lm, rm) = (Self::grey_of(left)?, Self::grey_of(right)?);
-        self.image_size = (lm.cols().max(1) as f64, lm.rows().max(1) as f64);
-        let mut lf = extract(&mut self.orb, &lm)?;
-        if !exclude.is_empty() {
-            let keep: Vec<bool> =
-                lf.points.iter().map(|&(u, v)| !exclude.iter().any(|b| b.contains_point(u, v))).collect();
-            lf.retain(&keep);
-        }
-        let rf = extract(&mut self.orb, &rm)?;
-        let t1 = Instant::now();
-        let (lg, rg) = (GreyView::of(&lm)?, GreyView::of(&rm)?);
-        let frame = self.stereo(&lf, &rf, (&lg, &rg));
+        let (frame, (extraction, stereo)) = self.prepare(left, right, exclude)?;
         let t2 = Instant::now();
-        self.grey.swap(0, 1);
-        self.grey[1] = Some(lm);
-        self.keypoints.swap(0, 1);
-        self.keypoints[1] = lf.points.clone();
+        let times = |t3: Instant| StageTimes { extraction, stereo, tracking: (t3 - t2).as_secs_f64() * 1e3 };
         let stereo_points = frame.points.len();
-        let times = |t3: Instant| StageTimes {
-            extraction: (t1 - t0).as_secs_f64() * 1e3,
-            stereo: (t2 - t1).as_secs_f64() * 1e3,
-            tracking: (t3 - t2).as_secs_f64() * 1e3,
-        };
         let Some(reference) = self.reference.as_ref() else {
-            let kf = self.take_keyframe(frame, frame_index, Isometry3::identity(), None, &[], &[]);
-            self.since_measured = 1;
-            (self.last_index, self.measured_index, self.failed) = (frame_index, frame_index, false);
-            self.velocity_known = false;
-            self.velocity = Isometry3::identity();
-            self.velocity_gap = 1;
-            return Ok(TrackedFrame {
-                world_from_camera: Isometry3::identity(),
-                reference: (kf.id, Isometry3::identity()),
-                state: TrackState::Initialised,
-                stereo_points,
-                tracked_map_points: 0,
-                reprojection_rms_px: f64::NAN,
-                keyframe: Some(kf),
-                times: times(Instant::now()),
-            });
+            let mut tf = self.initialise(frame, frame_index);
+            tf.times = times(Instant::now());
+            return Ok(tf);
         };
         let (ref_id, world_from_ref) = (reference.id, reference.world_from_kf);
         let map = self.local_map();
@@ -1347,133 +1396,42 @@ impl StereoVo {
         self.gap = frame_index.saturating_sub(self.last_index).max(1);
         self.since_measured = frame_index.saturating_sub(self.measured_index).max(1);
         self.last_index = frame_index;
-        let n = self.since_measured;
         let predicted = (self.kf_from_last * scaled(&self.velocity, self.steps(self.gap))).inverse(); // curr ← keyframe
-        let bounds = if self.velocity_known {
-            motion_limits(&self.step_config(), self.steps(n))
-        } else {
-            (self.config.max_speed * n as f64 * self.config.period(), 0.1)
-        };
-        let accept = |r: &Refined, route: Route| self.judge(r, route, &frame) != Support::Rejected;
-        // 1. the local map from the constant-velocity prediction; 2. wider, around the last pose
-        let mut found = None;
-        let mut fallback = None;
-        let wider = (bounds.0 + self.velocity.translation.vector.norm(), bounds.1 + self.velocity.rotation.angle());
-        for (guess, b) in [(predicted, bounds), (self.kf_from_last.inverse(), wider)] {
-            if let Some((r, ransac)) = self.track_from(&map, &frame, &guess, b)? {
-                fallback.get_or_insert(r.pose);
-                if accept(&r, Route::Motion) {
-                    found = Some((r, ransac, Route::Motion));
-                    break;
-                }
-            }
-        }
-        // 3. relocalisation
-        if found.is_none() {
-            let (r, first) = self.relocalise(&map, &frame, &accept)?;
-            found = r;
-            fallback = fallback.or(first);
-        }
-        let support = found.as_ref().map(|(r, _, route)| self.judge(r, *route, &frame));
-        let was_measured = !self.failed;
-        let (state, curr_from_ref, refined) = match (found, support) {
-            (Some((r, ransac, route)), Some(s)) if s != Support::Rejected => {
-                let state = if !was_measured {
-                    tracing::info!(frame = frame_index, inliers = r.inliers.len(), ?route, "relocalised");
-                    TrackState::Relocalised { inliers: ransac }
-                } else if route != Route::Motion {
-                    tracing::info!(frame = frame_index, inliers = r.inliers.len(), ?route, "relocalised");
-                    TrackState::Relocalised { inliers: ransac }
-                } else if s == Support::Full {
-                    TrackState::Tracked { inliers: ransac }
-                } else {
-                    TrackState::Weak { inliers: ransac }
-                };
-                (state, r.pose, Some(r))
-            }
-            _ => (if was_measured { TrackState::Lost } else { TrackState::Predicted }, predicted, None),
-        };
+        let (found, fallback, retrieved) = self.find_pose(&map, &frame, &predicted)?;
+        // the map the inliers index: a retrieved keyframe's, else the local map
+        let map = retrieved.unwrap_or(map);
+        let route = found.as_ref().map(|f| f.2);
+        let (state, curr_from_ref, refined) = self.decide(frame_index, found, &frame, predicted);
         let kf_from_curr = curr_from_ref.inverse();
         let measured = refined.is_some();
         // matched map points: (id, keypoint)
         let carried: Vec<(PointId, usize)> =
             refined.as_ref().map(|r| r.inliers.iter().map(|&(i, c)| (map.ids[i], c)).collect()).unwrap_or_default();
-        if let Some(r) = &refined {
-            if matches!(state, TrackState::Tracked { .. } | TrackState::Weak { .. }) && n == self.gap {
-                self.velocity = self.kf_from_last.inverse() * kf_from_curr;
-                self.velocity_known = true;
-                self.velocity_gap = self.gap;
-            }
-            if matches!(state, TrackState::Tracked { .. }) && self.pairs.len() < self.config.keep_disparity_pairs {
-                let (a, b): (Vec<[f64; 3]>, Vec<[f64; 3]>) = r
-                    .inliers
-                    .iter()
-                    .filter_map(|&(i, c)| {
-                        let (_, o) = map.views[i].iter().find(|(slot, o)| *slot == 0 && o[2].is_finite())?;
-                        Some((*o, frame.obs[frame.of_keypoint.get(c).copied().flatten()?]))
-                    })
-                    .unzip();
-                self.pairs.push(DisparityPair { keyframe: a, frame: b, frame_from_keyframe: curr_from_ref });
-            }
-            self.kf_from_measured = kf_from_curr;
-            (self.measured_index, self.failed) = (frame_index, false);
-        } else {
-            self.failed = true;
-            tracing::warn!(frame = frame_index, stereo_points, state = state.name(), "no pose accepted");
-        }
+        self.record(frame_index, state, refined.as_ref(), (&map, &frame), &curr_from_ref);
         let tracked_map_points = refined.as_ref().map_or(0, |r| r.inliers.len());
-        // share of the reference keyframe's points tracked in this frame (its overlap with the keyframe)
-        let overlap = refined.as_ref().map_or(0.0, |r| {
-            let of_reference = r.inliers.iter().filter(|&&(i, _)| map.views[i].iter().any(|v| v.0 == 0)).count();
-            let total = self.reference.as_ref().map_or(0, |k| k.frame.valid.iter().filter(|v| **v).count());
-            of_reference as f64 / total.max(1) as f64
-        });
         let rms = refined.as_ref().map_or(f64::NAN, |r| r.rms);
         let world_from_curr = world_from_ref * kf_from_curr;
-        self.since_kf += 1;
-        let lost_too_long = !measured
-            && n as f64 * self.config.period() > self.config.max_lost_s
-            && stereo_points >= self.config.min_inliers;
-        let want_keyframe = match state {
-            TrackState::Tracked { .. } => {
-                let base = *self.kf_inliers.get_or_insert(tracked_map_points);
-                (tracked_map_points as f64) < self.config.keyframe_inlier_ratio * base as f64
-                    || self.since_kf >= self.config.keyframe_max_gap
-                    || overlap < self.config.keyframe_overlap
-            }
-            TrackState::Weak { .. } | TrackState::Relocalised { .. } => true,
-            _ => lost_too_long,
-        };
-        let keyframe = if want_keyframe {
+        let keyframe = if self.wants_keyframe(state, refined.as_ref(), &map, stereo_points) {
             // a frame lost for too long starts a new map segment: no parent, no carried points, at the
             // first unverified candidate pose when there was one, else at the motion prediction
-            let (parent, world_from_kf) = if measured {
+            let (parent, world_from_kf) = if let (true, Some(Route::Retrieved(id))) = (measured, route) {
+                // the pose was measured against the retrieved keyframe: it is the parent
+                let world_from_parent = self.archive.get(&id).map_or(world_from_ref, |k| k.world_from_kf);
+                (Some((id, world_from_parent.inverse() * world_from_curr)), world_from_curr)
+            } else if measured {
                 ((Some((ref_id, kf_from_curr))), world_from_curr)
             } else {
                 tracing::warn!(frame = frame_index, "tracking lost: new map segment from this frame");
                 (None, world_from_ref * fallback.unwrap_or(curr_from_ref).inverse())
             };
-            let mut frame = frame;
-            let earlier = match (measured && self.config.triangulate, self.reference.as_ref()) {
-                (true, Some(r)) => Self::triangulate(
-                    &self.rig.k,
-                    &r.frame,
-                    &mut frame,
-                    &curr_from_ref,
-                    &carried,
-                    self.config.triangulate_parallax_deg,
-                )
-                .into_iter()
-                .map(|(q, obs, x)| (ref_id, q, obs, x))
-                .collect(),
-                _ => Vec::new(),
-            };
-            let kf = self.take_keyframe(frame, frame_index, world_from_kf, parent, &carried, &earlier);
-            if !measured {
-                (self.measured_index, self.failed) = (frame_index, false);
-                self.velocity_known = false;
-            }
-            Some(kf)
+            let triangulate = measured && !matches!(route, Some(Route::Retrieved(_)));
+            Some(self.new_keyframe(
+                frame,
+                frame_index,
+                (world_from_kf, parent),
+                (&carried, &curr_from_ref),
+                triangulate,
+            ))
         } else {
             self.kf_from_last = kf_from_curr;
             None
@@ -1492,6 +1450,216 @@ impl StereoVo {
             keyframe,
             times: times(Instant::now()),
         })
+    }
+
+    /// ORB features of both images (the left image's outside `exclude`), the stereo points, and the
+    /// grey image and keypoints kept for optical flow; with the extraction and stereo times, ms.
+    fn prepare(&mut self, left: &Image, right: &Image, exclude: &[BBox]) -> Result<(Frame, (f64, f64)), FrontendError> {
+        let t0 = Instant::now();
+        let (lm, rm) = (Self::grey_of(left)?, Self::grey_of(right)?);
+        self.image_size = (lm.cols().max(1) as f64, lm.rows().max(1) as f64);
+        let mut lf = extract(&mut self.orb, &lm)?;
+        if !exclude.is_empty() {
+            let keep: Vec<bool> =
+                lf.points.iter().map(|&(u, v)| !exclude.iter().any(|b| b.contains_point(u, v))).collect();
+            lf.retain(&keep);
+        }
+        let rf = extract(&mut self.orb, &rm)?;
+        let t1 = Instant::now();
+        let (lg, rg) = (GreyView::of(&lm)?, GreyView::of(&rm)?);
+        let frame = self.stereo(&lf, &rf, (&lg, &rg));
+        let t2 = Instant::now();
+        self.grey.swap(0, 1);
+        self.grey[1] = Some(lm);
+        self.keypoints.swap(0, 1);
+        self.keypoints[1] = lf.points;
+        Ok((frame, ((t1 - t0).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3)))
+    }
+
+    /// The first frame of the run: the first keyframe, at the origin (times left at zero).
+    fn initialise(&mut self, frame: Frame, frame_index: usize) -> TrackedFrame {
+        let stereo_points = frame.points.len();
+        let kf = self.take_keyframe(frame, frame_index, Isometry3::identity(), None, &[], &[]);
+        self.since_measured = 1;
+        (self.last_index, self.measured_index, self.failed) = (frame_index, frame_index, false);
+        self.velocity_known = false;
+        self.velocity = Isometry3::identity();
+        self.velocity_gap = 1;
+        TrackedFrame {
+            world_from_camera: Isometry3::identity(),
+            reference: (kf.id, Isometry3::identity()),
+            state: TrackState::Initialised,
+            stereo_points,
+            tracked_map_points: 0,
+            reprojection_rms_px: f64::NAN,
+            keyframe: Some(kf),
+            times: StageTimes::default(),
+        }
+    }
+
+    /// The frame's pose: 1. the local map searched from the constant-velocity prediction
+    /// (`predicted`, `curr_from_ref`) in windows of the motion limits; 2. wider, around the last pose;
+    /// 3. relocalisation ([`StereoVo::relocalise`]). Returns what relocalisation returns, the first
+    /// candidate pose of any stage as the fallback.
+    fn find_pose(
+        &self,
+        map: &LocalMap,
+        frame: &Frame,
+        predicted: &Isometry3<f64>,
+    ) -> Result<Relocalisation, FrontendError> {
+        let n = self.since_measured;
+        let bounds = if self.velocity_known {
+            motion_limits(&self.step_config(), self.steps(n))
+        } else {
+            (self.config.max_speed * n as f64 * self.config.period(), 0.1)
+        };
+        let accept = |r: &Refined, route: Route| self.judge(r, route, frame) != Support::Rejected;
+        let mut fallback = None;
+        let wider = (bounds.0 + self.velocity.translation.vector.norm(), bounds.1 + self.velocity.rotation.angle());
+        for (guess, b) in [(*predicted, bounds), (self.kf_from_last.inverse(), wider)] {
+            if let Some((r, ransac)) = self.track_from(map, frame, &guess, b)? {
+                fallback.get_or_insert(r.pose);
+                if accept(&r, Route::Motion) {
+                    return Ok((Some((r, ransac, Route::Motion)), fallback, None));
+                }
+            }
+        }
+        let (found, first, retrieved) = self.relocalise(map, frame, &accept)?;
+        Ok((found, fallback.or(first), retrieved))
+    }
+
+    /// The state of a frame from what [`StereoVo::find_pose`] found: tracked or weak by its support,
+    /// relocalised after a failed frame or by a relocalisation route; lost (the first failed frame)
+    /// or predicted (the next ones) at the prediction when nothing was accepted. Returns the state,
+    /// `curr_from_ref` and the refined pose when one was accepted.
+    fn decide(
+        &self,
+        frame_index: usize,
+        found: Option<(Refined, usize, Route)>,
+        frame: &Frame,
+        predicted: Isometry3<f64>,
+    ) -> (TrackState, Isometry3<f64>, Option<Refined>) {
+        let support = found.as_ref().map(|(r, _, route)| self.judge(r, *route, frame));
+        let was_measured = !self.failed;
+        match (found, support) {
+            (Some((r, ransac, route)), Some(s)) if s != Support::Rejected => {
+                let state = if !was_measured || route != Route::Motion {
+                    tracing::info!(frame = frame_index, inliers = r.inliers.len(), ?route, "relocalised");
+                    TrackState::Relocalised { inliers: ransac }
+                } else if s == Support::Full {
+                    TrackState::Tracked { inliers: ransac }
+                } else {
+                    TrackState::Weak { inliers: ransac }
+                };
+                (state, r.pose, Some(r))
+            }
+            _ => (if was_measured { TrackState::Lost } else { TrackState::Predicted }, predicted, None),
+        }
+    }
+
+    /// After a frame's state is decided: the velocity (from a tracked or weak frame right after a
+    /// measured one), the disparity pairs kept for self-calibration, and the last measured pose; or
+    /// the failure when no pose was accepted.
+    fn record(
+        &mut self,
+        frame_index: usize,
+        state: TrackState,
+        refined: Option<&Refined>,
+        (map, frame): (&LocalMap, &Frame),
+        curr_from_ref: &Isometry3<f64>,
+    ) {
+        let kf_from_curr = curr_from_ref.inverse();
+        let Some(r) = refined else {
+            self.failed = true;
+            let stereo_points = frame.points.len();
+            tracing::warn!(frame = frame_index, stereo_points, state = state.name(), "no pose accepted");
+            return;
+        };
+        if matches!(state, TrackState::Tracked { .. } | TrackState::Weak { .. }) && self.since_measured == self.gap {
+            self.velocity = self.kf_from_last.inverse() * kf_from_curr;
+            self.velocity_known = true;
+            self.velocity_gap = self.gap;
+        }
+        if matches!(state, TrackState::Tracked { .. }) && self.pairs.len() < self.config.keep_disparity_pairs {
+            let (a, b): (Vec<[f64; 3]>, Vec<[f64; 3]>) = r
+                .inliers
+                .iter()
+                .filter_map(|&(i, c)| {
+                    let (_, o) = map.views[i].iter().find(|(slot, o)| *slot == 0 && o[2].is_finite())?;
+                    Some((*o, frame.obs[frame.of_keypoint.get(c).copied().flatten()?]))
+                })
+                .unzip();
+            self.pairs.push(DisparityPair { keyframe: a, frame: b, frame_from_keyframe: *curr_from_ref });
+        }
+        self.kf_from_measured = kf_from_curr;
+        (self.measured_index, self.failed) = (frame_index, false);
+    }
+
+    /// Whether the frame becomes a keyframe: a tracked frame when its tracked map points fell below
+    /// `keyframe_inlier_ratio` of the keyframe's first frame's, after `keyframe_max_gap` frames, or
+    /// when it shares less than `keyframe_overlap` of the reference keyframe's points; every weak or
+    /// relocalised frame; a frame lost for longer than `max_lost_s` that still has stereo points.
+    fn wants_keyframe(
+        &mut self,
+        state: TrackState,
+        refined: Option<&Refined>,
+        map: &LocalMap,
+        stereo_points: usize,
+    ) -> bool {
+        let tracked_map_points = refined.map_or(0, |r| r.inliers.len());
+        // share of the reference keyframe's points tracked in this frame (its overlap with the keyframe)
+        let overlap = refined.map_or(0.0, |r| {
+            let of_reference = r.inliers.iter().filter(|&&(i, _)| map.views[i].iter().any(|v| v.0 == 0)).count();
+            let total = self.reference.as_ref().map_or(0, |k| k.frame.valid.iter().filter(|v| **v).count());
+            of_reference as f64 / total.max(1) as f64
+        });
+        self.since_kf += 1;
+        let lost_too_long = refined.is_none()
+            && self.since_measured as f64 * self.config.period() > self.config.max_lost_s
+            && stereo_points >= self.config.min_inliers;
+        match state {
+            TrackState::Tracked { .. } => {
+                let base = *self.kf_inliers.get_or_insert(tracked_map_points);
+                (tracked_map_points as f64) < self.config.keyframe_inlier_ratio * base as f64
+                    || self.since_kf >= self.config.keyframe_max_gap
+                    || overlap < self.config.keyframe_overlap
+            }
+            TrackState::Weak { .. } | TrackState::Relocalised { .. } => true,
+            _ => lost_too_long,
+        }
+    }
+
+    /// Make the frame a keyframe at `world_from_kf` with `parent` (none: a new map segment, which
+    /// also restarts the motion model), carrying the matched map points' ids, and with `triangulate`
+    /// (and the setting on) the points triangulated against the reference keyframe at `curr_from_ref`.
+    fn new_keyframe(
+        &mut self,
+        mut frame: Frame,
+        frame_index: usize,
+        (world_from_kf, parent): (Isometry3<f64>, Option<(KeyframeId, Isometry3<f64>)>),
+        (carried, curr_from_ref): (&[(PointId, usize)], &Isometry3<f64>),
+        triangulate: bool,
+    ) -> KeyframeData {
+        let earlier = match (triangulate && self.config.triangulate, self.reference.as_ref()) {
+            (true, Some(r)) => Self::triangulate(
+                &self.rig.k,
+                &r.frame,
+                &mut frame,
+                curr_from_ref,
+                carried,
+                self.config.triangulate_parallax_deg,
+            )
+            .into_iter()
+            .map(|(q, obs, x)| (r.id, q, obs, x))
+            .collect(),
+            _ => Vec::new(),
+        };
+        let kf = self.take_keyframe(frame, frame_index, world_from_kf, parent, carried, &earlier);
+        if parent.is_none() {
+            (self.measured_index, self.failed) = (frame_index, false);
+            self.velocity_known = false;
+        }
+        kf
     }
 
     /// Triangulate the new keyframe's keypoints that have no stereo point and no carried map point
@@ -1656,12 +1824,18 @@ impl StereoTracker for StereoVo {
         for kf in self.local.iter_mut().filter(|k| k.id == c.id) {
             apply_correction(kf, c);
         }
+        if let Some(kf) = self.archive.get_mut(&c.id) {
+            apply_correction(kf, c);
+        }
         let Some(r) = self.reference.as_mut() else { return };
         if r.id == c.id {
             apply_correction(r, c);
         } else if let Some((parent, parent_from_ref)) = r.parent {
             if parent == c.id {
                 r.world_from_kf = c.world_from_camera * parent_from_ref;
+                if let Some(kf) = self.archive.get_mut(&r.id) {
+                    kf.world_from_kf = r.world_from_kf;
+                }
             }
         }
     }
@@ -1766,17 +1940,22 @@ mod tests {
         }
     }
 
-    /// Local-map tracking: points the reference keyframe did not see (lost in that frame) are found
-    /// again from an older covisible keyframe, and the refinement recovers the pose; the motion guard
-    /// accepts the true pose and rejects it moved by 5 m.
-    #[test]
-    fn local_map_recovers_points_lost_for_one_frame_and_the_guard_rejects_a_5m_jump() {
-        let k = Intrinsics::new(707.0, 707.0, 601.9, 183.1);
-        let b = 0.54;
+    /// The local-map scene: 240 random points (inside the view of every camera below, the nearest
+    /// 5.6 m away) with random descriptors; keyframe 0 at the origin sees them all, keyframe 1 (the
+    /// reference), 1.2 m ahead, misses the last 30.
+    struct Scene {
+        k: Intrinsics,
+        b: f64,
+        world: Vec<Vector3<f64>>,
+        desc: Vec<[u8; 32]>,
+        ids: Vec<PointId>,
+        seen: usize,
+    }
+
+    fn scene() -> Scene {
         let mut rng = SimRng::new(11);
         let world: Vec<Vector3<f64>> = (0..240)
             .map(|_| {
-                // inside the view of every camera below (the nearest is 5.6 m away)
                 let z = rng.uniform(8.0, 40.0);
                 Vector3::new(rng.uniform(-0.4, 0.4) * z, rng.uniform(-0.15, 0.15) * z, z)
             })
@@ -1785,42 +1964,51 @@ mod tests {
             .map(|_| std::array::from_fn(|_| (rng.uniform(0.0, 256.0) as u32).min(255) as u8))
             .collect();
         let ids: Vec<PointId> = (0..world.len() as PointId).collect();
-        // keyframe 0 at the origin sees every point; keyframe 1, 1.2 m ahead, misses the last 30
-        let world_from = |z: f64| Isometry3::translation(0.0, 0.0, z);
-        let in_camera = |pose: &Isometry3<f64>, pts: &[Vector3<f64>]| -> Vec<Vector3<f64>> {
-            pts.iter().map(|x| (pose.inverse() * nalgebra::Point3::from(*x)).coords).collect()
-        };
-        let kf0 = keyframe_of(&k, b, &in_camera(&world_from(0.0), &world), &ids, &desc);
         let seen = world.len() - 30;
-        let kf1 = keyframe_of(&k, b, &in_camera(&world_from(1.2), &world[..seen]), &ids[..seen], &desc[..seen]);
-        let make = |local_keyframes: usize| {
-            let mut vo =
-                StereoVo::new(StereoRig { k, baseline: b }, VoConfig { local_keyframes, ..VoConfig::default() }, {
-                    std::sync::Arc::new(slam_lm::LevenbergMarquardt::default())
-                })
-                .expect("ORB");
-            vo.image_size = (1241.0, 376.0);
-            vo.reference = Some(Reference {
-                frame: keyframe_of(&k, b, &in_camera(&world_from(1.2), &world[..seen]), &ids[..seen], &desc[..seen]),
-                id: 1,
-                world_from_kf: world_from(1.2),
-                parent: Some((0, world_from(1.2))),
-            });
-            vo.local.push_front(Reference {
-                frame: keyframe_of(&k, b, &in_camera(&world_from(0.0), &world), &ids, &desc),
-                id: 0,
-                world_from_kf: world_from(0.0),
-                parent: None,
-            });
-            vo
-        };
-        let _ = (&kf0, &kf1);
+        Scene { k: Intrinsics::new(707.0, 707.0, 601.9, 183.1), b: 0.54, world, desc, ids, seen }
+    }
+
+    /// `pts` (world) in the camera at `world_from_camera`.
+    fn in_camera(world_from_camera: &Isometry3<f64>, pts: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
+        pts.iter().map(|x| (world_from_camera.inverse() * nalgebra::Point3::from(*x)).coords).collect()
+    }
+
+    /// A tracker holding the scene's two keyframes, with `local_keyframes` older keyframes in its
+    /// local map.
+    fn tracker_of(s: &Scene, local_keyframes: usize) -> StereoVo {
+        let world_from = |z: f64| Isometry3::translation(0.0, 0.0, z);
+        let config = VoConfig { local_keyframes, ..VoConfig::default() };
+        let optimizer = std::sync::Arc::new(slam_lm::LevenbergMarquardt::default());
+        let mut vo = StereoVo::new(StereoRig { k: s.k, baseline: s.b }, config, optimizer).expect("ORB");
+        vo.image_size = (1241.0, 376.0);
+        let (seen, desc) = (&s.world[..s.seen], &s.desc[..s.seen]);
+        vo.reference = Some(Reference {
+            frame: keyframe_of(&s.k, s.b, &in_camera(&world_from(1.2), seen), &s.ids[..s.seen], desc),
+            id: 1,
+            world_from_kf: world_from(1.2),
+            parent: Some((0, world_from(1.2))),
+        });
+        vo.local.push_front(Reference {
+            frame: keyframe_of(&s.k, s.b, &in_camera(&world_from(0.0), &s.world), &s.ids, &s.desc),
+            id: 0,
+            world_from_kf: world_from(0.0),
+            parent: None,
+        });
+        vo
+    }
+
+    /// Local-map tracking: points the reference keyframe did not see (lost in that frame) are found
+    /// again from an older covisible keyframe, and the refinement recovers the pose; the motion guard
+    /// accepts the true pose and rejects it moved by 5 m.
+    #[test]
+    fn local_map_recovers_points_lost_for_one_frame_and_the_guard_rejects_a_5m_jump() {
+        let s = scene();
         // the current frame, 2.4 m from the origin, sees every point
-        let truth = world_from(2.4);
-        let frame = keyframe_of(&k, b, &in_camera(&truth, &world), &vec![0; world.len()], &desc);
-        let curr_from_ref = truth.inverse() * world_from(1.2);
+        let truth = Isometry3::translation(0.0, 0.0, 2.4);
+        let frame = keyframe_of(&s.k, s.b, &in_camera(&truth, &s.world), &vec![0; s.world.len()], &s.desc);
+        let curr_from_ref = truth.inverse() * Isometry3::translation(0.0, 0.0, 1.2);
         for (local_keyframes, expect_recovered) in [(0, false), (4, true)] {
-            let vo = make(local_keyframes);
+            let vo = tracker_of(&s, local_keyframes);
             let map = vo.local_map();
             let skip = vec![false; map.points.len()];
             let taken = vec![false; frame.keypoints.len()];
@@ -1828,7 +2016,7 @@ mod tests {
             let guess = Isometry3::new(Vector3::new(0.1, 0.0, 0.3), Vector3::new(0.0, 0.01, 0.0)) * curr_from_ref;
             let matches = vo.search(&map, &guess, &frame, &|c, o| vo.window(c, o, (0.35, 0.03)), &skip, &taken);
             let recovered: Vec<PointId> =
-                matches.iter().map(|&(i, _)| map.ids[i]).filter(|&id| id >= seen as PointId).collect();
+                matches.iter().map(|&(i, _)| map.ids[i]).filter(|&id| id >= s.seen as PointId).collect();
             assert_eq!(!recovered.is_empty(), expect_recovered, "{local_keyframes} keyframes: {recovered:?}");
             for &(i, c) in &matches {
                 assert_eq!(map.ids[i] as usize, c, "every match is right");
@@ -1840,7 +2028,7 @@ mod tests {
             let r = vo.refine(&map, &frame, &matches, &guess).expect("refined");
             let err = r.pose * curr_from_ref.inverse();
             assert!(err.translation.vector.norm() < 1e-3 && err.rotation.angle() < 1e-5, "{err:?}");
-            assert_eq!(r.inliers.len(), world.len(), "all inliers");
+            assert_eq!(r.inliers.len(), s.world.len(), "all inliers");
             assert!(r.rms < 1e-3, "rms {}", r.rms);
             // the motion guard: the camera moves 1.2 m per frame and the last frame was the reference
             let mut vo = vo;
@@ -1853,6 +2041,40 @@ mod tests {
                 rms: r.rms,
             };
             assert_eq!(vo.judge(&jump, Route::Motion, &frame), Support::Rejected, "a 5 m jump");
+        }
+    }
+
+    /// The keyframe index on real frames: after tracking odometry 06 frames 0-30, every frame's own
+    /// descriptors (keyframe or not) retrieve, as the best candidate, a keyframe taken within a few
+    /// frames of it, never one of the far end of the run.
+    #[test]
+    fn the_index_retrieves_a_nearby_keyframe_for_real_frames() {
+        let root =
+            std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06/sequences/06"));
+        let read = |cam: &str, i: usize| {
+            crate::read_image(root.join(cam).join(format!("{i:06}.png")), false).expect("fixture image")
+        };
+        let k = Intrinsics::new(707.0912, 707.0912, 601.8873, 183.1104);
+        let rig = StereoRig { k, baseline: 379.8145 / 707.0912 };
+        let mut vo =
+            StereoVo::new(rig, VoConfig::default(), std::sync::Arc::new(slam_lm::LevenbergMarquardt::default()))
+                .expect("ORB");
+        let mut keyframe_at: HashMap<KeyframeId, usize> = HashMap::new();
+        let frames = 31;
+        for i in 0..frames {
+            let t = vo.process(i, &read("image_0", i), &read("image_1", i), &[]).expect("tracks");
+            if let Some(kf) = t.keyframe {
+                keyframe_at.insert(kf.id, kf.frame);
+            }
+        }
+        assert!(keyframe_at.len() >= 6, "{keyframe_at:?}");
+        assert_eq!(vo.index.len(), keyframe_at.len(), "every keyframe indexed");
+        for i in (1..frames).step_by(3) {
+            let grey = StereoVo::grey_of(&read("image_0", i)).expect("grey");
+            let f = extract(&mut vo.orb, &grey).expect("ORB");
+            let best = vo.index.query(&f.desc, 3);
+            let at = keyframe_at[&best[0].0];
+            assert!(at.abs_diff(i) <= 4, "frame {i}: best keyframe at frame {at}: {best:?}");
         }
     }
 

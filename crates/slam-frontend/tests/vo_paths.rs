@@ -4,7 +4,7 @@
 use std::{path::PathBuf, sync::Arc};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use slam_core::{geometry::BBox, Image, KeyframeCorrection, KeyframeId, StereoTracker};
+use slam_core::{geometry::BBox, Image, KeyframeCorrection, KeyframeId, StereoTracker, TrackState};
 use slam_frontend::{read_image, StereoRig, StereoVo, VoConfig};
 use slam_quadric::Intrinsics;
 
@@ -197,12 +197,70 @@ fn a_keyframe_correction_moves_later_poses_with_it() {
         again.track(i, &l, &r, &[]).expect("tracks");
     }
     let reference = plain.track(frames, &l, &r, &[]).expect("tracks");
-    again.correct(&KeyframeCorrection {
-        id: 10_000,
-        world_from_camera: delta,
-        points: Vec::new(),
-        culled: Vec::new(),
-    });
+    again.correct(&KeyframeCorrection { id: 10_000, world_from_camera: delta, points: Vec::new(), culled: Vec::new() });
     let other = again.track(frames, &l, &r, &[]).expect("tracks");
     assert_eq!(reference.world_from_camera, other.world_from_camera);
+}
+
+/// A black image pair (no features at all).
+fn black_frame() -> (Image, Image) {
+    let (l, _) = kitti_frame(0);
+    let black = Image::new(l.width, l.height, 1, vec![0; (l.width * l.height) as usize]).expect("image");
+    (black.clone(), black)
+}
+
+/// Poses and states of frames `0..n` with frame `i`'s images replaced by `replace(i)` when it says so.
+fn run_with(n: usize, replace: &dyn Fn(usize) -> Option<(Image, Image)>) -> Vec<(Isometry3<f64>, TrackState)> {
+    let mut vo = kitti_vo();
+    (0..n)
+        .map(|i| {
+            let (l, r) = replace(i).unwrap_or_else(|| kitti_frame(i));
+            let t = vo.track(i, &l, &r, &[]).expect("tracks");
+            (t.world_from_camera, t.state)
+        })
+        .collect()
+}
+
+fn distance(a: &Isometry3<f64>, b: &Isometry3<f64>) -> (f64, f64) {
+    let d = a.inverse() * b;
+    (d.translation.vector.norm(), d.rotation.angle().to_degrees())
+}
+
+/// A revisit: frame 26 shows frame 4's images again (22 frames, about 26 m, back along the road; the
+/// motion model cannot reach it). The keyframe index retrieves the keyframes of that place and the
+/// frame relocalises to frame 4's pose; frame 27 (the road ahead again) relocalises back onto the
+/// trajectory, and the frames after it track as in an undisturbed run.
+#[test]
+fn a_revisit_relocalises_to_the_earlier_place_and_back() {
+    let n = 31;
+    let plain = run_with(n, &|_| None);
+    let revisit = run_with(n, &|i| (i == 26).then(|| kitti_frame(4)));
+    for i in 0..26 {
+        assert_eq!(plain[i], revisit[i], "frame {i}: the runs agree before the revisit");
+    }
+    assert!(matches!(revisit[26].1, TrackState::Relocalised { .. }), "{:?}", revisit[26].1);
+    let (m, deg) = distance(&revisit[26].0, &plain[4].0);
+    assert!(m < 0.10 && deg < 0.5, "frame 26 at frame 4's pose: off by {m:.3} m, {deg:.2} deg");
+    assert!(matches!(revisit[27].1, TrackState::Relocalised { .. }), "{:?}", revisit[27].1);
+    for i in 27..n {
+        let (m, deg) = distance(&revisit[i].0, &plain[i].0);
+        assert!(m < 0.15 && deg < 0.5, "frame {i}: off the undisturbed run by {m:.3} m, {deg:.2} deg");
+    }
+    assert!(revisit[28..].iter().all(|(_, s)| matches!(s, TrackState::Tracked { .. })), "{revisit:?}");
+}
+
+/// A black frame is lost (no features: no pose is written as measured) and the next real frame
+/// relocalises, the rest tracking on as in an undisturbed run.
+#[test]
+fn a_black_frame_is_lost_and_the_next_frames_relocalise() {
+    let n = 20;
+    let plain = run_with(n, &|_| None);
+    let black = run_with(n, &|i| (i == 12).then(black_frame));
+    assert_eq!(black[12].1, TrackState::Lost);
+    assert!(matches!(black[13].1, TrackState::Relocalised { .. }), "{:?}", black[13].1);
+    for i in 13..n {
+        let (m, deg) = distance(&black[i].0, &plain[i].0);
+        assert!(m < 0.15 && deg < 0.5, "frame {i}: off the undisturbed run by {m:.3} m, {deg:.2} deg");
+    }
+    assert!(black[14..].iter().all(|(_, s)| matches!(s, TrackState::Tracked { .. })), "{black:?}");
 }

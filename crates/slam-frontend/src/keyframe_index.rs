@@ -1,0 +1,170 @@
+//! Keyframe retrieval for relocalisation: a descriptor index over every keyframe of the run by
+//! multi-index hashing. Each 256-bit ORB descriptor is cut into [`CHUNKS`] substrings of 16 bits, and
+//! each substring keys a hash table of the stored descriptors holding it. Two descriptors within
+//! Hamming distance `d` share at least one substring exactly with probability
+//! `1 − (1 − (1 − d/256)^16)^16`: 0.90 at `d` = 30 (a typical distance between views of one ORB
+//! corner), 0.66 at 40. A query looks its descriptors up in the tables, checks the full distance of
+//! each candidate, and every keyframe holding a descriptor within [`MAX_HAMMING`] of a query descriptor
+//! gets that descriptor's vote; keyframes are ranked by their votes.
+//!
+//! No vocabulary is trained, so nothing depends on the scenes seen first. The ranking only decides
+//! which keyframes are tried; a candidate is accepted by the pose verification in
+//! [`crate::stereo_vo`], never by its votes.
+
+use crate::matching::hamming;
+
+/// A binary descriptor (ORB: 256 bits).
+pub(crate) type Descriptor = [u8; 32];
+
+/// Substrings per descriptor (16 bits each).
+const CHUNKS: usize = 16;
+
+/// Largest Hamming distance of a vote: ten standard deviations below the 128 bits that unrelated
+/// ORB descriptors differ by (σ ≈ 8), and under the 60 of a tracking match, so chance votes are rare.
+const MAX_HAMMING: u32 = 50;
+
+/// Keyframes' descriptors with one table per 16-bit substring, addressed directly by the substring's
+/// value: each of its 65 536 slots heads a chain of the stored descriptors holding that value, linked
+/// through `next`. An insert is two writes per substring and allocates nothing per value (a hash map
+/// of small vectors cost ~10 ms per keyframe); the tables take 16 × 256 KiB.
+#[derive(Debug, Default)]
+pub(crate) struct KeyframeIndex {
+    /// Each keyframe's key (the caller's) and its number of descriptors.
+    entries: Vec<(u64, usize)>,
+    /// Every stored descriptor and its keyframe (slot in `entries`).
+    descriptors: Vec<(Descriptor, u32)>,
+    /// Per substring: the newest stored descriptor holding each value (`NONE`: none).
+    heads: Vec<Vec<u32>>,
+    /// Per stored descriptor and substring: the next older descriptor holding the same value.
+    next: Vec<[u32; CHUNKS]>,
+}
+
+/// The end of a chain.
+const NONE: u32 = u32::MAX;
+
+fn chunk(d: &Descriptor, c: usize) -> u16 {
+    u16::from_le_bytes([d[2 * c], d[2 * c + 1]])
+}
+
+impl KeyframeIndex {
+    /// Number of keyframes indexed.
+    #[cfg(test)]
+    pub(crate) fn len(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// Add a keyframe under `key` with its descriptors.
+    pub(crate) fn insert(&mut self, key: u64, descriptors: &[Descriptor]) {
+        if self.heads.is_empty() {
+            self.heads = vec![vec![NONE; 1 << 16]; CHUNKS];
+        }
+        let slot = self.entries.len() as u32;
+        self.entries.push((key, descriptors.len()));
+        for d in descriptors {
+            let id = self.descriptors.len() as u32;
+            self.descriptors.push((*d, slot));
+            let mut links = [NONE; CHUNKS];
+            for (c, (head, link)) in self.heads.iter_mut().zip(links.iter_mut()).enumerate() {
+                let h = &mut head[chunk(d, c) as usize];
+                *link = *h;
+                *h = id;
+            }
+            self.next.push(links);
+        }
+    }
+
+    /// The keys of the `n` best keyframes for a frame's descriptors, best first, with their scores:
+    /// the votes (query descriptors with a stored descriptor of that keyframe within [`MAX_HAMMING`])
+    /// over √(query descriptors × keyframe descriptors), so a keyframe with more keypoints is not
+    /// favoured for its size. Ties go to the lower key.
+    pub(crate) fn query(&self, descriptors: &[Descriptor], n: usize) -> Vec<(u64, f64)> {
+        let mut votes = vec![0u32; self.entries.len()];
+        let mut voted: Vec<u32> = Vec::new();
+        for q in descriptors {
+            voted.clear();
+            for (c, head) in self.heads.iter().enumerate() {
+                let mut id = head[chunk(q, c) as usize];
+                while id != NONE {
+                    let (d, slot) = &self.descriptors[id as usize];
+                    if !voted.contains(slot) && hamming(q, d) <= MAX_HAMMING {
+                        voted.push(*slot);
+                    }
+                    id = self.next[id as usize][c];
+                }
+            }
+            for &slot in &voted {
+                votes[slot as usize] += 1;
+            }
+        }
+        let mut scored: Vec<(u64, f64)> = votes
+            .iter()
+            .zip(&self.entries)
+            .filter(|(v, _)| **v > 0)
+            .map(|(&v, &(key, size))| (key, v as f64 / ((descriptors.len() * size).max(1) as f64).sqrt()))
+            .collect();
+        scored.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+        scored.truncate(n);
+        scored
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use slam_core::rng::SimRng;
+
+    fn random(rng: &mut SimRng, n: usize) -> Vec<Descriptor> {
+        (0..n).map(|_| std::array::from_fn(|_| (rng.uniform(0.0, 256.0) as u32).min(255) as u8)).collect()
+    }
+
+    /// A descriptor with `bits` distinct bits flipped (chosen by the generator).
+    fn noisy(rng: &mut SimRng, d: &Descriptor, bits: usize) -> Descriptor {
+        let mut out = *d;
+        let mut flipped = Vec::new();
+        while flipped.len() < bits {
+            let b = (rng.uniform(0.0, 256.0) as usize).min(255);
+            if !flipped.contains(&b) {
+                flipped.push(b);
+                out[b / 8] ^= 1 << (b % 8);
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn the_index_retrieves_the_keyframe_of_a_noisy_view_first() {
+        let mut rng = SimRng::new(5);
+        let places: Vec<Vec<Descriptor>> = (0..6).map(|_| random(&mut rng, 600)).collect();
+        let mut index = KeyframeIndex::default();
+        assert!(index.query(&places[0], 3).is_empty(), "nothing indexed yet");
+        for (i, p) in places.iter().enumerate() {
+            index.insert(10 + i as u64, p);
+        }
+        assert_eq!(index.len(), 6);
+        for (i, p) in places.iter().enumerate() {
+            // a later view: 40 % of the descriptors seen again 30 bits off, the rest new
+            let mut view: Vec<Descriptor> = p.iter().take(240).map(|d| noisy(&mut rng, d, 30)).collect();
+            view.extend(random(&mut rng, 360));
+            let best = index.query(&view, 3);
+            assert_eq!(best[0].0, 10 + i as u64, "place {i}: {best:?}");
+            // most of the re-seen descriptors vote (the hashing's recall at 30 bits is ~0.9), and
+            // unrelated random descriptors (~128 bits away) give the others next to nothing
+            assert!(best[0].1 > 0.3, "{best:?}");
+            assert!(best.get(1).map_or(0.0, |b| b.1) < 0.02, "{best:?}");
+        }
+    }
+
+    #[test]
+    fn a_descriptor_beyond_the_vote_distance_does_not_vote() {
+        let mut rng = SimRng::new(9);
+        let stored = random(&mut rng, 1);
+        let mut index = KeyframeIndex::default();
+        index.insert(1, &stored);
+        // 8 bits off: some 16-bit substring is untouched (8 flips touch at most 8 of 16)
+        assert_eq!(index.query(&[noisy(&mut rng, &stored[0], 8)], 1).len(), 1);
+        // 60 bits off: beyond the vote distance whatever the substrings say
+        for _ in 0..20 {
+            assert!(index.query(&[noisy(&mut rng, &stored[0], 60)], 1).is_empty());
+        }
+    }
+}
