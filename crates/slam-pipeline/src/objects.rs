@@ -243,25 +243,26 @@ pub struct PhysicalLimits {
 ///   2.55-2.60 m and the length at 18.75 m (road train, articulated bus); heights reach 4.0-4.3 m
 ///   (most EU states; 13 ft 6 in - 14 ft in the US). Length limit 20 m and middle extent (height) 4.5 m
 ///   leave room for fit error. The narrowest vehicles a detector calls a truck are pickups (~1.8 m
-///   wide, ~1.7 m tall): no extent under 1.2 m.
+///   wide, ~1.7 m tall): no extent under half of that, 0.9 m.
 /// - cars (the detector's "car" also covers vans and SUVs): the longest production vans and pickups are
 ///   about 7.4 m (long-wheelbase panel vans), the tallest about 3 m (high-roof vans); the narrowest
 ///   and lowest road cars about 1.2 m wide (quadricycles) and 1.0 m tall (sports cars). Limits 8 m,
-///   3.5 m and 0.8 m.
-/// - people: no one is taller than 2.5 m, and a person with arms and bags spans less than 1.5 m across;
-///   at least 0.1 m (the thinnest a fitted ellipsoid may be and still be a body).
-/// - bicycles and motorcycles with riders: at most 3 m long (touring motorcycles 2.6 m, tandems 2.5 m),
-///   2.2 m tall; at least 0.1 m (a bicycle seen end-on is thin).
+///   3.5 m and half the lowest car, 0.5 m.
+/// - people: no one is taller than 2.5 m, and a walking person with arms and bags spans less than
+///   2 m across; at least 0.1 m (the thinnest a fitted ellipsoid may be and still be a body).
+/// - bicycles and motorcycles with riders: at most 3.2 m long (touring motorcycles 2.6 m, tandems
+///   2.5 m, plus fit error), 2.2 m tall; at least 0.1 m (a bicycle seen end-on is thin).
 ///
 /// A fit misses an object's true extents by its fitting error (semi-axes 0.75 m off on average for the
-/// parked van of drive 0005, 0.33 m image-free); the limits lie beyond what real objects reach, so
-/// that a real object fitted that badly is still kept (the prior and the stereo gate deal with it).
+/// parked van of drive 0005, 0.33 m image-free, where real cars are fitted as thin as 0.65 m); the
+/// limits lie beyond what real objects reach (a minimum at half the smallest real extent), so that a
+/// real object fitted that badly is still kept (the class prior and the stereo gate deal with it).
 pub fn physical_limits(class: ClassId) -> PhysicalLimits {
     let (min, max_length, max_middle) = match class.0 {
         0 => (0.1, 2.5, 2.0),      // person
         1 | 3 => (0.1, 3.2, 2.2),  // bicycle, motorcycle
-        5..=7 => (1.2, 20.0, 4.5), // bus, train, truck
-        _ => (0.8, 8.0, 3.5),      // car and others
+        5..=7 => (0.9, 20.0, 4.5), // bus, train, truck
+        _ => (0.5, 8.0, 3.5),      // car and others
     };
     PhysicalLimits { min, max_length, max_middle }
 }
