@@ -45,7 +45,8 @@ pub struct InputArgs {
     /// (Mahalanobis; 0: off)
     #[arg(long, default_value_t = 6.0)]
     dynamic_prior_sigmas: f64,
-    /// What a box bounds in the object optimisation: the ellipsoid (the paper) or its circumscribed cuboid
+    /// What a box bounds in the object optimisation: the ellipsoid (the paper), its circumscribed cuboid,
+    /// or two stages (yaw from the cuboid, then the ellipse with that yaw held)
     #[arg(long, value_enum, default_value_t = Shape::Ellipse)]
     box_shape: Shape,
     /// Remove an ellipsoid visible but not detected in this many frames in a row (0: never)
@@ -54,12 +55,14 @@ pub struct InputArgs {
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[serde(rename_all = "kebab-case")]
 pub enum Shape {
     /// The ellipsoid's projected ellipse
     Ellipse,
     /// The ellipsoid's circumscribed cuboid
     Cuboid,
+    /// Yaw from the cuboid model, then the ellipse model with that yaw held
+    TwoStage,
 }
 
 impl InputArgs {
@@ -82,6 +85,7 @@ impl Shape {
         match self {
             Shape::Ellipse => slam_optim::object::BoxShape::Ellipse,
             Shape::Cuboid => slam_optim::object::BoxShape::Cuboid,
+            Shape::TwoStage => slam_optim::object::BoxShape::TwoStage,
         }
     }
 }

@@ -137,4 +137,19 @@ fn the_cuboid_model_fits_boxes_of_a_box_shaped_car() {
     let (a0, a1) = (metrics::e_axe(&ellipse, &truth), metrics::e_axe(&cuboid, &truth));
     assert!(e1 < 0.1 && a1 < 0.1, "cuboid model: e_trans {e1:.3} m, e_axe {a1:.3} m");
     assert!(e0 > 3.0 * e1.max(0.05) || a0 > 3.0 * a1.max(0.05), "ellipse model: {e0:.3} m / {a0:.3} m");
+    // two stages: the cuboid stage's yaw is held while the ellipse model fills the boxes, so the yaw
+    // stays the cuboid's and the ellipse-model box error falls to that of the plain ellipse fit
+    let two = fit(BoxShape::TwoStage);
+    let up = Vector3::y();
+    let (y1, y2) = (metrics::e_yaw(&cuboid, &truth, &up), metrics::e_yaw(&two, &truth, &up));
+    assert!(y1 < 1.0 && y2 < 1.5, "yaw: cuboid {y1:.2}°, two stages {y2:.2}°");
+    let rms = |e: &Ellipsoid| {
+        let sum: f64 = views
+            .iter()
+            .map(|v| slam_optim::object::box_residual(v, &image, e, BoxShape::Ellipse).expect("projects").norm_squared())
+            .sum();
+        (sum / (4 * views.len()) as f64).sqrt()
+    };
+    let (r1, r2) = (rms(&cuboid), rms(&two));
+    assert!(r2 < 0.5 * r1, "ellipse-model box error: cuboid fit {r1:.2} px, two stages {r2:.2} px");
 }

@@ -39,6 +39,31 @@ pub enum BoxShape {
     /// The cuboid circumscribing the ellipsoid (a car is box-shaped): the clamped bounds of its projected
     /// corners ([`CuboidBoxFactor`]).
     Cuboid,
+    /// Two stages: the orientation (and a first centre and size) from the cuboid model, which is the
+    /// right model of a box-shaped car's silhouette and so decides its yaw; then the paper's ellipse
+    /// model from there with that yaw held (σ `hold_yaw_sigma_deg`), which sizes and places the
+    /// ellipsoid to fill the boxes. Its box error is the ellipse model's.
+    TwoStage,
+}
+
+impl BoxShape {
+    /// The box model of the final ellipsoid (the one its box error is measured with).
+    pub fn final_model(self) -> BoxShape {
+        match self {
+            BoxShape::Cuboid => BoxShape::Cuboid,
+            BoxShape::Ellipse | BoxShape::TwoStage => BoxShape::Ellipse,
+        }
+    }
+}
+
+/// A soft prior on an object's yaw: its length axis (own x) along a horizontal direction, either way
+/// (the residual is sign-free), with standard deviation `sigma_rad` (the angle's sine, radians).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct YawCue {
+    /// Direction of the length axis, world frame (need not be unit).
+    pub direction: Vector3<f64>,
+    /// Standard deviation, radians.
+    pub sigma_rad: f64,
 }
 
 /// Settings of [`refine`].
@@ -79,6 +104,8 @@ pub struct RefineConfig {
     pub plane_huber_m: f64,
     /// With texture planes, the re-estimated box σ is at least this, pixels.
     pub plane_box_floor_px: f64,
+    /// [`BoxShape::TwoStage`]: σ of the prior holding the first stage's yaw in the second, degrees.
+    pub hold_yaw_sigma_deg: f64,
 }
 
 impl Default for RefineConfig {
@@ -97,6 +124,7 @@ impl Default for RefineConfig {
             plane_sigma_m: 0.25,
             plane_huber_m: 0.5,
             plane_box_floor_px: 2.0,
+            hold_yaw_sigma_deg: 0.5,
         }
     }
 }
@@ -104,8 +132,8 @@ impl Default for RefineConfig {
 /// Box error (predicted − detected, pixels) of an ellipsoid in a view under a box model; `None` when it
 /// does not project.
 pub fn box_residual(v: &BoxView, image: &ImageSize, e: &Ellipsoid, shape: BoxShape) -> Option<Vector4<f64>> {
-    match shape {
-        BoxShape::Ellipse => {
+    match shape.final_model() {
+        BoxShape::Ellipse | BoxShape::TwoStage => {
             Some(slam_quadric::box_error(e, &v.camera, &v.bbox, &BoundsModel::Clipped(*image)).ok()?.error)
         }
         BoxShape::Cuboid => crate::factors::cuboid_box_error(&v.camera, e, &v.bbox, image),
@@ -159,16 +187,17 @@ pub fn optimise_object(
         prior,
         config,
         start,
-        Stage { sigmas: &sigmas, drift: None, planes: &[], optimizer },
+        Stage { sigmas: &sigmas, drift: None, planes: &[], yaw: None, optimizer },
     )
 }
 
 /// What one optimisation stage uses besides the views: one box σ per view (pixels), the pose drift
-/// (`None`: cameras fixed), texture planes and the optimiser.
+/// (`None`: cameras fixed), texture planes, a yaw prior and the optimiser.
 struct Stage<'a> {
     sigmas: &'a [f64],
     drift: Option<f64>,
     planes: &'a [Vector4<f64>],
+    yaw: Option<YawCue>,
     optimizer: &'a dyn Optimizer,
 }
 
@@ -181,7 +210,7 @@ fn optimise_object_weighted(
     prior: &ObjectPrior,
     config: &RefineConfig,
     start: Ellipsoid,
-    Stage { sigmas, drift, planes, optimizer }: Stage<'_>,
+    Stage { sigmas, drift, planes, yaw, optimizer }: Stage<'_>,
 ) -> Option<(Ellipsoid, f64)> {
     let mut values = Values::new();
     let mut graph = Graph::new();
@@ -204,8 +233,8 @@ fn optimise_object_weighted(
             }
         }
         let (noise, huber) = (NoiseModel::Isotropic(sigma), Huber(config.huber_px / sigma));
-        match config.box_shape {
-            BoxShape::Ellipse => graph.add(
+        match config.box_shape.final_model() {
+            BoxShape::Ellipse | BoxShape::TwoStage => graph.add(
                 BoxFactor::new(kp, ko, v.camera.intrinsics, v.bbox, BoundsModel::Clipped(*image)),
                 noise,
                 huber,
@@ -228,6 +257,13 @@ fn optimise_object_weighted(
     // camera's y axis (gravity for a level camera), 0.5° σ.
     let up = first.rotation * Vector3::y();
     graph.add(AxisDirection::new(ko, 1, up)?, NoiseModel::Isotropic(0.5f64.to_radians()), L2).ok()?;
+    if let Some(cue) = yaw {
+        // only the cue's horizontal part: the height axis is held by the factor above
+        let horizontal = cue.direction - up * up.dot(&cue.direction);
+        if let Some(f) = AxisDirection::new(ko, 0, horizontal) {
+            graph.add(f, NoiseModel::Isotropic(cue.sigma_rad), L2).ok()?;
+        }
+    }
     let summary = optimizer.optimize(&graph, &mut values, &options, None).ok()?;
     let e = *values.ellipsoid(ko)?;
     let in_front = views.iter().all(|v| slam_quadric::classify(&e, &v.camera) == slam_quadric::Visibility::InFront);
@@ -306,6 +342,44 @@ pub fn refine_with_start(
     planes: &[Vector4<f64>],
     optimizer: &dyn Optimizer,
 ) -> Result<Ellipsoid, InitError> {
+    refine_with_cues(initializer, views, image, prior, config, planes, None, optimizer)
+}
+
+/// [`refine_with_start`] with a soft yaw prior (e.g. from the object's stereo points) in every stage.
+/// With [`BoxShape::TwoStage`] the cue enters the first (cuboid) stage, whose yaw the second then holds.
+#[allow(clippy::too_many_arguments)]
+pub fn refine_with_cues(
+    initializer: &dyn Initializer,
+    views: &[BoxView],
+    image: &ImageSize,
+    prior: &ObjectPrior,
+    config: &RefineConfig,
+    planes: &[Vector4<f64>],
+    yaw: Option<YawCue>,
+    optimizer: &dyn Optimizer,
+) -> Result<Ellipsoid, InitError> {
+    if config.box_shape == BoxShape::TwoStage {
+        let first = RefineConfig { box_shape: BoxShape::Cuboid, ..*config };
+        let e1 = refine_with_cues(initializer, views, image, prior, &first, planes, yaw, optimizer)?;
+        let held =
+            YawCue { direction: e1.rotation() * Vector3::x(), sigma_rad: config.hold_yaw_sigma_deg.to_radians() };
+        let second = RefineConfig { box_shape: BoxShape::Ellipse, ..*config };
+        let sigmas = vec![config.box_sigma_px; views.len()];
+        let started = optimise_object_weighted(
+            views,
+            image,
+            prior,
+            &second,
+            e1,
+            Stage { sigmas: &sigmas, drift: None, planes, yaw: Some(held), optimizer },
+        );
+        return Ok(match started {
+            Some((e, _)) if in_front_of_all(views, &e) => {
+                polish(views, image, prior, &second, planes, Some(held), e, optimizer)
+            }
+            _ => e1,
+        });
+    }
     let mut starts = Vec::new();
     if let Ok(e) = initializer.initialize(views) {
         starts.push(align_to_prior(&e, &prior.axes));
@@ -341,72 +415,79 @@ pub fn refine_with_start(
             prior,
             config,
             s,
-            Stage { sigmas: &sigmas, drift: None, planes, optimizer },
+            Stage { sigmas: &sigmas, drift: None, planes, yaw, optimizer },
         ) {
-            let in_front =
-                views.iter().all(|v| slam_quadric::classify(&e, &v.camera) == slam_quadric::Visibility::InFront);
-            if in_front && best.as_ref().is_none_or(|b| cost < b.1) {
+            if in_front_of_all(views, &e) && best.as_ref().is_none_or(|b| cost < b.1) {
                 best = Some((e, cost));
             }
         }
     }
+    match (best, centre) {
+        (Some((e, _)), _) => Ok(polish(views, image, prior, config, planes, yaw, e, optimizer)),
+        (None, Err(err)) => Err(err),
+        (None, Ok(_)) => Err(InitError::Degenerate(slam_quadric::init::Degeneracy::RankDeficient)),
+    }
+}
+
+fn in_front_of_all(views: &[BoxView], e: &Ellipsoid) -> bool {
+    views.iter().all(|v| slam_quadric::classify(e, &v.camera) == slam_quadric::Visibility::InFront)
+}
+
+/// The re-weighted passes and the joint camera-object stage from a first-pass ellipsoid.
+#[allow(clippy::too_many_arguments)]
+fn polish(
+    views: &[BoxView],
+    image: &ImageSize,
+    prior: &ObjectPrior,
+    config: &RefineConfig,
+    planes: &[Vector4<f64>],
+    yaw: Option<YawCue>,
+    mut e: Ellipsoid,
+    optimizer: &dyn Optimizer,
+) -> Ellipsoid {
     // Boxes that fit perfectly may still be biased (a drive-by cannot tell a shifted car from a
     // shifted box); with planes, a box is never trusted below `plane_box_floor_px`.
     let min_sigma =
         if planes.is_empty() { config.min_sigma_px } else { config.min_sigma_px.max(config.plane_box_floor_px) };
-    if let Some((mut e, _)) = best {
-        for _ in 1..config.passes {
-            let Some(rms) = box_rms(views, image, &e, config.box_shape) else { break };
-            // per view: its own misfit, but never below the overall RMS / 2 (one view cannot claim to be
-            // much better than the data as a whole)
-            let all = (rms.iter().map(|r| r * r).sum::<f64>() / rms.len().max(1) as f64).sqrt();
+    for _ in 1..config.passes {
+        let Some(rms) = box_rms(views, image, &e, config.box_shape) else { break };
+        // per view: its own misfit, but never below the overall RMS / 2 (one view cannot claim to be
+        // much better than the data as a whole)
+        let all = (rms.iter().map(|r| r * r).sum::<f64>() / rms.len().max(1) as f64).sqrt();
+        let sigmas: Vec<f64> = rms.iter().map(|r| r.max(0.5 * all).clamp(min_sigma, config.max_sigma_px)).collect();
+        match optimise_object_weighted(
+            views,
+            image,
+            prior,
+            config,
+            e,
+            Stage { sigmas: &sigmas, drift: None, planes, yaw, optimizer },
+        ) {
+            Some((next, _)) if in_front_of_all(views, &next) => e = next,
+            _ => break,
+        }
+    }
+    if let (Some(drift), Some(rms)) = (config.pose_drift, box_rms(views, image, &e, config.box_shape)) {
+        let all = (rms.iter().map(|r| r * r).sum::<f64>() / rms.len().max(1) as f64).sqrt();
+        // Free the cameras only when the boxes disagree with the given poses. With the cameras free,
+        // boxes no longer fix the scene's scale about the first camera; the pose and axis priors
+        // share it, which would bias data that are already consistent.
+        // Pose errors move a whole box (its two x edges, or its two y edges, together); box noise moves
+        // the edges independently. Free the cameras only when the misfit is mostly such shifts.
+        let (shift, size) = shift_and_size_rms(views, image, &e, config.box_shape).unwrap_or((0.0, 0.0));
+        if all > config.consistent_rms_px && shift > config.shift_ratio * size {
             let sigmas: Vec<f64> = rms.iter().map(|r| r.max(0.5 * all).clamp(min_sigma, config.max_sigma_px)).collect();
-            match optimise_object_weighted(
+            if let Some(j) = optimise_object_weighted(
                 views,
                 image,
                 prior,
                 config,
                 e,
-                Stage { sigmas: &sigmas, drift: None, planes, optimizer },
+                Stage { sigmas: &sigmas, drift: Some(drift), planes, yaw, optimizer },
             ) {
-                Some((next, _))
-                    if views
-                        .iter()
-                        .all(|v| slam_quadric::classify(&next, &v.camera) == slam_quadric::Visibility::InFront) =>
-                {
-                    e = next
-                }
-                _ => break,
+                e = j.0;
             }
         }
-        if let (Some(drift), Some(rms)) = (config.pose_drift, box_rms(views, image, &e, config.box_shape)) {
-            let all = (rms.iter().map(|r| r * r).sum::<f64>() / rms.len().max(1) as f64).sqrt();
-            // Free the cameras only when the boxes disagree with the given poses. With the cameras free,
-            // boxes no longer fix the scene's scale about the first camera; the pose and axis priors
-            // share it, which would bias data that are already consistent.
-            // Pose errors move a whole box (its two x edges, or its two y edges, together); box noise moves
-            // the edges independently. Free the cameras only when the misfit is mostly such shifts.
-            let (shift, size) = shift_and_size_rms(views, image, &e, config.box_shape).unwrap_or((0.0, 0.0));
-            if all > config.consistent_rms_px && shift > config.shift_ratio * size {
-                let sigmas: Vec<f64> =
-                    rms.iter().map(|r| r.max(0.5 * all).clamp(min_sigma, config.max_sigma_px)).collect();
-                if let Some(j) = optimise_object_weighted(
-                    views,
-                    image,
-                    prior,
-                    config,
-                    e,
-                    Stage { sigmas: &sigmas, drift: Some(drift), planes, optimizer },
-                ) {
-                    e = j.0;
-                }
-            }
-        }
-        best = Some((e, 0.0));
     }
-    match (best, centre) {
-        (Some((e, _)), _) => Ok(e),
-        (None, Err(err)) => Err(err),
-        (None, Ok(_)) => Err(InitError::Degenerate(slam_quadric::init::Degeneracy::RankDeficient)),
-    }
+    e
 }

@@ -16,3 +16,4 @@ pub mod report;
 pub mod settings;
 pub mod system;
 pub mod texture;
+pub mod yaw_cue;

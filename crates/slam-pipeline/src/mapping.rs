@@ -73,6 +73,11 @@ impl LocalMapper {
         Self { map: Map::default(), k, baseline, config, optimizer }
     }
 
+    /// The stereo rig: left intrinsics and baseline, metres.
+    pub fn rig(&self) -> (Intrinsics, f64) {
+        (self.k, self.baseline)
+    }
+
     /// The map so far.
     pub fn map(&self) -> &Map {
         &self.map

@@ -17,7 +17,7 @@ use serde::Serialize;
 use slam_assoc::{ObjectTracker, TrackerConfig, TrackerInput};
 use slam_core::{geometry::BBox, Associator, ClassId, Detection, KeyframeId, PointId, PointPair, TrackId};
 use slam_optim::{
-    object::{box_residual, refine_with_start, BoxShape, ObjectPrior, RefineConfig},
+    object::{box_residual, refine_with_cues, BoxShape, ObjectPrior, RefineConfig, YawCue},
     SharedOptimizer,
 };
 use slam_quadric::{
@@ -125,7 +125,8 @@ impl FitMethod {
 #[serde(default, deny_unknown_fields)]
 pub struct MapperConfig {
     /// What a box bounds in the object optimisation: "ellipse" (the ellipsoid's projected ellipse, the
-    /// paper's model, default) or "cuboid" (its circumscribed cuboid, docs/objects.md).
+    /// paper's model, default), "cuboid" (its circumscribed cuboid) or "two-stage" (yaw from the cuboid
+    /// model, then the ellipse model with that yaw held); docs/objects.md.
     #[serde(with = "crate::settings::box_shape")]
     pub box_shape: BoxShape,
     /// Image size (for clipped bounds and the border test).
@@ -183,6 +184,11 @@ pub struct MapperConfig {
     /// of the object's keyframe centroids, and an object without any is not mapped. Off in the
     /// image-free mode (no points); the running system turns it on.
     pub stereo_evidence: bool,
+    /// Use the stereo-point yaw cue in fits that have map points (the running system): the principal
+    /// horizontal direction of the object's points as a soft prior on its length axis, when confident
+    /// ([`crate::yaw_cue`]). Default false: on the drives measured it fires for no parked car it could
+    /// help (docs/objects.md); no effect without points (the image-free mode).
+    pub point_yaw: bool,
     /// Tracker settings.
     #[serde(skip)]
     pub tracker: TrackerConfig,
@@ -207,6 +213,7 @@ impl Default for MapperConfig {
             max_misses: Some(5),
             visible_depth_m: 40.0,
             stereo_evidence: false,
+            point_yaw: false,
             tracker: TrackerConfig::default(),
         }
     }
@@ -405,6 +412,7 @@ pub struct FitJob {
     pub points: Vec<PointId>,
     method: FitMethod,
     box_shape: BoxShape,
+    point_yaw: bool,
     image: ImageSize,
     dynamic_rms_px: f64,
     dynamic_prior_sigmas: Option<f64>,
@@ -444,12 +452,22 @@ impl FitJob {
     /// Run the fit: the method's initialiser, then, when the method refines, the object optimisation;
     /// `planes` are texture planes of the object's points (used by the optimisation).
     pub fn run(&self, planes: &[Vector4<f64>]) -> FitResult {
+        self.run_with_cue(planes, None)
+    }
+
+    /// Whether the fit wants the stereo-point yaw cue ([`MapperConfig::point_yaw`]) and refines.
+    pub fn uses_point_yaw(&self) -> bool {
+        self.point_yaw && self.method.refines()
+    }
+
+    /// [`FitJob::run`] with a soft yaw prior (the stereo-point cue, [`crate::yaw_cue`]).
+    pub fn run_with_cue(&self, planes: &[Vector4<f64>], yaw: Option<YawCue>) -> FitResult {
         let views = &self.views;
         let fitted = if self.method.refines() {
             let config = RefineConfig { box_shape: self.box_shape, ..RefineConfig::default() };
             let prior = class_prior(self.class);
             let init = self.method.initializer();
-            refine_with_start(init, views, &self.image, &prior, &config, planes, &*self.optimizer)
+            refine_with_cues(init, views, &self.image, &prior, &config, planes, yaw, &*self.optimizer)
         } else {
             self.method.initializer().initialize(views)
         };
@@ -853,6 +871,7 @@ impl ObjectMapper {
             points: obj.points.iter().copied().collect(),
             method: self.method.clone(),
             box_shape: cfg.box_shape,
+            point_yaw: cfg.point_yaw,
             image: cfg.image,
             dynamic_rms_px: cfg.dynamic_rms_px,
             dynamic_prior_sigmas: cfg.dynamic_prior_sigmas,
@@ -875,7 +894,8 @@ fn stereo_agrees(obj: &MappedObject, e: &Ellipsoid, sigmas: f64) -> Result<(), S
     let axis = |k: usize| median(with.iter().filter_map(|o| o.centroid.map(|c| c[k])).collect());
     let c = Vector3::new(axis(0), axis(1), axis(2));
     let sigma_z = median(with.iter().map(|o| o.depth_sigma).collect());
-    let ray = (c - last.camera.world_from_camera.translation.vector).try_normalize(1e-9).ok_or("centroid at the camera")?;
+    let ray =
+        (c - last.camera.world_from_camera.translation.vector).try_normalize(1e-9).ok_or("centroid at the camera")?;
     let d = e.centre() - c;
     let along = d.dot(&ray);
     let across = (d - ray * along).norm();
@@ -980,7 +1000,9 @@ mod tests {
 
     #[test]
     fn one_box_per_object_across_tiles_parts_and_class_groups() {
-        let d = |class: u16, score: f64, b: [f64; 4]| Detection::new(ClassId(class), score, BBox::new(b[0], b[1], b[2], b[3]));
+        let d = |class: u16, score: f64, b: [f64; 4]| {
+            Detection::new(ClassId(class), score, BBox::new(b[0], b[1], b[2], b[3]))
+        };
         let input = vec![
             d(2, 0.6, [100.0, 100.0, 200.0, 180.0]), // a car
             d(2, 0.9, [105.0, 102.0, 196.0, 178.0]), // the same car from another tile (IoU 0.86)

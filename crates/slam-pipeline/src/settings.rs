@@ -36,7 +36,7 @@ pub mod zero_is_off_usize {
     }
 }
 
-/// [`slam_optim::object::BoxShape`] as `"ellipse"` or `"cuboid"`.
+/// [`slam_optim::object::BoxShape`] as `"ellipse"`, `"cuboid"` or `"two-stage"`.
 pub mod box_shape {
     use serde::{de::Error, Deserialize, Deserializer, Serializer};
     use slam_optim::object::BoxShape;
@@ -46,6 +46,7 @@ pub mod box_shape {
         s.serialize_str(match v {
             BoxShape::Ellipse => "ellipse",
             BoxShape::Cuboid => "cuboid",
+            BoxShape::TwoStage => "two-stage",
         })
     }
 
@@ -54,7 +55,8 @@ pub mod box_shape {
         match String::deserialize(d)?.as_str() {
             "ellipse" => Ok(BoxShape::Ellipse),
             "cuboid" => Ok(BoxShape::Cuboid),
-            other => Err(D::Error::unknown_variant(other, &["ellipse", "cuboid"])),
+            "two-stage" => Ok(BoxShape::TwoStage),
+            other => Err(D::Error::unknown_variant(other, &["ellipse", "cuboid", "two-stage"])),
         }
     }
 }

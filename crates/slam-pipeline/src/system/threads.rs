@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use crossbeam_channel::{Receiver, Sender};
 use nalgebra::Vector3;
-use slam_core::{Detection, DetectError, DetectionSource, KeyframeCorrection, KeyframeData};
+use slam_core::{DetectError, Detection, DetectionSource, KeyframeCorrection, KeyframeData};
 
 use super::FrameInput;
 use crate::{
@@ -13,6 +13,7 @@ use crate::{
     mapping::LocalMapper,
     objects::{FitJob, FitResult},
     texture::{texture_planes, TextureConfig},
+    yaw_cue::{point_yaw, PointYawConfig},
 };
 
 /// A frame after the detection thread: its input, its detections (or why there are none) and the
@@ -95,14 +96,25 @@ pub(crate) fn mapping_thread(
     mapper.into_map()
 }
 
-/// One object fit, with texture planes from the object's map points as seen by its latest view.
+/// One object fit, with texture planes from the object's map points as seen by its latest view, and
+/// the points' yaw cue ([`crate::yaw_cue`]) when it is confident.
 fn run_fit(mapper: &LocalMapper, texture: &TextureConfig, job: &FitJob) -> FitResult {
+    let points: Vec<Vector3<f64>> = job.points.iter().filter_map(|p| mapper.map().point(*p)).collect();
     let planes = match job.views.last() {
-        Some(v) if job.uses_planes() => {
-            let points: Vec<Vector3<f64>> = job.points.iter().filter_map(|p| mapper.map().point(*p)).collect();
-            texture_planes(&points, &v.camera, texture)
-        }
+        Some(v) if job.uses_planes() => texture_planes(&points, &v.camera, texture),
         _ => Vec::new(),
     };
-    job.run(&planes)
+    let cue = match (job.views.first(), job.views.last()) {
+        (Some(first), Some(last)) if job.uses_point_yaw() => {
+            let (k, baseline) = mapper.rig();
+            let up = first.camera.world_from_camera.rotation * Vector3::y();
+            let camera = last.camera.world_from_camera.translation.vector;
+            let prior = crate::objects::class_prior(job.class);
+            let found = point_yaw(&points, &up, &camera, &prior, k.fx, baseline, &PointYawConfig::default());
+            tracing::debug!(object = %job.id, ?found, "stereo-point yaw cue");
+            found.cue()
+        }
+        _ => None,
+    };
+    job.run_with_cue(&planes, cue)
 }
