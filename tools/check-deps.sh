@@ -4,9 +4,10 @@
 #  2. nothing below the front end links OpenCV;
 #  3. the seam crates (slam-core, slam-optim) depend on no implementation crate;
 #  4. implementation crates depend on seams only (slam-quadric, slam-core, slam-optim), never on each other.
-# Composition crates (slam-pipeline, slam-sim, slam-eval, slam-viz, slam-app) may combine implementations;
+# Composition crates (slam-pipeline, slam-sim, slam-eval, slam-viz, slam-runner, slam-app) may combine implementations;
 #  5. slam-eval and everything below the front end stay free of OpenCV; slam-viz (pictures, above the
-#     front end) is used by slam-app only.
+#     front end) is used by slam-runner and slam-app only;
+#  6. slam-runner (the run-related commands' work) sits directly under slam-app: nothing else depends on it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export CARGO_NET_OFFLINE=true
@@ -62,7 +63,7 @@ for crate in slam-assoc slam-dataset slam-frontend slam-lm slam-dogleg; do
 done
 echo "check-deps: implementation crates (slam-assoc, slam-dataset, slam-frontend, slam-lm, slam-dogleg) depend on seams only: ok"
 
-# slam-viz sits at the top, under the app only: no library crate depends on it.
+# slam-viz sits near the top, under slam-runner and the app only: no other library crate depends on it.
 for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-eval slam-frontend; do
   if workspace_deps "$crate" | tr ' ' '\n' | grep -qx slam-viz; then
     echo "check-deps: $crate must not depend on slam-viz (pictures are for the app)" >&2
@@ -70,4 +71,14 @@ for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg sl
   fi
 done
 check_only slam-viz slam-quadric slam-core slam-sim slam-pipeline slam-frontend
-echo "check-deps: slam-viz depends on [ $(workspace_deps slam-viz)] and only slam-app depends on it: ok"
+echo "check-deps: slam-viz depends on [ $(workspace_deps slam-viz)] and only slam-runner and slam-app depend on it: ok"
+
+# slam-runner sits directly under the app: no library crate depends on it.
+for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-eval slam-frontend slam-viz; do
+  if workspace_deps "$crate" | tr ' ' '\n' | grep -qx slam-runner; then
+    echo "check-deps: $crate must not depend on slam-runner (only slam-app may)" >&2
+    exit 1
+  fi
+done
+check_only slam-runner slam-quadric slam-core slam-optim slam-dataset slam-frontend slam-pipeline slam-eval slam-viz
+echo "check-deps: slam-runner depends on [ $(workspace_deps slam-runner)] and only slam-app depends on it: ok"

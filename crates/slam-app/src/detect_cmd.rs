@@ -22,7 +22,7 @@ pub enum Mode {
     Tiles,
 }
 
-#[derive(Args, Debug, Clone)]
+#[derive(Args, Debug, Clone, Default)]
 pub struct ModelArgs {
     /// Darknet .cfg (default: the shipped Yolo-Fastest 1.1)
     #[arg(long)]

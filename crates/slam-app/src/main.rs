@@ -18,6 +18,7 @@ macro_rules! print {
     };
 }
 
+mod args;
 mod assoc_cmd;
 mod config;
 mod detect_cmd;

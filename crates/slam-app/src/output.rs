@@ -7,7 +7,7 @@ use std::sync::{
     Arc, OnceLock,
 };
 
-pub use slam_dataset::output::{write_file, write_files_into, AtomicFile, OutputDir};
+pub use slam_dataset::output::{write_file, AtomicFile, OutputDir};
 
 /// The run was stopped by Ctrl-C; `main` turns it into exit status 130 (128 + SIGINT), as shells do.
 #[derive(Debug)]

@@ -2,13 +2,11 @@
 //! checked before any work starts, and every message names the value, what was given and the valid
 //! range. Inside the libraries these values are trusted.
 
-use std::path::Path;
-
 use anyhow::{bail, Context};
 
 use crate::config::RunConfig;
 
-pub use slam_dataset::check::{calibration, count, declared_size, first_pair, number, Range};
+pub use slam_dataset::check::{count, number, Range};
 
 /// Largest square network input accepted, pixels. Memory and time grow with its square (the input blob
 /// and every activation map): 320 is the shipped model's size, 2048 keeps a CPU forward pass within a few
@@ -81,43 +79,6 @@ pub fn run_config(c: &RunConfig, source: &str) -> anyhow::Result<()> {
     number(&at("[system] projected_gate"), s.projected_gate.unwrap_or(0.0), Range::closed(0.0, 1.0), "(IoU; 0: off)")?;
     count(&at("[system] max_detections"), s.max_detections, 1, 10_000)?;
     Ok(())
-}
-
-/// The width and height of an image file, read from its header (PNG) or by decoding it.
-pub fn image_size(path: &Path) -> anyhow::Result<(u32, u32)> {
-    let mut head = [0u8; 24];
-    use std::io::Read;
-    let n = std::fs::File::open(path)
-        .and_then(|mut f| f.read(&mut head))
-        .with_context(|| format!("cannot read image {}", path.display()))?;
-    if n == 24 && head[..8] == *b"\x89PNG\r\n\x1a\n" && head[12..16] == *b"IHDR" {
-        let w = u32::from_be_bytes([head[16], head[17], head[18], head[19]]);
-        let h = u32::from_be_bytes([head[20], head[21], head[22], head[23]]);
-        return Ok((w, h));
-    }
-    let img = slam_frontend::read_image(path, false)?;
-    Ok((img.width, img.height))
-}
-
-/// A stereo pair: both images readable and of the same size (a mismatch names both files).
-pub fn stereo_pair(left: &Path, right: &Path) -> anyhow::Result<(u32, u32)> {
-    let l = image_size(left)?;
-    let r = image_size(right)?;
-    if l != r {
-        bail!(
-            "image sizes differ: left {} is {}×{}, right {} is {}×{} (a stereo pair must have one size)",
-            left.display(),
-            l.0,
-            l.1,
-            right.display(),
-            r.0,
-            r.1
-        );
-    }
-    if l.0 == 0 || l.1 == 0 {
-        bail!("{}: empty image ({}×{})", left.display(), l.0, l.1);
-    }
-    Ok(l)
 }
 
 #[cfg(test)]

@@ -1,0 +1,243 @@
+//! `run-bench` (speed of the whole system per detector configuration, medians over repeated runs) and
+//! `track-bench` (tracking accuracy on every dev case, without objects): the runs, their medians and the
+//! tables' rows; the app prints them.
+
+use std::path::PathBuf;
+
+use slam_core::TrackState;
+use slam_dataset::kitti::stereo::TruthSource;
+use slam_pipeline::{
+    eval::{largest_step_error, trajectory_errors},
+    report::{median, median_fps, stage_table, state_counts, STATE_NAMES},
+};
+
+use crate::{
+    detector::DetectorChoice,
+    error::{Context, Result, RunnerError},
+    run::{prepare, Outcome, RunSettings},
+};
+
+/// Run `s` once without printing or progress.
+fn run_quiet(s: &RunSettings) -> Result<Outcome> {
+    prepare(s)?.run(s, &mut |_| {}, || false)
+}
+
+/// The three `run-bench` configurations: no objects, detections from `file`, and the network on every
+/// frame.
+pub fn bench_configs(file: PathBuf, network: DetectorChoice) -> Vec<(&'static str, DetectorChoice)> {
+    vec![
+        ("no objects (--detector none)", DetectorChoice::None),
+        ("detections from a file", DetectorChoice::File(file)),
+        ("shipped detector, every frame", network),
+    ]
+}
+
+/// The `run-bench` table's header (markdown).
+pub const RUN_BENCH_HEADER: &str = "| configuration | frames/s (median) | frames/s (overall) | detection | extraction | stereo | tracking | flow | association | local BA | objects | ATE m |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|";
+
+/// Medians of one `run-bench` configuration over its repeated runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BenchRow {
+    /// Configuration name.
+    pub name: String,
+    /// Median over runs of 1000 / median frame interval.
+    pub fps_median: f64,
+    /// Median over runs of frames / wall time.
+    pub fps_overall: f64,
+    /// Median stage times, ms, in `stage_table` order.
+    pub stages: Vec<f64>,
+    /// Median ATE, m (NaN without ground truth).
+    pub ate: f64,
+}
+
+impl std::fmt::Display for BenchRow {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let cells: Vec<String> = self.stages.iter().map(|v| format!("{v:.1}")).collect();
+        write!(
+            f,
+            "| {} | {:.1} | {:.1} | {} | {:.3} |",
+            self.name,
+            self.fps_median,
+            self.fps_overall,
+            cells.join(" | "),
+            self.ate
+        )
+    }
+}
+
+/// Run `s` `repeat` times (at least once); `progress` gets a line after each run.
+pub fn bench_row(name: &str, s: &RunSettings, repeat: usize, progress: &mut dyn FnMut(String)) -> Result<BenchRow> {
+    let repeat = repeat.max(1);
+    let (mut fps, mut fps_median, mut ate) = (Vec::new(), Vec::new(), Vec::new());
+    let mut stages: Vec<Vec<f64>> = Vec::new();
+    for r in 0..repeat {
+        let o = run_quiet(s)?;
+        fps.push(o.out.counts.frames as f64 / o.elapsed);
+        fps_median.push(median_fps(&o.out));
+        for (k, (_, ms, _)) in stage_table(&o.out).into_iter().enumerate() {
+            if stages.len() <= k {
+                stages.push(Vec::new());
+            }
+            stages[k].push(ms);
+        }
+        if let Some(e) = o.seq.truth_from_first().and_then(|g| trajectory_errors(&o.out.poses, &g, &[])) {
+            ate.push(e.ate_m);
+        }
+        progress(format!("{name}: run {} of {repeat}: {:.1} frames/s", r + 1, fps[fps.len() - 1]));
+    }
+    Ok(BenchRow {
+        name: name.to_string(),
+        fps_median: median(&mut fps_median),
+        fps_overall: median(&mut fps),
+        stages: stages.iter_mut().map(|v| median(v)).collect(),
+        ate: median(&mut ate),
+    })
+}
+
+/// The note under the `run-bench` table, with the targets' figures (rows in [`bench_configs`] order).
+pub fn run_bench_footer(repeat: usize, rows: &[BenchRow]) -> String {
+    let fps = |i: usize| rows.get(i).map_or(f64::NAN, |r| r.fps_median);
+    format!(
+        "\nmedians of {} runs each. frames/s (median): 1000 / median interval between consecutive frames; (overall): frames / wall time, start-up and drain included. Stage times: medians over frames (local BA and objects: over keyframes, on the mapping thread), ms. Targets (median): >= 30 frames/s with detections from a file ({:.1}), >= 10 with the detector ({:.1}).",
+        repeat.max(1),
+        fps(1),
+        fps(2)
+    )
+}
+
+/// One case of `track-bench`: a sequence played at a stride.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TrackCase {
+    /// Name in the table.
+    pub name: String,
+    /// Sequence folder.
+    pub path: PathBuf,
+    /// Play every n-th frame id.
+    pub stride: u64,
+}
+
+impl TrackCase {
+    /// `PATH` or `PATH:STRIDE` (a `--case` option); a stride of 0 is refused.
+    pub fn parse(text: &str) -> Result<Self> {
+        let (path, stride) = match text.rsplit_once(':') {
+            Some((p, s)) if !p.is_empty() && s.chars().all(|c| c.is_ascii_digit()) && !s.is_empty() => {
+                let stride: u64 = s.parse().context_with(|| format!("--case {text}: stride '{s}'"))?;
+                if stride == 0 {
+                    return Err(RunnerError::Invalid(format!("--case {text}: the stride must be at least 1")));
+                }
+                (p, stride)
+            }
+            _ => (text, 1),
+        };
+        Ok(TrackCase { name: format!("{path}, stride {stride}"), path: PathBuf::from(path), stride })
+    }
+
+    /// The shipped dev cases: odometry 06 (folder `odometry`) at strides 1-4 and raw drive 0005 (`raw`).
+    pub fn dev_cases(odometry: PathBuf, raw: PathBuf) -> Vec<Self> {
+        let mut cases: Vec<Self> = (1..=4)
+            .map(|stride| TrackCase {
+                name: format!("odometry 06, frames 0-50, stride {stride}"),
+                path: odometry.clone(),
+                stride,
+            })
+            .collect();
+        cases.push(TrackCase { name: "raw drive 0005, frames 0-90 (vs OXTS)".into(), path: raw, stride: 1 });
+        cases
+    }
+}
+
+/// The `track-bench` table's header (markdown), with one column per tracking state.
+pub fn track_bench_header() -> String {
+    format!(
+        "| case | frames | ATE m | ATE aligned m | end drift % | largest step error m (frame), tracked frames | {} | median frames/s |\n|---|---:|---:|---:|---:|---:|{}---:|",
+        STATE_NAMES.join(" | "),
+        "---:|".repeat(STATE_NAMES.len())
+    )
+}
+
+/// One `track-bench` row and the notes it adds under the table.
+#[derive(Debug, Clone)]
+pub struct TrackRow {
+    /// The markdown row.
+    pub line: String,
+    /// Notes on the case's ground truth.
+    pub notes: Vec<String>,
+}
+
+/// Run `case` with `base`'s settings (its path and stride replaced, no detector).
+pub fn track_row(base: &RunSettings, case: &TrackCase) -> Result<TrackRow> {
+    let mut s = base.clone();
+    s.path = case.path.clone();
+    s.selection.stride = case.stride as usize;
+    s.detector = DetectorChoice::None;
+    let o = run_quiet(&s).context_with(|| format!("case {}", case.name))?;
+    let (out, seq) = (&o.out, &o.seq);
+    let truth = seq.truth_from_first();
+    let errors = truth.as_ref().and_then(|g| trajectory_errors(&out.poses, g, &[]));
+    // only frames the tracker marked "tracked" (not initialised, lost, relocalised or any weaker state)
+    let tracked: Vec<bool> = out.frames.iter().map(|f| matches!(f.state, Some(TrackState::Tracked { .. }))).collect();
+    let step = truth.as_ref().and_then(|g| largest_step_error(&out.poses, g, &tracked));
+    let cell = |v: Option<f64>, digits: usize| v.map_or("–".to_string(), |v| format!("{v:.digits$}"));
+    let states: Vec<String> = state_counts(&out.frames).iter().map(|n| n.to_string()).collect();
+    let line = format!(
+        "| {} | {} | {} | {} | {} | {} | {} | {:.1} |",
+        case.name,
+        out.frames.len(),
+        cell(errors.as_ref().map(|e| e.ate_m), 3),
+        cell(errors.as_ref().map(|e| e.ate_aligned_m), 3),
+        cell(errors.as_ref().map(|e| e.end_drift_pct), 2),
+        step.map_or("–".to_string(), |(e, k)| format!("{e:.3} ({})", seq.ids[k])),
+        states.join(" | "),
+        median_fps(out)
+    );
+    let mut notes = Vec::new();
+    if let Some(TruthSource::Oxts { median_pos_accuracy_m }) = seq.truth_source {
+        notes.push(format!(
+            "{}: ground truth from OXTS (differential GPS + IMU), median pos_accuracy {median_pos_accuracy_m:.2} m: errors below that are not meaningful.",
+            case.name
+        ));
+    }
+    if truth.is_none() {
+        notes.push(format!("{}: no ground truth, errors not computed.", case.name));
+    }
+    Ok(TrackRow { line, notes })
+}
+
+/// The explanation under the `track-bench` table.
+pub const TRACK_BENCH_FOOTER: &str = "\nATE: RMS position error, both trajectories starting at the identity (\"aligned\": after the best rigid alignment). Step error: |t(est step) - t(true step)| over steps ending at a frame marked tracked; the frame id in brackets. State columns: frames per state as tracking.csv names them (each frame in exactly one). Frames/s: 1000 / median interval between frames (machine load matters; accuracy figures are deterministic).";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cases_parse_with_and_without_a_stride() {
+        let c = TrackCase::parse("/data/seq:3").expect("stride");
+        assert_eq!((c.path, c.stride, c.name.as_str()), (PathBuf::from("/data/seq"), 3, "/data/seq, stride 3"));
+        let plain = TrackCase::parse("C:dir").expect("no digits after the colon: a path");
+        assert_eq!((plain.path, plain.stride), (PathBuf::from("C:dir"), 1));
+        assert!(TrackCase::parse("seq:0").expect_err("zero").to_string().contains("at least 1"));
+        assert!(TrackCase::parse("seq:99999999999999999999999").is_err(), "overflow");
+        let dev = TrackCase::dev_cases("o".into(), "r".into());
+        assert_eq!(dev.iter().map(|c| c.stride).collect::<Vec<_>>(), [1, 2, 3, 4, 1]);
+    }
+
+    #[test]
+    fn tables_have_one_column_per_cell() {
+        let header = track_bench_header();
+        let mut lines = header.lines();
+        let cols = lines.next().expect("head").matches('|').count();
+        assert_eq!(lines.next().expect("rule").matches('|').count(), cols);
+        assert_eq!(cols, 8 + STATE_NAMES.len());
+        let row =
+            BenchRow { name: "x".into(), fps_median: 30.04, fps_overall: 20.0, stages: vec![1.0; 8], ate: 0.1234 };
+        assert_eq!(
+            row.to_string().matches('|').count(),
+            RUN_BENCH_HEADER.lines().next().expect("head").matches('|').count()
+        );
+        assert!(row.to_string().starts_with("| x | 30.0 | 20.0 | 1.0 |") && row.to_string().ends_with("| 0.123 |"));
+        assert!(
+            run_bench_footer(3, &[row.clone(), row.clone(), row]).contains("(30.0), >= 10 with the detector (30.0)")
+        );
+    }
+}

@@ -1,0 +1,178 @@
+//! `map` (a saved map's counts and objects, and its exports) and `trajectory-eval` (ATE, drift and RPE of
+//! a trajectory file against ground truth).
+
+use std::path::{Path, PathBuf};
+
+use slam_dataset::trajectory::write_kitti_poses;
+use slam_eval::trajectory::PoseFile;
+use slam_pipeline::map::Map;
+
+use crate::error::{Context, Result, RunnerError};
+
+/// RPE segment lengths of `trajectory-eval`, metres (KITTI's 100-800 m and shorter ones for excerpts).
+pub const RPE_LENGTHS_M: [f64; 7] = [10.0, 20.0, 40.0, 100.0, 200.0, 400.0, 800.0];
+
+/// The `trajectory-eval` table of `estimate` against `truth` (TUM pairs matched within `max_diff` s):
+/// a line on the matching, then a markdown table.
+pub fn trajectory_eval(estimate: &Path, truth: &Path, max_diff: f64) -> Result<String> {
+    let est = PoseFile::read(estimate)?;
+    let gt = PoseFile::read(truth)?;
+    let c = slam_eval::trajectory::compare(&est, &gt, max_diff, &RPE_LENGTHS_M);
+    let mut lines = vec![format!(
+        "matched {} of {} estimated poses to the {} ground-truth poses {}",
+        c.pairs.len(),
+        est.poses().len(),
+        gt.poses().len(),
+        c.how
+    )];
+    let e = c
+        .errors
+        .ok_or_else(|| RunnerError::Invalid(format!("fewer than two matched poses ({} matched)", c.pairs.len())))?;
+    lines.push("| metric | value |\n|---|---:|".into());
+    lines.push(format!("| poses compared | {} |\n| path (ground truth) | {:.1} m |", e.frames, e.path_m));
+    lines.push(format!(
+        "| ATE (first poses aligned) | {:.3} m |\n| ATE (rigid alignment) | {:.3} m |",
+        e.ate_m, e.ate_aligned_m
+    ));
+    lines.push(format!("| end-point drift | {:.2} % |\n| scale (similarity fit) | {:.4} |", e.end_drift_pct, e.scale));
+    for (len, t, r, count) in e.rpe {
+        lines.push(format!("| RPE {len:.0} m ({count} segments) | {t:.2} % / {r:.2} deg/100 m |"));
+    }
+    Ok(lines.join("\n"))
+}
+
+/// A saved map's description: format, counts, and one line per object.
+pub fn map_summary(map: &Map, path: &Path) -> String {
+    let s = map.stats();
+    let mut lines = vec![
+        format!("{} (format {} v{})", path.display(), map.format, map.version),
+        format!(
+            "frames {}, keyframes {} in {} segment(s), keyframe path {:.1} m, points {}, observations {} ({:.1} per point), objects {} ({} dynamic)",
+            s.frames,
+            s.keyframes,
+            s.segments,
+            s.keyframe_path_m,
+            s.points,
+            s.observations,
+            s.observations as f64 / s.points.max(1) as f64,
+            s.objects,
+            s.dynamic_objects
+        ),
+    ];
+    for o in &map.objects {
+        lines.push(format!(
+            "object {:>3} class {:>2} {:<10} centre [{:7.2} {:6.2} {:7.2}] m, semi-axes [{:.2} {:.2} {:.2}] m, frames {:>3}{}",
+            o.id,
+            o.class,
+            slam_core::ClassId(o.class).name(),
+            o.center[0],
+            o.center[1],
+            o.center[2],
+            o.semi_axes[0],
+            o.semi_axes[1],
+            o.semi_axes[2],
+            o.frames.len(),
+            match slam_viz::ObjectState::of(o.dynamic, o.moving) {
+                slam_viz::ObjectState::Static => "",
+                slam_viz::ObjectState::Dynamic => " dynamic",
+                slam_viz::ObjectState::Moving => " moving (not mapped)",
+            }
+        ));
+    }
+    lines.join("\n")
+}
+
+/// What to export from a saved map (each optional).
+#[derive(Debug, Clone, Default)]
+pub struct MapExports {
+    /// Map points as a PLY point cloud.
+    pub ply: Option<PathBuf>,
+    /// The 3-D scene as a PLY mesh.
+    pub scene: Option<PathBuf>,
+    /// The per-frame trajectory, KITTI format.
+    pub trajectory: Option<PathBuf>,
+    /// A folder for the top-down map picture (SVG + PNG).
+    pub picture: Option<PathBuf>,
+}
+
+fn parent_of(p: &Path) -> Result<()> {
+    if let Some(d) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(d).context_with(|| format!("cannot create {}", d.display()))?;
+    }
+    Ok(())
+}
+
+/// Write the exports of `map` (loaded from `path`); `wrote` gets a line per file written, as it is.
+pub fn export_map(map: &Map, path: &Path, x: &MapExports, wrote: &mut dyn FnMut(String)) -> Result<()> {
+    if let Some(p) = &x.ply {
+        parent_of(p)?;
+        map.export_ply(p)?;
+        wrote(format!("wrote {}", p.display()));
+    }
+    if let Some(p) = &x.scene {
+        parent_of(p)?;
+        let s = map.export_scene_ply(p)?;
+        wrote(format!(
+            "wrote {}: {} ellipsoids, {} camera frusta, {} trajectory vertices, {} points ({} vertices, {} faces, {} edges)",
+            p.display(),
+            s.ellipsoids,
+            s.cameras,
+            s.trajectory,
+            s.points,
+            s.vertices,
+            s.faces,
+            s.edges
+        ));
+    }
+    let poses: Vec<nalgebra::Isometry3<f64>> = map.frame_poses().into_iter().flatten().collect();
+    if let Some(p) = &x.trajectory {
+        parent_of(p)?;
+        if poses.len() != map.trajectory.len() {
+            return Err(RunnerError::Invalid(format!(
+                "{}: {} frames refer to missing keyframes",
+                path.display(),
+                map.trajectory.len() - poses.len()
+            )));
+        }
+        write_kitti_poses(p, &poses)?;
+        wrote(format!("wrote {}", p.display()));
+    }
+    if let Some(dir) = &x.picture {
+        // each picture is written whole (beside its final name, then renamed): the folder may hold other files
+        for f in slam_dataset::output::write_files_into(dir, |tmp| {
+            slam_viz::map_picture(map, &poses, None, tmp).map(|_| ())
+        })? {
+            wrote(format!("wrote {}", f.display()));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write_kitti(path: &Path, xs: &[f64]) {
+        let text: String = xs.iter().map(|x| format!("1 0 0 {x} 0 1 0 0 0 0 1 0\n")).collect();
+        std::fs::write(path, text).expect("write");
+    }
+
+    #[test]
+    fn trajectory_eval_reports_a_scaled_estimate_and_refuses_one_pose() {
+        let dir = std::env::temp_dir().join(format!("slam-runner-traj-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        let (est, gt, one) = (dir.join("est.txt"), dir.join("gt.txt"), dir.join("one.txt"));
+        let truth: Vec<f64> = (0..20).map(|i| i as f64).collect();
+        // the estimate is 1 % short: scale 1.01 fits it, end-point drift 1 % of 19 m
+        write_kitti(&est, &truth.iter().map(|x| 0.99 * x).collect::<Vec<_>>());
+        write_kitti(&gt, &truth);
+        write_kitti(&one, &[0.0]);
+        let table = trajectory_eval(&est, &gt, 0.01).expect("evaluates");
+        assert!(table.starts_with("matched 20 of 20 estimated poses"), "{table}");
+        assert!(table.contains("| path (ground truth) | 19.0 m |"), "{table}");
+        assert!(table.contains("| end-point drift | 1.00 % |"), "{table}");
+        let e = trajectory_eval(&one, &gt, 0.01).expect_err("one pose").to_string();
+        assert!(e.contains("fewer than two matched poses"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

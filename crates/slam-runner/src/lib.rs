@@ -1,0 +1,26 @@
+//! `slam-runner`: the composition just below `slam-app`. The app parses arguments, loads settings and
+//! prints; this crate does the work of its run-related commands:
+//!
+//! - [`detector`]: the detection source a run uses ([`DetectorChoice`]: none, network, file, labels);
+//! - [`run`]: one run of the whole system on a KITTI stereo sequence ([`RunSettings`] → [`prepare`] →
+//!   [`Prepared::run`] → [`Outcome`]);
+//! - [`report`]: the run's output files, summary, object score and pictures;
+//! - [`bench`]: the `run-bench` and `track-bench` runs and table rows;
+//! - [`stereo`]: `stereo-check`, the rig's disparity offset in rounds;
+//! - [`inspect`]: `map` (a saved map's summary and exports) and `trajectory-eval`.
+//!
+//! Only `slam-app` depends on this crate (`tools/check-deps.sh`).
+
+pub mod bench;
+pub mod check;
+pub mod detector;
+pub mod error;
+pub mod inspect;
+pub mod report;
+pub mod run;
+pub mod stereo;
+
+pub use detector::{DetectorChoice, NetworkLoader};
+pub use error::{Result, RunnerError};
+pub use report::OverlayChoice;
+pub use run::{prepare, AssociatorFactory, OptimizerFactory, Outcome, Prepared, RunSettings};

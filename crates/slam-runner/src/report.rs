@@ -1,0 +1,203 @@
+//! What `slam-app run` writes into its output folder and prints: the files of a finished run, its summary
+//! (counts, map, stage times, errors against ground truth, detection guard, unused detections), the
+//! object score against labels, and the pictures.
+
+use std::path::Path;
+
+use slam_dataset::{
+    kitti::stereo::TruthSource,
+    trajectory::{write_kitti_poses, write_tum},
+};
+use slam_eval::LabelGeometry;
+use slam_pipeline::{
+    eval::trajectory_errors,
+    objects::MappedObject,
+    report::{median_fps, stage_table, tracking_csv},
+};
+
+use crate::{
+    error::{Context, Result, RunnerError},
+    run::{played_ids, Outcome},
+};
+
+/// The entries a run writes into its output folder (a folder written before the marker file existed may
+/// be replaced when it holds only these).
+pub fn run_output_name(name: &str) -> bool {
+    matches!(
+        name,
+        "trajectory.kitti.txt"
+            | "trajectory.tum.txt"
+            | "map.json"
+            | "objects.json"
+            | "map.svg"
+            | "map.png"
+            | "overlays"
+            | "camera.json"
+            | "objects_score.json"
+            | "tracking.csv"
+    ) || name.ends_with(".tmp")
+}
+
+/// Overlay images to draw: every `every`-th frame, as `format` (`png` or `jpg`).
+#[derive(Debug, Clone)]
+pub struct OverlayChoice {
+    /// Draw every n-th frame.
+    pub every: u64,
+    /// Image format, `png` or `jpg`.
+    pub format: String,
+}
+
+impl Outcome {
+    /// Write the trajectory (KITTI and TUM: one pose per played frame, TUM with the frames' own times),
+    /// tracking.csv, map.json and objects.json into `dir`; `shown` is the folder's name in messages.
+    pub fn write_files(&self, dir: &Path, shown: &Path) -> Result<()> {
+        let out = &self.out;
+        write_kitti_poses(dir.join("trajectory.kitti.txt"), &out.poses)?;
+        write_tum(dir.join("trajectory.tum.txt"), &self.seq.times, &out.poses)?;
+        let csv = tracking_csv(out).map_err(RunnerError::other)?;
+        std::fs::write(dir.join("tracking.csv"), csv)
+            .context_with(|| format!("writing {}", dir.join("tracking.csv").display()))?;
+        out.map.save(&dir.join("map.json"))?;
+        let objects: Vec<&MappedObject> = out.objects.iter().collect();
+        slam_pipeline::objects::write_object_map_in(&dir.join("objects.json"), &objects, slam_pipeline::map::MAP_WORLD)
+            .context_with(|| format!("writing {}", shown.join("objects.json").display()))?;
+        Ok(())
+    }
+
+    /// The run's summary as printed: speed, counts, tracking states, map, stage table, errors against
+    /// ground truth, the detection guard's changes (`max_detections` a frame) and unused detections.
+    pub fn summary(&self, max_detections: usize) -> String {
+        let (out, c) = (&self.out, self.out.counts);
+        let mut lines = vec![
+            format!(
+                "{} frames in {:.2} s: {:.1} frames/s overall, {:.1} frames/s median (all threads, incl. image decoding)",
+                c.frames,
+                self.elapsed,
+                c.frames as f64 / self.elapsed,
+                median_fps(out)
+            ),
+            format!(
+                "keyframes {}, lost {}, relocalised {}, new map segments {}, unreadable {}, detector errors {}, culled observations {}, duplicate or part boxes suppressed {}, ellipsoids of impossible size refused {}",
+                c.keyframes, c.lost, c.relocalised, c.new_segments, c.unreadable, c.detector_errors, c.culled_observations, c.suppressed_boxes, c.implausible_fits
+            ),
+            format!(
+                "tracking states: tracked {}, weak {}, relocalised {}, lost {}, predicted {}, unreadable {} (tracking.csv has one row per frame)",
+                c.tracked, c.weak, c.relocalised, c.lost, c.predicted, c.unreadable
+            ),
+        ];
+        let st = out.map.stats();
+        let dets: usize = out.frames.iter().map(|f| f.detections.len()).sum();
+        lines.push(format!(
+            "map: {} keyframes, {} points, {} observations; objects: {} with an ellipsoid ({} dynamic) from {dets} detections",
+            st.keyframes, st.points, st.observations, st.objects, st.dynamic_objects
+        ));
+        lines.push("\n| stage | median ms | frames |\n|---|---:|---:|".into());
+        for (name, ms, count) in stage_table(out) {
+            lines.push(format!("| {name} | {ms:.1} | {count} |"));
+        }
+        lines.extend(self.truth_lines());
+        if let Some(d) = &self.detections {
+            lines.push(d.summary(max_detections));
+        }
+        for note in &self.notes {
+            lines.push(format!("unused detections: {note}"));
+        }
+        lines.join("\n")
+    }
+
+    /// Errors against the sequence's ground truth (none without it).
+    fn truth_lines(&self) -> Vec<String> {
+        let mut lines = Vec::new();
+        let Some(gt) = self.seq.truth_from_first() else { return lines };
+        let Some(e) = trajectory_errors(&self.out.poses, &gt, &[10.0, 20.0, 40.0]) else { return lines };
+        if let Some(TruthSource::Oxts { median_pos_accuracy_m }) = self.seq.truth_source {
+            lines.push(format!(
+                "\nground truth from the drive's OXTS packets (differential GPS + IMU; median position accuracy {median_pos_accuracy_m:.2} m from the packets' pos_accuracy): position errors below that are not meaningful"
+            ));
+        }
+        lines.push(format!(
+            "\nground truth: path {:.1} m over {} frames; ATE {:.3} m (aligned {:.3} m); end-point drift {:.2} %; scale {:.4}",
+            e.path_m, e.frames, e.ate_m, e.ate_aligned_m, e.end_drift_pct, e.scale
+        ));
+        for (len, t, r, count) in e.rpe {
+            lines.push(format!("RPE over {len:.0} m segments ({count}): {t:.2} % translation, {r:.2} deg/100 m"));
+        }
+        lines
+    }
+
+    /// Write camera.json (the run's camera, for scoring the objects later).
+    pub fn write_camera(&self, dir: &Path) -> Result<()> {
+        LabelGeometry::of_sequence(&self.seq, self.image)?.write(&dir.join("camera.json"))?;
+        Ok(())
+    }
+
+    /// Score the run's objects against its labels, if any: writes objects_score.json and returns the
+    /// printed report.
+    pub fn score(&self, dir: &Path) -> Result<Option<String>> {
+        let Some((labels, geometry)) = &self.labels else { return Ok(None) };
+        let out = &self.out;
+        let objects: Vec<slam_eval::ScoredInput> = out
+            .objects
+            .iter()
+            .filter_map(|o| {
+                Some(slam_eval::ScoredInput {
+                    id: o.id.0,
+                    class: o.class.0,
+                    ellipsoid: o.ellipsoid?,
+                    frames: o.observations.iter().map(|x| x.frame).collect(),
+                    dynamic: o.dynamic,
+                })
+            })
+            .collect();
+        let ids: Vec<usize> = out.frames.iter().map(|r| r.index).collect();
+        let score =
+            slam_eval::score_run(labels, &out.poses, &ids, geometry, &objects, &slam_eval::ScoreConfig::default());
+        score.write_json(&dir.join("objects_score.json"))?;
+        Ok(Some(score.report()))
+    }
+
+    /// The top-down map picture and, when asked, overlay images into `dir/overlays`; returns what was
+    /// written, for the summary line.
+    pub fn pictures(&self, dir: &Path, overlays: Option<&OverlayChoice>) -> Result<String> {
+        let out = &self.out;
+        slam_viz::map_picture(&out.map, &out.poses, self.seq.truth_from_first().as_deref(), dir)?;
+        let mut written = "map.svg, map.png".to_string();
+        let Some(o) = overlays else { return Ok(written) };
+        let opts = slam_viz::OverlayOptions {
+            left: &self.seq.left,
+            colour: self.colour,
+            k: self.k,
+            image: self.image,
+            every: o.every,
+            format: &o.format,
+        };
+        let count = slam_viz::write_overlays(out, &opts, &dir.join("overlays"))?;
+        written.push_str(&format!(", {count} overlays in overlays/"));
+        Ok(written)
+    }
+
+    /// The last line of a run: what was written where, and which frames.
+    pub fn wrote_line(&self, shown: &Path, scored: bool, pictures: &str) -> String {
+        format!(
+            "\nwrote {}: trajectory.kitti.txt (one line per played frame), trajectory.tum.txt (frame times), tracking.csv (one row per played frame), map.json, objects.json, camera.json, {}{pictures}; {}",
+            shown.display(),
+            if scored { "objects_score.json, " } else { "" },
+            played_ids(&self.seq, &self.selection)
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn run_output_names_are_the_files_a_run_writes() {
+        for name in ["trajectory.kitti.txt", "map.json", "overlays", "tracking.csv", "objects_score.json", "x.tmp"] {
+            assert!(run_output_name(name), "{name}");
+        }
+        for name in ["notes.txt", "map.json.bak", "images"] {
+            assert!(!run_output_name(name), "{name}");
+        }
+    }
+}

@@ -1,0 +1,297 @@
+//! One run of the whole system on a KITTI stereo sequence: the settings the app fills, the checks before
+//! the first frame ([`prepare`]), the wiring of `SystemBuilder` and the frame source ([`Prepared::run`]),
+//! and what is needed to report on the run ([`Outcome`]).
+
+use std::{path::PathBuf, sync::Arc};
+
+use slam_core::{Associator, DetectionSource, Image};
+use slam_dataset::{
+    check::{calibration, calibration_file, declared_size, first_pair},
+    kitti::{
+        stereo::{open_stereo, FrameSelection, Layout, StereoSequence},
+        tracking::{read_tracking_labels, TrackingLabel},
+    },
+};
+use slam_eval::LabelGeometry;
+use slam_frontend::{
+    detectors::{ClassFilter, DetectionCounts, DetectionGuard},
+    read_image, StereoRig, StereoVo, VoConfig,
+};
+use slam_optim::SharedOptimizer;
+use slam_pipeline::{
+    objects::FitMethod,
+    report::frame_period,
+    system::{FrameInput, FrameRecord, RunOutput, SystemBuilder, SystemConfig},
+};
+use slam_quadric::{ImageSize, Intrinsics};
+
+use crate::{
+    check::stereo_pair,
+    detector::DetectorChoice,
+    error::{Context, Result, RunnerError},
+};
+
+/// A fresh optimiser backend for each run.
+pub type OptimizerFactory = Arc<dyn Fn() -> SharedOptimizer + Send + Sync>;
+/// A fresh associator for each run, given ODA's projected-ellipsoid gate (`SystemConfig::projected_gate`).
+pub type AssociatorFactory = Arc<dyn Fn(Option<f64>) -> Box<dyn Associator> + Send + Sync>;
+
+/// Everything a run needs, filled by the app from its options and settings file.
+#[derive(Clone)]
+pub struct RunSettings {
+    /// The sequence folder (odometry, raw or tracking layout).
+    pub path: PathBuf,
+    /// Frame ids to play.
+    pub selection: FrameSelection,
+    /// Play at most this many frames (after the selection); `Some(0)` is refused.
+    pub max_frames: Option<usize>,
+    /// Visual odometry settings (a `frame_period_s` of 0 or less is taken from the sequence's times).
+    pub tracking: VoConfig,
+    /// The system's settings; `objects.image` is replaced by the sequence's image size.
+    pub system: SystemConfig,
+    /// The optimiser backend.
+    pub optimizer: OptimizerFactory,
+    /// The object associator.
+    pub associator: AssociatorFactory,
+    /// How objects' ellipsoids are fitted.
+    pub method: FitMethod,
+    /// Names of the associator and the method, for the header.
+    pub names: (String, String),
+    /// Where the boxes come from.
+    pub detector: DetectorChoice,
+    /// KITTI tracking labels to score the run against (else the tracking layout's own, if any).
+    pub labels: Option<PathBuf>,
+}
+
+/// A sequence checked and ready to play: the frames, calibration and image size.
+pub struct Prepared {
+    /// The played frames.
+    pub seq: StereoSequence,
+    /// Camera intrinsics of the left camera.
+    pub k: Intrinsics,
+    /// Whether the images are read in colour (every layout but odometry).
+    pub colour: bool,
+    selection: FrameSelection,
+}
+
+/// A finished run and what is needed to report on it.
+pub struct Outcome {
+    /// What the system produced.
+    pub out: RunOutput,
+    /// The labels (`--labels`, or the tracking layout's own) and their geometry in the run's camera.
+    pub labels: Option<(Vec<TrackingLabel>, LabelGeometry)>,
+    /// The played frames.
+    pub seq: StereoSequence,
+    /// Wall time of the run, seconds.
+    pub elapsed: f64,
+    /// Camera intrinsics.
+    pub k: Intrinsics,
+    /// Image size.
+    pub image: ImageSize,
+    /// Whether the images were read in colour.
+    pub colour: bool,
+    /// What the detection guard changed.
+    pub detections: Option<Arc<DetectionCounts>>,
+    /// Reports of detections no frame used.
+    pub notes: Vec<String>,
+    /// The frame selection, for the summary.
+    pub selection: FrameSelection,
+}
+
+/// Open the sequence, apply the selection and `max_frames`, and check image sizes and calibration before
+/// the first frame (a right camera of another size would make every frame unreadable). The sequence's
+/// input warnings are logged.
+pub fn prepare(s: &RunSettings) -> Result<Prepared> {
+    let full = open_stereo(&s.path)?;
+    for w in &full.warnings {
+        tracing::warn!("{w}");
+    }
+    let mut seq = full.select(&s.selection)?;
+    if let Some(n) = s.max_frames {
+        if n == 0 {
+            return Err(RunnerError::Invalid("nothing to run: --max-frames 0".into()));
+        }
+        seq.truncate(n);
+    }
+    let (l0, r0) = first_pair(&seq.left, &seq.right)?;
+    let size = stereo_pair(l0, r0)?;
+    calibration(&calibration_file(&seq), seq.intrinsics, seq.baseline, l0, size)?;
+    declared_size(&calibration_file(&seq), l0, size)?;
+    let [fx, fy, cx, cy] = seq.intrinsics;
+    let colour = seq.layout != Layout::Odometry;
+    Ok(Prepared { seq, k: Intrinsics::new(fx, fy, cx, cy), colour, selection: s.selection })
+}
+
+/// Which frames a run played, e.g. `frame ids 0..=50 every 2 ids`.
+pub fn played_ids(seq: &StereoSequence, sel: &FrameSelection) -> String {
+    let (first, last) = (seq.ids[0], seq.ids[seq.ids.len() - 1]);
+    let stride = if sel.stride > 1 { format!(" every {} ids", sel.stride) } else { String::new() };
+    format!("frame ids {first}..={last}{stride}")
+}
+
+impl Prepared {
+    /// Number of frames to play.
+    pub fn len(&self) -> usize {
+        self.seq.len()
+    }
+
+    /// Whether no frame is played.
+    pub fn is_empty(&self) -> bool {
+        self.seq.len() == 0
+    }
+
+    /// The run's header: sequence, layout, frames, calibration, detector, association and method, and a
+    /// line on missing images if any.
+    pub fn header(&self, s: &RunSettings) -> String {
+        let seq = &self.seq;
+        let mut text = format!(
+            "quadric SLAM on {} ({:?} layout, {} frames: {}, fx {:.1} px, baseline {:.4} m, detector: {}, \
+             association: {}, ellipsoids: {})",
+            seq.dir.display(),
+            seq.layout,
+            seq.len(),
+            played_ids(seq, &self.selection),
+            self.k.fx,
+            seq.baseline,
+            s.detector.describe(),
+            s.names.0,
+            s.names.1,
+        );
+        if !(seq.gaps.is_empty() && seq.one_camera.is_empty()) {
+            text.push_str(&format!(
+                "\ninput: {} frame(s) missing in both cameras (skipped, ids kept), {} with one image missing (played as unreadable); see the warnings",
+                seq.gaps.len(),
+                seq.one_camera.len()
+            ));
+        }
+        text
+    }
+
+    /// Run the system over the frames. `on_frame` sees every finished frame (progress); `stop` is polled
+    /// before each frame is read (Ctrl-C: the input ends, the system finishes what it has).
+    pub fn run(self, s: &RunSettings, on_frame: &mut dyn FnMut(&FrameRecord), stop: fn() -> bool) -> Result<Outcome> {
+        let Prepared { seq, k, colour, selection } = self;
+        // the image size comes from the first frame whose left image exists
+        let first_left = seq.left.iter().find(|p| p.is_file()).unwrap_or(&seq.left[0]);
+        let first = read_image(first_left, colour).context_with(|| format!("first frame {}", first_left.display()))?;
+        let image = ImageSize::new(first.width as f64, first.height as f64);
+        let mut tracking = s.tracking;
+        if tracking.frame_period_s <= 0.0 {
+            let n = seq.len().min(seq.times.len());
+            let stamped: Vec<(usize, f64)> = (0..n).map(|i| (seq.ids[i], seq.times[i])).collect();
+            tracking.frame_period_s = frame_period(&stamped);
+        }
+        let optimizer = (s.optimizer)();
+        let tracker = Box::new(StereoVo::new(StereoRig { k, baseline: seq.baseline }, tracking, optimizer.clone())?);
+        let labels = run_labels(s, &seq, image)?;
+        let mut notes = Vec::new();
+        let (det, detections) = guarded(s, &seq, image, labels.as_ref(), &mut notes)?;
+        for note in &notes {
+            tracing::warn!("{note}");
+        }
+        let frames = frame_source(&seq, colour, (first.width, first.height), stop);
+        let start = std::time::Instant::now();
+        let mut sys = s.system;
+        sys.objects.image = image;
+        let out = SystemBuilder::new(k, seq.baseline)
+            .config(sys)
+            .source(frames)
+            .tracker(tracker)
+            .detector(det)
+            .associator((s.associator)(sys.projected_gate))
+            .optimizer(optimizer)
+            .method(s.method.clone())
+            .build()?
+            .run(on_frame)?;
+        let elapsed = start.elapsed().as_secs_f64();
+        Ok(Outcome { out, labels, seq, elapsed, k, image, colour, detections, notes, selection })
+    }
+}
+
+/// The run's labels: the `--labels` file, else the tracking layout's own; with their camera geometry.
+fn run_labels(
+    s: &RunSettings,
+    seq: &StereoSequence,
+    image: ImageSize,
+) -> Result<Option<(Vec<TrackingLabel>, LabelGeometry)>> {
+    let labels = match (&s.labels, &seq.labels) {
+        (Some(p), _) => Some(read_tracking_labels(p)?),
+        (None, Some(l)) => Some(l.clone()),
+        (None, None) => None,
+    };
+    Ok(match labels {
+        Some(l) => Some((l, LabelGeometry::of_sequence(seq, image)?)),
+        None => None,
+    })
+}
+
+/// The chosen detector behind the class filter and the detection guard (at most
+/// `system.max_detections` boxes a frame, boxes clipped to the image), and the guard's counts.
+type Guarded = (Option<Box<dyn DetectionSource>>, Option<Arc<DetectionCounts>>);
+
+fn guarded(
+    s: &RunSettings,
+    seq: &StereoSequence,
+    image: ImageSize,
+    labels: Option<&(Vec<TrackingLabel>, LabelGeometry)>,
+    notes: &mut Vec<String>,
+) -> Result<Guarded> {
+    let mut counts = None;
+    let det = s.detector.build(seq, image, labels, notes)?.map(|d| {
+        let (g, c) =
+            DetectionGuard::new(Box::new(ClassFilter(d)), [image.width, image.height], s.system.max_detections);
+        counts = Some(c);
+        Box::new(g) as Box<dyn DetectionSource>
+    });
+    Ok((det, counts))
+}
+
+/// Both images of a frame, of one size and of the sequence's first frame's size.
+fn read_pair(
+    l: &std::path::Path,
+    r: &std::path::Path,
+    colour: bool,
+    first: (u32, u32),
+) -> std::result::Result<(Image, Image), String> {
+    let (li, ri) =
+        read_image(l, colour).and_then(|li| read_image(r, colour).map(|ri| (li, ri))).map_err(|e| e.to_string())?;
+    if (li.width, li.height) != (ri.width, ri.height) {
+        Err(format!(
+            "left {} is {}×{}, right {} is {}×{}",
+            l.display(),
+            li.width,
+            li.height,
+            r.display(),
+            ri.width,
+            ri.height
+        ))
+    } else if (li.width, li.height) != first {
+        Err(format!(
+            "{} is {}×{}, the sequence's first frame {}×{}",
+            l.display(),
+            li.width,
+            li.height,
+            first.0,
+            first.1
+        ))
+    } else {
+        Ok((li, ri))
+    }
+}
+
+/// The frames as the system reads them; the input ends early when `stop()` turns true.
+fn frame_source(
+    seq: &StereoSequence,
+    colour: bool,
+    first: (u32, u32),
+    stop: fn() -> bool,
+) -> Box<dyn Iterator<Item = FrameInput> + Send> {
+    let pairs: Vec<(usize, PathBuf, PathBuf)> =
+        (0..seq.len()).map(|k| (seq.ids[k], seq.left[k].clone(), seq.right[k].clone())).collect();
+    Box::new(
+        pairs
+            .into_iter()
+            .take_while(move |_| !stop())
+            .map(move |(i, l, r)| FrameInput { index: i, images: read_pair(&l, &r, colour, first) }),
+    )
+}
