@@ -189,6 +189,9 @@ pub struct RunCounts {
     pub culled_observations: usize,
     /// Detector boxes suppressed as duplicates or parts of another box of the same class group.
     pub suppressed_boxes: usize,
+    /// Fitted ellipsoids refused for a size no real object of their class has
+    /// ([`crate::objects::physically_plausible`]).
+    pub implausible_fits: usize,
 }
 
 /// Everything a run produced.

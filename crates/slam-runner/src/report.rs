@@ -77,8 +77,8 @@ impl Outcome {
                 median_fps(out)
             ),
             format!(
-                "keyframes {}, lost {}, relocalised {}, new map segments {}, unreadable {}, detector errors {}, culled observations {}, duplicate or part boxes suppressed {}",
-                c.keyframes, c.lost, c.relocalised, c.new_segments, c.unreadable, c.detector_errors, c.culled_observations, c.suppressed_boxes
+                "keyframes {}, lost {}, relocalised {}, new map segments {}, unreadable {}, detector errors {}, culled observations {}, duplicate or part boxes suppressed {}, ellipsoids of impossible size refused {}",
+                c.keyframes, c.lost, c.relocalised, c.new_segments, c.unreadable, c.detector_errors, c.culled_observations, c.suppressed_boxes, c.implausible_fits
             ),
             format!(
                 "tracking states: tracked {}, weak {}, relocalised {}, lost {}, predicted {}, unreadable {} (tracking.csv has one row per frame)",

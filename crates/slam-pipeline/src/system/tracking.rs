@@ -121,6 +121,7 @@ impl Tracking {
         for fit in reply.fits {
             self.objects.apply(fit);
         }
+        self.counts.implausible_fits = self.objects.implausible_fits();
         self.counts.culled_observations += reply.culled;
         if let Some(r) = self.records.get_mut(rec) {
             r.times.bundle_adjustment = reply.ba_ms;
