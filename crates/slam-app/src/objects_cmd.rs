@@ -5,7 +5,9 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use clap::Args;
-use slam_eval::labelled::{run_mapper, table_header, LabelNoise, LabelledSequence, Study, VehicleCriteria, CSV_COLUMNS};
+use slam_eval::labelled::{
+    run_mapper, table_header, LabelNoise, LabelledSequence, Study, VehicleCriteria, CSV_COLUMNS,
+};
 use slam_pipeline::objects::{write_object_map, FitMethod, MapperConfig, ObjectMapper};
 use slam_quadric::ImageSize;
 
@@ -201,8 +203,12 @@ pub struct EvalArgs {
 /// `slam-app eval <run folder> --labels <label_02.txt>`: score a finished run's object map.
 fn eval_run_folder(dir: &std::path::Path, a: &EvalArgs) -> anyhow::Result<()> {
     let labels = a.labels.as_ref().context("scoring a run folder needs --labels <label_02.txt>")?;
-    let config =
-        slam_eval::ScoreConfig { min_frames: a.min_frames, static_m: a.static_m, moving_m: a.moving_m, ..Default::default() };
+    let config = slam_eval::ScoreConfig {
+        min_frames: a.min_frames,
+        static_m: a.static_m,
+        moving_m: a.moving_m,
+        ..Default::default()
+    };
     let score = slam_eval::study::score_run_folder(dir, labels, &config)?;
     print!("{}", score.report());
     let out = dir.join("objects_score.json");

@@ -646,7 +646,12 @@ fn files_of_every_command() {
         case("objects: missing folder", &[&"objects", &d.join("nope"), &"--out", &d.join("x.json")], 1, &["nope"]),
         case("eval: no sequences", &[&"eval", &no_labels], 1, &["is neither a sequence folder"]),
         case("assoc kitti: no sequences", &[&"assoc", &"kitti", &no_labels], 1, &["is neither a sequence folder"]),
-        case("detect: empty folder", &[&"detect", &no_labels, &"--out", &d.join("d.json")], 1, &["nor a folder of PNG/JPG images"]),
+        case(
+            "detect: empty folder",
+            &[&"detect", &no_labels, &"--out", &d.join("d.json")],
+            1,
+            &["nor a folder of PNG/JPG images"],
+        ),
     ]);
     check(cases);
     assert!(!d.join("x.json").exists() && !d.join("o").exists(), "failed commands write nothing");

@@ -936,7 +936,8 @@ fn run_scores_its_objects_against_labels_and_eval_repeats_it() {
     assert!(census.contains("moving object mapped as static 1") && census.contains("matching nothing 1"), "{text}");
     assert!(text.contains("label   3 Van") && text.contains("(static): object"), "the parked van is found: {text}");
     let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("objects_score.json")).expect("score file")).expect("json");
+        serde_json::from_str(&std::fs::read_to_string(out.join("objects_score.json")).expect("score file"))
+            .expect("json");
     assert_eq!(json["vehicles"]["found"], 1);
     assert_eq!(json["census"]["duplicate"], 0);
     let o = app().arg("eval").arg(&out).args(["--labels", labels]).output().expect("eval runs");

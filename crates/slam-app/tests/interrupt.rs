@@ -37,7 +37,12 @@ fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
                 if p.file_name().is_some_and(|n| n == "tracking.csv") {
                     // the last column is each frame's processing time, which differs between runs
                     let text = String::from_utf8_lossy(&bytes).into_owned();
-                    bytes = text.lines().map(|l| l.rsplit_once(',').map_or(l, |(a, _)| a)).collect::<Vec<_>>().join("\n").into_bytes();
+                    bytes = text
+                        .lines()
+                        .map(|l| l.rsplit_once(',').map_or(l, |(a, _)| a))
+                        .collect::<Vec<_>>()
+                        .join("\n")
+                        .into_bytes();
                 }
                 out.insert(p.strip_prefix(root).expect("inside").to_path_buf(), bytes);
             }

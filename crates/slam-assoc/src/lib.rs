@@ -19,11 +19,11 @@
 
 pub mod conformance;
 pub mod eval;
-pub mod study;
 mod hungarian;
 mod iou;
 mod kalman;
 mod oda;
+pub mod study;
 mod tracker;
 
 pub use hungarian::{assign, Cost};

@@ -102,7 +102,10 @@ mod tests {
         let e = number("x", 1.0, Range::closed(0.0, 1.0).with_hi_open(), "").expect_err("open end");
         assert_eq!(e.valid, "a finite number in [0, 1)");
         assert!(number("x", 1.0, Range::closed(0.0, f64::INFINITY), "").is_ok());
-        assert_eq!(number("x", -1.0, Range::closed(0.0, f64::INFINITY), "m").expect_err("neg").valid, "a finite number in [0, ∞) m");
+        assert_eq!(
+            number("x", -1.0, Range::closed(0.0, f64::INFINITY), "m").expect_err("neg").valid,
+            "a finite number in [0, ∞) m"
+        );
         assert_eq!(count("n", 0, 1, usize::MAX).expect_err("zero").to_string(), "n 0: must be at least 1");
         assert_eq!(count("n", 7, 1, 5).expect_err("big").to_string(), "n 7: must be an integer in [1, 5]");
         assert!(count("n", 5, 1, 5).is_ok() && number("x", 0.0, Range::open(0.0, 1.0), "").is_err());

@@ -83,8 +83,9 @@ pub(crate) fn frame_lines<'a>(path: &Path, text: &'a str) -> Result<Vec<(usize, 
             return Err(DatasetError::Parse {
                 path: path.to_path_buf(),
                 line: b,
-                message: "blank line between frame lines (line k is frame k: skipping it would shift every later frame)"
-                    .into(),
+                message:
+                    "blank line between frame lines (line k is frame k: skipping it would shift every later frame)"
+                        .into(),
             });
         }
         out.push((i + 1, line));

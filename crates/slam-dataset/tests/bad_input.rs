@@ -65,7 +65,8 @@ fn every_reader_names_file_and_line() {
         ))
     };
     let poly = |pts: &str| det(&format!(r#"{{"class":2,"score":0.5,"box":[1,1,5,5],"mask":{{"polygon":{pts}}}}}"#));
-    let cases: Vec<(&str, Result<(), DatasetError>, Option<usize>, &str)> = vec![
+    type Case<'a> = (&'a str, Result<(), DatasetError>, Option<usize>, &'a str);
+    let cases: Vec<Case> = vec![
         // OXTS packets
         ("oxts-empty.txt", unit(parse_oxts_packet(&p("oxts-empty.txt"), "\n\n")), None, "empty OXTS packet"),
         (
@@ -210,7 +211,10 @@ fn every_reader_names_file_and_line() {
         ),
         (
             "tl-no-tracklets.xml",
-            unit(parse_tracklets(&p("tl-no-tracklets.xml"), "<!DOCTYPE boost_serialization>\n<boost_serialization>\n</boost_serialization>")),
+            unit(parse_tracklets(
+                &p("tl-no-tracklets.xml"),
+                "<!DOCTYPE boost_serialization>\n<boost_serialization>\n</boost_serialization>",
+            )),
             Some(2),
             "no <tracklets> element",
         ),

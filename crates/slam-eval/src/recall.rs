@@ -134,7 +134,7 @@ mod tests {
         assert!(set.label_count() > 0 && set.images.iter().all(|p| p.is_file()));
         let car = Detection::new(classes::CAR, 0.9, set.labels.values().next().expect("labels")[0]);
         let i = *set.labels.keys().next().expect("a labelled frame");
-        assert_eq!(set.found(i, &[car.clone()]), 1);
+        assert_eq!(set.found(i, std::slice::from_ref(&car)), 1);
         assert_eq!(set.found(i, &[Detection { class: ClassId(0), ..car }]), 0, "a person is not a vehicle");
         let dir = std::env::temp_dir().join(format!("recall-bad-{}", std::process::id()));
         std::fs::create_dir_all(dir.join("object")).expect("dir");

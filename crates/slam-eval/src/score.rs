@@ -275,7 +275,9 @@ pub fn score_run(
         DontCare,
         Nothing,
     }
-    let mut voted: Vec<(usize, Option<(Vote, usize)>, usize)> = Vec::new(); // (object index, majority, frames)
+    // (object index, majority vote with its count, frames)
+    type Voted = (usize, Option<(Vote, usize)>, usize);
+    let mut voted: Vec<Voted> = Vec::new();
     for (oi, o) in objects.iter().enumerate() {
         let mut votes: BTreeMap<Vote, usize> = BTreeMap::new();
         let mut scored = 0;

@@ -62,9 +62,7 @@ pub fn detect_images(
             }
         };
         out.image_size.get_or_insert([img.width, img.height]);
-        let d = detector
-            .detect(i, Some(&img))
-            .map_err(|source| BatchError::Detect { path: path.clone(), source })?;
+        let d = detector.detect(i, Some(&img)).map_err(|source| BatchError::Detect { path: path.clone(), source })?;
         out.total += d.len();
         if let Some(o) = overlays {
             let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| format!("{i:06}"));

@@ -276,8 +276,8 @@ mod tests {
         assert!(m.contains("2 frames (3 boxes) lie after the last frame played, 5 (first: frame 7)"), "{m}");
         assert!(m.contains("1 frames (5 boxes) within ids 0..=5 are not played"), "{m}");
         // a run starting at frame 20 (`--frames 20..`): frames 0..=19 are before it, not "within" it
-        let m = unused_frames("l.txt", [(3, 2), (19, 1), (20, 4), (22, 1)].into_iter(), &[20, 21, 23])
-            .expect("reported");
+        let m =
+            unused_frames("l.txt", [(3, 2), (19, 1), (20, 4), (22, 1)].into_iter(), &[20, 21, 23]).expect("reported");
         assert!(m.contains("2 frames (3 boxes) lie before the first frame played, 20 (last: frame 19)"), "{m}");
         assert!(m.contains("1 frames (1 boxes) within ids 20..=23 are not played"), "{m}");
         assert!(!m.contains("after"), "{m}");

@@ -14,9 +14,9 @@ pub use detector::nms;
 pub mod image_io;
 pub mod image_size;
 mod keyframe_index;
-mod settings;
 mod matching;
 mod pose_only;
+mod settings;
 pub mod stereo_vo;
 
 pub use detector::{DetectorConfig, DnnDetector, InputMode};

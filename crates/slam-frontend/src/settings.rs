@@ -43,13 +43,17 @@ mod tests {
     #[test]
     fn the_defaults_pass_and_each_bad_value_is_named() {
         VoConfig::default().validate().expect("defaults valid");
-        let cases: [(fn(&mut VoConfig), &str); 6] = [
+        type Case = (fn(&mut VoConfig), &'static str);
+        let cases: [Case; 6] = [
             (|c| c.features = 0, "features 0: must be an integer in [1, 100000]"),
             (|c| c.ransac_px = f32::NAN, "ransac_px NaN: must be a finite number in (0, 1000] px"),
             (|c| c.depth_range = (5.0, 2.0), "depth_range (far) 2: must be a finite number in (5, ∞) m (beyond near)"),
             (|c| c.min_inliers = 2, "min_inliers 2: must be at least 4"),
             (|c| c.stereo_hamming = 300, "stereo_hamming 300: must be an integer in [0, 256]"),
-            (|c| c.triangulate_parallax_deg = 90.0, "triangulate_parallax_deg 90: must be a finite number in (0, 90) degrees"),
+            (
+                |c| c.triangulate_parallax_deg = 90.0,
+                "triangulate_parallax_deg 90: must be a finite number in (0, 90) degrees",
+            ),
         ];
         for (corrupt, want) in cases {
             let mut c = VoConfig::default();

@@ -146,7 +146,9 @@ fn the_cuboid_model_fits_boxes_of_a_box_shaped_car() {
     let rms = |e: &Ellipsoid| {
         let sum: f64 = views
             .iter()
-            .map(|v| slam_optim::object::box_residual(v, &image, e, BoxShape::Ellipse).expect("projects").norm_squared())
+            .map(|v| {
+                slam_optim::object::box_residual(v, &image, e, BoxShape::Ellipse).expect("projects").norm_squared()
+            })
             .sum();
         (sum / (4 * views.len()) as f64).sqrt()
     };

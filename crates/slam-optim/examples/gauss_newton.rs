@@ -6,9 +6,7 @@
 
 use std::time::Instant;
 
-use slam_optim::{
-    linear::LinearSystem, Graph, Observer, OptimError, Optimizer, Options, Summary, Termination, Values,
-};
+use slam_optim::{linear::LinearSystem, Graph, Observer, OptimError, Optimizer, Options, Summary, Termination, Values};
 
 /// Gauss–Newton with backtracking: solve `(JᵀJ + 1e-9·diag) δ = −g`, halve δ until the cost drops.
 #[derive(Debug, Default)]

@@ -503,17 +503,7 @@ fn layout(graph: &Graph, values: &Values) -> Result<Layout, OptimError> {
         }
     }
     key_link_start.push(key_link.len());
-    Ok(Layout {
-        slots,
-        reduced,
-        eliminated,
-        elim_off,
-        link_start,
-        link_var,
-        link_off,
-        key_link_start,
-        key_link,
-    })
+    Ok(Layout { slots, reduced, eliminated, elim_off, link_start, link_var, link_off, key_link_start, key_link })
 }
 
 /// `C += Aᵀ B` for column-major `A` (r × da), `B` (r × db), `C` (da × db), each entry as

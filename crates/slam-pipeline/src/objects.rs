@@ -276,6 +276,8 @@ pub fn physical_limits(class: ClassId) -> PhysicalLimits {
 
 /// Whether an ellipsoid with `semi_axes` could be a real object of `class` ([`physical_limits`]);
 /// `Err` says which extent is impossible.
+// `!(x <= limit)` on purpose: a NaN extent fails every test
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
 pub fn physically_plausible(class: ClassId, semi_axes: &Vector3<f64>) -> Result<(), String> {
     let l = physical_limits(class);
     let mut e = [2.0 * semi_axes.x, 2.0 * semi_axes.y, 2.0 * semi_axes.z];
@@ -488,8 +490,7 @@ impl FitJob {
                 // this many σ from the class prior (Mahalanobis) flag it too
                 let prior = class_prior(self.class);
                 let size_dev = (e.semi_axes - prior.axes).component_div(&prior.sigma).norm();
-                let odd_size =
-                    self.method.refines() && self.dynamic_prior_sigmas.is_some_and(|k| size_dev > k);
+                let odd_size = self.method.refines() && self.dynamic_prior_sigmas.is_some_and(|k| size_dev > k);
                 let dynamic = rms.is_none_or(|r| r > self.dynamic_rms_px) || odd_size;
                 tracing::debug!(
                     object = self.id.0,
@@ -671,12 +672,9 @@ impl ObjectMapper {
                 continue;
             }
             let depth = (from_world * nalgebra::Point3::from(e.centre())).z;
-            let in_view = depth > 0.0
-                && depth < cfg.visible_depth_m
-                && !b.touches_border(&cfg.image, cfg.border_margin_px);
-            let covered = detections
-                .iter()
-                .any(|d| d.bbox.intersection(b).is_some_and(|x| x.area() >= 0.3 * b.area()));
+            let in_view =
+                depth > 0.0 && depth < cfg.visible_depth_m && !b.touches_border(&cfg.image, cfg.border_margin_px);
+            let covered = detections.iter().any(|d| d.bbox.intersection(b).is_some_and(|x| x.area() >= 0.3 * b.area()));
             if !in_view || covered {
                 continue;
             }
@@ -1041,7 +1039,7 @@ mod tests {
         assert!(physically_plausible(ClassId(2), &v(2.11, 0.80, 0.73)).is_ok());
         assert!(physically_plausible(ClassId(5), &v(9.0, 1.6, 1.27)).is_ok());
         // the bus shelter of drive 0005 fitted as a truck: 12.6 m long, 1.2 m tall, 0.48 m wide
-        let shelter = physically_plausible(ClassId(7), &v(6.28, 0.61, 0.24)).unwrap_err();
+        let shelter = physically_plausible(ClassId(7), &v(6.3, 0.61, 0.24)).unwrap_err();
         assert!(shelter.contains("0.48 m across"), "{shelter}");
         // a 12 m car, a 25 m truck, a 3 m tall person, a 6 m wide bus
         assert!(physically_plausible(ClassId(2), &v(6.0, 0.8, 0.8)).unwrap_err().contains("12.00 m long"));

@@ -51,7 +51,11 @@ fn overlay(base: &mut toml::Value, over: toml::Value) {
 
 /// One table of a settings file, `[name]  # what`, each key preceded by its doc comment as `#` lines
 /// (rustdoc links as plain code names).
-pub fn commented_table<T: serde::Serialize + documented::DocumentedFieldsOpt>(name: &str, what: &str, value: &T) -> String {
+pub fn commented_table<T: serde::Serialize + documented::DocumentedFieldsOpt>(
+    name: &str,
+    what: &str,
+    value: &T,
+) -> String {
     let body = toml::to_string(value).unwrap_or_default();
     let mut s = format!("[{name}]  # {what}\n");
     for line in body.lines() {
@@ -144,8 +148,7 @@ mod validate_tests {
     fn the_defaults_pass_and_each_table_names_its_bad_field() {
         let s = SystemConfig::default();
         s.validate().and(s.mapping.validate()).and(s.objects.validate()).and(s.texture.validate()).expect("defaults");
-        let mut m = MappingConfig::default();
-        m.huber_px = -1.0;
+        let m = MappingConfig { huber_px: -1.0, ..MappingConfig::default() };
         assert_eq!(m.validate().expect_err("huber").to_string(), "huber_px -1: must be a finite number in (0, ∞) px");
         let mut o = MapperConfig { min_views: 5, max_views: 3, ..MapperConfig::default() };
         assert_eq!(o.validate().expect_err("views").to_string(), "max_views 3: must be at least min_views (5)");

@@ -29,7 +29,9 @@ mod tracking;
 
 pub use builder::{FrameSource, System, SystemBuilder};
 use nalgebra::Isometry3;
-use slam_core::{geometry::Intrinsics, Detection, DetectionSource, Image, StereoTracker, TrackError, TrackId, TrackState};
+use slam_core::{
+    geometry::Intrinsics, Detection, DetectionSource, Image, StereoTracker, TrackError, TrackId, TrackState,
+};
 use slam_optim::SharedOptimizer;
 pub use threads::MapperRequest;
 pub use tracking::Tracking;

@@ -64,6 +64,7 @@ from_errors!(
     slam_dataset::check::CheckError,
     slam_dataset::output::OutputError,
     slam_frontend::FrontendError,
+    slam_frontend::image_size::ImageSizeError,
     slam_pipeline::system::SystemError,
     slam_pipeline::map::MapError,
     slam_eval::EvalError,

@@ -12,7 +12,6 @@
 //! Only `slam-app` depends on this crate (`tools/check-deps.sh`).
 
 pub mod bench;
-pub mod check;
 pub mod detector;
 pub mod error;
 pub mod inspect;

@@ -25,8 +25,9 @@ use slam_pipeline::{
 };
 use slam_quadric::{ImageSize, Intrinsics};
 
+use slam_frontend::image_size::stereo_pair;
+
 use crate::{
-    check::stereo_pair,
     detector::DetectorChoice,
     error::{Context, Result, RunnerError},
 };

@@ -12,8 +12,9 @@ use slam_dataset::{
 use slam_frontend::{disparity::OffsetEstimate, read_image, StereoRig, StereoVo, VoConfig};
 use slam_quadric::Intrinsics;
 
+use slam_frontend::image_size::stereo_pair;
+
 use crate::{
-    check::stereo_pair,
     error::{Context, Result, RunnerError},
     run::OptimizerFactory,
 };

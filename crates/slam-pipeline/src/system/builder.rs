@@ -164,8 +164,9 @@ impl SystemBuilder {
             }))
         });
         // with stereo points, an ellipsoid must agree with them
-        let objects = ObjectMapper::new(associator, MapperConfig { stereo_evidence: true, ..config.objects }, optimizer)
-            .with_method(self.method);
+        let objects =
+            ObjectMapper::new(associator, MapperConfig { stereo_evidence: true, ..config.objects }, optimizer)
+                .with_method(self.method);
         let tracking = Tracking::new(tracker, objects, self.intrinsics, self.baseline, config, req_tx, reply_rx);
         Ok(System { source: self.source, frames: Some(frame_tx), detected: Some(det_rx), detection, mapping, tracking })
     }

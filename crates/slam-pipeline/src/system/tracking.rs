@@ -166,7 +166,12 @@ impl Tracking {
         self.counts.unreadable += 1;
         tracing::warn!(frame = i, "unreadable: {why}; pose held");
         let (kf, rel) = self.last_reference.unwrap_or((0, Isometry3::identity()));
-        self.trajectory.push(FramePose { frame: i, keyframe: kf, relative: pose_to_array(&rel), state: "unreadable".into() });
+        self.trajectory.push(FramePose {
+            frame: i,
+            keyframe: kf,
+            relative: pose_to_array(&rel),
+            state: "unreadable".into(),
+        });
         self.prev_boxes.clear();
         FrameRecord {
             index: i,
@@ -190,7 +195,8 @@ impl Tracking {
         mut times: FrameTimes,
     ) -> Result<FrameRecord, SystemError> {
         let exclude: &[BBox] = if self.config.exclude_moving { &self.moving_boxes } else { &[] };
-        let tf = self.tracker.track(i, left, right, exclude).map_err(|source| SystemError::Tracker { frame: i, source })?;
+        let tf =
+            self.tracker.track(i, left, right, exclude).map_err(|source| SystemError::Tracker { frame: i, source })?;
         times.extraction = tf.times.extraction;
         times.stereo = tf.times.stereo;
         times.tracking = tf.times.tracking;
@@ -352,10 +358,8 @@ fn object_points(kf: &KeyframeData, b: &BBox, class: ClassId, g: &PointGeometry)
     // the nearest window holding at least half as many points as the densest one: the object hides
     // what lies behind it, and a textured facade behind a plain car can outnumber the car's points
     let densest = windows.iter().copied().max().unwrap_or(0);
-    let best = windows
-        .iter()
-        .position(|&n| n >= MIN_OBJECT_POINTS && 2 * n >= densest)
-        .map_or((0, 0), |i| (windows[i], i));
+    let best =
+        windows.iter().position(|&n| n >= MIN_OBJECT_POINTS && 2 * n >= densest).map_or((0, 0), |i| (windows[i], i));
     let kept: Vec<(u64, Vector3<f64>, f64)> = cand[best.1..best.1 + best.0]
         .iter()
         .map(|p| (p.id, (kf.world_from_camera * Point3::from(p.camera_point)).coords, p.camera_point.z))
