@@ -328,24 +328,12 @@ pub fn refine_with_planes(
     planes: &[Vector4<f64>],
     optimizer: &dyn Optimizer,
 ) -> Result<Ellipsoid, InitError> {
-    refine_with_start(&Dqp::default(), views, image, prior, config, planes, optimizer)
+    refine_with_cues(&Dqp::default(), views, image, prior, config, planes, None, optimizer)
 }
 
-/// [`refine_with_planes`] with another initialiser for the first start (in place of the plain DQP);
-/// the other starts (DQP with centre correction, the triangulated centre at two headings) stay.
-pub fn refine_with_start(
-    initializer: &dyn Initializer,
-    views: &[BoxView],
-    image: &ImageSize,
-    prior: &ObjectPrior,
-    config: &RefineConfig,
-    planes: &[Vector4<f64>],
-    optimizer: &dyn Optimizer,
-) -> Result<Ellipsoid, InitError> {
-    refine_with_cues(initializer, views, image, prior, config, planes, None, optimizer)
-}
-
-/// [`refine_with_start`] with a soft yaw prior (e.g. from the object's stereo points) in every stage.
+/// [`refine_with_planes`] with another initialiser for the first start (in place of the plain DQP; the
+/// other starts, DQP with centre correction and the triangulated centre at two headings, stay) and an
+/// optional soft yaw prior (e.g. from the object's stereo points) in every stage.
 /// With [`BoxShape::TwoStage`] the cue enters the first (cuboid) stage, whose yaw the second then holds.
 #[allow(clippy::too_many_arguments)]
 pub fn refine_with_cues(

@@ -27,7 +27,7 @@ use slam_quadric::{
 
 /// How an object's ellipsoid is computed from its views: an initialiser (any
 /// [`slam_quadric::Initializer`]), optionally followed by the object optimisation
-/// ([`slam_optim::object::refine_with_start`]: the initialiser's ellipsoid is one of its starts, texture
+/// ([`slam_optim::object::refine_with_cues`]: the initialiser's ellipsoid is one of its starts, texture
 /// planes and the class prior enter there). Cheap to clone (the initialiser is shared).
 #[derive(Clone)]
 pub struct FitMethod {
