@@ -1036,6 +1036,42 @@ fn track_bench_counts_every_state_like_tracking_csv() {
     let _ = std::fs::remove_dir_all(seq.parent().and_then(|p| p.parent()).expect("copy root"));
 }
 
+/// Issue 14: the vehicle-motion prior, switched on from a settings file as a user would, tracks every
+/// frame of the shipped sequence with every step within 0.1 m of the ground truth, and `--print-config`
+/// shows its keys.
+#[test]
+fn vehicle_motion_prior_tracks_the_fixture_when_enabled() {
+    let dir = std::env::temp_dir().join(format!("slam-app-prior-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("tmp");
+    let cfg = dir.join("prior.toml");
+    std::fs::write(&cfg, "[tracking]\nvehicle_slip_rad = 0.03\n").expect("config");
+    let o = app().args(["run", "--print-config", "--config"]).arg(&cfg).output().expect("runs");
+    let text = String::from_utf8_lossy(&o.stdout).to_string();
+    for key in ["vehicle_slip_rad = 0.03", "vehicle_lever_m = [", "vehicle_height_m = 1.33"] {
+        assert!(text.contains(key), "{key}\n{text}");
+    }
+    let seq = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06/sequences/06");
+    let o = app().args(["track-bench", "--only-cases", "--case", seq, "--config"]).arg(&cfg).output().expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout).to_string();
+    let row: Vec<String> = text
+        .lines()
+        .filter(|l| l.starts_with('|'))
+        .nth(2)
+        .expect("a row")
+        .trim_matches('|')
+        .split('|')
+        .map(|c| c.trim().to_string())
+        .collect();
+    let number = |i: usize| -> f64 {
+        row[i].split_whitespace().next().and_then(|v| v.parse().ok()).unwrap_or_else(|| panic!("cell {i}\n{text}"))
+    };
+    // frames, ATE, aligned ATE, drift, largest step error, initialised, tracked
+    assert_eq!((number(1), number(6), number(7)), (51.0, 1.0, 50.0), "{text}");
+    assert!(number(5) < 0.1 && number(3) < 0.3 && number(4) < 2.0, "{text}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// Issue 16: `--method` goes through the `slam_quadric::Initializer` seam and `--associator` through the
 /// `Associator` seam. Image-free mode on the shipped tracking labels: each of the five methods and both
 /// associators give an object map of their own.

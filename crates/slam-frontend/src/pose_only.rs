@@ -3,7 +3,8 @@
 //! problem (six unknowns, hundreds of observations) many times per frame; a dedicated solver needs
 //! no graph, no boxed factors and no allocation per observation.
 
-use nalgebra::{Isometry3, Matrix3, Matrix3x6, Matrix6, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{Isometry3, Matrix3, Matrix3x6, Matrix6, RowVector6, Translation3, UnitQuaternion, Vector3, Vector6};
+use slam_optim::lie::{se3_log, se3_right_jacobian_inv};
 use slam_quadric::Intrinsics;
 
 /// A fixed point (in the frame the pose maps from) and its observation `[u_l, v, u_r]` (`u_r` NaN:
@@ -70,6 +71,59 @@ impl Rig {
     }
 }
 
+/// A road vehicle's non-holonomic constraint on one step, as a soft prior: its rear axle does not
+/// slide sideways. For a step of constant body twist `ξ = Log(T_base⁻¹ T_curr) = [ω, v]` (camera
+/// frame: x right, y down, z forward), the rear axle's velocity is `v + ω × r` with `r = (0, h, −L)`
+/// its position in the camera frame (`L` behind, `h` below the camera); its sideways component
+/// `e = v_x − L ω_y − h ω_z` is zero without tyre slip, for any curvature (a turn or a lane change moves
+/// the car along its rotated heading, which the yaw `ω_y` carries).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct MotionPrior {
+    /// The step's start: the camera-to-reference pose of the last measured frame.
+    pub base: Isometry3<f64>,
+    /// Coefficients of `e` on the twist `[ω, v]` (slam-optim's tangent order).
+    pub row: RowVector6<f64>,
+    /// σ of `e`, metres.
+    pub sigma: f64,
+}
+
+/// The motion prior's settings.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct VehicleModel {
+    /// Camera ahead of the rear axle, m, and the σ of that distance.
+    pub lever: (f64, f64),
+    /// Camera above the rear axle, m.
+    pub height: f64,
+    /// σ of the slip angle at the rear axle, radians (the sideways share of the step).
+    pub slip: f64,
+    /// σ floor of the sideways step, m (the body's sway on its suspension).
+    pub floor: f64,
+}
+
+impl MotionPrior {
+    /// The prior on steps from `base` (camera-to-reference), its σ set at the `predicted` step's twist:
+    /// `σ² = floor² + (slip |v|)² + (σ_L ω_y)²` (slip grows with the distance driven, the lever's
+    /// uncertainty with the yaw).
+    pub(crate) fn new(base: Isometry3<f64>, predicted: &Isometry3<f64>, m: &VehicleModel) -> Self {
+        let xi = se3_log(predicted);
+        let (v, w_y) = (Vector3::new(xi[3], xi[4], xi[5]).norm(), xi[1]);
+        let sigma = (m.floor.powi(2) + (m.slip * v).powi(2) + (m.lever.1 * w_y).powi(2)).sqrt();
+        Self { base, row: RowVector6::new(0.0, -m.lever.0, -m.height, 1.0, 0.0, 0.0), sigma }
+    }
+
+    /// Whitened residual `e / σ` at `curr_from_ref` and its Jacobian with respect to `δ = [ρ, φ]` of
+    /// the update `T ← (Rot(φ), ρ) · T` (as [`Rig::residual`]).
+    pub(crate) fn residual(&self, curr_from_ref: &Isometry3<f64>) -> (f64, RowVector6<f64>) {
+        let step = self.base.inverse() * curr_from_ref.inverse();
+        let xi = se3_log(&step);
+        let e = (self.row * xi)[0] / self.sigma;
+        // T⁻¹ ← T⁻¹ (Rot(φ), ρ)⁻¹ ≈ T⁻¹ Exp(−[φ, ρ]): dξ = −Jr⁻¹(ξ) [dφ, dρ]
+        let d_xi = -(self.row * se3_right_jacobian_inv(&xi)) / self.sigma;
+        let j = RowVector6::new(d_xi[3], d_xi[4], d_xi[5], d_xi[0], d_xi[1], d_xi[2]);
+        (e, j)
+    }
+}
+
 /// `(Rot(φ), ρ) · pose` for `δ = [ρ, φ]`.
 pub(crate) fn update(pose: &Isometry3<f64>, d: &Vector6<f64>) -> Isometry3<f64> {
     let step = Isometry3::from_parts(
@@ -91,11 +145,20 @@ fn kernel(s: f64, huber: Option<f64>) -> (f64, f64) {
     }
 }
 
-fn cost(rig: &Rig, pose: &Isometry3<f64>, obs: &[PoseObservation], huber: Option<f64>) -> f64 {
-    obs.iter().filter_map(|o| rig.residual(pose, o)).map(|(r, _)| kernel(r.norm_squared(), huber).0).sum()
+fn cost(
+    rig: &Rig,
+    pose: &Isometry3<f64>,
+    obs: &[PoseObservation],
+    huber: Option<f64>,
+    prior: Option<&MotionPrior>,
+) -> f64 {
+    let data: f64 =
+        obs.iter().filter_map(|o| rig.residual(pose, o)).map(|(r, _)| kernel(r.norm_squared(), huber).0).sum();
+    data + prior.map_or(0.0, |p| p.residual(pose).0.powi(2))
 }
 
-/// Gauss–Newton from `guess` on the observations (Huber with threshold `huber` when given): at most
+/// Gauss–Newton from `guess` on the observations (Huber with threshold `huber` when given) and the
+/// motion prior, if any (least squares: it is a prior, not a measurement that can be an outlier): at most
 /// `max_iterations` steps, each halved up to four times until the robust cost does not rise; stops
 /// when a step changes the cost by less than 1e-6 of it (the optimiser's function tolerance).
 /// `None` when the normal equations are singular.
@@ -104,10 +167,11 @@ pub(crate) fn solve(
     obs: &[PoseObservation],
     guess: &Isometry3<f64>,
     huber: Option<f64>,
+    prior: Option<&MotionPrior>,
     max_iterations: usize,
 ) -> Option<Isometry3<f64>> {
     let mut pose = *guess;
-    let mut current = cost(rig, &pose, obs, huber);
+    let mut current = cost(rig, &pose, obs, huber, prior);
     for _ in 0..max_iterations {
         let mut h = Matrix6::zeros();
         let mut g = Vector6::zeros();
@@ -118,12 +182,17 @@ pub(crate) fn solve(
                 g += w * j.transpose() * r;
             }
         }
+        if let Some(p) = prior {
+            let (e, j) = p.residual(&pose);
+            h += j.transpose() * j;
+            g += j.transpose() * e;
+        }
         let step = -h.cholesky()?.solve(&g);
         let mut scale = 1.0;
         let mut accepted = None;
         for _ in 0..5 {
             let candidate = update(&pose, &(scale * step));
-            let c = cost(rig, &candidate, obs, huber);
+            let c = cost(rig, &candidate, obs, huber, prior);
             if c <= current {
                 accepted = Some((candidate, c));
                 break;
@@ -209,13 +278,13 @@ mod tests {
             let e = pose * truth.inverse();
             assert!(e.translation.vector.norm() < tol_m && e.rotation.angle() < tol_m / 10.0, "{e:?}");
         };
-        check(solve(&rig, &obs, &guess, None, 10).expect("solved"), 1e-6);
+        check(solve(&rig, &obs, &guess, None, None, 10).expect("solved"), 1e-6);
         let mut bad = obs.clone();
         for o in bad.iter_mut().step_by(5) {
             o.observed[0] += rng.uniform(30.0, 80.0);
             o.observed[1] -= rng.uniform(30.0, 80.0);
         }
-        let robust = solve(&rig, &bad, &guess, Some(7.815f64.sqrt()), 10).expect("solved");
+        let robust = solve(&rig, &bad, &guess, Some(7.815f64.sqrt()), None, 10).expect("solved");
         check(robust, 0.05);
         // the tracker's next round: observations within the χ² bound at the robust pose, least squares
         let kept: Vec<PoseObservation> = bad
@@ -224,7 +293,132 @@ mod tests {
             .filter(|o| rig.residual(&robust, o).is_some_and(|(r, _)| r.norm_squared() <= 7.815))
             .collect();
         assert_eq!(kept.len(), 240, "every outlier and no inlier dropped");
-        check(solve(&rig, &kept, &robust, None, 10).expect("solved"), 1e-6);
-        assert!(solve(&rig, &[], &guess, None, 10).is_none(), "no observations: singular");
+        check(solve(&rig, &kept, &robust, None, None, 10).expect("solved"), 1e-6);
+        assert!(solve(&rig, &[], &guess, None, None, 10).is_none(), "no observations: singular");
+    }
+
+    fn model() -> VehicleModel {
+        VehicleModel { lever: (1.35, 0.78), height: 1.33, slip: 0.03, floor: 0.01 }
+    }
+
+    /// The camera pose (camera-to-world; camera x right, y down, z forward) of a car whose rear axle
+    /// is at `(x, z)` on the ground plane heading `yaw` (about the down axis), the camera `lever` ahead
+    /// of and `height` above the axle.
+    fn camera_on_car(x: f64, z: f64, yaw: f64, lever: f64, height: f64) -> Isometry3<f64> {
+        let axle =
+            Isometry3::from_parts(Translation3::new(x, 0.0, z), UnitQuaternion::from_euler_angles(0.0, yaw, 0.0));
+        axle * Isometry3::translation(0.0, -height, lever)
+    }
+
+    /// The car's camera after driving `d` metres along an arc of curvature `kappa` (1/m) from the
+    /// origin heading forward.
+    fn after_arc(d: f64, kappa: f64, lever: f64, height: f64) -> Isometry3<f64> {
+        let yaw = d * kappa;
+        let (x, z) = if kappa.abs() < 1e-12 { (0.0, d) } else { ((1.0 - yaw.cos()) / kappa, yaw.sin() / kappa) };
+        // the heading turns with the arc: yaw about +y (down) turns forward (+z) towards +x (right)
+        camera_on_car(x, z, yaw, lever, height)
+    }
+
+    #[test]
+    fn motion_prior_jacobian_matches_numeric_derivatives() {
+        let base = Isometry3::from_parts(
+            Translation3::new(0.4, -0.05, 2.0),
+            UnitQuaternion::from_euler_angles(0.01, 0.04, -0.02),
+        );
+        let curr_from_ref = (base * after_arc(1.5, 0.04, 1.35, 1.33)).inverse();
+        let prior = MotionPrior::new(base, &after_arc(1.5, 0.04, 1.35, 1.33), &model());
+        // a pose off the constraint, so that the residual is not zero
+        let pose = update(&curr_from_ref, &Vector6::new(0.07, -0.02, 0.1, 0.01, -0.015, 0.02));
+        let (_, j) = prior.residual(&pose);
+        let h = 1e-6;
+        for c in 0..6 {
+            let mut d = Vector6::zeros();
+            d[c] = h;
+            let ep = prior.residual(&update(&pose, &d)).0;
+            d[c] = -h;
+            let em = prior.residual(&update(&pose, &d)).0;
+            let numeric = (ep - em) / (2.0 * h);
+            assert!((numeric - j[c]).abs() < 1e-5 * (1.0 + j[c].abs()), "column {c}: {numeric} vs {}", j[c]);
+        }
+    }
+
+    /// A car driving straight, turning either way or changing lanes (an S: two arcs of opposite
+    /// curvature) keeps its rear axle's velocity along the car: the prior's residual is zero at every
+    /// true step, at any speed and curvature, when the camera's lever and height are the model's.
+    #[test]
+    fn motion_prior_is_zero_on_every_true_car_motion() {
+        let m = model();
+        for (d, kappa) in [(1.2, 0.0), (1.2, 0.05), (1.2, -0.05), (3.6, 0.01), (0.3, 0.15), (2.5, -0.002)] {
+            let step = after_arc(d, kappa, m.lever.0, m.height);
+            let base = Isometry3::translation(3.0, 0.2, -7.0);
+            // the step is taken from the camera of the car standing at the origin
+            let start = camera_on_car(0.0, 0.0, 0.0, m.lever.0, m.height);
+            let curr_world = start * (start.inverse() * step);
+            let prior = MotionPrior::new(base, &(start.inverse() * curr_world), &m);
+            let curr_from_ref = (base * start.inverse() * curr_world).inverse();
+            let (e, _) = prior.residual(&curr_from_ref);
+            assert!(e.abs() < 1e-9, "d {d} κ {kappa}: e {e}");
+        }
+        // a sideways slide of 0.2 m while going straight is 20 σ off at 1.2 m per step (σ ≈ 0.038 m)
+        let start = camera_on_car(0.0, 0.0, 0.0, m.lever.0, m.height);
+        let slid = start.inverse() * camera_on_car(0.2, 1.2, 0.0, m.lever.0, m.height);
+        let prior = MotionPrior::new(Isometry3::identity(), &slid, &m);
+        let (e, _) = prior.residual(&slid.inverse());
+        assert!(
+            (e.abs() - 0.2 / prior.sigma).abs() < 1e-9 && prior.sigma > 0.03 && prior.sigma < 0.05,
+            "{e} {prior:?}"
+        );
+    }
+
+    /// Far points, the slide-versus-yaw ambiguity: over 20 noisy scenes (σ 1 px) of a straight 1.2 m
+    /// step seen through 20 stereo points 30-80 m away, the prior cuts the sideways error at least in
+    /// half; on a turn (0.096 rad in the step) with the camera's true lever far from the model's (0.3 m
+    /// against 1.35 m), 40 exact observations keep the pose within 3 cm.
+    #[test]
+    fn motion_prior_removes_the_far_point_slide_and_keeps_turns() {
+        let rig = rig();
+        let k = rig.k;
+        let m = model();
+        let scene = |truth: &Isometry3<f64>, rng: &mut SimRng, n: usize, noise: f64| -> Vec<PoseObservation> {
+            (0..n)
+                .map(|_| {
+                    let z = rng.uniform(30.0, 80.0);
+                    let x = Vector3::new(rng.uniform(-0.4, 0.4) * z, rng.uniform(-0.1, 0.05) * z, z);
+                    let p = truth * nalgebra::Point3::from(x);
+                    let (u, v) = (k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy);
+                    let ur = u - k.fx * rig.baseline / p.z;
+                    let n = [noise * rng.normal(), noise * rng.normal(), noise * rng.normal()];
+                    PoseObservation { point: x, observed: [u + n[0], v + n[1], ur + n[2]], sigma: [1.0; 3] }
+                })
+                .collect()
+        };
+        let start = camera_on_car(0.0, 0.0, 0.0, m.lever.0, m.height);
+        let step = start.inverse() * after_arc(1.2, 0.0, m.lever.0, m.height);
+        let truth = step.inverse(); // curr_from_ref with the reference at the previous camera
+        let mut rng = SimRng::new(7);
+        let (mut without, mut with) = (0.0, 0.0);
+        for _ in 0..20 {
+            let obs = scene(&truth, &mut rng, 20, 1.0);
+            let prior = MotionPrior::new(Isometry3::identity(), &step, &m);
+            let lateral = |pose: Isometry3<f64>| (pose.inverse().translation.x - step.translation.x).abs();
+            without += lateral(solve(&rig, &obs, &truth, None, None, 10).expect("solved"));
+            with += lateral(solve(&rig, &obs, &truth, None, Some(&prior), 10).expect("solved"));
+        }
+        assert!(
+            with < 0.5 * without,
+            "mean sideways error with the prior {} vs without {}",
+            with / 20.0,
+            without / 20.0
+        );
+        // a turn, the camera only 0.3 m ahead of the axle: the model's 1.35 m lever is wrong by 1 m
+        let start = camera_on_car(0.0, 0.0, 0.0, 0.3, m.height);
+        let step = start.inverse() * after_arc(1.2, 0.08, 0.3, m.height);
+        let truth = step.inverse();
+        let obs = scene(&truth, &mut rng, 40, 0.0);
+        let prior = MotionPrior::new(Isometry3::identity(), &step, &m);
+        let pose = solve(&rig, &obs, &truth, None, Some(&prior), 10).expect("solved");
+        let err = (pose * truth.inverse()).translation.vector.norm();
+        // the model's sideways step is off by 1.05 m × 0.096 rad = 0.10 m; the data keep most of it out
+        assert!(err < 0.03, "turn: {err} m");
     }
 }

@@ -31,6 +31,11 @@ impl VoConfig {
         number("local_radius", self.local_radius, Range::above(0.0, 10_000.0), "px")?;
         // a rectification error of more than a few pixels is a wrong calibration, not a correction
         number("disparity_offset", self.disparity_offset, Range::closed(-10.0, 10.0), "px")?;
+        // a slip angle beyond 0.5 rad (29°) is a car spinning, not driving
+        number("vehicle_slip_rad", self.vehicle_slip_rad, Range::closed(0.0, 0.5), "rad (0: no prior)")?;
+        number("vehicle_lever_m (mean)", self.vehicle_lever_m.0, Range::closed(-10.0, 10.0), "m")?;
+        number("vehicle_lever_m (σ)", self.vehicle_lever_m.1, Range::closed(0.0, 10.0), "m")?;
+        number("vehicle_height_m", self.vehicle_height_m, Range::closed(-5.0, 5.0), "m")?;
         number("triangulate_parallax_deg", self.triangulate_parallax_deg, Range::open(0.0, 90.0), "degrees")?;
         Ok(())
     }
