@@ -7,7 +7,8 @@
 # Composition crates (slam-pipeline, slam-sim, slam-eval, slam-viz, slam-runner, slam-app) may combine implementations;
 #  5. slam-eval and everything below the front end stay free of OpenCV; slam-viz (pictures, above the
 #     front end) is used by slam-runner and slam-app only;
-#  6. slam-runner (the run-related commands' work) sits directly under slam-app: nothing else depends on it.
+#  6. slam-runner (the run-related commands' work, and the names of the implementations behind the seams)
+#     sits directly under slam-app: nothing else depends on it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export CARGO_NET_OFFLINE=true
@@ -80,5 +81,7 @@ for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg sl
     exit 1
   fi
 done
-check_only slam-runner slam-quadric slam-core slam-optim slam-dataset slam-frontend slam-pipeline slam-eval slam-viz
+# (it names the implementations behind the seams, `wiring`: the backends and associators it may build)
+check_only slam-runner slam-quadric slam-core slam-optim slam-dataset slam-frontend slam-pipeline slam-eval slam-viz \
+  slam-assoc slam-lm slam-dogleg
 echo "check-deps: slam-runner depends on [ $(workspace_deps slam-runner)] and only slam-app depends on it: ok"

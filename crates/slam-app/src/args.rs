@@ -2,19 +2,16 @@
 //! detection source, the settings file and its overrides, the wiring (optimiser, associator, method) and
 //! the output folder. Each group turns itself into the `slam_runner` settings it stands for.
 
-use std::{path::PathBuf, sync::Arc};
+use std::path::PathBuf;
 
-use anyhow::{bail, Context};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use slam_dataset::kitti::stereo::FrameSelection;
-use slam_runner::{DetectorChoice, OverlayChoice};
-
-use crate::{
-    config::RunConfig,
-    detect_cmd::ModelArgs,
-    objects_cmd::Method,
-    optimizer_choice::{AssociatorKind, OptimizerKind},
+use slam_runner::{
+    AssociatorKind, DetectorChoice, DetectorKind, DetectorOptions, Method, OptimizerKind, OverlayChoice, RunConfig,
+    Wiring,
 };
+
+use crate::detect_cmd::ModelArgs;
 
 /// A KITTI stereo sequence and the frames to play.
 #[derive(Args, Debug, Clone)]
@@ -52,31 +49,7 @@ impl SequenceArgs {
 
     /// The sequence folder (default: the shipped odometry excerpt).
     pub fn path(&self) -> PathBuf {
-        self.path.clone().unwrap_or_else(|| crate::fixture("kitti_odom_06/sequences/06"))
-    }
-}
-
-/// Where the boxes come from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum DetectorKind {
-    /// The shipped Yolo-Fastest detector (or the model given with --cfg/--weights/--onnx).
-    Dnn,
-    /// A detection JSON file (--detections; format in docs/detections.md).
-    File,
-    /// Ground-truth boxes from the sequence's labels (tracking layout), with --label-noise.
-    Labels,
-    /// No detector: odometry and map points only.
-    None,
-}
-
-impl DetectorKind {
-    fn name(self) -> &'static str {
-        match self {
-            DetectorKind::Dnn => "dnn",
-            DetectorKind::File => "file",
-            DetectorKind::Labels => "labels",
-            DetectorKind::None => "none",
-        }
+        self.path.clone().unwrap_or_else(|| crate::fixture(crate::SHIPPED))
     }
 }
 
@@ -102,46 +75,20 @@ pub struct DetectorArgs {
 }
 
 impl DetectorArgs {
-    /// The detection source: `--detector` when given, else the one the mode-specific options select
-    /// (`--detections`: file, `--label-noise`: labels), else the shipped network. An option of another
-    /// mode than the one chosen is an error that names both.
-    pub fn kind(&self) -> anyhow::Result<DetectorKind> {
-        let implied = match (&self.detections, self.label_noise) {
-            (Some(_), Some(_)) => bail!("--detections (detector file) and --label-noise (detector labels) conflict"),
-            (Some(_), None) => Some((DetectorKind::File, "--detections")),
-            (None, Some(_)) => Some((DetectorKind::Labels, "--label-noise")),
-            (None, None) => self.model.given().map(|flag| (DetectorKind::Dnn, flag)),
-        };
-        match (self.detector, implied) {
-            (None, None) => Ok(DetectorKind::Dnn),
-            (None, Some((kind, _))) => Ok(kind),
-            (Some(kind), None) => Ok(kind),
-            (Some(kind), Some((wanted, _))) if kind == wanted => Ok(kind),
-            (Some(kind), Some((wanted, flag))) => {
-                bail!("{flag} is an option of --detector {}, but --detector {} was given", wanted.name(), kind.name())
-            }
+    /// The detection options as the library takes them.
+    pub fn options(&self) -> DetectorOptions {
+        DetectorOptions {
+            kind: self.detector,
+            detections: self.detections.clone(),
+            label_noise: self.label_noise,
+            model_option: self.model.given(),
         }
     }
 
     /// The library's detector choice (the network is loaded when the run starts).
     pub fn choice(&self) -> anyhow::Result<DetectorChoice> {
-        Ok(match self.kind()? {
-            DetectorKind::None => DetectorChoice::None,
-            DetectorKind::Dnn => network(&self.model),
-            DetectorKind::File => {
-                DetectorChoice::File(self.detections.clone().context("--detector file needs --detections <file.json>")?)
-            }
-            DetectorKind::Labels => DetectorChoice::Labels { noise: self.label_noise.unwrap_or(0.0) },
-        })
+        Ok(self.options().choice(self.model.loader())?)
     }
-}
-
-/// The network of `model`, loaded when a run starts.
-pub fn network(model: &ModelArgs) -> DetectorChoice {
-    let model = model.clone();
-    DetectorChoice::Network(Arc::new(move || {
-        model.load().map(|d| Box::new(d) as Box<dyn slam_core::DetectionSource>).map_err(Into::into)
-    }))
 }
 
 /// The settings file and the options that override its keys.
@@ -168,7 +115,7 @@ pub struct SettingsArgs {
 impl SettingsArgs {
     /// The library defaults, overlaid by --config and the overriding options.
     pub fn load(&self) -> anyhow::Result<RunConfig> {
-        let mut cfg = read_config(self.config.as_deref())?;
+        let mut cfg = RunConfig::load(self.config.as_deref())?;
         if let Some(g) = self.keyframe_gap {
             cfg.tracking.keyframe_max_gap = g as usize;
         }
@@ -180,11 +127,6 @@ impl SettingsArgs {
         }
         Ok(cfg)
     }
-}
-
-/// The settings file at `path` over the library defaults, or the defaults.
-pub fn read_config(path: Option<&std::path::Path>) -> anyhow::Result<RunConfig> {
-    path.map_or_else(|| Ok(RunConfig::default()), RunConfig::read)
 }
 
 /// Which implementations behind the seams a run wires together.
@@ -201,9 +143,10 @@ pub struct WiringArgs {
     pub method: Method,
 }
 
-impl Default for WiringArgs {
-    fn default() -> Self {
-        Self { optimizer: OptimizerKind::Lm, associator: AssociatorKind::Oda, method: Method::Refine }
+impl WiringArgs {
+    /// The implementations chosen.
+    pub fn wiring(&self) -> Wiring {
+        Wiring { optimizer: self.optimizer, associator: self.associator, method: self.method }
     }
 }
 
@@ -234,32 +177,23 @@ impl OutputArgs {
     }
 }
 
-/// The shipped sequence, every frame, the default wiring and no detector, with settings `cfg`.
-pub fn shipped_run(cfg: &RunConfig, max_frames: Option<usize>) -> slam_runner::RunSettings {
-    let seq = SequenceArgs { path: None, frames: None, stride: 1, max_frames };
-    run_settings(&seq, cfg, &WiringArgs::default(), DetectorChoice::None, None)
-}
-
-/// The library's run settings from the option groups and the effective settings.
-pub fn run_settings(
-    seq: &SequenceArgs,
-    cfg: &RunConfig,
-    wiring: &WiringArgs,
-    detector: DetectorChoice,
-    labels: Option<PathBuf>,
-) -> slam_runner::RunSettings {
-    let (optimizer, associator) = (wiring.optimizer, wiring.associator);
-    slam_runner::RunSettings {
-        path: seq.path(),
-        selection: seq.selection(),
-        max_frames: seq.max_frames,
-        tracking: cfg.tracking,
-        system: cfg.system(cfg.objects.image),
-        optimizer: Arc::new(move || optimizer.build()),
-        associator: Arc::new(move |gate| associator.build(gate)),
-        method: wiring.method.fit(),
-        names: (associator.name().to_string(), wiring.method.fit().name().to_string()),
-        detector,
-        labels,
+impl SequenceArgs {
+    /// The library's run settings of this sequence with the effective settings and the other groups.
+    pub fn run_settings(
+        &self,
+        cfg: &RunConfig,
+        wiring: &WiringArgs,
+        detector: DetectorChoice,
+        labels: Option<PathBuf>,
+    ) -> slam_runner::RunSettings {
+        slam_runner::RunSettings::new(
+            self.path(),
+            self.selection(),
+            self.max_frames,
+            cfg,
+            wiring.wiring(),
+            detector,
+            labels,
+        )
     }
 }

@@ -6,30 +6,25 @@
 // other write errors by `std::io::ErrorKind::BrokenPipe`.
 macro_rules! println {
     () => {
-        $crate::stdout::write(format_args!("\n"))
+        slam_runner::console::stdout::write(format_args!("\n"))
     };
     ($($arg:tt)*) => {
-        $crate::stdout::write(format_args!("{}\n", format_args!($($arg)*)))
+        slam_runner::console::stdout::write(format_args!("{}\n", format_args!($($arg)*)))
     };
 }
 macro_rules! print {
     ($($arg:tt)*) => {
-        $crate::stdout::write(format_args!($($arg)*))
+        slam_runner::console::stdout::write(format_args!($($arg)*))
     };
 }
 
 mod args;
 mod assoc_cmd;
-mod config;
 mod detect_cmd;
 mod objects_cmd;
 mod optim_cmd;
-mod optimizer_choice;
-mod output;
-mod progress;
 mod run_cmd;
 mod sim_cmd;
-mod stdout;
 mod validate;
 
 use std::{io::IsTerminal, path::PathBuf};
@@ -85,6 +80,9 @@ enum Command {
     Eval(objects_cmd::EvalArgs),
 }
 
+/// The shipped stereo sequence (odometry 06, frames 0–50), under `fixtures/`.
+pub(crate) const SHIPPED: &str = "kitti_odom_06/sequences/06";
+
 /// A path inside the repository's `fixtures/`: relative to the working directory if it exists there,
 /// else relative to this source tree.
 pub(crate) fn fixture(rel: &str) -> PathBuf {
@@ -103,21 +101,12 @@ pub(crate) fn tracking_sequences(dir: &std::path::Path) -> anyhow::Result<Vec<Pa
 fn main() -> std::process::ExitCode {
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) if e.downcast_ref::<output::Interrupted>().is_some() => {
+        Err(e) if e.downcast_ref::<slam_runner::console::Interrupted>().is_some() => {
             eprintln!("interrupted: {e}");
             std::process::ExitCode::from(130)
         }
         Err(e) => {
-            // the whole chain, without a backtrace (errors here are about the user's input); a cause
-            // that its parent's message already quotes is not repeated
-            let mut text = e.to_string();
-            for cause in e.chain().skip(1) {
-                let c = cause.to_string();
-                if !text.ends_with(&c) {
-                    text = format!("{text}: {c}");
-                }
-            }
-            eprintln!("error: {text}");
+            eprintln!("error: {}", slam_runner::console::error_text(e.as_ref()));
             std::process::ExitCode::FAILURE
         }
     }
@@ -130,7 +119,7 @@ fn run() -> anyhow::Result<()> {
                 .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
         )
         .with_ansi(std::io::stderr().is_terminal())
-        .with_writer(progress::log_writer)
+        .with_writer(slam_runner::console::log_writer)
         .init();
     let cli = Cli::parse();
     match cli.command {

@@ -5,11 +5,13 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use clap::Args;
-use slam_eval::labelled::{
-    run_mapper, table_header, LabelNoise, LabelledSequence, Study, VehicleCriteria, CSV_COLUMNS,
+use slam_eval::{
+    labelled::{run_mapper, table_header, LabelNoise, LabelledSequence, VehicleCriteria},
+    study::eval_study,
 };
-use slam_pipeline::objects::{write_object_map, FitMethod, MapperConfig, ObjectMapper};
+use slam_pipeline::objects::{write_object_map, MapperConfig, ObjectMapper};
 use slam_quadric::ImageSize;
+use slam_runner::{AssociatorKind, Method, OptimizerKind, Shape};
 
 #[derive(Args, Debug, Clone)]
 pub struct InputArgs {
@@ -26,11 +28,11 @@ pub struct InputArgs {
     #[arg(long, value_enum, default_value_t = Method::Refine)]
     method: Method,
     /// Object associator
-    #[arg(long, value_enum, default_value_t = crate::optimizer_choice::AssociatorKind::Oda)]
-    associator: crate::optimizer_choice::AssociatorKind,
+    #[arg(long, value_enum, default_value_t = AssociatorKind::Oda)]
+    associator: AssociatorKind,
     /// Optimiser backend of the object fits
-    #[arg(long, value_enum, default_value_t = crate::optimizer_choice::OptimizerKind::Lm)]
-    optimizer: crate::optimizer_choice::OptimizerKind,
+    #[arg(long, value_enum, default_value_t = OptimizerKind::Lm)]
+    optimizer: OptimizerKind,
     /// Also fit objects seen without parallax (a standing camera) once they have this many boxes: depth
     /// from the class's size prior (off by default, as in the paper)
     #[arg(long)]
@@ -52,17 +54,6 @@ pub struct InputArgs {
     max_misses: usize,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Shape {
-    /// The ellipsoid's projected ellipse
-    Ellipse,
-    /// The ellipsoid's circumscribed cuboid
-    Cuboid,
-    /// Yaw from the cuboid model, then the ellipse model with that yaw held
-    TwoStage,
-}
-
 impl InputArgs {
     /// Range checks (before any file is read).
     fn check(&self) -> anyhow::Result<()> {
@@ -80,42 +71,6 @@ impl InputArgs {
 impl InputArgs {
     fn noise(&self) -> LabelNoise {
         LabelNoise { noise: self.noise, dropout: self.dropout, seed: self.seed }
-    }
-}
-
-impl Shape {
-    pub(crate) fn shape(self) -> slam_optim::object::BoxShape {
-        match self {
-            Shape::Ellipse => slam_optim::object::BoxShape::Ellipse,
-            Shape::Cuboid => slam_optim::object::BoxShape::Cuboid,
-            Shape::TwoStage => slam_optim::object::BoxShape::TwoStage,
-        }
-    }
-}
-
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum Method {
-    /// DQP + object optimisation (ours)
-    Refine,
-    /// QuadricSLAM's SVD
-    Qslam,
-    /// Rubino et al.'s conic method
-    Conic,
-    /// Triangulated centre + full 3×3 block
-    Tri,
-    /// DQP as printed
-    TriYaw,
-}
-
-impl Method {
-    pub(crate) fn fit(self) -> FitMethod {
-        match self {
-            Method::Refine => FitMethod::default(),
-            Method::Qslam => FitMethod::qslam(),
-            Method::Conic => FitMethod::conic(),
-            Method::Tri => FitMethod::tri(),
-            Method::TriYaw => FitMethod::tri_yaw(),
-        }
     }
 }
 
@@ -154,7 +109,7 @@ fn mapper(input: &InputArgs) -> ObjectMapper {
 
 pub fn objects(a: &ObjectsArgs) -> anyhow::Result<()> {
     a.input.check()?;
-    let out = crate::output::AtomicFile::new(&a.out)?;
+    let out = slam_dataset::output::AtomicFile::new(&a.out)?;
     let seq = LabelledSequence::load(
         &a.labels.clone().unwrap_or_else(|| a.dir.join("label_02.txt")),
         &a.poses.clone().unwrap_or_else(|| a.dir.join("poses_orbslam3.txt")),
@@ -229,7 +184,7 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         ),
         r => r.map_err(crate::validate::flag)?,
     }
-    let csv_out = a.csv.as_deref().map(crate::output::AtomicFile::new).transpose()?;
+    let csv_out = a.csv.as_deref().map(slam_dataset::output::AtomicFile::new).transpose()?;
     let dir = a.dir.clone().unwrap_or_else(|| crate::fixture("kitti_tracking"));
     if dir.join("objects.json").is_file() && dir.join("trajectory.kitti.txt").is_file() {
         return eval_run_folder(&dir, a);
@@ -247,26 +202,17 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         a.min_frames, a.static_m
     );
     println!("{}", table_header());
-    let mut csv = csv::Writer::from_writer(Vec::new());
-    csv.write_record(CSV_COLUMNS)?;
-    let mut study = Study::default();
+    let mut bar = slam_runner::console::Progress::new("eval", seqs.len() as u64, "sequences", false);
     let image = ImageSize::new(1242.0, 375.0);
-    let noise = a.input.noise();
-    let mut bar = crate::progress::Progress::new("eval", seqs.len() as u64, "sequences", false);
-    for sdir in &seqs {
-        let name = sdir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        bar.set_message(format!("sequence {name}"));
-        let score = slam_eval::study::eval_sequence(sdir, &name, mapper(&a.input), &noise, &criteria, &image)?;
-        bar.println(&score.row.table_line(&name));
-        csv.write_record(score.row.csv_record(&name))?;
-        study.add(&score);
-        bar.inc();
-    }
+    let (study, csv) =
+        eval_study(&seqs, &|| mapper(&a.input), &a.input.noise(), &criteria, &image, &mut |name, score| {
+            bar.println(&score.row.table_line(name));
+            bar.inc();
+        })?;
     bar.finish();
     print!("{}", study.report(a.moving_m));
     if let Some(f) = csv_out {
-        let bytes = csv.into_inner().map_err(|e| e.into_error())?;
-        f.write_with(|tmp| std::fs::write(tmp, bytes))?;
+        f.write_with(|tmp| std::fs::write(tmp, csv))?;
     }
     Ok(())
 }

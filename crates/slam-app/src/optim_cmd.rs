@@ -6,7 +6,7 @@ use anyhow::Context;
 use clap::Args;
 use slam_optim::bench::{self, GeneratedRun, ANCHORS, GENERATED_POINTS_PER_CAMERA, GENERATED_SEED};
 
-use crate::optimizer_choice::OptimizerKind;
+use slam_runner::OptimizerKind;
 
 #[derive(Args, Debug)]
 pub struct OptimBenchArgs {

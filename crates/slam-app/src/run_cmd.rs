@@ -3,15 +3,17 @@
 
 use std::path::PathBuf;
 
-use anyhow::bail;
 use clap::Args;
 use slam_pipeline::{map::Map, system::FrameRecord};
-use slam_runner::{bench, inspect, report::run_output_name, stereo, RunSettings};
-
-use crate::{
-    args::{read_config, run_settings, shipped_run, DetectorArgs, OutputArgs, SequenceArgs, SettingsArgs, WiringArgs},
-    config::RunConfig,
+use slam_runner::{
+    bench,
+    console::{catch_interrupt, interrupted, Interrupted, Progress},
+    inspect,
+    report::run_output_name,
+    stereo, RunConfig, RunSettings,
 };
+
+use crate::args::{DetectorArgs, OutputArgs, SequenceArgs, SettingsArgs, WiringArgs};
 
 #[derive(Args, Debug)]
 pub struct RunArgs {
@@ -42,13 +44,11 @@ impl RunArgs {
     }
 }
 
-/// Run the system with a progress bar (hidden when `quiet`); the header is printed unless `quiet`.
-fn run_with_progress(s: &RunSettings, quiet: bool) -> anyhow::Result<slam_runner::Outcome> {
+/// Run the system with a progress bar, after printing the run's header.
+fn run_with_progress(s: &RunSettings) -> anyhow::Result<slam_runner::Outcome> {
     let prepared = slam_runner::prepare(s)?;
-    if !quiet {
-        println!("{}", prepared.header(s));
-    }
-    let mut bar = crate::progress::Progress::new("run", prepared.len() as u64, "frames", quiet);
+    println!("{}", prepared.header(s));
+    let mut bar = Progress::new("run", prepared.len() as u64, "frames", false);
     let (mut keyframes, mut lost) = (0usize, 0usize);
     let mut on_frame = |r: &FrameRecord| {
         keyframes += usize::from(r.keyframe);
@@ -56,7 +56,7 @@ fn run_with_progress(s: &RunSettings, quiet: bool) -> anyhow::Result<slam_runner
         bar.set_message(format!("{keyframes} keyframes, {lost} frames lost"));
         bar.inc();
     };
-    let outcome = prepared.run(s, &mut on_frame, crate::output::interrupted)?;
+    let outcome = prepared.run(s, &mut on_frame, interrupted)?;
     bar.finish();
     Ok(outcome)
 }
@@ -67,39 +67,33 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
         print!("{}", cfg.to_commented_toml());
         return Ok(());
     }
-    a.detector.kind()?;
+    a.detector.options().kind()?;
     // the output folder is written beside the old one and swapped in at the end; checked writable now
-    crate::output::catch_interrupt();
+    catch_interrupt();
     let out = &a.output.out;
-    let dir = crate::output::OutputDir::create(out, "--out", "run", run_output_name)?;
-    let s = run_settings(&a.seq, &cfg, &a.wiring, a.detector.choice()?, a.detector.labels.clone());
-    let outcome = run_with_progress(&s, false);
+    let dir = slam_dataset::output::OutputDir::create(out, "--out", "run", run_output_name)?;
+    let s = a.seq.run_settings(&cfg, &a.wiring, a.detector.choice()?, a.detector.labels.clone());
+    let outcome = run_with_progress(&s);
     let stop = |done: usize| {
         let kept = if dir.target().exists() {
             format!("{} keeps the previous run unchanged", out.display())
         } else {
             format!("{} was not created", out.display())
         };
-        crate::output::Interrupted(format!("Ctrl-C after {done} frames: nothing written, {kept}"))
+        Interrupted(format!("Ctrl-C after {done} frames: nothing written, {kept}"))
     };
-    if crate::output::interrupted() {
+    if interrupted() {
         return Err(stop(outcome.as_ref().map_or(0, |o| o.out.counts.frames)).into());
     }
     let o = outcome?;
-    let w = dir.path();
-    o.write_files(w, out)?;
-    println!("{}", o.summary(cfg.system.max_detections));
-    o.write_camera(w)?;
-    let score = o.score(w)?;
-    if let Some(report) = &score {
-        println!("\n{report}");
-    }
-    let pictures = o.pictures(w, a.output.overlays().as_ref())?;
-    if crate::output::interrupted() {
+    let last = o.write_all(dir.path(), out, cfg.system.max_detections, a.output.overlays().as_ref(), &mut |t| {
+        println!("{t}")
+    })?;
+    if interrupted() {
         return Err(stop(o.out.counts.frames).into());
     }
     dir.commit()?;
-    println!("{}", o.wrote_line(out, score.is_some(), &pictures));
+    println!("{last}");
     Ok(())
 }
 
@@ -119,18 +113,10 @@ pub fn run_bench(b: &RunBenchArgs) -> anyhow::Result<()> {
     if let Some(n) = b.max_frames {
         crate::validate::count("--max-frames", n, 1, usize::MAX)?;
     }
-    let base = shipped_run(&RunConfig::default(), b.max_frames);
+    let base = RunSettings::odometry_only(crate::fixture(crate::SHIPPED), &RunConfig::default(), b.max_frames);
     let file = crate::fixture("kitti_odom_06/detections/yolo_fastest_tiles3.json");
-    let model = crate::detect_cmd::ModelArgs::default();
-    println!("{}", bench::RUN_BENCH_HEADER);
-    let mut rows = Vec::new();
-    for (name, detector) in bench::bench_configs(file, crate::args::network(&model)) {
-        let s = RunSettings { detector, ..base.clone() };
-        let row = bench::bench_row(name, &s, b.repeat, &mut |line| eprintln!("{line}"))?;
-        println!("{row}");
-        rows.push(row);
-    }
-    println!("{}", bench::run_bench_footer(b.repeat, &rows));
+    let network = slam_runner::DetectorChoice::Network(crate::detect_cmd::ModelArgs::default().loader());
+    bench::run_bench(&base, file, network, b.repeat, &mut |l| println!("{l}"), &mut |l| eprintln!("{l}"))?;
     Ok(())
 }
 
@@ -152,28 +138,15 @@ pub struct TrackBenchArgs {
 pub fn track_bench(b: &TrackBenchArgs) -> anyhow::Result<()> {
     let mut cases = Vec::new();
     if !b.only_cases {
-        let odometry = crate::fixture("kitti_odom_06/sequences/06");
+        let odometry = crate::fixture(crate::SHIPPED);
         let raw = crate::fixture("kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync");
         cases = bench::TrackCase::dev_cases(odometry, raw);
     }
     for c in &b.cases {
         cases.push(bench::TrackCase::parse(c)?);
     }
-    if cases.is_empty() {
-        bail!("no cases: --only-cases needs at least one --case PATH[:STRIDE]");
-    }
-    let base = shipped_run(&read_config(b.config.as_deref())?, None);
-    println!("{}", bench::track_bench_header());
-    let mut notes = Vec::new();
-    for c in &cases {
-        let row = bench::track_row(&base, c)?;
-        println!("{}", row.line);
-        notes.extend(row.notes);
-    }
-    println!("{}", bench::TRACK_BENCH_FOOTER);
-    for n in notes {
-        println!("{n}");
-    }
+    let base = RunSettings::odometry_only(crate::fixture(crate::SHIPPED), &RunConfig::load(b.config.as_deref())?, None);
+    bench::track_bench(&base, &cases, &mut |l| println!("{l}"))?;
     Ok(())
 }
 
@@ -224,35 +197,23 @@ pub struct StereoCheckArgs {
 /// `slam-app stereo-check`: estimate the rig's disparity offset from the sequence itself, in rounds
 /// (`slam_runner::stereo`).
 pub fn stereo_check(a: &StereoCheckArgs) -> anyhow::Result<()> {
-    if a.frames < 2 {
-        bail!("--frames must be at least 2 (got {})", a.frames);
-    }
-    use crate::validate::{count, number, Range};
-    // a rectification error of more than 10 px is a wrong calibration, not an offset to estimate
-    number("--range", a.range, Range::above(0.0, 10.0), "px")?;
-    number(
-        "--step",
-        a.step,
-        Range::above(a.range / 10_000.0, a.range),
-        "px (at most --range, at least --range / 10000)",
-    )?;
-    count("--rounds", a.rounds, 1, 100)?;
-    let cfg = read_config(a.config.as_deref())?;
+    let cfg = RunConfig::load(a.config.as_deref())?;
     let check = stereo::StereoCheck {
-        path: a.path.clone().unwrap_or_else(|| crate::fixture("kitti_odom_06/sequences/06")),
+        path: a.path.clone().unwrap_or_else(|| crate::fixture(crate::SHIPPED)),
         frames: a.frames,
         range: a.range,
         step: a.step,
         rounds: a.rounds,
         tracking: cfg.tracking,
-        optimizer: std::sync::Arc::new(|| crate::optimizer_choice::OptimizerKind::default().build()),
+        optimizer: std::sync::Arc::new(|| slam_runner::OptimizerKind::default().build()),
     };
     let mut number = 0;
-    let report =
-        stereo::stereo_check(&check, &mut |header| println!("{header}\n{}", stereo::ROUND_HEADER), &mut |round| {
-            number += 1;
-            println!("{}", round.row(number));
-        })?;
+    check.validate()?;
+    let header = &mut |header: &str| println!("{header}\n{}", stereo::ROUND_HEADER);
+    let report = stereo::stereo_check(&check, header, &mut |round| {
+        number += 1;
+        println!("{}", round.row(number));
+    })?;
     println!("{}", report.conclusion(a.curve));
     Ok(())
 }

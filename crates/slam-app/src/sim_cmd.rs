@@ -36,7 +36,7 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
     crate::validate::count("--objects", a.objects as usize, 1, 100_000)?;
     crate::validate::count("--noise-seeds", a.noise_seeds as usize, 1, 100_000)?;
     // written beside the old folder and swapped in at the end; checked writable before the sweep
-    let dir = crate::output::OutputDir::create(&a.out, "--out", "sim", sim_output_name)?;
+    let dir = slam_dataset::output::OutputDir::create(&a.out, "--out", "sim", sim_output_name)?;
     let config = SweepConfig { seed: a.seed, objects: a.objects, noise_seeds: a.noise_seeds, ..SweepConfig::default() };
     println!(
         "Simulation study: master seed {} ({} objects x {} noise seeds = {} trials per cell)",
@@ -45,17 +45,12 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
         config.noise_seeds,
         config.objects * config.noise_seeds
     );
-    let bar = indicatif::ProgressBar::new(0);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} cells {elapsed_precise} eta {eta}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
+    let mut bar = slam_runner::console::Progress::new("sim", 0, "cells", false);
     let start = Instant::now();
     let cells = sweep(&config, |done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
+        bar.set(done as u64, total as u64);
     });
-    bar.finish_and_clear();
+    bar.finish();
     let elapsed = start.elapsed();
     for &g in &config.geometries {
         for &k in &config.noise {
@@ -63,7 +58,7 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
         }
     }
     print!("{}", report::breakdown_table(&cells, &config));
-    crate::output::write_file(&dir.path().join("simulation.csv"), report::csv(&cells)?.as_bytes())?;
+    slam_dataset::output::write_file(&dir.path().join("simulation.csv"), report::csv(&cells)?.as_bytes())?;
     let mut plots = Vec::new();
     if !a.no_plots {
         for &g in &config.geometries {

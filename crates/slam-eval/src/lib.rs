@@ -6,6 +6,7 @@
 
 #![warn(missing_docs)]
 
+pub mod assoc;
 pub mod labelled;
 pub mod labels;
 pub mod recall;

@@ -3,7 +3,7 @@
 //! ([`score_run_folder`], with the played frame ids of its `tracking.csv`, [`played_frame_ids`]); and
 //! the valid ranges of the study's settings ([`LabelNoise::validate`], [`VehicleCriteria::validate`]).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use slam_core::check::{count, number, InvalidValue, Range};
 use slam_dataset::kitti::{poses::read_kitti_poses, tracking::read_tracking_labels};
@@ -11,7 +11,9 @@ use slam_pipeline::objects::ObjectMapper;
 use slam_quadric::ImageSize;
 
 use crate::{
-    labelled::{run_mapper, score_sequence, LabelNoise, LabelledSequence, SequenceScore, VehicleCriteria},
+    labelled::{
+        run_mapper, score_sequence, LabelNoise, LabelledSequence, SequenceScore, Study, VehicleCriteria, CSV_COLUMNS,
+    },
     read_object_map, score_run, EvalError, LabelGeometry, RunScore, ScoreConfig,
 };
 
@@ -67,6 +69,32 @@ pub fn eval_sequence(
     let seq = LabelledSequence::load_dir(dir)?;
     let (mapper, truth) = run_mapper(&seq, noise, mapper);
     Ok(score_sequence(name, &seq, &mapper, &truth, criteria, image))
+}
+
+/// The image-free study over the sequence folders `seqs`: each played through a fresh mapper from
+/// `mapper` ([`eval_sequence`]); `on_sequence` sees each score as it is made (for the table and
+/// progress). Returns the study and the per-sequence table as CSV ([`CSV_COLUMNS`]).
+pub fn eval_study(
+    seqs: &[PathBuf],
+    mapper: &dyn Fn() -> ObjectMapper,
+    noise: &LabelNoise,
+    criteria: &VehicleCriteria,
+    image: &ImageSize,
+    on_sequence: &mut dyn FnMut(&str, &SequenceScore),
+) -> Result<(Study, String), EvalError> {
+    let csv_error = |e: csv::Error| EvalError::Invalid(format!("writing the study's CSV: {e}"));
+    let mut csv = csv::Writer::from_writer(Vec::new());
+    csv.write_record(CSV_COLUMNS).map_err(csv_error)?;
+    let mut study = Study::default();
+    for dir in seqs {
+        let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let score = eval_sequence(dir, &name, mapper(), noise, criteria, image)?;
+        csv.write_record(score.row.csv_record(&name)).map_err(csv_error)?;
+        on_sequence(&name, &score);
+        study.add(&score);
+    }
+    let bytes = csv.into_inner().map_err(|e| csv_error(e.into_error().into()))?;
+    Ok((study, String::from_utf8_lossy(&bytes).into_owned()))
 }
 
 impl LabelNoise {

@@ -15,10 +15,12 @@ pub mod image_io;
 pub mod image_size;
 mod keyframe_index;
 mod matching;
+pub mod model;
 mod pose_only;
 mod settings;
 pub mod stereo_vo;
 
 pub use detector::{DetectorConfig, DnnDetector, InputMode};
 pub use image_io::{draw_detections, draw_overlay, ellipse_outline, read_image, write_image, FrontendError, Overlay};
+pub use model::{ModeName, ModelError, ModelSpec};
 pub use stereo_vo::{StereoRig, StereoVo, VoConfig};

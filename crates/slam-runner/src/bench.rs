@@ -105,6 +105,28 @@ pub fn run_bench_footer(repeat: usize, rows: &[BenchRow]) -> String {
     )
 }
 
+/// The whole `run-bench`: the [`bench_configs`] on `base`, `repeat` runs each; every table line goes to
+/// `print`, progress lines to `progress`.
+pub fn run_bench(
+    base: &RunSettings,
+    file: PathBuf,
+    network: DetectorChoice,
+    repeat: usize,
+    print: &mut dyn FnMut(String),
+    progress: &mut dyn FnMut(String),
+) -> Result<()> {
+    print(RUN_BENCH_HEADER.to_string());
+    let mut rows = Vec::new();
+    for (name, detector) in bench_configs(file, network) {
+        let s = RunSettings { detector, ..base.clone() };
+        let row = bench_row(name, &s, repeat, progress)?;
+        print(row.to_string());
+        rows.push(row);
+    }
+    print(run_bench_footer(repeat, &rows));
+    Ok(())
+}
+
 /// One case of `track-bench`: a sequence played at a stride.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct TrackCase {
@@ -144,6 +166,24 @@ impl TrackCase {
         cases.push(TrackCase { name: "raw drive 0005, frames 0-90 (vs OXTS)".into(), path: raw, stride: 1 });
         cases
     }
+}
+
+/// The whole `track-bench` table over `cases` (at least one) with `base`'s settings; every line goes to
+/// `print`, the cases' notes after the table.
+pub fn track_bench(base: &RunSettings, cases: &[TrackCase], print: &mut dyn FnMut(String)) -> Result<()> {
+    if cases.is_empty() {
+        return Err(RunnerError::Invalid("no cases: --only-cases needs at least one --case PATH[:STRIDE]".into()));
+    }
+    print(track_bench_header());
+    let mut notes = Vec::new();
+    for c in cases {
+        let row = track_row(base, c)?;
+        print(row.line);
+        notes.extend(row.notes);
+    }
+    print(TRACK_BENCH_FOOTER.to_string());
+    notes.into_iter().for_each(print);
+    Ok(())
 }
 
 /// The `track-bench` table's header (markdown), with one column per tracking state.

@@ -33,6 +33,86 @@ pub enum DetectorChoice {
     },
 }
 
+/// The detection sources by name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum DetectorKind {
+    /// The shipped Yolo-Fastest detector (or the model given with --cfg/--weights/--onnx).
+    Dnn,
+    /// A detection JSON file (--detections; format in docs/detections.md).
+    File,
+    /// Ground-truth boxes from the sequence's labels (tracking layout), with --label-noise.
+    Labels,
+    /// No detector: odometry and map points only.
+    None,
+}
+
+impl DetectorKind {
+    /// Lower-case name, as on a command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            DetectorKind::Dnn => "dnn",
+            DetectorKind::File => "file",
+            DetectorKind::Labels => "labels",
+            DetectorKind::None => "none",
+        }
+    }
+}
+
+/// The detection options as given (by a command line): the source named, and the options that only one
+/// source takes (each implies its source).
+#[derive(Debug, Clone, Default)]
+pub struct DetectorOptions {
+    /// The source named (`--detector`), if any.
+    pub kind: Option<DetectorKind>,
+    /// A detection JSON (`--detections`: the file source).
+    pub detections: Option<PathBuf>,
+    /// Box noise of the label source (`--label-noise`).
+    pub label_noise: Option<f64>,
+    /// The first model option given (`--cfg`, `--score`, …: the network source).
+    pub model_option: Option<&'static str>,
+}
+
+impl DetectorOptions {
+    /// The source: the one named, else the one the source-specific options imply, else the network. An
+    /// option of another source than the one named is an error that names both.
+    pub fn kind(&self) -> Result<DetectorKind> {
+        let invalid = |m: String| Err(RunnerError::Invalid(m));
+        let implied = match (&self.detections, self.label_noise) {
+            (Some(_), Some(_)) => {
+                return invalid("--detections (detector file) and --label-noise (detector labels) conflict".into())
+            }
+            (Some(_), None) => Some((DetectorKind::File, "--detections")),
+            (None, Some(_)) => Some((DetectorKind::Labels, "--label-noise")),
+            (None, None) => self.model_option.map(|flag| (DetectorKind::Dnn, flag)),
+        };
+        match (self.kind, implied) {
+            (None, None) => Ok(DetectorKind::Dnn),
+            (None, Some((kind, _))) | (Some(kind), None) => Ok(kind),
+            (Some(kind), Some((wanted, _))) if kind == wanted => Ok(kind),
+            (Some(kind), Some((wanted, flag))) => invalid(format!(
+                "{flag} is an option of --detector {}, but --detector {} was given",
+                wanted.name(),
+                kind.name()
+            )),
+        }
+    }
+
+    /// The run's detector choice; `network` loads the model when the run starts.
+    pub fn choice(&self, network: NetworkLoader) -> Result<DetectorChoice> {
+        Ok(match self.kind()? {
+            DetectorKind::None => DetectorChoice::None,
+            DetectorKind::Dnn => DetectorChoice::Network(network),
+            DetectorKind::File => DetectorChoice::File(
+                self.detections
+                    .clone()
+                    .ok_or_else(|| RunnerError::Invalid("--detector file needs --detections <file.json>".into()))?,
+            ),
+            DetectorKind::Labels => DetectorChoice::Labels { noise: self.label_noise.unwrap_or(0.0) },
+        })
+    }
+}
+
 impl std::fmt::Debug for DetectorChoice {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(&self.describe())
@@ -101,6 +181,28 @@ impl DetectorChoice {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_source_follows_the_options_and_conflicts_name_both() {
+        let o = |kind, detections: Option<&str>, label_noise, model_option| DetectorOptions {
+            kind,
+            detections: detections.map(PathBuf::from),
+            label_noise,
+            model_option,
+        };
+        assert_eq!(o(None, None, None, None).kind().expect("default"), DetectorKind::Dnn);
+        assert_eq!(o(None, Some("d.json"), None, None).kind().expect("implied"), DetectorKind::File);
+        assert_eq!(o(None, None, Some(0.1), None).kind().expect("implied"), DetectorKind::Labels);
+        assert_eq!(o(Some(DetectorKind::None), None, None, None).kind().expect("named"), DetectorKind::None);
+        let e = o(Some(DetectorKind::None), None, None, Some("--score")).kind().expect_err("conflict");
+        assert!(e.to_string().contains("--score is an option of --detector dnn, but --detector none"), "{e}");
+        assert!(o(None, Some("d.json"), Some(0.1), None).kind().is_err());
+        let network: NetworkLoader = Arc::new(|| Err("not loaded in this test".into()));
+        let e = o(Some(DetectorKind::File), None, None, None).choice(network.clone()).expect_err("no file");
+        assert!(e.to_string().contains("needs --detections"), "{e}");
+        let c = o(None, None, Some(0.2), None).choice(network).expect("labels");
+        assert!(matches!(c, DetectorChoice::Labels { noise } if noise == 0.2));
+    }
 
     #[test]
     fn every_choice_is_described_as_the_header_names_it() {

@@ -64,11 +64,14 @@ from_errors!(
     slam_dataset::check::CheckError,
     slam_dataset::output::OutputError,
     slam_frontend::FrontendError,
+    slam_frontend::ModelError,
     slam_frontend::image_size::ImageSizeError,
     slam_pipeline::system::SystemError,
     slam_pipeline::map::MapError,
     slam_eval::EvalError,
     slam_viz::VizError,
+    slam_pipeline::settings::SettingsError,
+    slam_core::check::InvalidValue,
     std::io::Error
 );
 

@@ -7,19 +7,30 @@
 //! - [`report`]: the run's output files, summary, object score and pictures;
 //! - [`bench`]: the `run-bench` and `track-bench` runs and table rows;
 //! - [`stereo`]: `stereo-check`, the rig's disparity offset in rounds;
-//! - [`inspect`]: `map` (a saved map's summary and exports) and `trajectory-eval`.
+//! - [`inspect`]: `map` (a saved map's summary and exports) and `trajectory-eval`;
+//! - [`recall`]: `detect-recall`, the shipped detector's recall per input mode;
+//! - [`settings`]: the run's settings from TOML over the libraries' defaults ([`RunConfig`]);
+//! - [`console`] (feature `console`): progress, Ctrl-C and stdout of a command-line program;
+//! - [`wiring`]: the implementations behind each seam by name ([`Wiring`]; `ValueEnum`s with `clap`).
 //!
 //! Only `slam-app` depends on this crate (`tools/check-deps.sh`).
 
 pub mod bench;
+#[cfg(feature = "console")]
+pub mod console;
 pub mod detector;
 pub mod error;
 pub mod inspect;
+pub mod recall;
 pub mod report;
 pub mod run;
+pub mod settings;
 pub mod stereo;
+pub mod wiring;
 
-pub use detector::{DetectorChoice, NetworkLoader};
+pub use detector::{DetectorChoice, DetectorKind, DetectorOptions, NetworkLoader};
 pub use error::{Result, RunnerError};
 pub use report::OverlayChoice;
 pub use run::{prepare, AssociatorFactory, OptimizerFactory, Outcome, Prepared, RunSettings};
+pub use settings::RunConfig;
+pub use wiring::{AssociatorKind, Method, OptimizerKind, Shape, Wiring};

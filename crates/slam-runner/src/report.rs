@@ -176,6 +176,28 @@ impl Outcome {
         Ok(written)
     }
 
+    /// Everything a finished run writes into `dir` (`shown` in messages), in order: the files, camera.json,
+    /// the object score, the pictures. The summary and the score report go to `print` as they are made;
+    /// returns the last line (what was written, which frames).
+    pub fn write_all(
+        &self,
+        dir: &Path,
+        shown: &Path,
+        max_detections: usize,
+        overlays: Option<&OverlayChoice>,
+        print: &mut dyn FnMut(&str),
+    ) -> Result<String> {
+        self.write_files(dir, shown)?;
+        print(&self.summary(max_detections));
+        self.write_camera(dir)?;
+        let score = self.score(dir)?;
+        if let Some(report) = &score {
+            print(&format!("\n{report}"));
+        }
+        let pictures = self.pictures(dir, overlays)?;
+        Ok(self.wrote_line(shown, score.is_some(), &pictures))
+    }
+
     /// The last line of a run: what was written where, and which frames.
     pub fn wrote_line(&self, shown: &Path, scored: bool, pictures: &str) -> String {
         format!(

@@ -103,12 +103,26 @@ fn read_pair(
     read_image(&seq.left[i], colour).and_then(|l| read_image(&seq.right[i], colour).map(|r| (l, r)))
 }
 
+impl StereoCheck {
+    /// Range checks, the keys named as the command line names them (`--range`).
+    pub fn validate(&self) -> std::result::Result<(), slam_core::check::InvalidValue> {
+        use slam_core::check::{count, number, Range};
+        count("--frames", self.frames, 2, usize::MAX)?;
+        // a rectification error of more than 10 px is a wrong calibration, not an offset to estimate
+        number("--range", self.range, Range::above(0.0, 10.0), "px")?;
+        let step = Range::above(self.range / 10_000.0, self.range);
+        number("--step", self.step, step, "px (at most --range, at least --range / 10000)")?;
+        count("--rounds", self.rounds, 1, 100)
+    }
+}
+
 /// Run the rounds; `on_round` sees each round as it finishes (the header first, once).
 pub fn stereo_check(
     c: &StereoCheck,
     on_header: &mut dyn FnMut(&str),
     on_round: &mut dyn FnMut(&Round),
 ) -> Result<StereoReport> {
+    c.validate()?;
     let (seq, rig, readable, n) = open_checked(c)?;
     let header = format!(
         "{}: {n} frames ({} unreadable), fx {:.1} px, baseline {:.4} m",

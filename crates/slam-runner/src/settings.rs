@@ -1,16 +1,19 @@
-//! `slam-app run` settings from TOML: one table per stage, each the library's own settings struct (its
+//! The settings of a run from TOML: one table per stage, each the library's own settings struct (its
 //! `Default` is the one source of the defaults), every key optional, unknown keys rejected with the
-//! file's name. `slam-app run --print-config` prints the effective settings with each key's doc comment.
+//! file's name and line; every value range-checked by the library that defines it. The app's
+//! `--print-config` prints [`RunConfig::to_commented_toml`].
 
 use std::path::Path;
 
-use anyhow::Context;
 use serde::{Deserialize, Serialize};
+use slam_core::check::InvalidValue;
 use slam_frontend::VoConfig;
 use slam_pipeline::{
     mapping::MappingConfig, objects::MapperConfig, settings::commented_table, system::SystemConfig,
     texture::TextureConfig,
 };
+
+use crate::error::{Context, Result, RunnerError};
 
 /// All settings of a run.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize)]
@@ -43,18 +46,40 @@ impl Default for RunConfig {
 }
 
 impl RunConfig {
-    /// Read a settings file; every value is checked ([`crate::validate::run_config`]).
-    pub fn read(path: &Path) -> anyhow::Result<Self> {
-        let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-        let c = Self::parse(&text).with_context(|| format!("{}: invalid configuration", path.display()))?;
-        crate::validate::run_config(&c, &path.display().to_string())?;
+    /// The settings file at `path` over the library defaults, or the defaults when there is none.
+    pub fn load(path: Option<&Path>) -> Result<Self> {
+        path.map_or_else(|| Ok(Self::default()), Self::read)
+    }
+
+    /// Read a settings file; every value is checked ([`RunConfig::validate`]).
+    pub fn read(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).context_with(|| format!("cannot read {}", path.display()))?;
+        let c = Self::parse(&text).context_with(|| format!("{}: invalid configuration", path.display()))?;
+        c.validate(&path.display().to_string())?;
         Ok(c)
     }
 
     /// Settings from TOML text, overlaid key by key on the defaults (a table that sets one key keeps
     /// the running system's defaults for the others).
-    pub fn parse(text: &str) -> anyhow::Result<Self> {
-        Ok(slam_pipeline::settings::parse_over_defaults(text, &RunConfig::default())?)
+    pub fn parse(text: &str) -> std::result::Result<Self, slam_pipeline::settings::SettingsError> {
+        slam_pipeline::settings::parse_over_defaults(text, &RunConfig::default())
+    }
+
+    /// Every table checked by its library's `validate()`; `source` names the file (or "defaults") and
+    /// the table in messages (`x.toml: [tracking] ransac_px = NaN: must be …`).
+    pub fn validate(&self, source: &str) -> Result<()> {
+        let at = |table: &'static str| {
+            move |e: InvalidValue| {
+                let key = format!("{source}: [{table}] {} =", e.key);
+                RunnerError::other(e.rename(key))
+            }
+        };
+        self.tracking.validate().map_err(at("tracking"))?;
+        self.mapping.validate().map_err(at("mapping"))?;
+        self.objects.validate().map_err(at("objects"))?;
+        self.texture.validate().map_err(at("texture"))?;
+        self.system.validate().map_err(at("system"))?;
+        Ok(())
     }
 
     /// The settings as TOML, with every key's doc comment from the library that defines it.
@@ -116,5 +141,43 @@ mod tests {
         assert!(toml::from_str::<RunConfig>("[objects]\nbox_shape = \"sphere\"\n").is_err());
         assert!(toml::from_str::<RunConfig>("[tracking]\nkeep_disparity_pairs = 5\n").is_err());
         assert!(toml::from_str::<RunConfig>("[objects]\nimage = 5\n").is_err(), "caller-set fields are not keys");
+    }
+
+    #[test]
+    fn the_defaults_pass_and_every_table_is_checked() {
+        RunConfig::default().validate("defaults").expect("defaults valid");
+        let bad: [(&str, &str); 8] = [
+            ("[tracking]\nransac_px = nan\n", "[tracking] ransac_px = NaN"),
+            ("[tracking]\ndepth_range = [5.0, 2.0]\n", "depth_range (far) = 2"),
+            ("[tracking]\nmin_inliers = 2\n", "min_inliers = 2"),
+            ("[mapping]\nhuber_px = -1.0\n", "huber_px = -1"),
+            ("[objects]\nmin_views = 5\nmax_views = 3\n", "max_views"),
+            ("[texture]\nmin_facing = 1.5\n", "min_facing = 1.5"),
+            ("[system]\nobject_core = 0.0\n", "object_core = 0"),
+            ("[system]\nmax_detections = 0\n", "max_detections = 0"),
+        ];
+        for (text, want) in bad {
+            let c: RunConfig = toml::from_str(text).expect("parses");
+            let e = c.validate("x.toml").expect_err(text).to_string();
+            assert!(e.contains("x.toml") && e.contains(want), "{text}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_file_names_itself_in_every_error() {
+        let dir = std::env::temp_dir().join(format!("slam-runner-settings-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("tmp");
+        let missing = dir.join("missing.toml");
+        let e = RunConfig::load(Some(&missing)).expect_err("missing");
+        assert!(e.to_string().contains("missing.toml"), "{e}");
+        let bad = dir.join("bad.toml");
+        std::fs::write(&bad, "[tracking]\nransac_px = -2.0\n").expect("write");
+        let e = RunConfig::load(Some(&bad)).expect_err("bad value");
+        assert!(e.to_string().contains("bad.toml: [tracking] ransac_px"), "{e}");
+        std::fs::write(&bad, "[tracking]\nnope = 1\n").expect("write");
+        let e = RunConfig::load(Some(&bad)).expect_err("unknown key");
+        assert!(e.to_string().contains("bad.toml: invalid configuration"), "{e}");
+        assert_eq!(RunConfig::load(None).expect("defaults").tracking, VoConfig::default());
+        std::fs::remove_dir_all(&dir).ok();
     }
 }

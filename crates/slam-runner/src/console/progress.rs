@@ -101,8 +101,8 @@ impl Progress {
     /// A line on stdout that does not tear the bar (stdout and stderr often share a terminal).
     pub fn println(&self, text: &str) {
         match &self.mode {
-            Mode::Bar(b) => b.suspend(|| println!("{text}")),
-            _ => println!("{text}"),
+            Mode::Bar(b) => b.suspend(|| super::stdout::write(format_args!("{text}\n"))),
+            _ => super::stdout::write(format_args!("{text}\n")),
         }
     }
 
@@ -122,6 +122,22 @@ impl Progress {
                 }
             }
             Mode::Hidden => {}
+        }
+    }
+
+    /// `done` of `len` items (for work whose total is known only once it runs).
+    pub fn set(&mut self, done: u64, len: u64) {
+        self.len = len;
+        match &mut self.mode {
+            Mode::Bar(b) => {
+                b.set_length(len);
+                b.set_position(done);
+            }
+            Mode::Plain { pos, .. } if done > *pos => {
+                *pos = done - 1;
+                self.inc();
+            }
+            _ => {}
         }
     }
 

@@ -1,15 +1,13 @@
-//! Output of the commands: the never-half-written folders and files of `slam_dataset::output`
-//! (re-exported), and Ctrl-C handling: the first Ctrl-C (SIGINT) sets a flag that long commands poll
-//! (they then discard their output); a second one ends the process at once.
+//! Ctrl-C handling: the first Ctrl-C (SIGINT) sets a flag that long commands poll (they then discard
+//! their output); a second one ends the process at once.
 
 use std::sync::{
     atomic::{AtomicBool, Ordering},
     Arc, OnceLock,
 };
 
-pub use slam_dataset::output::{write_file, AtomicFile, OutputDir};
-
-/// The run was stopped by Ctrl-C; `main` turns it into exit status 130 (128 + SIGINT), as shells do.
+/// The run was stopped by Ctrl-C; a program's `main` turns it into exit status 130 (128 + SIGINT), as
+/// shells do.
 #[derive(Debug)]
 pub struct Interrupted(pub String);
 

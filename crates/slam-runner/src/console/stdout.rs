@@ -1,5 +1,5 @@
-//! Standard output for the whole app: the `println!`/`print!` macros of `main.rs` write through
-//! [`write`], which ends the process quietly when the reader has gone.
+//! Standard output of a command-line program: its `println!`/`print!` write through [`write`], which
+//! ends the process quietly when the reader has gone.
 
 use std::io::{ErrorKind, Write};
 

@@ -1,0 +1,44 @@
+//! Terminal plumbing of a command-line program built on this crate (feature `console`):
+//! - [`progress`]: progress that shares stderr with the `tracing` logs (a bar on a terminal, plain lines
+//!   every few seconds elsewhere);
+//! - [`interrupt`]: Ctrl-C as a flag long commands poll, [`Interrupted`] as their error;
+//! - [`stdout`]: stdout that ends the process quietly on a closed pipe (`… | head`);
+//! - [`error_text`]: an error and its causes on one line, for the final message.
+
+pub mod interrupt;
+pub mod progress;
+pub mod stdout;
+
+pub use interrupt::{catch_interrupt, interrupted, Interrupted};
+pub use progress::{log_writer, Progress};
+
+/// An error and its whole cause chain on one line, without a backtrace (errors at the command line are
+/// about the user's input); a cause that its parent's message already quotes is not repeated.
+pub fn error_text(e: &(dyn std::error::Error + 'static)) -> String {
+    let mut text = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        let c_text = c.to_string();
+        if !text.ends_with(&c_text) {
+            text = format!("{text}: {c_text}");
+        }
+        cause = c.source();
+    }
+    text
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, thiserror::Error)]
+    #[error("{0}")]
+    struct Outer(String, #[source] std::io::Error);
+
+    #[test]
+    fn a_cause_is_appended_unless_already_quoted() {
+        let io = || std::io::Error::new(std::io::ErrorKind::NotFound, "no such file");
+        assert_eq!(error_text(&Outer("reading x.json".into(), io())), "reading x.json: no such file");
+        assert_eq!(error_text(&Outer("reading x.json: no such file".into(), io())), "reading x.json: no such file");
+    }
+}
