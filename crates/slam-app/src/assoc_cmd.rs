@@ -3,7 +3,6 @@
 use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
-use slam_assoc::study::{compared_associators, sim_variants, simulated_totals};
 
 #[derive(Subcommand, Debug)]
 pub enum AssocCommand {
@@ -46,12 +45,7 @@ pub fn run(cmd: AssocCommand) -> anyhow::Result<()> {
 fn sim(a: &SimArgs) -> anyhow::Result<()> {
     crate::validate::count("--scenes", a.scenes as usize, 1, 100_000)?;
     crate::validate::count("--frames", a.frames, 1, 1_000_000)?;
-    println!("Simulated association, {} scenes x {} frames, 8 objects of one class in two lanes", a.scenes, a.frames);
-    println!("{:<24} {:>10} {:>8} {:>10} {:>8}", "scene", "ODA IDSW", "ODA MOTA", "IoU IDSW", "IoU MOTA");
-    for (name, cfg) in sim_variants(a.frames) {
-        let [oda, iou] = compared_associators().map(|(_, make)| simulated_totals(&cfg, a.scenes, make));
-        println!("{name:<24} {:>10} {:>8.4} {:>10} {:>8.4}", oda.id_switches, oda.mota(), iou.id_switches, iou.mota());
-    }
+    slam_assoc::study::simulated_table(a.scenes, a.frames, &mut |l| println!("{l}"));
     Ok(())
 }
 
@@ -62,10 +56,7 @@ fn kitti(a: &KittiArgs) -> anyhow::Result<()> {
     }
     let dir = a.dir.clone().unwrap_or_else(|| crate::fixture("kitti_tracking"));
     let seqs = crate::tracking_sequences(&dir)?;
-    println!("KITTI tracking labels as detections ({} sequences in {}), seed {}", seqs.len(), dir.display(), a.seed);
-    println!("DontCare and Misc dropped; noise: Gaussian, sigma = fraction of box width/height per coordinate.");
-    println!("Cues available: Kalman prediction only (no images: no flow; no ellipsoids).");
-    println!("{}", slam_eval::assoc::kitti_table_header());
+    println!("{}", slam_eval::assoc::kitti_table_header(seqs.len(), &dir, a.seed));
     let csv = slam_eval::assoc::kitti_assoc_study(&seqs, a.seed, &mut |row| println!("{row}"))?;
     if let Some(path) = &a.csv {
         slam_dataset::output::write_file(path, csv.as_bytes())?;

@@ -4,8 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use slam_core::DetectionSource;
-use slam_dataset::detections::DetectionFile;
-use slam_frontend::{batch::detect_images, DnnDetector, ModeName, ModelError, ModelSpec};
+use slam_frontend::{DnnDetector, ModeName, ModelError, ModelSpec};
 
 #[derive(Args, Debug, Clone, Default)]
 pub struct ModelArgs {
@@ -97,49 +96,18 @@ pub struct DetectArgs {
     model: ModelArgs,
 }
 
-/// The frame id of each image: the number in its file name when every name is one, else (arbitrary
-/// names) the position in name order, said on stdout.
-fn frame_ids(images: &[PathBuf]) -> Vec<usize> {
-    slam_dataset::folders::frame_ids(images).unwrap_or_else(|| {
-        println!("image names are not all distinct frame numbers: frames are numbered by position in name order");
-        (0..images.len()).collect()
-    })
-}
-
-/// Overlay files `detect` writes (a folder written before the marker file existed may be replaced when it
-/// holds only these).
-fn overlay_name(name: &str) -> bool {
-    name.ends_with(".png")
-}
-
 pub fn detect(a: &DetectArgs) -> anyhow::Result<()> {
-    let images = slam_dataset::folders::list_images(&a.input)?;
-    let ids = frame_ids(&images);
-    a.model.check()?;
     // both outputs are checked writable before the first image, and put in place whole at the end
-    let json = slam_dataset::output::AtomicFile::new(&a.out)?;
-    let overlays = a
-        .overlays
-        .as_ref()
-        .map(|o| slam_dataset::output::OutputDir::create(o, "--overlays", "detect", overlay_name))
-        .transpose()?;
-    let mut det = a.model.load()?;
-    let mut bar = slam_runner::console::Progress::new("detect", images.len() as u64, "frames", false);
-    let frames: Vec<(usize, PathBuf)> = ids.into_iter().zip(images).collect();
-    let out = detect_images(&mut det, &frames, overlays.as_ref().map(|o| o.path()), &mut || bar.inc())?;
-    bar.finish();
-    let file = DetectionFile { image_size: out.image_size, frames: out.frames };
-    json.write_with(|tmp| file.write(tmp).map_err(anyhow::Error::from))?;
-    if let Some(o) = overlays {
-        o.commit()?;
+    let plan = slam_runner::detect::DetectPlan::new(&a.input, &a.out, a.overlays.as_deref())?;
+    if let Some(note) = &plan.note {
+        println!("{note}");
     }
-    println!(
-        "{} frames, {} detections, {} unreadable frames skipped; wrote {}",
-        frames.len(),
-        out.total,
-        out.skipped,
-        a.out.display()
-    );
+    a.model.check()?;
+    let mut det = a.model.load()?;
+    let mut bar = slam_runner::console::Progress::new("detect", plan.frames.len() as u64, "frames", false);
+    let summary = plan.run(&mut det, &mut || bar.inc())?;
+    bar.finish();
+    println!("{summary}");
     Ok(())
 }
 
@@ -156,6 +124,6 @@ pub struct RecallArgs {
 pub fn recall(a: &RecallArgs) -> anyhow::Result<()> {
     let data = a.data.clone().unwrap_or_else(|| crate::fixture("kitti_raw_0052"));
     let modes = a.mode.map_or_else(|| vec![ModeName::Squash, ModeName::Letterbox, ModeName::Tiles], |m| vec![m]);
-    slam_runner::recall::detector_recall(&data, &crate::fixture("detector"), &modes, &mut |l| println!("{l}"))?;
+    slam_runner::detect::detector_recall(&data, &crate::fixture("detector"), &modes, &mut |l| println!("{l}"))?;
     Ok(())
 }

@@ -6,10 +6,10 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use clap::Args;
 use slam_eval::{
-    labelled::{run_mapper, table_header, LabelNoise, LabelledSequence, VehicleCriteria},
-    study::eval_study,
+    labelled::{table_header, LabelNoise, VehicleCriteria},
+    study::{eval_study, map_to_file},
 };
-use slam_pipeline::objects::{write_object_map, MapperConfig, ObjectMapper};
+use slam_pipeline::objects::{MapperConfig, ObjectMapper};
 use slam_quadric::ImageSize;
 use slam_runner::{AssociatorKind, Method, OptimizerKind, Shape};
 
@@ -66,9 +66,7 @@ impl InputArgs {
         }
         Ok(())
     }
-}
 
-impl InputArgs {
     fn noise(&self) -> LabelNoise {
         LabelNoise { noise: self.noise, dropout: self.dropout, seed: self.seed }
     }
@@ -109,24 +107,11 @@ fn mapper(input: &InputArgs) -> ObjectMapper {
 
 pub fn objects(a: &ObjectsArgs) -> anyhow::Result<()> {
     a.input.check()?;
-    let out = slam_dataset::output::AtomicFile::new(&a.out)?;
-    let seq = LabelledSequence::load(
-        &a.labels.clone().unwrap_or_else(|| a.dir.join("label_02.txt")),
-        &a.poses.clone().unwrap_or_else(|| a.dir.join("poses_orbslam3.txt")),
-        &a.calib.clone().unwrap_or_else(|| a.dir.join("calib.txt")),
-    )?;
-    let (mapper, _) = run_mapper(&seq, &a.input.noise(), mapper(&a.input));
-    let objs: Vec<_> = mapper.objects().collect();
-    out.write_with(|tmp| write_object_map(tmp, &objs).map_err(anyhow::Error::from))?;
-    let with = objs.iter().filter(|o| o.ellipsoid.is_some()).count();
-    let dynamic = objs.iter().filter(|o| o.ellipsoid.is_some() && o.dynamic).count();
-    println!(
-        "{} frames, {} tracks, {with} objects with an ellipsoid ({dynamic} flagged dynamic), {} fits; wrote {}",
-        seq.poses.len(),
-        objs.len(),
-        mapper.fits(),
-        a.out.display()
-    );
+    let file = |given: &Option<PathBuf>, name: &str| given.clone().unwrap_or_else(|| a.dir.join(name));
+    let (labels, poses, calib) =
+        (file(&a.labels, "label_02.txt"), file(&a.poses, "poses_orbslam3.txt"), file(&a.calib, "calib.txt"));
+    let files = (labels.as_path(), poses.as_path(), calib.as_path());
+    println!("{}", map_to_file(files, &a.input.noise(), mapper(&a.input), &a.out)?);
     Ok(())
 }
 
@@ -164,11 +149,7 @@ fn eval_run_folder(dir: &std::path::Path, a: &EvalArgs) -> anyhow::Result<()> {
         moving_m: a.moving_m,
         ..Default::default()
     };
-    let score = slam_eval::study::score_run_folder(dir, labels, &config)?;
-    print!("{}", score.report());
-    let out = dir.join("objects_score.json");
-    score.write_json(&out)?;
-    println!("wrote {}", out.display());
+    println!("{}", slam_eval::study::score_run_folder_to_file(dir, labels, &config)?);
     Ok(())
 }
 

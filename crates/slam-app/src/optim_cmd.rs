@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
-use slam_optim::bench::{self, GeneratedRun, ANCHORS, GENERATED_POINTS_PER_CAMERA, GENERATED_SEED};
+use slam_optim::bench::{self, ANCHORS};
 
 use slam_runner::OptimizerKind;
 
@@ -52,20 +52,7 @@ pub fn run(args: &OptimBenchArgs) -> anyhow::Result<()> {
         anyhow::bail!("--only {o:?} matches no problem (problems: {})", names.join(", "));
     }
     let dir = args.data.clone().unwrap_or_else(|| crate::fixture("optim"));
-    let optimizer = args.optimizer.build();
-    println!(
-        "Optimiser benchmark, backend {:?}, on {} ({} timed runs each, median; single thread)",
-        optimizer.name(),
-        dir.display(),
-        args.reps
-    );
-    println!("{}", bench::anchor_table_header());
-    for a in &anchors {
-        println!("{}", a.row(&bench::run_anchor(optimizer.as_ref(), &dir, a, args.reps)?));
-    }
-    println!("ratio = our median time / the anchor's single-thread median (ANCHORS.md, another day: for a ratio measured in one sitting use tools/ceres-vs-ours.sh).");
-    println!("cpu s = median process CPU time of the solve (steadier than wall time on a shared machine).");
-    println!("BA: Options::default() (Ceres' defaults), points eliminated by Schur; pose graphs: Options::pose_graph(), vertex 0 fixed.");
+    bench::anchor_table(args.optimizer.build().as_ref(), &dir, &anchors, args.reps, &mut |l| println!("{l}"))?;
     Ok(())
 }
 
@@ -74,33 +61,12 @@ pub fn run(args: &OptimBenchArgs) -> anyhow::Result<()> {
 fn generated_table(args: &OptimBenchArgs, n: usize) -> anyhow::Result<()> {
     let exe = std::env::current_exe().context("locating this program to run the child processes")?;
     let backend = args.optimizer.build().name().to_string(); // the backends' names are their CLI names
-    println!(
-        "Generated stereo BA: {n} cameras (2 fixed), {GENERATED_POINTS_PER_CAMERA} points per camera seen by 4 cameras, seed {GENERATED_SEED}, {} iterations, backend {backend:?}",
-        args.iterations,
-    );
-    println!("{}", bench::generated_table_header());
-    let mut finals = Vec::new();
-    for path in ["sparse", "dense"] {
-        let out = std::process::Command::new(&exe)
-            .args(["optim-bench", "--generated", &n.to_string(), "--iterations", &args.iterations.to_string()])
-            .args(["--generated-path", path, "--optimizer", &backend])
-            .output()
-            .with_context(|| format!("running {}", exe.display()))?;
-        let text = String::from_utf8_lossy(&out.stdout);
-        let Some(line) = text.lines().find(|l| l.starts_with("GENERATED ")) else {
-            anyhow::bail!(
-                "the {path} run gave no result (exit {:?}): {}",
-                out.status.code(),
-                String::from_utf8_lossy(&out.stderr).trim()
-            );
-        };
-        let r = GeneratedRun::parse(line)?;
-        finals.push(r.final_cost);
-        println!("{}", r.row(path));
-    }
-    if let [s, d] = finals[..] {
-        println!("final costs: sparse vs dense differ by {:.2e} (relative)", (s - d).abs() / d.abs());
-    }
-    println!("peak MiB: the process's peak resident memory (VmHWM); solver MiB: its growth during the solve.");
+    let child = |path: &str| -> Vec<String> {
+        let (n, it) = (n.to_string(), args.iterations.to_string());
+        ["optim-bench", "--generated", &n, "--iterations", &it, "--generated-path", path, "--optimizer", &backend]
+            .map(String::from)
+            .to_vec()
+    };
+    bench::generated_table(&exe, &child, (n, args.iterations, &backend), &mut |l| println!("{l}"))?;
     Ok(())
 }

@@ -24,27 +24,13 @@ pub struct SimArgs {
     no_plots: bool,
 }
 
-/// Entries `sim` writes into its output folder (a folder written before the marker file existed may be
-/// replaced when it holds only these).
-fn sim_output_name(name: &str) -> bool {
-    name == "simulation.csv"
-        || (name.starts_with("sim_") && (name.ends_with(".svg") || name.ends_with(".png")))
-        || name.ends_with(".tmp")
-}
-
 pub fn run(a: &SimArgs) -> anyhow::Result<()> {
     crate::validate::count("--objects", a.objects as usize, 1, 100_000)?;
     crate::validate::count("--noise-seeds", a.noise_seeds as usize, 1, 100_000)?;
     // written beside the old folder and swapped in at the end; checked writable before the sweep
-    let dir = slam_dataset::output::OutputDir::create(&a.out, "--out", "sim", sim_output_name)?;
+    let dir = slam_dataset::output::OutputDir::create(&a.out, "--out", "sim", report::is_output_name)?;
     let config = SweepConfig { seed: a.seed, objects: a.objects, noise_seeds: a.noise_seeds, ..SweepConfig::default() };
-    println!(
-        "Simulation study: master seed {} ({} objects x {} noise seeds = {} trials per cell)",
-        config.seed,
-        config.objects,
-        config.noise_seeds,
-        config.objects * config.noise_seeds
-    );
+    println!("{}", report::title(&config));
     let mut bar = slam_runner::console::Progress::new("sim", 0, "cells", false);
     let start = Instant::now();
     let cells = sweep(&config, |done, total| {
@@ -52,12 +38,7 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
     });
     bar.finish();
     let elapsed = start.elapsed();
-    for &g in &config.geometries {
-        for &k in &config.noise {
-            print!("{}", report::noise_table(&cells, g, k, &config.methods));
-        }
-    }
-    print!("{}", report::breakdown_table(&cells, &config));
+    print!("{}", report::tables(&cells, &config));
     slam_dataset::output::write_file(&dir.path().join("simulation.csv"), report::csv(&cells)?.as_bytes())?;
     let mut plots = Vec::new();
     if !a.no_plots {

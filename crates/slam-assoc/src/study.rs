@@ -69,6 +69,24 @@ pub struct LabelRun {
     pub detections: usize,
 }
 
+/// The simulated study's table (`slam-app assoc sim`): every [`sim_variants`] scene type over
+/// `scenes` seeds of `frames` frames, ID switches and MOTA of both [`compared_associators`]; each line
+/// goes to `print`.
+pub fn simulated_table(scenes: u64, frames: usize, print: &mut dyn FnMut(String)) {
+    print(format!("Simulated association, {scenes} scenes x {frames} frames, 8 objects of one class in two lanes"));
+    print(format!("{:<24} {:>10} {:>8} {:>10} {:>8}", "scene", "ODA IDSW", "ODA MOTA", "IoU IDSW", "IoU MOTA"));
+    for (name, cfg) in sim_variants(frames) {
+        let [oda, iou] = compared_associators().map(|(_, make)| simulated_totals(&cfg, scenes, make));
+        print(format!(
+            "{name:<24} {:>10} {:>8.4} {:>10} {:>8.4}",
+            oda.id_switches,
+            oda.mota(),
+            iou.id_switches,
+            iou.mota()
+        ));
+    }
+}
+
 /// Play frames `0..n_frames` of labelled boxes (perturbed by `noise`, from one random stream seeded by
 /// `seed`) through a fresh tracker around `associator`, with the true ids hidden, and count ID switches.
 /// Only the Kalman prediction is available as a cue (no images: no flow, no ellipsoids).

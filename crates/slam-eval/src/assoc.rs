@@ -8,9 +8,17 @@ use slam_dataset::kitti::tracking::read_tracking_labels;
 
 use crate::EvalError;
 
-/// The table's header: sequence, objects, and `ODA / IoU` ID switches per condition.
-pub fn kitti_table_header() -> String {
-    let mut header = format!("{:<6} {:>7}", "seq", "objects");
+/// The study's title and notes (`dir` holds the `seqs` sequences, noise seeded from `seed`), then the
+/// table's header: sequence, objects, and `ODA / IoU` ID switches per condition.
+pub fn kitti_table_header(seqs: usize, dir: &std::path::Path, seed: u64) -> String {
+    let mut header = format!(
+        "KITTI tracking labels as detections ({seqs} sequences in {}), seed {seed}\n\
+         DontCare and Misc dropped; noise: Gaussian, sigma = fraction of box width/height per coordinate.\n\
+         Cues available: Kalman prediction only (no images: no flow; no ellipsoids).\n{:<6} {:>7}",
+        dir.display(),
+        "seq",
+        "objects"
+    );
     for c in &CONDITIONS {
         header.push_str(&format!(" | {:>20}", format!("{} ODA/IoU", c.name)));
     }

@@ -32,6 +32,9 @@ pub enum EvalError {
     /// A dataset file is malformed.
     #[error(transparent)]
     Dataset(#[from] slam_dataset::DatasetError),
+    /// An output file could not be written.
+    #[error(transparent)]
+    Output(#[from] slam_dataset::output::OutputError),
     /// Something else is inconsistent (the message names the file).
     #[error("{0}")]
     Invalid(String),

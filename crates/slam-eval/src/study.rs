@@ -55,6 +55,15 @@ pub fn score_run_folder(dir: &Path, labels: &Path, config: &ScoreConfig) -> Resu
     Ok(score_run(&labels, &poses, &ids, &geometry, &objects, config))
 }
 
+/// [`score_run_folder`], its score written to `dir/objects_score.json`; returns the printed report and
+/// the line naming the file.
+pub fn score_run_folder_to_file(dir: &Path, labels: &Path, config: &ScoreConfig) -> Result<String, EvalError> {
+    let score = score_run_folder(dir, labels, config)?;
+    let out = dir.join("objects_score.json");
+    score.write_json(&out)?;
+    Ok(format!("{}wrote {}", score.report(), out.display()))
+}
+
 /// Load the image-free sequence in `dir` ([`LabelledSequence::load_dir`]), play its label boxes
 /// (perturbed by `noise`) through `mapper` and score the objects against the vehicles that meet
 /// `criteria`; `name` names the sequence in the score.
@@ -69,6 +78,31 @@ pub fn eval_sequence(
     let seq = LabelledSequence::load_dir(dir)?;
     let (mapper, truth) = run_mapper(&seq, noise, mapper);
     Ok(score_sequence(name, &seq, &mapper, &truth, criteria, image))
+}
+
+/// `slam-app objects`: the image-free sequence of `labels`, `poses` and `calib` played through `mapper`
+/// (label boxes perturbed by `noise`), its object map written to `out` (checked writable first, put in
+/// place whole); returns the summary line.
+pub fn map_to_file(
+    (labels, poses, calib): (&Path, &Path, &Path),
+    noise: &LabelNoise,
+    mapper: ObjectMapper,
+    out: &Path,
+) -> Result<String, EvalError> {
+    let file = slam_dataset::output::AtomicFile::new(out)?;
+    let seq = LabelledSequence::load(labels, poses, calib)?;
+    let (mapper, _) = run_mapper(&seq, noise, mapper);
+    let objs: Vec<_> = mapper.objects().collect();
+    file.write_with(|tmp| slam_pipeline::objects::write_object_map(tmp, &objs))?;
+    let with = objs.iter().filter(|o| o.ellipsoid.is_some()).count();
+    let dynamic = objs.iter().filter(|o| o.ellipsoid.is_some() && o.dynamic).count();
+    Ok(format!(
+        "{} frames, {} tracks, {with} objects with an ellipsoid ({dynamic} flagged dynamic), {} fits; wrote {}",
+        seq.poses.len(),
+        objs.len(),
+        mapper.fits(),
+        out.display()
+    ))
 }
 
 /// The image-free study over the sequence folders `seqs`: each played through a fresh mapper from

@@ -42,6 +42,14 @@ pub enum BenchError {
         /// The line read.
         line: String,
     },
+    /// A child process of `--generated` could not be run or gave no result line.
+    #[error("the {path} run gave no result: {message}")]
+    Child {
+        /// `dense` or `sparse`.
+        path: &'static str,
+        /// Why (the process's error output, or the error starting it).
+        message: String,
+    },
 }
 
 /// One anchor problem and the reference figures measured with Ceres 2.1.0 / GTSAM 4.3.0 on this
@@ -199,6 +207,65 @@ pub struct AnchorRun {
     pub median_wall: Duration,
     /// Median process CPU time of the solves, seconds.
     pub median_cpu: f64,
+}
+
+/// The whole anchor table: every anchor of `anchors` solved `reps` times with `optimizer`, files in
+/// `dir`; every printed line goes to `print` (a title, the header, one row per problem, the notes).
+pub fn anchor_table(
+    optimizer: &dyn Optimizer,
+    dir: &Path,
+    anchors: &[Anchor],
+    reps: usize,
+    print: &mut dyn FnMut(String),
+) -> Result<(), BenchError> {
+    print(format!(
+        "Optimiser benchmark, backend {:?}, on {} ({reps} timed runs each, median; single thread)",
+        optimizer.name(),
+        dir.display()
+    ));
+    print(anchor_table_header());
+    for a in anchors {
+        print(a.row(&run_anchor(optimizer, dir, a, reps)?));
+    }
+    print("ratio = our median time / the anchor's single-thread median (ANCHORS.md, another day: for a ratio measured in one sitting use tools/ceres-vs-ours.sh).".into());
+    print("cpu s = median process CPU time of the solve (steadier than wall time on a shared machine).".into());
+    print("BA: Options::default() (Ceres' defaults), points eliminated by Schur; pose graphs: Options::pose_graph(), vertex 0 fixed.".into());
+    Ok(())
+}
+
+/// The `--generated n` table: the sparse then the dense path of the reduced system, each solved in a
+/// child process of `exe` (so each peak memory is its own) started with `child_args(path)`, whose
+/// stdout holds the [`GeneratedRun`] line; `backend` is named in the title.
+pub fn generated_table(
+    exe: &Path,
+    child_args: &dyn Fn(&str) -> Vec<String>,
+    (n, iterations, backend): (usize, usize, &str),
+    print: &mut dyn FnMut(String),
+) -> Result<(), BenchError> {
+    print(format!(
+        "Generated stereo BA: {n} cameras (2 fixed), {GENERATED_POINTS_PER_CAMERA} points per camera seen by 4 cameras, seed {GENERATED_SEED}, {iterations} iterations, backend {backend:?}"
+    ));
+    print(generated_table_header());
+    let mut finals = Vec::new();
+    for path in ["sparse", "dense"] {
+        let out = std::process::Command::new(exe)
+            .args(child_args(path))
+            .output()
+            .map_err(|e| BenchError::Child { path, message: format!("running {}: {e}", exe.display()) })?;
+        let text = String::from_utf8_lossy(&out.stdout);
+        let Some(line) = text.lines().find(|l| l.starts_with("GENERATED ")) else {
+            let stderr = String::from_utf8_lossy(&out.stderr).trim().to_string();
+            return Err(BenchError::Child { path, message: format!("exit {:?}: {stderr}", out.status.code()) });
+        };
+        let r = GeneratedRun::parse(line)?;
+        finals.push(r.final_cost);
+        print(r.row(path));
+    }
+    if let [s, d] = finals[..] {
+        print(format!("final costs: sparse vs dense differ by {:.2e} (relative)", (s - d).abs() / d.abs()));
+    }
+    print("peak MiB: the process's peak resident memory (VmHWM); solver MiB: its growth during the solve.".into());
+    Ok(())
 }
 
 /// Solve `anchor` `reps` times (at least once) with `optimizer`.

@@ -8,7 +8,7 @@
 //! - [`bench`]: the `run-bench` and `track-bench` runs and table rows;
 //! - [`stereo`]: `stereo-check`, the rig's disparity offset in rounds;
 //! - [`inspect`]: `map` (a saved map's summary and exports) and `trajectory-eval`;
-//! - [`recall`]: `detect-recall`, the shipped detector's recall per input mode;
+//! - [`detect`]: `detect` (a detector over a folder into a detection file) and `detect-recall`;
 //! - [`settings`]: the run's settings from TOML over the libraries' defaults ([`RunConfig`]);
 //! - [`console`] (feature `console`): progress, Ctrl-C and stdout of a command-line program;
 //! - [`wiring`]: the implementations behind each seam by name ([`Wiring`]; `ValueEnum`s with `clap`).
@@ -18,10 +18,10 @@
 pub mod bench;
 #[cfg(feature = "console")]
 pub mod console;
+pub mod detect;
 pub mod detector;
 pub mod error;
 pub mod inspect;
-pub mod recall;
 pub mod report;
 pub mod run;
 pub mod settings;

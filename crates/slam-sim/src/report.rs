@@ -77,6 +77,37 @@ pub fn breakdown_table(cells: &[CellStats], config: &SweepConfig) -> String {
 }
 
 /// The cells as CSV (a header, one row per cell).
+/// The study's title line.
+pub fn title(config: &SweepConfig) -> String {
+    format!(
+        "Simulation study: master seed {} ({} objects x {} noise seeds = {} trials per cell)",
+        config.seed,
+        config.objects,
+        config.noise_seeds,
+        config.objects * config.noise_seeds
+    )
+}
+
+/// Every table of the study: one per geometry and noise kind, then the breakdown.
+pub fn tables(cells: &[CellStats], config: &SweepConfig) -> String {
+    let mut text = String::new();
+    for &g in &config.geometries {
+        for &k in &config.noise {
+            text.push_str(&noise_table(cells, g, k, &config.methods));
+        }
+    }
+    text + &breakdown_table(cells, config)
+}
+
+/// Entries the study writes into its output folder (`simulation.csv`, the `sim_*` plots, temporary
+/// files): a folder holding only these may be replaced.
+pub fn is_output_name(name: &str) -> bool {
+    name == "simulation.csv"
+        || (name.starts_with("sim_") && (name.ends_with(".svg") || name.ends_with(".png")))
+        || name.ends_with(".tmp")
+}
+
+/// The study as CSV, one row per cell.
 pub fn csv(cells: &[CellStats]) -> Result<String, csv::Error> {
     let mut w = csv::Writer::from_writer(Vec::new());
     w.write_record([
