@@ -115,17 +115,8 @@ pub struct SettingsArgs {
 impl SettingsArgs {
     /// The library defaults, overlaid by --config and the overriding options.
     pub fn load(&self) -> anyhow::Result<RunConfig> {
-        let mut cfg = RunConfig::load(self.config.as_deref())?;
-        if let Some(g) = self.keyframe_gap {
-            cfg.tracking.keyframe_max_gap = g as usize;
-        }
-        if self.no_ba {
-            cfg.mapping.bundle_adjustment = false;
-        }
-        if let Some(n) = self.detect_every {
-            cfg.system.detect_every = n as usize;
-        }
-        Ok(cfg)
+        let (gap, every) = (self.keyframe_gap.map(|g| g as usize), self.detect_every.map(|n| n as usize));
+        Ok(RunConfig::load(self.config.as_deref())?.with_overrides(gap, self.no_ba, every))
     }
 }
 

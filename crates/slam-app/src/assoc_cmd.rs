@@ -43,8 +43,8 @@ pub fn run(cmd: AssocCommand) -> anyhow::Result<()> {
 }
 
 fn sim(a: &SimArgs) -> anyhow::Result<()> {
-    crate::validate::count("--scenes", a.scenes as usize, 1, 100_000)?;
-    crate::validate::count("--frames", a.frames, 1, 1_000_000)?;
+    slam_core::check::count("--scenes", a.scenes as usize, 1, 100_000)?;
+    slam_core::check::count("--frames", a.frames, 1, 1_000_000)?;
     slam_assoc::study::simulated_table(a.scenes, a.frames, &mut |l| println!("{l}"));
     Ok(())
 }
@@ -55,7 +55,7 @@ fn kitti(a: &KittiArgs) -> anyhow::Result<()> {
         drop(slam_dataset::output::AtomicFile::new(p)?);
     }
     let dir = a.dir.clone().unwrap_or_else(|| crate::fixture("kitti_tracking"));
-    let seqs = crate::tracking_sequences(&dir)?;
+    let seqs = slam_dataset::folders::tracking_sequences(&dir)?;
     println!("{}", slam_eval::assoc::kitti_table_header(seqs.len(), &dir, a.seed));
     let csv = slam_eval::assoc::kitti_assoc_study(&seqs, a.seed, &mut |row| println!("{row}"))?;
     if let Some(path) = &a.csv {

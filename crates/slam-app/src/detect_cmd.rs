@@ -73,7 +73,7 @@ impl ModelArgs {
 /// A model error under the options' names.
 fn model_error(e: ModelError) -> anyhow::Error {
     match e {
-        ModelError::Invalid(v) => crate::validate::flag(v).into(),
+        ModelError::Invalid(v) => v.as_flag().into(),
         ModelError::TilesWithoutTiling(m) => {
             anyhow::anyhow!("--tiles is an option of --mode tiles, but --mode {m} was given")
         }

@@ -25,7 +25,6 @@ mod objects_cmd;
 mod optim_cmd;
 mod run_cmd;
 mod sim_cmd;
-mod validate;
 
 use std::{io::IsTerminal, path::PathBuf};
 
@@ -91,11 +90,6 @@ pub(crate) fn fixture(rel: &str) -> PathBuf {
         return local;
     }
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures").join(rel)
-}
-
-/// The sequence folders of an image-free KITTI tracking folder (`slam_dataset::folders`).
-pub(crate) fn tracking_sequences(dir: &std::path::Path) -> anyhow::Result<Vec<PathBuf>> {
-    Ok(slam_dataset::folders::tracking_sequences(dir)?)
 }
 
 fn main() -> std::process::ExitCode {

@@ -5,8 +5,9 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use clap::Args;
+use slam_core::check::InvalidValue;
 use slam_eval::{
-    labelled::{table_header, LabelNoise, VehicleCriteria},
+    labelled::{study_title, table_header, LabelNoise, VehicleCriteria},
     study::{eval_study, map_to_file},
 };
 use slam_pipeline::objects::{MapperConfig, ObjectMapper};
@@ -57,8 +58,8 @@ pub struct InputArgs {
 impl InputArgs {
     /// Range checks (before any file is read).
     fn check(&self) -> anyhow::Result<()> {
-        use crate::validate::{count, number, Range};
-        self.noise().validate().map_err(crate::validate::flag)?;
+        use slam_core::check::{count, number, Range};
+        self.noise().validate().map_err(InvalidValue::as_flag)?;
         number("--min-parallax-deg", self.min_parallax_deg, Range::closed(0.0, 90.0), "degrees")?;
         number("--dynamic-prior-sigmas", self.dynamic_prior_sigmas, Range::closed(0.0, 1.0e6), "(0: off)")?;
         if let Some(n) = self.without_parallax_after {
@@ -163,25 +164,16 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             a.static_m,
             a.moving_m
         ),
-        r => r.map_err(crate::validate::flag)?,
+        r => r.map_err(InvalidValue::as_flag)?,
     }
     let csv_out = a.csv.as_deref().map(slam_dataset::output::AtomicFile::new).transpose()?;
     let dir = a.dir.clone().unwrap_or_else(|| crate::fixture("kitti_tracking"));
     if dir.join("objects.json").is_file() && dir.join("trajectory.kitti.txt").is_file() {
         return eval_run_folder(&dir, a);
     }
-    let seqs = crate::tracking_sequences(&dir)?;
-    println!(
-        "Object metrics, label boxes as detections (noise {} of box size, dropout {}), {} + {}",
-        a.input.noise,
-        a.input.dropout,
-        a.input.associator.name(),
-        a.input.method.fit().name()
-    );
-    println!(
-        "GT: Car/Van tracks with >= {} frames whose world centre stays within {} m (static)",
-        a.min_frames, a.static_m
-    );
+    let seqs = slam_dataset::folders::tracking_sequences(&dir)?;
+    let (associator, method) = (a.input.associator.name(), a.input.method.fit());
+    println!("{}", study_title(&a.input.noise(), associator, method.name(), &criteria));
     println!("{}", table_header());
     let mut bar = slam_runner::console::Progress::new("eval", seqs.len() as u64, "sequences", false);
     let image = ImageSize::new(1242.0, 375.0);

@@ -35,10 +35,10 @@ pub struct OptimBenchArgs {
 }
 
 pub fn run(args: &OptimBenchArgs) -> anyhow::Result<()> {
-    crate::validate::count("--reps", args.reps, 1, 1000)?;
+    slam_core::check::count("--reps", args.reps, 1, 1000)?;
     if let Some(n) = args.generated {
-        crate::validate::count("--generated", n, 3, 100_000)?;
-        crate::validate::count("--iterations", args.iterations, 1, 1000)?;
+        slam_core::check::count("--generated", n, 3, 100_000)?;
+        slam_core::check::count("--iterations", args.iterations, 1, 1000)?;
         if let Some(path) = &args.generated_path {
             let optimizer = args.optimizer.build();
             println!("{}", bench::generated_solve(optimizer.as_ref(), n, args.iterations, path == "dense")?.line());

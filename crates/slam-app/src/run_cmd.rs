@@ -32,13 +32,10 @@ pub struct RunArgs {
 impl RunArgs {
     /// The effective settings, after the range checks of the options.
     fn settings(&self) -> anyhow::Result<RunConfig> {
-        use crate::validate::{count, number, Range};
-        if let Some(noise) = self.detector.label_noise {
-            number("--label-noise", noise, Range::closed(0.0, 1.0), "(σ as a share of the box size)")?;
-        }
         if let Some(n) = self.seq.max_frames {
-            count("--max-frames", n, 1, usize::MAX)?;
+            slam_core::check::count("--max-frames", n, 1, usize::MAX)?;
         }
+        self.detector.options().kind()?;
         self.detector.model.check()?;
         self.settings.load()
     }
@@ -67,21 +64,13 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
         print!("{}", cfg.to_commented_toml());
         return Ok(());
     }
-    a.detector.options().kind()?;
     // the output folder is written beside the old one and swapped in at the end; checked writable now
     catch_interrupt();
     let out = &a.output.out;
     let dir = slam_dataset::output::OutputDir::create(out, "--out", "run", run_output_name)?;
     let s = a.seq.run_settings(&cfg, &a.wiring, a.detector.choice()?, a.detector.labels.clone());
     let outcome = run_with_progress(&s);
-    let stop = |done: usize| {
-        let kept = if dir.target().exists() {
-            format!("{} keeps the previous run unchanged", out.display())
-        } else {
-            format!("{} was not created", out.display())
-        };
-        Interrupted(format!("Ctrl-C after {done} frames: nothing written, {kept}"))
-    };
+    let stop = |done: usize| Interrupted::nothing_written(done, out, dir.target().exists());
     if interrupted() {
         return Err(stop(outcome.as_ref().map_or(0, |o| o.out.counts.frames)).into());
     }
@@ -111,7 +100,7 @@ pub struct RunBenchArgs {
 /// shipped file, and with the shipped detector on every frame; medians over repeated runs.
 pub fn run_bench(b: &RunBenchArgs) -> anyhow::Result<()> {
     if let Some(n) = b.max_frames {
-        crate::validate::count("--max-frames", n, 1, usize::MAX)?;
+        slam_core::check::count("--max-frames", n, 1, usize::MAX)?;
     }
     let base = RunSettings::odometry_only(crate::fixture(crate::SHIPPED), &RunConfig::default(), b.max_frames);
     let file = crate::fixture("kitti_odom_06/detections/yolo_fastest_tiles3.json");
@@ -136,15 +125,10 @@ pub struct TrackBenchArgs {
 /// `slam-app track-bench`: the tracking dev table of issue 14 in one command, every case with
 /// `--detector none`. Accuracy figures are deterministic; frames/s depends on the machine's load.
 pub fn track_bench(b: &TrackBenchArgs) -> anyhow::Result<()> {
-    let mut cases = Vec::new();
-    if !b.only_cases {
-        let odometry = crate::fixture(crate::SHIPPED);
-        let raw = crate::fixture("kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync");
-        cases = bench::TrackCase::dev_cases(odometry, raw);
-    }
-    for c in &b.cases {
-        cases.push(bench::TrackCase::parse(c)?);
-    }
+    let raw = crate::fixture("kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync");
+    let dev = (!b.only_cases).then(|| bench::TrackCase::dev_cases(crate::fixture(crate::SHIPPED), raw));
+    let mut cases = dev.unwrap_or_default();
+    cases.extend(b.cases.iter().map(|c| bench::TrackCase::parse(c)).collect::<Result<Vec<_>, _>>()?);
     let base = RunSettings::odometry_only(crate::fixture(crate::SHIPPED), &RunConfig::load(b.config.as_deref())?, None);
     bench::track_bench(&base, &cases, &mut |l| println!("{l}"))?;
     Ok(())

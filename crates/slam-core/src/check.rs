@@ -20,6 +20,12 @@ impl InvalidValue {
     pub fn rename(self, key: impl Into<String>) -> Self {
         Self { key: key.into(), ..self }
     }
+
+    /// The same error under the command-line flag of its key (`min_frames` → `--min-frames`).
+    pub fn as_flag(self) -> Self {
+        let key = format!("--{}", self.key.replace('_', "-"));
+        self.rename(key)
+    }
 }
 
 /// An interval of valid values, printed in messages as `[lo, hi]`, `(lo, hi]`, ….
@@ -93,6 +99,12 @@ pub fn count(key: &str, v: usize, lo: usize, hi: usize) -> Result<(), InvalidVal
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_key_becomes_its_flag() {
+        let e = count("min_frames", 0, 1, 10).expect_err("out of range").as_flag();
+        assert_eq!(e.to_string(), "--min-frames 0: must be an integer in [1, 10]");
+    }
 
     #[test]
     fn messages_name_the_key_the_value_and_the_range() {

@@ -453,6 +453,16 @@ impl Row {
     }
 }
 
+/// The study's title: the detections (label boxes with `noise`), the associator and method named, and
+/// which vehicles count as ground truth.
+pub fn study_title(noise: &LabelNoise, associator: &str, method: &str, criteria: &VehicleCriteria) -> String {
+    format!(
+        "Object metrics, label boxes as detections (noise {} of box size, dropout {}), {associator} + {method}\n\
+         GT: Car/Van tracks with >= {} frames whose world centre stays within {} m (static)",
+        noise.noise, noise.dropout, criteria.min_frames, criteria.static_m
+    )
+}
+
 /// Column names of [`Row::table_line`], aligned alike.
 pub fn table_header() -> String {
     format!(

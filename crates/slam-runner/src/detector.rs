@@ -78,6 +78,10 @@ impl DetectorOptions {
     /// option of another source than the one named is an error that names both.
     pub fn kind(&self) -> Result<DetectorKind> {
         let invalid = |m: String| Err(RunnerError::Invalid(m));
+        if let Some(noise) = self.label_noise {
+            let share = slam_core::check::Range::closed(0.0, 1.0);
+            slam_core::check::number("--label-noise", noise, share, "(σ as a share of the box size)")?;
+        }
         let implied = match (&self.detections, self.label_noise) {
             (Some(_), Some(_)) => {
                 return invalid("--detections (detector file) and --label-noise (detector labels) conflict".into())
@@ -197,6 +201,8 @@ mod tests {
         let e = o(Some(DetectorKind::None), None, None, Some("--score")).kind().expect_err("conflict");
         assert!(e.to_string().contains("--score is an option of --detector dnn, but --detector none"), "{e}");
         assert!(o(None, Some("d.json"), Some(0.1), None).kind().is_err());
+        let e = o(None, None, Some(f64::NAN), None).kind().expect_err("NaN noise");
+        assert!(e.to_string().contains("--label-noise NaN: must be a finite number in [0, 1]"), "{e}");
         let network: NetworkLoader = Arc::new(|| Err("not loaded in this test".into()));
         let e = o(Some(DetectorKind::File), None, None, None).choice(network.clone()).expect_err("no file");
         assert!(e.to_string().contains("needs --detections"), "{e}");

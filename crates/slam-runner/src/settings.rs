@@ -51,6 +51,15 @@ impl RunConfig {
         path.map_or_else(|| Ok(Self::default()), Self::read)
     }
 
+    /// The command line's overrides of single keys: `tracking.keyframe_max_gap`, `mapping.bundle_adjustment`
+    /// off, `system.detect_every`.
+    pub fn with_overrides(mut self, keyframe_gap: Option<usize>, no_ba: bool, detect_every: Option<usize>) -> Self {
+        self.tracking.keyframe_max_gap = keyframe_gap.unwrap_or(self.tracking.keyframe_max_gap);
+        self.mapping.bundle_adjustment &= !no_ba;
+        self.system.detect_every = detect_every.unwrap_or(self.system.detect_every);
+        self
+    }
+
     /// Read a settings file; every value is checked ([`RunConfig::validate`]).
     pub fn read(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path).context_with(|| format!("cannot read {}", path.display()))?;
@@ -178,6 +187,10 @@ mod tests {
         let e = RunConfig::load(Some(&bad)).expect_err("unknown key");
         assert!(e.to_string().contains("bad.toml: invalid configuration"), "{e}");
         assert_eq!(RunConfig::load(None).expect("defaults").tracking, VoConfig::default());
+        let o = RunConfig::default().with_overrides(Some(7), true, Some(3));
+        assert_eq!((o.tracking.keyframe_max_gap, o.mapping.bundle_adjustment, o.system.detect_every), (7, false, 3));
+        let kept = RunConfig::default().with_overrides(None, false, None);
+        assert_eq!(kept.system(MapperConfig::default().image), SystemConfig::default(), "nothing overridden");
         std::fs::remove_dir_all(&dir).ok();
     }
 }

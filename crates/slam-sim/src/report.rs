@@ -76,7 +76,6 @@ pub fn breakdown_table(cells: &[CellStats], config: &SweepConfig) -> String {
     out
 }
 
-/// The cells as CSV (a header, one row per cell).
 /// The study's title line.
 pub fn title(config: &SweepConfig) -> String {
     format!(
@@ -107,7 +106,7 @@ pub fn is_output_name(name: &str) -> bool {
         || name.ends_with(".tmp")
 }
 
-/// The study as CSV, one row per cell.
+/// The cells as CSV (a header, one row per cell).
 pub fn csv(cells: &[CellStats]) -> Result<String, csv::Error> {
     let mut w = csv::Writer::from_writer(Vec::new());
     w.write_record([

@@ -19,6 +19,15 @@ impl std::fmt::Display for Interrupted {
 
 impl std::error::Error for Interrupted {}
 
+impl Interrupted {
+    /// A command that writes its output folder `out` whole at the end, stopped after `done` frames:
+    /// nothing was written, and the folder is as it was (`existed`) or was not created.
+    pub fn nothing_written(done: usize, out: &std::path::Path, existed: bool) -> Self {
+        let kept = if existed { "keeps the previous run unchanged" } else { "was not created" };
+        Interrupted(format!("Ctrl-C after {done} frames: nothing written, {} {kept}", out.display()))
+    }
+}
+
 static INTERRUPT: OnceLock<Arc<AtomicBool>> = OnceLock::new();
 
 /// Install the Ctrl-C handler (once): the first SIGINT sets the flag [`interrupted`] reads, a second one
