@@ -56,6 +56,17 @@ pub struct KeyframeData {
     pub earlier: Vec<(KeyframeId, KeyframePoint)>,
 }
 
+/// A stereo point of a tracked frame: where the stereo match puts it and where it was seen. Unlike a
+/// [`KeyframePoint`] it has no map identity (most points of a frame that is not a keyframe never
+/// become map points); the pipeline uses them for per-frame object depth.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FramePoint {
+    /// Position in the frame's left-camera frame, metres (from the stereo disparity).
+    pub camera_point: Vector3<f64>,
+    /// Observation `[u_left, v, u_right]`, pixels.
+    pub observation: [f64; 3],
+}
+
 /// Tracking outcome of a frame.
 ///
 /// Only [`Initialised`](Self::Initialised), [`Tracked`](Self::Tracked), [`Weak`](Self::Weak) and
@@ -142,6 +153,9 @@ pub struct TrackedFrame {
     pub state: TrackState,
     /// Stereo points found in this frame.
     pub stereo_points: usize,
+    /// Those stereo points (empty from a tracker that does not hand them over): the pipeline reads the
+    /// depth of detected objects from them in every frame, not only on keyframes.
+    pub points: Vec<FramePoint>,
     /// Map points matched in this frame and kept by the pose refinement (reference keyframe and local
     /// map together; 0 when no pose was accepted).
     pub tracked_map_points: usize,

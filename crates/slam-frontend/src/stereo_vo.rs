@@ -14,8 +14,8 @@ use std::time::Instant;
 use nalgebra::{DMatrix, Isometry3, Matrix3, Vector3};
 use opencv::{calib3d, core, features2d, prelude::*};
 use slam_core::{
-    geometry::BBox, Image, KeyframeCorrection, KeyframeData, KeyframeId, KeyframePoint, PointId, PointPair, StageTimes,
-    StereoTracker, TrackError, TrackState, TrackedFrame,
+    geometry::BBox, FramePoint, Image, KeyframeCorrection, KeyframeData, KeyframeId, KeyframePoint, PointId, PointPair,
+    StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
 };
 use slam_optim::{
     factors::{MonoReprojection, PosePrior, StereoReprojection},
@@ -205,6 +205,11 @@ struct Frame {
 }
 
 impl Frame {
+    /// The stereo points as the pipeline sees them.
+    fn stereo_points(&self) -> Vec<FramePoint> {
+        self.points.iter().zip(&self.obs).map(|(p, o)| FramePoint { camera_point: *p, observation: *o }).collect()
+    }
+
     /// The keypoint of each point.
     fn point_keypoints(&self) -> Vec<usize> {
         let mut of = vec![usize::MAX; self.points.len()];
@@ -1428,9 +1433,11 @@ impl StereoVo {
         let t2 = Instant::now();
         let times = |t3: Instant| StageTimes { extraction, stereo, tracking: (t3 - t2).as_secs_f64() * 1e3 };
         let stereo_points = frame.points.len();
+        let points = frame.stereo_points();
         let Some(reference) = self.reference.as_ref() else {
             let mut tf = self.initialise(frame, frame_index);
             tf.times = times(Instant::now());
+            tf.points = points;
             return Ok(tf);
         };
         let (ref_id, world_from_ref) = (reference.id, reference.world_from_kf);
@@ -1489,6 +1496,7 @@ impl StereoVo {
             reference,
             state,
             stereo_points,
+            points,
             tracked_map_points,
             reprojection_rms_px: rms,
             keyframe,
@@ -1534,6 +1542,7 @@ impl StereoVo {
             reference: (kf.id, Isometry3::identity()),
             state: TrackState::Initialised,
             stereo_points,
+            points: Vec::new(),
             tracked_map_points: 0,
             reprojection_rms_px: f64::NAN,
             keyframe: Some(kf),

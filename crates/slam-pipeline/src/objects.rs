@@ -689,46 +689,54 @@ impl ObjectMapper {
     }
 
     /// Attach map points seen inside the object's latest box and where they put the object (callers pass
-    /// `None` when too few points support it); flags the object as moving when that centroid lies more
-    /// than `dynamic_motion_sigmas` standard deviations from the median of its earlier centroids.
+    /// `None` when too few points support it); flags the object as moving when its stereo points have
+    /// carried it away from where they first put it.
+    ///
+    /// The test compares where the points put the object now with where they put it at the start of
+    /// its track: the component-wise medians of the latest and of the first [`MOTION_WINDOW`]
+    /// centroids (a median of a few frames, so that one centroid on the wrong surface decides
+    /// nothing). Comparing with the first views, not with all earlier ones, makes the test see a steady
+    /// motion as soon as it has carried the object out of the noise: a median of every earlier centroid
+    /// would trail the object by half its track.
     ///
     /// The displacement `d` is split along the latest viewing ray and across it. Along the ray its σ
-    /// combines the stereo depth noise of both centroids (`σ_z = z² σ_d / (f b)`) with the wander of the
+    /// combines the stereo depth noise of both medians (`σ_z = z² σ_d / (f b)`) with the wander of the
     /// visible surface over the object (`s = a / √3`, the σ of a point uniform over the class's
     /// half-length `a`: which side of a car is seen changes with the view); across the ray, `s` and the
-    /// earlier centroids' depth noise (the ray turns as the camera passes). A static object stays
-    /// within a few σ whatever its depth; a car driving ahead at the camera's speed keeps its depth,
-    /// so its centroid moves with the camera and leaves them.
+    /// first views' depth noise (the ray turns as the camera passes). A static object stays within a
+    /// few σ whatever its depth, since its visible surface cannot leave the object; a car driving ahead
+    /// at the camera's speed keeps its depth, so its points move with the camera and leave them. The
+    /// object is flagged after two failing tests in a row.
     pub fn add_points(&mut self, id: TrackId, points: &[PointId], centroid: Option<PointsCentroid>) {
         let cfg = self.config;
         let Some(obj) = self.objects.get_mut(&id) else { return };
         obj.points.extend(points.iter().copied());
-        let earlier: Vec<(Vector3<f64>, f64)> =
-            obj.observations.iter().filter_map(|o| o.centroid.map(|c| (c, o.depth_sigma))).collect();
         let class = obj.class;
         let Some(last) = obj.observations.last_mut() else { return };
         last.centroid = centroid.map(|c| c.position);
         last.depth_sigma = centroid.map_or(0.0, |c| c.depth_sigma);
         tracing::trace!(object = %id, frame = last.frame, bbox = ?last.bbox, ?centroid, points = points.len(), "object points");
-        let (Some(c), false) = (centroid, earlier.is_empty()) else { return };
-        let median = |v: &mut Vec<f64>| {
-            v.sort_by(|a, b| a.total_cmp(b));
-            v[v.len() / 2]
-        };
-        let axis = |k: usize| median(&mut earlier.iter().map(|p| p.0[k]).collect());
-        let reference = Vector3::new(axis(0), axis(1), axis(2));
-        let reference_sigma = median(&mut earlier.iter().map(|p| p.1).collect());
-        let Some(ray) = (c.position - last.camera.world_from_camera.translation.vector).try_normalize(1e-9) else {
+        let camera = last.camera.world_from_camera.translation.vector;
+        if centroid.is_none() {
+            return;
+        }
+        let all: Vec<(usize, Vector3<f64>, f64)> =
+            obj.observations.iter().filter_map(|o| o.centroid.map(|c| (o.frame, c, o.depth_sigma))).collect();
+        if all.len() < MIN_MOTION_CENTROIDS {
+            return;
+        }
+        let k = MOTION_WINDOW.min(all.len() / 2);
+        let (first, now) = (median_sigma(&all[..k]), median_sigma(&all[all.len() - k..]));
+        let d = trend(&all);
+        let Some(ray) = (all[all.len() - 1].1 - camera).try_normalize(1e-9) else {
             return;
         };
-        let d = c.position - reference;
         let along = d.dot(&ray);
         let across = (d - ray * along).norm();
         let s = class_prior(class).axes.x / 3f64.sqrt();
-        let sigma_along = (c.depth_sigma.powi(2) + reference_sigma.powi(2) + s * s).sqrt();
-        let sigma_across = (reference_sigma.powi(2) + s * s).sqrt();
+        let sigma_along = (now.powi(2) + first.powi(2) + s * s).sqrt();
+        let sigma_across = (first.powi(2) + s * s).sqrt();
         let m = ((along / sigma_along).powi(2) + (across / sigma_across).powi(2)).sqrt();
-        // two keyframes in a row: one centroid on the wrong surface must not condemn a parked car
         obj.motion_strikes = if m > cfg.dynamic_motion_sigmas { obj.motion_strikes + 1 } else { 0 };
         if obj.motion_strikes >= 2 && !obj.moving {
             tracing::info!(
@@ -785,9 +793,10 @@ impl ObjectMapper {
             obj.ellipsoid = Some(e);
             // with stereo points, the points' motion is the dynamic cue and their agreement with the
             // ellipsoid (above) the gate; box misfit and odd size (boxes cut by the border, parts)
-            // decide only until two centroids let the points' motion be measured
+            // decide only until the motion test has centroids enough to judge
             let centroids = obj.observations.iter().filter(|o| o.centroid.is_some()).count();
-            obj.dynamic = obj.moving || (result.dynamic && (!self.config.stereo_evidence || centroids < 2));
+            obj.dynamic =
+                obj.moving || (result.dynamic && (!self.config.stereo_evidence || centroids < MIN_MOTION_CENTROIDS));
         }
         self.merge_duplicates(id);
     }
@@ -904,6 +913,55 @@ fn stereo_agrees(obj: &MappedObject, e: &Ellipsoid, sigmas: f64) -> Result<(), S
     }
     Ok(())
 }
+
+/// Centroids at each end of an object's track whose depth noise the motion test takes for the
+/// track's ends (see [`ObjectMapper::add_points`]).
+pub const MOTION_WINDOW: usize = 3;
+
+/// Fewest centroids the motion test reads: with four, the repeated median still holds when one of
+/// them lies on another object.
+const MIN_MOTION_CENTROIDS: usize = 4;
+
+/// Median depth σ of centroids.
+fn median_sigma(c: &[(usize, Vector3<f64>, f64)]) -> f64 {
+    let mut v: Vec<f64> = c.iter().map(|p| p.2).collect();
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+/// The displacement of an object over its track that its centroids' trend explains: the repeated-
+/// median slope (Siegel's estimator, per world axis: for each centroid the median of its slopes to
+/// every other, then the median of those) times the frames the track spans. A robust trend: up to
+/// half of the centroids can lie on another object (a box that slid onto a car passing in front)
+/// without moving it, and the noise of single frames averages out.
+fn trend(c: &[(usize, Vector3<f64>, f64)]) -> Vector3<f64> {
+    // the latest centroids: the slope is the object's motion now, and the pairs stay few
+    let c = &c[c.len().saturating_sub(TREND_CENTROIDS)..];
+    let span = (c[c.len() - 1].0 - c[0].0) as f64;
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(|a, b| a.total_cmp(b));
+        v[v.len() / 2]
+    };
+    let slope = |k: usize| {
+        let mut per_point: Vec<f64> = c
+            .iter()
+            .filter_map(|a| {
+                let mut to_others: Vec<f64> =
+                    c.iter().filter(|b| b.0 != a.0).map(|b| (b.1[k] - a.1[k]) / (b.0 as f64 - a.0 as f64)).collect();
+                (!to_others.is_empty()).then(|| median(&mut to_others))
+            })
+            .collect();
+        if per_point.is_empty() {
+            0.0
+        } else {
+            median(&mut per_point)
+        }
+    };
+    Vector3::new(slope(0), slope(1), slope(2)) * span
+}
+
+/// Most centroids [`trend`] reads (the latest ones): 30 frames, three seconds of KITTI.
+const TREND_CENTROIDS: usize = 30;
 
 fn box_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid, shape: BoxShape) -> Option<f64> {
     let mut sum = 0.0;

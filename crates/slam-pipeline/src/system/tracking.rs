@@ -7,7 +7,7 @@ use crossbeam_channel::{Receiver, Sender};
 use nalgebra::{Isometry3, Point3, Vector3};
 use slam_core::{
     geometry::{BBox, Camera, ImageSize, Intrinsics},
-    ClassId, DetectError, Detection, KeyframeData, StereoTracker, TrackState, TrackedFrame,
+    ClassId, DetectError, Detection, FramePoint, KeyframePoint, StereoTracker, TrackState, TrackedFrame,
 };
 
 use super::{
@@ -274,8 +274,8 @@ impl Tracking {
             if kf.parent.is_none() && kf.id > 0 {
                 self.counts.new_segments += 1;
             }
-            self.attach_points(kf, detections, &tracks);
         }
+        self.attach_points(tf, detections, &tracks);
         let objects = &self.objects;
         self.moving_boxes = detections
             .iter()
@@ -292,8 +292,11 @@ impl Tracking {
         tracks
     }
 
-    /// Give each associated object the keyframe's stereo points on it (and where they put it).
-    fn attach_points(&mut self, kf: &KeyframeData, detections: &[Detection], tracks: &[Option<slam_core::TrackId>]) {
+    /// Give each associated object its stereo points in this frame and where they put it: the centroid
+    /// from the frame's stereo points in every measured frame (the motion test and the stereo evidence
+    /// then do not depend on which frames became keyframes), the map-point ids on a keyframe. A tracker
+    /// that hands over no frame points gives centroids on keyframes only.
+    fn attach_points(&mut self, tf: &TrackedFrame, detections: &[Detection], tracks: &[Option<slam_core::TrackId>]) {
         let c = &self.config;
         let geometry = PointGeometry {
             core: c.object_core,
@@ -302,12 +305,47 @@ impl Tracking {
             disparity_sigma: c.disparity_sigma_px,
             image: c.objects.image,
         };
+        let measured = tf.state.is_measured();
         for (d, t) in detections.iter().zip(tracks) {
-            if let Some(id) = t {
-                let (pts, centroid) = object_points(kf, &d.bbox, d.class, &geometry);
-                self.objects.add_points(*id, &pts, centroid);
+            let Some(id) = t else { continue };
+            let on_keyframe =
+                tf.keyframe.as_ref().map(|kf| object_points(&kf.points, &kf.world_from_camera, d, &geometry));
+            let centroid = match (&on_keyframe, measured && !tf.points.is_empty()) {
+                (_, true) => object_points(&tf.points, &tf.world_from_camera, d, &geometry).1,
+                (Some((_, c)), false) => *c,
+                (None, false) => None,
+            };
+            let ids: Vec<u64> = on_keyframe.map(|(kept, _)| kept.iter().map(|p| p.id).collect()).unwrap_or_default();
+            if tf.keyframe.is_some() || centroid.is_some() {
+                self.objects.add_points(*id, &ids, centroid);
             }
         }
+    }
+}
+
+/// A stereo point as the object cues read it: a keyframe's (with its map-point id) or a frame's.
+trait BoxPoint {
+    /// `[u_left, v, u_right]`, pixels.
+    fn observation(&self) -> [f64; 3];
+    /// Position in the left-camera frame, metres.
+    fn camera_point(&self) -> Vector3<f64>;
+}
+
+impl BoxPoint for KeyframePoint {
+    fn observation(&self) -> [f64; 3] {
+        self.observation
+    }
+    fn camera_point(&self) -> Vector3<f64> {
+        self.camera_point
+    }
+}
+
+impl BoxPoint for FramePoint {
+    fn observation(&self) -> [f64; 3] {
+        self.observation
+    }
+    fn camera_point(&self) -> Vector3<f64> {
+        self.camera_point
     }
 }
 
@@ -335,7 +373,8 @@ struct PointGeometry {
     image: ImageSize,
 }
 
-/// The stereo points of a keyframe that lie on the object of a box, and where they put it.
+/// The stereo points (of a keyframe or a frame, taken at `world_from_camera`) that lie on the object
+/// of a detection, and where they put it.
 ///
 /// Candidates: points inside the central part of the box (`core` of its width and height) whose depth
 /// fits the box height for some height the class can have (no near limit for a box cut by the image
@@ -344,15 +383,20 @@ struct PointGeometry {
 /// spans its length in depth) and `σ_z = z² σ_d / (f b)` the stereo depth noise; the object is the
 /// nearest window holding at least half as many points as the densest one (it hides what lies behind
 /// it). The centroid is the points' median world position (`None` below [`MIN_OBJECT_POINTS`] points).
-fn object_points(kf: &KeyframeData, b: &BBox, class: ClassId, g: &PointGeometry) -> (Vec<u64>, Option<PointsCentroid>) {
+fn object_points<'a, P: BoxPoint>(
+    points: &'a [P],
+    world_from_camera: &Isometry3<f64>,
+    d: &Detection,
+    g: &PointGeometry,
+) -> (Vec<&'a P>, Option<PointsCentroid>) {
     let sigma_z = |z: f64| z * z * g.disparity_sigma / (g.k.fx * g.baseline);
-    let cand = box_candidates(kf, b, class, g);
-    let half_length = class_prior(class).axes.x;
+    let cand = box_candidates(points, &d.bbox, d.class, g);
+    let half_length = class_prior(d.class).axes.x;
     let windows: Vec<usize> = (0..cand.len())
         .map(|i| {
-            let z0 = cand[i].camera_point.z;
+            let z0 = cand[i].camera_point().z;
             let top = z0 + 2.0 * half_length.max(2.0 * sigma_z(z0));
-            cand[i..].iter().take_while(|p| p.camera_point.z <= top).count()
+            cand[i..].iter().take_while(|p| p.camera_point().z <= top).count()
         })
         .collect();
     // the nearest window holding at least half as many points as the densest one: the object hides
@@ -360,45 +404,47 @@ fn object_points(kf: &KeyframeData, b: &BBox, class: ClassId, g: &PointGeometry)
     let densest = windows.iter().copied().max().unwrap_or(0);
     let best =
         windows.iter().position(|&n| n >= MIN_OBJECT_POINTS && 2 * n >= densest).map_or((0, 0), |i| (windows[i], i));
-    let kept: Vec<(u64, Vector3<f64>, f64)> = cand[best.1..best.1 + best.0]
+    let kept = &cand[best.1..best.1 + best.0];
+    let world: Vec<(Vector3<f64>, f64)> = kept
         .iter()
-        .map(|p| (p.id, (kf.world_from_camera * Point3::from(p.camera_point)).coords, p.camera_point.z))
+        .map(|p| ((world_from_camera * Point3::from(p.camera_point())).coords, p.camera_point().z))
         .collect();
     let median = |mut v: Vec<f64>| {
         v.sort_by(|a, b| a.total_cmp(b));
         v[v.len() / 2]
     };
     // a centroid needs a few points: one stray point of the background would fake a motion
-    let centroid = (kept.len() >= MIN_OBJECT_POINTS).then(|| {
-        let m = |k: usize| median(kept.iter().map(|p| p.1[k]).collect());
+    let centroid = (world.len() >= MIN_OBJECT_POINTS).then(|| {
+        let m = |k: usize| median(world.iter().map(|p| p.0[k]).collect());
         PointsCentroid {
             position: Vector3::new(m(0), m(1), m(2)),
-            depth_sigma: sigma_z(median(kept.iter().map(|p| p.2).collect())),
+            depth_sigma: sigma_z(median(world.iter().map(|p| p.1).collect())),
         }
     });
-    (kept.iter().map(|p| p.0).collect(), centroid)
+    (kept.to_vec(), centroid)
 }
 
-/// The keyframe's points inside the box's core at a depth its height allows for the class, nearest
-/// first (ties by id).
-fn box_candidates<'a>(
-    kf: &'a KeyframeData,
-    b: &BBox,
-    class: ClassId,
-    g: &PointGeometry,
-) -> Vec<&'a slam_core::KeyframePoint> {
+/// The points inside the box's core at a depth its height allows for the class, nearest first (ties
+/// in input order).
+fn box_candidates<'a, P: BoxPoint>(points: &'a [P], b: &BBox, class: ClassId, g: &PointGeometry) -> Vec<&'a P> {
     let (cx, cy) = (0.5 * (b.xmin + b.xmax), 0.5 * (b.ymin + b.ymax));
     let (hw, hh) = (0.5 * g.core * (b.xmax - b.xmin), 0.5 * g.core * (b.ymax - b.ymin));
     let (hmin, hmax) = height_range(class);
     let bh = b.height().max(1.0);
     let cut = b.touches_border(&g.image, 2.0);
     let (near, far) = (if cut { 0.0 } else { g.k.fy * hmin / bh }, g.k.fy * hmax / bh);
-    let mut cand: Vec<&slam_core::KeyframePoint> = kf
-        .points
+    let mut cand: Vec<&P> = points
         .iter()
-        .filter(|p| (p.observation[0] - cx).abs() <= hw && (p.observation[1] - cy).abs() <= hh)
-        .filter(|p| p.camera_point.z > 0.0 && (near..=far).contains(&p.camera_point.z))
+        .filter(|p| {
+            let o = p.observation();
+            (o[0] - cx).abs() <= hw && (o[1] - cy).abs() <= hh
+        })
+        .filter(|p| {
+            let z = p.camera_point().z;
+            z > 0.0 && (near..=far).contains(&z)
+        })
         .collect();
-    cand.sort_by(|a, b| a.camera_point.z.total_cmp(&b.camera_point.z).then(a.id.cmp(&b.id)));
+    // stable sort: equal depths keep the input order (a keyframe's points come in id order)
+    cand.sort_by(|a, b| a.camera_point().z.total_cmp(&b.camera_point().z));
     cand
 }

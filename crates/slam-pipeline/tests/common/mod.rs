@@ -7,8 +7,8 @@
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use slam_core::{
-    geometry::BBox, ClassId, DetectError, Detection, DetectionSource, Image, KeyframeCorrection, KeyframeData,
-    KeyframePoint, PointPair, StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
+    geometry::BBox, ClassId, DetectError, Detection, DetectionSource, FramePoint, Image, KeyframeCorrection,
+    KeyframeData, KeyframePoint, PointPair, StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
 };
 use slam_pipeline::system::FrameInput;
 use slam_quadric::{project, Camera, Ellipsoid, ImageSize, Intrinsics};
@@ -132,6 +132,11 @@ impl StereoTracker for ScriptedTracker {
             reference: (ref_id, if frame == 0 { Isometry3::identity() } else { relative }),
             state: if frame == 0 { TrackState::Initialised } else { TrackState::Tracked { inliers: 100 } },
             stereo_points: 100,
+            points: self
+                .observations(frame, (self.scene.truth)(frame))
+                .into_iter()
+                .map(|p| FramePoint { camera_point: p.camera_point, observation: p.observation })
+                .collect(),
             tracked_map_points: 100,
             reprojection_rms_px: 0.5,
             keyframe,
