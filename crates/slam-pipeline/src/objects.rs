@@ -1054,6 +1054,41 @@ pub fn write_object_map_in(path: &Path, objects: &[&MappedObject], frame: &str) 
 mod tests {
     use super::*;
 
+    /// Centroids of frames `0..n`: `at(i)` each, with a seeded jitter of ±`noise` metres per axis.
+    fn centroids(n: usize, noise: f64, at: impl Fn(usize) -> Vector3<f64>) -> Vec<(usize, Vector3<f64>, f64)> {
+        let mut rng = slam_core::rng::SimRng::new(7);
+        (0..n)
+            .map(|i| {
+                let jitter =
+                    Vector3::new(rng.uniform(-noise, noise), rng.uniform(-noise, noise), rng.uniform(-noise, noise));
+                (i, at(i) + jitter, 0.4)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn trend_sees_a_steady_motion_and_not_centroids_on_another_object() {
+        // a van driving ahead: 0.45 m per frame away from the camera, 0.2 m of depth noise
+        let moving = centroids(12, 0.2, |i| Vector3::new(-4.0, 1.0, 11.0 + 0.45 * i as f64));
+        let d = trend(&moving);
+        assert!((d.z - 0.45 * 11.0).abs() < 0.5 && d.x.abs() < 0.5, "{d:?}");
+        // a parked van 40 m ahead whose box slid onto a car passing 20 m nearer in the two latest frames
+        // (two of five, then two of eight): the trend stays put; a least-squares slope would not
+        for n in [5, 8] {
+            let parked = centroids(n, 0.3, |i| Vector3::new(-13.3, 1.2, if i + 2 >= n { 21.0 } else { 40.0 }));
+            let d = trend(&parked);
+            // far inside what the motion test allows a static car (3 σ, over 3.6 m from its size alone)
+            assert!(d.norm() < 2.0, "{n} centroids: {d:?}");
+            let (t, z): (Vec<f64>, Vec<f64>) = parked.iter().map(|c| (c.0 as f64, c.1.z)).unzip();
+            let (tm, zm) = (t.iter().sum::<f64>() / n as f64, z.iter().sum::<f64>() / n as f64);
+            let ls = t.iter().zip(&z).map(|(a, b)| (a - tm) * (b - zm)).sum::<f64>()
+                / t.iter().map(|a| (a - tm).powi(2)).sum::<f64>();
+            assert!((ls * (n - 1) as f64).abs() > 3.0, "least squares is pulled by the other object: {ls}");
+        }
+        // one centroid and none: no trend
+        assert_eq!(trend(&moving[..1]), Vector3::zeros());
+    }
+
     #[test]
     fn one_box_per_object_across_tiles_parts_and_class_groups() {
         let d = |class: u16, score: f64, b: [f64; 4]| {
