@@ -264,3 +264,28 @@ fn a_black_frame_is_lost_and_the_next_frames_relocalise() {
     }
     assert!(black[14..].iter().all(|(_, s)| matches!(s, TrackState::Tracked { .. })), "{black:?}");
 }
+
+/// Every tracked frame hands over its stereo points (not only keyframes): as many as it counts, each
+/// where its observation puts it (`z = f b / (u_l − u_r)`, `x`, `y` by the left ray), in front of the
+/// camera.
+#[test]
+fn every_frame_hands_over_its_stereo_points() {
+    let mut vo = kitti_vo();
+    let (f, b, cx, cy) = (707.0912, 379.8145 / 707.0912, 601.8873, 183.1104);
+    let mut without_keyframe = 0;
+    for i in 0..4 {
+        let (l, r) = kitti_frame(i);
+        let t = vo.track(i, &l, &r, &[]).expect("tracks");
+        assert_eq!(t.points.len(), t.stereo_points, "frame {i}");
+        assert!(t.points.len() > 200, "frame {i}: {} stereo points", t.points.len());
+        without_keyframe += usize::from(t.keyframe.is_none());
+        for p in &t.points {
+            let [ul, v, ur] = p.observation;
+            let z = f * b / (ul - ur);
+            let c = p.camera_point;
+            assert!(c.z > 0.0 && (c.z - z).abs() < 1e-6 * z.max(1.0), "frame {i}: {p:?}");
+            assert!((c.x - (ul - cx) * z / f).abs() < 1e-6 * z && (c.y - (v - cy) * z / f).abs() < 1e-6 * z, "{p:?}");
+        }
+    }
+    assert!(without_keyframe > 0, "the check covers frames that are not keyframes");
+}
