@@ -12,6 +12,7 @@
 
 use std::{collections::BTreeMap, path::Path, sync::Arc};
 
+use crate::report::median;
 use nalgebra::{Vector3, Vector4};
 use serde::Serialize;
 use slam_assoc::{ObjectTracker, TrackerConfig, TrackerInput};
@@ -692,15 +693,15 @@ impl ObjectMapper {
     /// `None` when too few points support it); flags the object as moving when its stereo points have
     /// carried it away from where they first put it.
     ///
-    /// The test compares where the points put the object now with where they put it at the start of
-    /// its track: the component-wise medians of the latest and of the first [`MOTION_WINDOW`]
-    /// centroids (a median of a few frames, so that one centroid on the wrong surface decides
-    /// nothing). Comparing with the first views, not with all earlier ones, makes the test see a steady
-    /// motion as soon as it has carried the object out of the noise: a median of every earlier centroid
-    /// would trail the object by half its track.
+    /// The displacement `d` is the robust trend of the object's centroids ([`trend`]: a repeated-median
+    /// slope over the latest centroids times the frames they span), read once the object has
+    /// [`MIN_MOTION_CENTROIDS`]. A trend, not the distance of the latest centroid from the median of
+    /// the earlier ones: that median trails a steady motion by half the track, and one centroid on the
+    /// wrong surface moves neither the trend nor the test.
     ///
-    /// The displacement `d` is split along the latest viewing ray and across it. Along the ray its σ
-    /// combines the stereo depth noise of both medians (`σ_z = z² σ_d / (f b)`) with the wander of the
+    /// `d` is split along the latest viewing ray and across it. Along the ray its σ combines the stereo
+    /// depth noise (`σ_z = z² σ_d / (f b)`, the median over the first and over the latest
+    /// [`MOTION_WINDOW`] centroids of the track) with the wander of the
     /// visible surface over the object (`s = a / √3`, the σ of a point uniform over the class's
     /// half-length `a`: which side of a car is seen changes with the view); across the ray, `s` and the
     /// first views' depth noise (the ray turns as the camera passes). A static object stays within a
@@ -894,13 +895,9 @@ impl ObjectMapper {
 fn stereo_agrees(obj: &MappedObject, e: &Ellipsoid, sigmas: f64) -> Result<(), String> {
     let with: Vec<&Observation> = obj.observations.iter().filter(|o| o.centroid.is_some()).collect();
     let Some(last) = with.last() else { return Err("no stereo points on it".into()) };
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(|a, b| a.total_cmp(b));
-        v[v.len() / 2]
-    };
-    let axis = |k: usize| median(with.iter().filter_map(|o| o.centroid.map(|c| c[k])).collect());
+    let axis = |k: usize| median(&mut with.iter().filter_map(|o| o.centroid.map(|c| c[k])).collect::<Vec<_>>());
     let c = Vector3::new(axis(0), axis(1), axis(2));
-    let sigma_z = median(with.iter().map(|o| o.depth_sigma).collect());
+    let sigma_z = median(&mut with.iter().map(|o| o.depth_sigma).collect::<Vec<_>>());
     let ray =
         (c - last.camera.world_from_camera.translation.vector).try_normalize(1e-9).ok_or("centroid at the camera")?;
     let d = e.centre() - c;
@@ -924,9 +921,7 @@ const MIN_MOTION_CENTROIDS: usize = 4;
 
 /// Median depth σ of centroids.
 fn median_sigma(c: &[(usize, Vector3<f64>, f64)]) -> f64 {
-    let mut v: Vec<f64> = c.iter().map(|p| p.2).collect();
-    v.sort_by(|a, b| a.total_cmp(b));
-    v[v.len() / 2]
+    median(&mut c.iter().map(|p| p.2).collect::<Vec<_>>())
 }
 
 /// The displacement of an object over its track that its centroids' trend explains: the repeated-
@@ -938,19 +933,16 @@ fn trend(c: &[(usize, Vector3<f64>, f64)]) -> Vector3<f64> {
     // the latest centroids: the slope is the object's motion now, and the pairs stay few
     let c = &c[c.len().saturating_sub(TREND_CENTROIDS)..];
     let span = (c[c.len() - 1].0 - c[0].0) as f64;
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(|a, b| a.total_cmp(b));
-        v[v.len() / 2]
-    };
-    let slope = |k: usize| {
-        let mut per_point: Vec<f64> = c
-            .iter()
-            .filter_map(|a| {
-                let mut to_others: Vec<f64> =
-                    c.iter().filter(|b| b.0 != a.0).map(|b| (b.1[k] - a.1[k]) / (b.0 as f64 - a.0 as f64)).collect();
-                (!to_others.is_empty()).then(|| median(&mut to_others))
-            })
-            .collect();
+    let (mut to_others, mut per_point) = (Vec::with_capacity(c.len()), Vec::with_capacity(c.len()));
+    let mut slope = |k: usize| {
+        per_point.clear();
+        for a in c {
+            to_others.clear();
+            to_others.extend(c.iter().filter(|b| b.0 != a.0).map(|b| (b.1[k] - a.1[k]) / (b.0 as f64 - a.0 as f64)));
+            if !to_others.is_empty() {
+                per_point.push(median(&mut to_others));
+            }
+        }
         if per_point.is_empty() {
             0.0
         } else {

@@ -17,6 +17,7 @@ use super::{
 use crate::{
     map::{pose_to_array, FramePose},
     objects::{class_prior, suppress_duplicate_boxes, ObjectMapper, PointsCentroid},
+    report::median,
 };
 
 /// The tracking thread's state: what one [`Tracking::step`] per frame reads and updates.
@@ -409,16 +410,12 @@ fn object_points<'a, P: BoxPoint>(
         .iter()
         .map(|p| ((world_from_camera * Point3::from(p.camera_point())).coords, p.camera_point().z))
         .collect();
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(|a, b| a.total_cmp(b));
-        v[v.len() / 2]
-    };
     // a centroid needs a few points: one stray point of the background would fake a motion
     let centroid = (world.len() >= MIN_OBJECT_POINTS).then(|| {
-        let m = |k: usize| median(world.iter().map(|p| p.0[k]).collect());
+        let m = |k: usize| median(&mut world.iter().map(|p| p.0[k]).collect::<Vec<_>>());
         PointsCentroid {
             position: Vector3::new(m(0), m(1), m(2)),
-            depth_sigma: sigma_z(median(world.iter().map(|p| p.1).collect())),
+            depth_sigma: sigma_z(median(&mut world.iter().map(|p| p.1).collect::<Vec<_>>())),
         }
     });
     (kept.to_vec(), centroid)
