@@ -701,7 +701,7 @@ impl ObjectMapper {
     ///
     /// `d` is split along the latest viewing ray and across it. Along the ray its σ combines the stereo
     /// depth noise (`σ_z = z² σ_d / (f b)`, the median over the first and over the latest
-    /// [`MOTION_WINDOW`] centroids of the track) with the wander of the
+    /// [`MOTION_WINDOW`] of the centroids the trend reads) with the wander of the
     /// visible surface over the object (`s = a / √3`, the σ of a point uniform over the class's
     /// half-length `a`: which side of a car is seen changes with the view); across the ray, `s` and the
     /// first views' depth noise (the ray turns as the camera passes). A static object stays within a
@@ -726,9 +726,11 @@ impl ObjectMapper {
         if all.len() < MIN_MOTION_CENTROIDS {
             return;
         }
-        let k = MOTION_WINDOW.min(all.len() / 2);
-        let (first, now) = (median_sigma(&all[..k]), median_sigma(&all[all.len() - k..]));
-        let d = trend(&all);
+        // the trend's own span: the depth noise at both ends of the centroids it reads
+        let read = &all[all.len().saturating_sub(TREND_CENTROIDS)..];
+        let k = MOTION_WINDOW.min(read.len() / 2);
+        let (first, now) = (median_sigma(&read[..k]), median_sigma(&read[read.len() - k..]));
+        let d = trend(read);
         let Some(ray) = (all[all.len() - 1].1 - camera).try_normalize(1e-9) else {
             return;
         };
@@ -911,8 +913,8 @@ fn stereo_agrees(obj: &MappedObject, e: &Ellipsoid, sigmas: f64) -> Result<(), S
     Ok(())
 }
 
-/// Centroids at each end of an object's track whose depth noise the motion test takes for the
-/// track's ends (see [`ObjectMapper::add_points`]).
+/// Centroids at each end of those the motion test reads whose median depth noise it takes for that
+/// end (see [`ObjectMapper::add_points`]).
 pub const MOTION_WINDOW: usize = 3;
 
 /// Fewest centroids the motion test reads: with four, the repeated median still holds when one of
@@ -924,14 +926,13 @@ fn median_sigma(c: &[(usize, Vector3<f64>, f64)]) -> f64 {
     median(&mut c.iter().map(|p| p.2).collect::<Vec<_>>())
 }
 
-/// The displacement of an object over its track that its centroids' trend explains: the repeated-
-/// median slope (Siegel's estimator, per world axis: for each centroid the median of its slopes to
-/// every other, then the median of those) times the frames the track spans. A robust trend: up to
+/// The displacement of an object over centroids `c` (the latest [`TREND_CENTROIDS`] of its track)
+/// that their trend explains: the repeated-median slope (Siegel's estimator, per world axis: for each
+/// centroid the median of its slopes to every other, then the median of those) times the frames they
+/// span. A robust trend: up to
 /// half of the centroids can lie on another object (a box that slid onto a car passing in front)
 /// without moving it, and the noise of single frames averages out.
 fn trend(c: &[(usize, Vector3<f64>, f64)]) -> Vector3<f64> {
-    // the latest centroids: the slope is the object's motion now, and the pairs stay few
-    let c = &c[c.len().saturating_sub(TREND_CENTROIDS)..];
     let span = (c[c.len() - 1].0 - c[0].0) as f64;
     let (mut to_others, mut per_point) = (Vec::with_capacity(c.len()), Vec::with_capacity(c.len()));
     let mut slope = |k: usize| {
@@ -952,7 +953,8 @@ fn trend(c: &[(usize, Vector3<f64>, f64)]) -> Vector3<f64> {
     Vector3::new(slope(0), slope(1), slope(2)) * span
 }
 
-/// Most centroids [`trend`] reads (the latest ones): 30 frames, three seconds of KITTI.
+/// Most centroids the motion test reads (the latest ones): 30 frames, three seconds of KITTI; the
+/// slope is the object's motion now, and the pairs of the repeated median stay few.
 const TREND_CENTROIDS: usize = 30;
 
 fn box_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid, shape: BoxShape) -> Option<f64> {
