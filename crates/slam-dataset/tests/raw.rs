@@ -145,8 +145,15 @@ fn drive_0005_ground_truth_agrees_with_orbslam3() {
     let all = read_timestamps(drive_0005().join("image_00/timestamps.txt")).expect("ts");
     assert_eq!(all.len(), 154);
     assert_eq!(s.times, all[..91].to_vec());
-    let Some(TruthSource::Oxts { median_pos_accuracy_m }) = s.truth_source else { panic!("{:?}", s.truth_source) };
+    let Some(TruthSource::Oxts { median_pos_accuracy_m, path }) = s.truth_source else {
+        panic!("{:?}", s.truth_source)
+    };
     assert!((0.3..0.6).contains(&median_pos_accuracy_m), "{median_pos_accuracy_m}");
+    // the packets' velocities integrate to a path about 4 % longer than their GPS positions trace
+    // (34.9 m against 33.5 m over frames 0–90; ORB-SLAM3's stereo poses make it 36.0 m)
+    let path = path.expect("path check");
+    assert!((34.0..36.0).contains(&path.velocities_m), "{path:?}");
+    assert!((-6.0..-2.5).contains(&path.position_excess_pct()), "{path:?}");
     let gt = s.ground_truth.as_ref().expect("truth");
     // the same drive is KITTI tracking sequence 0000, whose ORB-SLAM3 stereo poses (left colour camera,
     // 6 cm beside camera 0, same rectified axes) are shipped: over the 91 frames (33 m, a 21° turn) the
@@ -173,8 +180,38 @@ fn drive_0005_ground_truth_agrees_with_orbslam3() {
     assert!(worst.0 < 1.0 && worst.1 < 6.0, "largest rotation / direction difference, degrees: {worst:?}");
     // a frame selection is rebased to its first frame
     let sub = s.select(&FrameSelection { first: Some(30), end: None, stride: 3 }).expect("select");
+    // whose path check (made from all 91 frames) is not carried over
+    assert!(matches!(sub.truth_source, Some(TruthSource::Oxts { path: None, .. })), "{:?}", sub.truth_source);
     let r = sub.truth_from_first().expect("truth");
     assert!(r[0].translation.vector.norm() < 1e-12);
     let step = gt[30].inverse() * gt[33];
     assert!((r[1].translation.vector - step.translation.vector).norm() < 1e-9);
+}
+
+/// The OXTS path check: packets driving north at 10 m/s whose positions agree with their velocities
+/// trace the same path both ways; positions that cover 5 % less ground show −5 %.
+#[test]
+fn oxts_path_check_compares_positions_with_velocities() {
+    use slam_dataset::kitti::raw::{oxts_path_lengths, OXTS_VELOCITY};
+    let metre_of_latitude = (1.0 / 6_378_137.0f64).to_degrees();
+    let packets = |shrink: f64| -> Vec<OxtsPacket> {
+        (0..11)
+            .map(|i| {
+                let mut values = [0.0; 30];
+                values[0] = 49.0 + shrink * metre_of_latitude * i as f64; // 1 m per frame
+                values[1] = 8.4;
+                values[OXTS_VELOCITY[0]] = 10.0; // vn
+                OxtsPacket { lat: values[0], lon: 8.4, alt: 0.0, roll: 0.0, pitch: 0.0, yaw: 0.0, values }
+            })
+            .collect()
+    };
+    let times: Vec<f64> = (0..11).map(|i| 0.1 * i as f64).collect();
+    let agree = oxts_path_lengths(&packets(1.0), &times).expect("path");
+    assert!((agree.velocities_m - 10.0).abs() < 1e-9, "{agree:?}");
+    assert!((agree.positions_m - 10.0).abs() < 0.01 && agree.position_excess_pct().abs() < 0.1, "{agree:?}");
+    let short = oxts_path_lengths(&packets(0.95), &times).expect("path");
+    assert!((short.position_excess_pct() + 5.0).abs() < 0.1, "{short:?}");
+    // too few packets, or times that do not match them
+    assert!(oxts_path_lengths(&packets(1.0)[..1], &times[..1]).is_none());
+    assert!(oxts_path_lengths(&packets(1.0), &times[..5]).is_none());
 }

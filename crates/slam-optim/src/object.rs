@@ -10,7 +10,7 @@ use slam_quadric::{
 };
 
 use crate::{
-    factors::{AxisDirection, AxisPrior, BoxFactor, CuboidBoxFactor, PosePrior, TexturePlane},
+    factors::{AxisDirection, AxisPrior, BoxFactor, CuboidBoxFactor, PosePrior, SurfaceDepth, TexturePlane},
     Graph, Huber, NoiseModel, Optimizer, Options, Values, Var, L2,
 };
 
@@ -64,6 +64,31 @@ pub struct YawCue {
     pub direction: Vector3<f64>,
     /// Standard deviation, radians.
     pub sigma_rad: f64,
+}
+
+/// The stereo depth of an object's visible surface ([`SurfaceDepth`]): the ellipsoid's centre lies
+/// one chord half-length behind it along the line of sight.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfaceCue {
+    /// Median of the object's stereo points, world frame.
+    pub surface: Vector3<f64>,
+    /// Direction from the object towards the cameras that saw those points (need not be unit).
+    pub towards_camera: Vector3<f64>,
+    /// Standard deviation, metres: the points' depth noise and how far a real object's visible surface
+    /// may lie from its ellipsoid's.
+    pub sigma_m: f64,
+}
+
+/// What a fit may use besides the boxes and the class prior; every stage after the starts uses them.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Cues<'a> {
+    /// Texture planes `[n, d]` of the object's map points ([`TexturePlane`]; `n` unit, pointing out of
+    /// the object towards the cameras), σ `plane_sigma_m` with Huber.
+    pub planes: &'a [Vector4<f64>],
+    /// A soft prior on the yaw (e.g. from the object's stereo points, or a first stage's).
+    pub yaw: Option<YawCue>,
+    /// The stereo depth of the object's visible surface.
+    pub surface: Option<SurfaceCue>,
 }
 
 /// Settings of [`refine`].
@@ -187,17 +212,16 @@ pub fn optimise_object(
         prior,
         config,
         start,
-        Stage { sigmas: &sigmas, drift: None, planes: &[], yaw: None, optimizer },
+        Stage { sigmas: &sigmas, drift: None, cues: Cues::default(), optimizer },
     )
 }
 
 /// What one optimisation stage uses besides the views: one box σ per view (pixels), the pose drift
-/// (`None`: cameras fixed), texture planes, a yaw prior and the optimiser.
+/// (`None`: cameras fixed), the cues and the optimiser.
 struct Stage<'a> {
     sigmas: &'a [f64],
     drift: Option<f64>,
-    planes: &'a [Vector4<f64>],
-    yaw: Option<YawCue>,
+    cues: Cues<'a>,
     optimizer: &'a dyn Optimizer,
 }
 
@@ -210,7 +234,7 @@ fn optimise_object_weighted(
     prior: &ObjectPrior,
     config: &RefineConfig,
     start: Ellipsoid,
-    Stage { sigmas, drift, planes, yaw, optimizer }: Stage<'_>,
+    Stage { sigmas, drift, cues, optimizer }: Stage<'_>,
 ) -> Option<(Ellipsoid, f64)> {
     let mut values = Values::new();
     let mut graph = Graph::new();
@@ -246,7 +270,7 @@ fn optimise_object_weighted(
         .ok()?;
     }
     graph.add(AxisPrior::new(ko, prior.axes), NoiseModel::Diagonal(prior.sigma.as_slice().to_vec()), L2).ok()?;
-    for plane in planes {
+    for plane in cues.planes {
         if let Some(f) = TexturePlane::new(ko, *plane) {
             graph
                 .add(f, NoiseModel::Isotropic(config.plane_sigma_m), Huber(config.plane_huber_m / config.plane_sigma_m))
@@ -257,11 +281,16 @@ fn optimise_object_weighted(
     // camera's y axis (gravity for a level camera), 0.5° σ.
     let up = first.rotation * Vector3::y();
     graph.add(AxisDirection::new(ko, 1, up)?, NoiseModel::Isotropic(0.5f64.to_radians()), L2).ok()?;
-    if let Some(cue) = yaw {
+    if let Some(cue) = cues.yaw {
         // only the cue's horizontal part: the height axis is held by the factor above
         let horizontal = cue.direction - up * up.dot(&cue.direction);
         if let Some(f) = AxisDirection::new(ko, 0, horizontal) {
             graph.add(f, NoiseModel::Isotropic(cue.sigma_rad), L2).ok()?;
+        }
+    }
+    if let Some(cue) = cues.surface {
+        if let Some(f) = SurfaceDepth::new(ko, cue.surface, cue.towards_camera) {
+            graph.add(f, NoiseModel::Isotropic(cue.sigma_m), L2).ok()?;
         }
     }
     let summary = optimizer.optimize(&graph, &mut values, &options, None).ok()?;
@@ -328,30 +357,32 @@ pub fn refine_with_planes(
     planes: &[Vector4<f64>],
     optimizer: &dyn Optimizer,
 ) -> Result<Ellipsoid, InitError> {
-    refine_with_cues(&Dqp::default(), views, image, prior, config, planes, None, optimizer)
+    refine_with_cues(&Dqp::default(), views, image, prior, config, &Cues { planes, ..Cues::default() }, optimizer)
 }
 
 /// [`refine_with_planes`] with another initialiser for the first start (in place of the plain DQP; the
-/// other starts, DQP with centre correction and the triangulated centre at two headings, stay) and an
-/// optional soft yaw prior (e.g. from the object's stereo points) in every stage.
-/// With [`BoxShape::TwoStage`] the cue enters the first (cuboid) stage, whose yaw the second then holds.
-#[allow(clippy::too_many_arguments)]
+/// other starts, DQP with centre correction and the triangulated centre at two headings, stay) and
+/// any [`Cues`]: texture planes, a soft yaw prior (e.g. from the object's stereo points) and the stereo
+/// depth of the object's surface, in every stage after the starts.
+/// With [`BoxShape::TwoStage`] the cues enter the first (cuboid) stage, whose yaw the second then holds
+/// (the planes and the surface depth enter both).
 pub fn refine_with_cues(
     initializer: &dyn Initializer,
     views: &[BoxView],
     image: &ImageSize,
     prior: &ObjectPrior,
     config: &RefineConfig,
-    planes: &[Vector4<f64>],
-    yaw: Option<YawCue>,
+    cues: &Cues<'_>,
     optimizer: &dyn Optimizer,
 ) -> Result<Ellipsoid, InitError> {
+    let cues = *cues;
     if config.box_shape == BoxShape::TwoStage {
         let first = RefineConfig { box_shape: BoxShape::Cuboid, ..*config };
-        let e1 = refine_with_cues(initializer, views, image, prior, &first, planes, yaw, optimizer)?;
+        let e1 = refine_with_cues(initializer, views, image, prior, &first, &cues, optimizer)?;
         let held =
             YawCue { direction: e1.rotation() * Vector3::x(), sigma_rad: config.hold_yaw_sigma_deg.to_radians() };
         let second = RefineConfig { box_shape: BoxShape::Ellipse, ..*config };
+        let held = Cues { yaw: Some(held), ..cues };
         let sigmas = vec![config.box_sigma_px; views.len()];
         let started = optimise_object_weighted(
             views,
@@ -359,12 +390,10 @@ pub fn refine_with_cues(
             prior,
             &second,
             e1,
-            Stage { sigmas: &sigmas, drift: None, planes, yaw: Some(held), optimizer },
+            Stage { sigmas: &sigmas, drift: None, cues: held, optimizer },
         );
         return Ok(match started {
-            Some((e, _)) if in_front_of_all(views, &e) => {
-                polish(views, image, prior, &second, planes, Some(held), e, optimizer)
-            }
+            Some((e, _)) if in_front_of_all(views, &e) => polish(views, image, prior, &second, held, e, optimizer),
             _ => e1,
         });
     }
@@ -403,7 +432,7 @@ pub fn refine_with_cues(
             prior,
             config,
             s,
-            Stage { sigmas: &sigmas, drift: None, planes, yaw, optimizer },
+            Stage { sigmas: &sigmas, drift: None, cues, optimizer },
         ) {
             if in_front_of_all(views, &e) && best.as_ref().is_none_or(|b| cost < b.1) {
                 best = Some((e, cost));
@@ -411,7 +440,7 @@ pub fn refine_with_cues(
         }
     }
     match (best, centre) {
-        (Some((e, _)), _) => Ok(polish(views, image, prior, config, planes, yaw, e, optimizer)),
+        (Some((e, _)), _) => Ok(polish(views, image, prior, config, cues, e, optimizer)),
         (None, Err(err)) => Err(err),
         (None, Ok(_)) => Err(InitError::Degenerate(slam_quadric::init::Degeneracy::RankDeficient)),
     }
@@ -422,21 +451,19 @@ fn in_front_of_all(views: &[BoxView], e: &Ellipsoid) -> bool {
 }
 
 /// The re-weighted passes and the joint camera-object stage from a first-pass ellipsoid.
-#[allow(clippy::too_many_arguments)]
 fn polish(
     views: &[BoxView],
     image: &ImageSize,
     prior: &ObjectPrior,
     config: &RefineConfig,
-    planes: &[Vector4<f64>],
-    yaw: Option<YawCue>,
+    cues: Cues<'_>,
     mut e: Ellipsoid,
     optimizer: &dyn Optimizer,
 ) -> Ellipsoid {
     // Boxes that fit perfectly may still be biased (a drive-by cannot tell a shifted car from a
     // shifted box); with planes, a box is never trusted below `plane_box_floor_px`.
     let min_sigma =
-        if planes.is_empty() { config.min_sigma_px } else { config.min_sigma_px.max(config.plane_box_floor_px) };
+        if cues.planes.is_empty() { config.min_sigma_px } else { config.min_sigma_px.max(config.plane_box_floor_px) };
     for _ in 1..config.passes {
         let Some(rms) = box_rms(views, image, &e, config.box_shape) else { break };
         // per view: its own misfit, but never below the overall RMS / 2 (one view cannot claim to be
@@ -449,7 +476,7 @@ fn polish(
             prior,
             config,
             e,
-            Stage { sigmas: &sigmas, drift: None, planes, yaw, optimizer },
+            Stage { sigmas: &sigmas, drift: None, cues, optimizer },
         ) {
             Some((next, _)) if in_front_of_all(views, &next) => e = next,
             _ => break,
@@ -471,7 +498,7 @@ fn polish(
                 prior,
                 config,
                 e,
-                Stage { sigmas: &sigmas, drift: Some(drift), planes, yaw, optimizer },
+                Stage { sigmas: &sigmas, drift: Some(drift), cues, optimizer },
             ) {
                 e = j.0;
             }

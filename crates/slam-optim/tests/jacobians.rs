@@ -5,7 +5,7 @@ use slam_optim::{
     factor::numeric_jacobians,
     factors::{
         AxisDirection, AxisPrior, BalReprojection, Between, BoxFactor, CuboidBoxFactor, MonoReprojection, PointPrior,
-        PosePrior, StereoReprojection, TexturePlane,
+        PosePrior, StereoReprojection, SurfaceDepth, TexturePlane,
     },
     BalCamera, Factor, Values, Var,
 };
@@ -162,9 +162,36 @@ fn object_factors() {
         let n = Vector3::new(rng.u(-1.0, 1.0), rng.u(-1.0, 1.0), rng.u(-1.0, 1.0));
         let tp = TexturePlane::new(ke, Vector4::new(n.x, n.y, n.z, rng.u(-20.0, 20.0))).expect("plane");
         check(&tp, &v, "texture plane");
+        let towards = Vector3::new(rng.u(-1.0, 1.0), rng.u(-1.0, 1.0), rng.u(-1.0, 1.0));
+        let at = Vector3::new(rng.u(-20.0, 20.0), rng.u(-2.0, 2.0), rng.u(5.0, 40.0));
+        check(&SurfaceDepth::new(ke, at, towards).expect("direction"), &v, "surface depth");
         checked += 1;
     }
     assert!(checked > 50);
     assert!(cuboid > 30, "cuboid box checked at {cuboid} points");
     assert!(TexturePlane::new(slam_optim::Key(0), Vector4::zeros()).is_none());
+    assert!(SurfaceDepth::new(slam_optim::Key(0), Vector3::zeros(), Vector3::zeros()).is_none());
+    assert!(SurfaceDepth::new(slam_optim::Key(0), Vector3::new(f64::NAN, 0.0, 1.0), Vector3::z()).is_none());
+}
+
+#[test]
+fn surface_depth_is_zero_on_the_ellipsoid_surface_along_the_line_of_sight() {
+    let rot = UnitQuaternion::from_euler_angles(0.0, 0.7, 0.0);
+    let e = Ellipsoid::new(Isometry3::from_parts(Translation3::new(3.0, 1.0, 25.0), rot), Vector3::new(2.1, 0.8, 0.85));
+    let mut v = Values::new();
+    let ke = v.add(Var::Ellipsoid(e));
+    // the camera at the origin: the direction from the object towards it
+    let n = -e.centre().normalize();
+    let m = rot.inverse() * n;
+    let chord = 1.0 / (m.x * m.x / (2.1 * 2.1) + m.y * m.y / (0.8 * 0.8) + m.z * m.z / (0.85 * 0.85)).sqrt();
+    assert!(chord > 0.85 && chord < 2.1, "{chord}");
+    let residual = |surface: Vector3<f64>| {
+        SurfaceDepth::new(ke, surface, n).expect("direction").evaluate(&v, None).expect("residual")[0]
+    };
+    assert!(residual(e.centre() + n * chord).abs() < 1e-12);
+    // a surface seen 0.5 m nearer the camera than the ellipsoid's: its centre lies 0.5 m too far behind
+    assert!((residual(e.centre() + n * (chord + 0.5)) - 0.5).abs() < 1e-12);
+    // a shift across the line of sight changes nothing
+    let across = n.cross(&Vector3::y()).normalize();
+    assert!(residual(e.centre() + n * chord + across * 0.7).abs() < 1e-12);
 }

@@ -194,6 +194,9 @@ pub struct RunCounts {
     /// Fitted ellipsoids refused for a size no real object of their class has
     /// ([`crate::objects::physically_plausible`]).
     pub implausible_fits: usize,
+    /// Ellipsoids removed because the stereo points saw free space through them
+    /// ([`crate::objects::ObjectMapper::check_free_space`]).
+    pub free_space_removals: usize,
 }
 
 /// Everything a run produced.

@@ -103,3 +103,77 @@ fn a_car_missing_where_it_should_be_visible_is_removed() {
     let (_, without) = run(None);
     assert_eq!(without.len(), 2, "{without:?}");
 }
+
+/// Stereo points of a frame from camera `cam` on a pixel grid (every 8 px): where a ray meets one of
+/// `solid` first, the point on its surface; elsewhere a wall 45 m ahead of the camera.
+fn stereo_points(cam: &Camera, solid: &[Ellipsoid]) -> Vec<slam_core::FramePoint> {
+    let from_world = cam.world_from_camera.inverse();
+    let mut out = Vec::new();
+    for v in (0..375).step_by(8) {
+        for u in (0..1242).step_by(8) {
+            let (u, v) = (u as f64, v as f64);
+            let ray = nalgebra::Vector3::new((u - K.cx) / K.fx, (v - K.cy) / K.fy, 1.0);
+            let mut depth = 45.0;
+            for e in solid {
+                // the ray s·ray against the ellipsoid, in its unit-sphere frame
+                let to_unit = |x: nalgebra::Vector3<f64>| {
+                    (e.rotation().transpose() * (cam.world_from_camera.rotation * x)).component_div(&e.semi_axes)
+                };
+                let c = -to_unit((from_world * nalgebra::Point3::from(e.centre())).coords);
+                let d = to_unit(ray);
+                let (a, b, q) = (d.dot(&d), 2.0 * d.dot(&c), c.dot(&c) - 1.0);
+                let disc = b * b - 4.0 * a * q;
+                if disc >= 0.0 {
+                    depth = f64::min(depth, (-b - disc.sqrt()) / (2.0 * a));
+                }
+            }
+            out.push(slam_core::FramePoint {
+                camera_point: ray * depth,
+                observation: [u, v, u - K.fx * common::B / depth],
+            });
+        }
+    }
+    out
+}
+
+/// The free-space test: a car boxed in three frames where there is none (a phantom: its boxes stop,
+/// and the miss rule is off), then frames whose stereo points see the wall 45 m ahead through it; a
+/// real car whose points lie on its surface. After `free_space_frames` frames the phantom's ellipsoid
+/// is removed and counted; the real car keeps its own. With the test off, the phantom stays.
+#[test]
+fn an_ellipsoid_the_stereo_points_see_through_is_removed() {
+    use slam_pipeline::objects::StereoNoise;
+    let noise = StereoNoise { focal_baseline: K.fx * common::B, disparity_sigma_px: 0.5, core: 0.6 };
+    let run = |free_space_frames: Option<usize>| {
+        let config = MapperConfig { max_misses: None, free_space_frames, ..MapperConfig::default() };
+        let mut mapper = ObjectMapper::new(Box::new(Oda::default()), config, lm());
+        let (phantom, real) = (car(0.0, 15.0), car(4.5, 17.0));
+        let mut after = Vec::new();
+        for f in 0..12 {
+            let cam = Camera::new(K, Isometry3::translation(0.5 * f as f64, 0.0, 0.0));
+            let mut dets = Vec::new();
+            for (e, boxed) in [(&phantom, f < 3), (&real, true)] {
+                if let (true, Ok(b)) = (boxed, project(e, &cam).and_then(|c| c.clipped_bounds(&IMAGE))) {
+                    dets.push(Detection::new(ClassId(2), 1.0, b));
+                }
+            }
+            mapper.step(f, &cam, &dets);
+            if f >= 3 {
+                mapper.check_free_space(&cam, &stereo_points(&cam, &[real]), &noise);
+            }
+            after.push(mapper.objects().filter(|o| o.ellipsoid.is_some()).count());
+        }
+        let left: Vec<f64> = mapper.objects().filter_map(|o| o.ellipsoid.map(|e| e.centre().z)).collect();
+        (after, left, mapper.free_space_removals())
+    };
+    let (after, left, removed) = run(MapperConfig::default().free_space_frames);
+    assert_eq!(after[2], 2, "both cars are fitted from their first three boxes: {after:?}");
+    // frames 3..=7 see through the phantom: removed at the fifth
+    assert_eq!(after[6], 2, "{after:?}");
+    assert_eq!(after[7], 1, "{after:?}");
+    assert_eq!(removed, 1);
+    assert_eq!(left.len(), 1, "{left:?}");
+    assert!((left[0] - 17.0).abs() < 0.5, "the real car stays: {left:?}");
+    let (_, without, removed) = run(None);
+    assert_eq!((without.len(), removed), (2, 0), "{without:?}");
+}

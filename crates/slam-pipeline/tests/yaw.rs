@@ -5,7 +5,7 @@
 //! the side facing the camera, with stereo depth noise) decide.
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use slam_optim::object::{refine_with_cues, BoxShape, ObjectPrior, RefineConfig, YawCue};
+use slam_optim::object::{refine_with_cues, BoxShape, Cues, ObjectPrior, RefineConfig, YawCue};
 use slam_pipeline::yaw_cue::{point_yaw, PointYaw, PointYawConfig};
 use slam_quadric::{init::BoxView, init::Dqp, metrics, project, Camera, Ellipsoid, ImageSize, Intrinsics};
 
@@ -85,7 +85,16 @@ fn points(e: &Ellipsoid) -> Vec<Vector3<f64>> {
 fn fit(views: &[BoxView], yaw: Option<YawCue>) -> Ellipsoid {
     let config = RefineConfig { box_shape: BoxShape::Ellipse, pose_drift: None, ..RefineConfig::default() };
     let lm = slam_lm::LevenbergMarquardt::default();
-    refine_with_cues(&Dqp::default(), views, &IMAGE, &ObjectPrior::car(), &config, &[], yaw, &lm).expect("fits")
+    refine_with_cues(
+        &Dqp::default(),
+        views,
+        &IMAGE,
+        &ObjectPrior::car(),
+        &config,
+        &Cues { yaw, ..Cues::default() },
+        &lm,
+    )
+    .expect("fits")
 }
 
 fn rms(views: &[BoxView], e: &Ellipsoid) -> f64 {

@@ -231,11 +231,14 @@ pub fn track_row(base: &RunSettings, case: &TrackCase) -> Result<TrackRow> {
         median_fps(out)
     );
     let mut notes = Vec::new();
-    if let Some(TruthSource::Oxts { median_pos_accuracy_m }) = seq.truth_source {
+    if let Some(TruthSource::Oxts { median_pos_accuracy_m, path }) = seq.truth_source {
         notes.push(format!(
             "{}: ground truth from OXTS (differential GPS + IMU), median pos_accuracy {median_pos_accuracy_m:.2} m: errors below that are not meaningful.",
             case.name
         ));
+        if let Some(p) = path {
+            notes.push(format!("{}: {}.", case.name, crate::report::oxts_path_line(&p)));
+        }
     }
     if truth.is_none() {
         notes.push(format!("{}: no ground truth, errors not computed.", case.name));

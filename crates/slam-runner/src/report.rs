@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use slam_dataset::{
-    kitti::stereo::TruthSource,
+    kitti::{raw::OxtsPath, stereo::TruthSource},
     trajectory::{write_kitti_poses, write_tum},
 };
 use slam_eval::LabelGeometry;
@@ -77,8 +77,8 @@ impl Outcome {
                 median_fps(out)
             ),
             format!(
-                "keyframes {}, lost {}, relocalised {}, new map segments {}, unreadable {}, detector errors {}, culled observations {}, duplicate or part boxes suppressed {}, ellipsoids of impossible size refused {}",
-                c.keyframes, c.lost, c.relocalised, c.new_segments, c.unreadable, c.detector_errors, c.culled_observations, c.suppressed_boxes, c.implausible_fits
+                "keyframes {}, lost {}, relocalised {}, new map segments {}, unreadable {}, detector errors {}, culled observations {}, duplicate or part boxes suppressed {}, ellipsoids of impossible size refused {}, removed for free space seen through them {}",
+                c.keyframes, c.lost, c.relocalised, c.new_segments, c.unreadable, c.detector_errors, c.culled_observations, c.suppressed_boxes, c.implausible_fits, c.free_space_removals
             ),
             format!(
                 "tracking states: tracked {}, weak {}, relocalised {}, lost {}, predicted {}, unreadable {} (tracking.csv has one row per frame)",
@@ -110,10 +110,13 @@ impl Outcome {
         let mut lines = Vec::new();
         let Some(gt) = self.seq.truth_from_first() else { return lines };
         let Some(e) = trajectory_errors(&self.out.poses, &gt, &[10.0, 20.0, 40.0]) else { return lines };
-        if let Some(TruthSource::Oxts { median_pos_accuracy_m }) = self.seq.truth_source {
+        if let Some(TruthSource::Oxts { median_pos_accuracy_m, path }) = self.seq.truth_source {
             lines.push(format!(
                 "\nground truth from the drive's OXTS packets (differential GPS + IMU; median position accuracy {median_pos_accuracy_m:.2} m from the packets' pos_accuracy): position errors below that are not meaningful"
             ));
+            if let Some(p) = path {
+                lines.push(oxts_path_line(&p));
+            }
         }
         lines.push(format!(
             "\nground truth: path {:.1} m over {} frames; ATE {:.3} m (aligned {:.3} m); end-point drift {:.2} %; scale {:.4}",
@@ -222,4 +225,14 @@ mod tests {
             assert!(!run_output_name(name), "{name}");
         }
     }
+}
+
+/// What the OXTS path check says ([`slam_dataset::kitti::raw::oxts_path_lengths`]), in one line.
+pub fn oxts_path_line(p: &OxtsPath) -> String {
+    format!(
+        "OXTS path check: the GPS positions trace {:.1} m, the INS's velocities {:.1} m ({:+.1} %): scale and end-point drift against these positions are uncertain by about that much",
+        p.positions_m,
+        p.velocities_m,
+        p.position_excess_pct()
+    )
 }

@@ -70,6 +70,46 @@ pub fn oxts_poses(packets: &[OxtsPacket]) -> Vec<Isometry3<f64>> {
 /// Index of `pos_accuracy` (metres, the receiver's position accuracy) among an OXTS packet's 30 values.
 pub const OXTS_POS_ACCURACY: usize = 23;
 
+/// Indices of `vn`, `ve` and `vu` (metres per second: north, east, up) among an OXTS packet's 30 values.
+pub const OXTS_VELOCITY: [usize; 3] = [6, 7, 10];
+
+/// Two measures of the path of the IMU over `packets` (one per frame, at `times` seconds): the sum of
+/// the steps between their positions ([`oxts_poses`]: GPS, Mercator) and the packets' speed integrated
+/// over time (trapezoid). The INS's velocities are far more precise than its positions (the drives'
+/// `vel_accuracy` is a few cm/s, `pos_accuracy` a few decimetres), so where the two disagree the
+/// positions' scale is off by about that much over this stretch. `None` for fewer than two packets or
+/// times that do not match them.
+pub fn oxts_path_lengths(packets: &[OxtsPacket], times: &[f64]) -> Option<OxtsPath> {
+    if packets.len() < 2 || times.len() != packets.len() {
+        return None;
+    }
+    let poses = oxts_poses(packets);
+    let positions_m = poses.windows(2).map(|w| (w[1].translation.vector - w[0].translation.vector).norm()).sum();
+    let speed = |p: &OxtsPacket| OXTS_VELOCITY.iter().map(|&i| p.values[i] * p.values[i]).sum::<f64>().sqrt();
+    let velocities_m = packets
+        .windows(2)
+        .zip(times.windows(2))
+        .map(|(p, t)| 0.5 * (speed(&p[0]) + speed(&p[1])) * (t[1] - t[0]))
+        .sum();
+    Some(OxtsPath { positions_m, velocities_m })
+}
+
+/// The IMU's path over a drive's frames, measured two ways ([`oxts_path_lengths`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OxtsPath {
+    /// Sum of the steps between the GPS positions, metres.
+    pub positions_m: f64,
+    /// The INS's speed integrated over the frame times, metres.
+    pub velocities_m: f64,
+}
+
+impl OxtsPath {
+    /// How much longer the positions' path is than the velocities', per cent (negative: shorter).
+    pub fn position_excess_pct(&self) -> f64 {
+        100.0 * (self.positions_m / self.velocities_m - 1.0)
+    }
+}
+
 /// Poses of the rectified camera 0 (world = the first packet's camera, camera-to-world) from OXTS
 /// packets, as the KITTI devkit chains them: IMU poses of [`oxts_poses`] (Mercator with the first
 /// packet's latitude as scale), then IMU → Velodyne (`calib_imu_to_velo`) → camera 0

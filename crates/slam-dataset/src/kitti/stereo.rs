@@ -9,7 +9,10 @@ use crate::{
     kitti::{
         calib::Calib,
         odometry::{nominal_times, pair_frames, values_of_ids, OdometrySequence},
-        raw::{camera_poses_from_oxts, read_oxts_packet, read_timestamps, RawCalib, OXTS_POS_ACCURACY},
+        raw::{
+            camera_poses_from_oxts, oxts_path_lengths, read_oxts_packet, read_timestamps, OxtsPath, RawCalib,
+            OXTS_POS_ACCURACY,
+        },
         tracking::{read_tracking_labels, TrackingLabel},
     },
     DatasetError,
@@ -36,7 +39,21 @@ pub enum TruthSource {
         /// Median of the packets' `pos_accuracy`, metres: the GPS position accuracy, below which
         /// position errors against this ground truth are not meaningful.
         median_pos_accuracy_m: f64,
+        /// The path over the frames from the GPS positions and from the INS's velocities: where they
+        /// disagree, so does the ground truth's scale ([`crate::kitti::raw::oxts_path_lengths`]).
+        path: Option<OxtsPath>,
     },
+}
+
+impl TruthSource {
+    /// The same source for a subset of the frames: without the OXTS path check, which covers the
+    /// frames it was made from.
+    pub fn for_a_subset(self) -> Self {
+        match self {
+            TruthSource::Oxts { median_pos_accuracy_m, .. } => TruthSource::Oxts { median_pos_accuracy_m, path: None },
+            other => other,
+        }
+    }
 }
 
 /// A rectified stereo sequence, images listed (not decoded). Every per-frame vector has one entry per
@@ -179,12 +196,21 @@ impl StereoSequence {
             ground_truth: self.ground_truth.as_ref().map(|g| keep.iter().map(|&k| g[k]).collect()),
             gaps: within(&self.gaps),
             one_camera: within(&self.one_camera).into_iter().filter(|id| sel.keeps(first, *id)).collect(),
+            // the path check covers the frames it was made from
+            truth_source: if keep.len() == self.ids.len() {
+                self.truth_source
+            } else {
+                self.truth_source.map(TruthSource::for_a_subset)
+            },
             ..self.clone()
         })
     }
 
     /// Keep the first `n` entries.
     pub fn truncate(&mut self, n: usize) {
+        if n < self.ids.len() {
+            self.truth_source = self.truth_source.map(TruthSource::for_a_subset);
+        }
         self.ids.truncate(n);
         self.left.truncate(n);
         self.right.truncate(n);
@@ -246,8 +272,8 @@ fn open_odometry(dir: &Path) -> Result<StereoSequence, DatasetError> {
     })
 }
 
-/// Camera poses of every entry and the median GPS position accuracy, metres.
-type RawTruth = (Vec<Isometry3<f64>>, f64);
+/// Camera poses of every entry, the median GPS position accuracy (metres) and the path check.
+type RawTruth = (Vec<Isometry3<f64>>, f64, Option<OxtsPath>);
 
 /// Camera-0 ground truth of a raw drive's frames from `oxts/data/<id>.txt` and the date's calibration;
 /// `Ok(None)` (with a warning) when the drive has no `oxts/` or a packet or calibration file is missing.
@@ -256,6 +282,7 @@ fn raw_truth(
     date: &Path,
     left: &[PathBuf],
     ids: &[usize],
+    times: &[f64],
     warnings: &mut Vec<String>,
 ) -> Result<Option<RawTruth>, DatasetError> {
     let oxts = drive.join("oxts").join("data");
@@ -283,7 +310,7 @@ fn raw_truth(
     let mut acc: Vec<f64> = packets.iter().map(|p| p.values[OXTS_POS_ACCURACY]).collect();
     acc.sort_by(|a, b| a.total_cmp(b));
     let median = acc[acc.len() / 2];
-    Ok(Some((camera_poses_from_oxts(&packets, &calib), median)))
+    Ok(Some((camera_poses_from_oxts(&packets, &calib), median, oxts_path_lengths(&packets, times))))
 }
 
 fn open_raw(dir: &Path) -> Result<StereoSequence, DatasetError> {
@@ -308,11 +335,11 @@ fn open_raw(dir: &Path) -> Result<StereoSequence, DatasetError> {
     } else {
         nominal_times(&pairs.ids)
     };
-    let truth = raw_truth(dir, date, &pairs.left, &pairs.ids, &mut warnings)?;
+    let truth = raw_truth(dir, date, &pairs.left, &pairs.ids, &times, &mut warnings)?;
     // the OXTS poses are of rectified camera 0; with the colour pair the left camera is camera 2, whose
     // rectified frame differs from camera 0's by a translation only
     let truth = match truth {
-        Some((g, acc)) if !grey => {
+        Some((g, acc, path)) if !grey => {
             // camera 2's centre in rectified camera 0: t = K⁻¹ · P_rect_02[:, 3]
             let p2 = calib.matrix3x4("P_rect_02")?;
             let k = p2.fixed_view::<3, 3>(0, 0).into_owned();
@@ -321,7 +348,7 @@ fn open_raw(dir: &Path) -> Result<StereoSequence, DatasetError> {
                 message: "P_rect_02 has a singular K".into(),
             })?;
             let cam0_from_cam2 = Isometry3::translation(-offset.x, -offset.y, -offset.z);
-            Some((g.iter().map(|p| cam0_from_cam2.inverse() * p * cam0_from_cam2).collect(), acc))
+            Some((g.iter().map(|p| cam0_from_cam2.inverse() * p * cam0_from_cam2).collect(), acc, path))
         }
         other => other,
     };
@@ -334,7 +361,7 @@ fn open_raw(dir: &Path) -> Result<StereoSequence, DatasetError> {
         intrinsics,
         baseline,
         times,
-        truth_source: truth.as_ref().map(|t| TruthSource::Oxts { median_pos_accuracy_m: t.1 }),
+        truth_source: truth.as_ref().map(|t| TruthSource::Oxts { median_pos_accuracy_m: t.1, path: t.2 }),
         ground_truth: truth.map(|t| t.0),
         labels: None,
         gaps: pairs.gaps,

@@ -11,6 +11,7 @@
 //! | [`BoxFactor`] | pose `T_wc`, ellipsoid | predicted − detected box (4) |
 //! | [`AxisPrior`] | ellipsoid | `a − a_prior` (3) |
 //! | [`TexturePlane`] | ellipsoid | distance of the camera-side tangent plane to a fitted plane (1) |
+//! | [`SurfaceDepth`] | ellipsoid | depth of its centre behind a stereo surface point, less its chord along the ray (1) |
 //! | [`AxisDirection`] | ellipsoid | `d × (R e_k)`: an axis along a direction, e.g. gravity (3) |
 
 mod bal;
@@ -19,6 +20,6 @@ mod reproj;
 mod se3;
 
 pub use bal::BalReprojection;
-pub use object::{cuboid_box_error, AxisDirection, AxisPrior, BoxFactor, CuboidBoxFactor, TexturePlane};
+pub use object::{cuboid_box_error, AxisDirection, AxisPrior, BoxFactor, CuboidBoxFactor, SurfaceDepth, TexturePlane};
 pub use reproj::{MonoReprojection, StereoReprojection};
 pub use se3::{Between, PointPrior, PosePrior};

@@ -297,6 +297,80 @@ impl Factor for TexturePlane {
     }
 }
 
+/// Stereo depth of an object's visible surface: the median of its stereo points, `c`, seen along the
+/// unit direction `n` from the object towards the camera. The ellipsoid's surface along that line of
+/// sight through its centre lies `δ(n) = 1 / √(Σ mᵢ² / aᵢ²)` (`m = Rᵀn`, the chord's half-length) in
+/// front of the centre; the residual is the centre's depth behind the surface, less that chord:
+/// `nᵀ(c − t) − δ(n)` (1, metres; positive when the centre lies too far behind the surface).
+///
+/// Why the chord: over the central part of its silhouette (where the object's points are taken) the
+/// visible surface of an ellipsoid lies 0.88 δ in front of the centre (median, seen from afar), that of
+/// the box circumscribing it 1.0–1.27 δ (a car or van seen from any side): a real vehicle lies
+/// between the two (docs/objects.md, "Stereo depth in the fit").
+#[derive(Debug, Clone)]
+pub struct SurfaceDepth {
+    keys: [Key; 1],
+    towards_camera: Vector3<f64>,
+    surface: Vector3<f64>,
+}
+
+impl SurfaceDepth {
+    /// The object's visible surface at `surface` (world), seen from the direction `towards_camera`
+    /// (normalised here); `None` for a zero or non-finite direction or a non-finite point.
+    pub fn new(object: Key, surface: Vector3<f64>, towards_camera: Vector3<f64>) -> Option<Self> {
+        let n = towards_camera.norm();
+        (n > 0.0 && n.is_finite() && surface.iter().all(|c| c.is_finite())).then(|| Self {
+            keys: [object],
+            towards_camera: towards_camera / n,
+            surface,
+        })
+    }
+}
+
+impl Factor for SurfaceDepth {
+    fn keys(&self) -> &[Key] {
+        &self.keys
+    }
+
+    fn dim(&self) -> usize {
+        1
+    }
+
+    fn evaluate(
+        &self,
+        values: &Values,
+        jacobians: Option<&mut Vec<DMatrix<f64>>>,
+    ) -> Result<DVector<f64>, FactorError> {
+        let e = values.require_ellipsoid(self.keys[0])?;
+        let n = self.towards_camera;
+        let r = e.rotation();
+        let m = r.transpose() * n;
+        let inv2 = e.semi_axes.map(|a| 1.0 / (a * a));
+        let q = m.component_mul(&inv2).dot(&m);
+        if q <= 0.0 || !q.is_finite() {
+            return Err(FactorError::Undefined("degenerate ellipsoid".into()));
+        }
+        let chord = 1.0 / q.sqrt();
+        let res = n.dot(&(self.surface - e.centre())) - chord;
+        if let Some(jac) = jacobians {
+            // m(ω) = Exp(−ω) Rᵀ n, so dm = m × dω; dq = 2 (A⁻² m)ᵀ dm; dδ = −½ q^{−3/2} dq = −½ δ³ dq
+            let c3 = chord.powi(3);
+            let dchord_dw = -(inv2.component_mul(&m)).cross(&m) * c3;
+            let dt_dv = r.transpose() * n; // d(nᵀt)/dv = nᵀ R
+            let mut j = DMatrix::zeros(1, 9);
+            for i in 0..3 {
+                j[(0, i)] = -dchord_dw[i];
+                j[(0, 3 + i)] = -dt_dv[i];
+                // dq/daᵢ = −2 mᵢ² / aᵢ³, so dδ/daᵢ = δ³ mᵢ² / aᵢ³
+                j[(0, 6 + i)] = -c3 * m[i] * m[i] / e.semi_axes[i].powi(3);
+            }
+            jac.clear();
+            jac.push(j);
+        }
+        Ok(DVector::from_element(1, res))
+    }
+}
+
 /// Keeps one of an ellipsoid's axes along a direction: residual `d × (R e_k)` (3; its norm is the sine
 /// of the angle between them), e.g. a car's height axis along gravity, the paper's yaw-only assumption
 /// as a soft constraint. Without it, a straight drive cannot observe the object's tilt and the

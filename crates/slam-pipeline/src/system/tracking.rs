@@ -16,7 +16,7 @@ use super::{
 };
 use crate::{
     map::{pose_to_array, FramePose},
-    objects::{class_prior, suppress_duplicate_boxes, ObjectMapper, PointsCentroid},
+    objects::{class_prior, suppress_duplicate_boxes, ObjectMapper, PointsCentroid, StereoNoise},
     report::median,
 };
 
@@ -277,6 +277,15 @@ impl Tracking {
             }
         }
         self.attach_points(tf, detections, &tracks);
+        if tf.state.is_measured() {
+            let noise = StereoNoise {
+                focal_baseline: self.intrinsics.fx * self.baseline,
+                disparity_sigma_px: self.config.disparity_sigma_px,
+                core: self.config.object_core,
+            };
+            self.objects.check_free_space(&camera, &tf.points, &noise);
+            self.counts.free_space_removals = self.objects.free_space_removals();
+        }
         let objects = &self.objects;
         self.moving_boxes = detections
             .iter()
