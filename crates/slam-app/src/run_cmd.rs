@@ -120,17 +120,26 @@ pub struct TrackBenchArgs {
     /// Settings file used for every case (TOML, as for `run --config`)
     #[arg(long)]
     config: Option<PathBuf>,
+    /// Run the full system on every case: the shipped detector on every frame, objects found moving
+    /// masked out of tracking (default: tracking only, no detector)
+    #[arg(long)]
+    objects: bool,
 }
 
 /// `slam-app track-bench`: the tracking dev table of issue 14 in one command, every case with
-/// `--detector none`. Accuracy figures are deterministic; frames/s depends on the machine's load.
+/// `--detector none`, or with `--objects` the full system with the shipped detector. Accuracy figures
+/// are deterministic; frames/s depends on the machine's load.
 pub fn track_bench(b: &TrackBenchArgs) -> anyhow::Result<()> {
     let raw = crate::fixture("kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync");
     let dev = (!b.only_cases).then(|| bench::TrackCase::dev_cases(crate::fixture(crate::SHIPPED), raw));
     let mut cases = dev.unwrap_or_default();
     cases.extend(b.cases.iter().map(|c| bench::TrackCase::parse(c)).collect::<Result<Vec<_>, _>>()?);
-    let base = RunSettings::odometry_only(crate::fixture(crate::SHIPPED), &RunConfig::load(b.config.as_deref())?, None);
-    bench::track_bench(&base, &cases, &mut |l| println!("{l}"))?;
+    let mut base =
+        RunSettings::odometry_only(crate::fixture(crate::SHIPPED), &RunConfig::load(b.config.as_deref())?, None);
+    if b.objects {
+        base.detector = slam_runner::DetectorChoice::Network(crate::detect_cmd::ModelArgs::default().loader());
+    }
+    bench::track_bench(&base, &cases, b.objects, &mut |l| println!("{l}"))?;
     Ok(())
 }
 

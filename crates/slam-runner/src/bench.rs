@@ -169,15 +169,26 @@ impl TrackCase {
 }
 
 /// The whole `track-bench` table over `cases` (at least one) with `base`'s settings; every line goes to
-/// `print`, the cases' notes after the table.
-pub fn track_bench(base: &RunSettings, cases: &[TrackCase], print: &mut dyn FnMut(String)) -> Result<()> {
+/// `print`, the cases' notes after the table. With `objects`, every case runs the full system with
+/// `base`'s detector (objects found moving are then masked out of tracking); without, no detector.
+pub fn track_bench(
+    base: &RunSettings,
+    cases: &[TrackCase],
+    objects: bool,
+    print: &mut dyn FnMut(String),
+) -> Result<()> {
     if cases.is_empty() {
         return Err(RunnerError::Invalid("no cases: --only-cases needs at least one --case PATH[:STRIDE]".into()));
     }
+    print(if objects {
+        "full system: detector on every frame, objects found moving masked out of tracking".to_string()
+    } else {
+        "tracking only: no detector, no objects".to_string()
+    });
     print(track_bench_header());
     let mut notes = Vec::new();
     for c in cases {
-        let row = track_row(base, c)?;
+        let row = track_row(base, c, objects)?;
         print(row.line);
         notes.extend(row.notes);
     }
@@ -204,12 +215,14 @@ pub struct TrackRow {
     pub notes: Vec<String>,
 }
 
-/// Run `case` with `base`'s settings (its path and stride replaced, no detector).
-pub fn track_row(base: &RunSettings, case: &TrackCase) -> Result<TrackRow> {
+/// Run `case` with `base`'s settings (its path and stride replaced; no detector unless `objects`).
+pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<TrackRow> {
     let mut s = base.clone();
     s.path = case.path.clone();
     s.selection.stride = case.stride as usize;
-    s.detector = DetectorChoice::None;
+    if !objects {
+        s.detector = DetectorChoice::None;
+    }
     let o = run_quiet(&s).context_with(|| format!("case {}", case.name))?;
     let (out, seq) = (&o.out, &o.seq);
     let truth = seq.truth_from_first();

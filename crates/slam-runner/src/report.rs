@@ -4,13 +4,14 @@
 
 use std::path::Path;
 
+use slam_core::TrackState;
 use slam_dataset::{
     kitti::{raw::OxtsPath, stereo::TruthSource},
     trajectory::{write_kitti_poses, write_tum},
 };
 use slam_eval::LabelGeometry;
 use slam_pipeline::{
-    eval::trajectory_errors,
+    eval::{largest_step_error, trajectory_errors},
     objects::MappedObject,
     report::{median_fps, stage_table, tracking_csv},
 };
@@ -124,6 +125,14 @@ impl Outcome {
         ));
         for (len, t, r, count) in e.rpe {
             lines.push(format!("RPE over {len:.0} m segments ({count}): {t:.2} % translation, {r:.2} deg/100 m"));
+        }
+        let tracked: Vec<bool> =
+            self.out.frames.iter().map(|f| matches!(f.state, Some(TrackState::Tracked { .. }))).collect();
+        if let Some((err, k)) = largest_step_error(&self.out.poses, &gt, &tracked) {
+            lines.push(format!(
+                "largest step error of a frame marked tracked: {err:.3} m (frame {})",
+                self.seq.ids.get(k).copied().unwrap_or(k)
+            ));
         }
         lines
     }
