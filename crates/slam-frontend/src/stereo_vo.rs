@@ -1487,9 +1487,11 @@ impl StereoVo {
             self.kf_from_last = kf_from_curr;
             None
         };
+        // a keyframe is its own reference: its pose in the trajectory is the keyframe's, which local
+        // bundle adjustment then refines together with the frames that follow it
         let (reference, world_from_camera) = match &keyframe {
-            Some(kf) if !measured => ((kf.id, Isometry3::identity()), kf.world_from_camera),
-            _ => ((ref_id, kf_from_curr), world_from_curr),
+            Some(kf) => ((kf.id, Isometry3::identity()), kf.world_from_camera),
+            None => ((ref_id, kf_from_curr), world_from_curr),
         };
         Ok(TrackedFrame {
             world_from_camera,

@@ -289,3 +289,29 @@ fn every_frame_hands_over_its_stereo_points() {
     }
     assert!(without_keyframe > 0, "the check covers frames that are not keyframes");
 }
+
+/// A keyframe is its own reference (identity relative pose), so the trajectory written from
+/// references shows the keyframe's own pose, which local bundle adjustment refines; a frame that is not
+/// a keyframe refers to the latest keyframe.
+#[test]
+fn a_keyframe_is_its_own_reference() {
+    let mut vo = kitti_vo();
+    let (mut keyframes, mut latest) = (0, None);
+    for i in 0..8 {
+        let (l, r) = kitti_frame(i);
+        let t = vo.track(i, &l, &r, &[]).expect("tracks");
+        match &t.keyframe {
+            Some(kf) => {
+                keyframes += 1;
+                assert_eq!(t.reference.0, kf.id, "frame {i}");
+                assert!(t.reference.1.translation.vector.norm() < 1e-12 && t.reference.1.rotation.angle() < 1e-12);
+                assert!(
+                    (t.world_from_camera.translation.vector - kf.world_from_camera.translation.vector).norm() < 1e-12
+                );
+                latest = Some(kf.id);
+            }
+            None => assert_eq!(Some(t.reference.0), latest, "frame {i}"),
+        }
+    }
+    assert!(keyframes >= 2, "{keyframes} keyframes in 8 frames");
+}
