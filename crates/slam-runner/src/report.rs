@@ -221,6 +221,16 @@ impl Outcome {
     }
 }
 
+/// What the OXTS path check says ([`slam_dataset::kitti::raw::oxts_path_lengths`]), in one line.
+pub fn oxts_path_line(p: &OxtsPath) -> String {
+    format!(
+        "OXTS path check: the GPS positions trace {:.1} m, the INS's velocities {:.1} m ({:+.1} %): scale and end-point drift against these positions are uncertain by about that much",
+        p.positions_m,
+        p.velocities_m,
+        p.position_excess_pct()
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -234,14 +244,4 @@ mod tests {
             assert!(!run_output_name(name), "{name}");
         }
     }
-}
-
-/// What the OXTS path check says ([`slam_dataset::kitti::raw::oxts_path_lengths`]), in one line.
-pub fn oxts_path_line(p: &OxtsPath) -> String {
-    format!(
-        "OXTS path check: the GPS positions trace {:.1} m, the INS's velocities {:.1} m ({:+.1} %): scale and end-point drift against these positions are uncertain by about that much",
-        p.positions_m,
-        p.velocities_m,
-        p.position_excess_pct()
-    )
 }
