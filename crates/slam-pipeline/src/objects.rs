@@ -420,6 +420,25 @@ pub struct MappedObject {
     free_frames: usize,
 }
 
+impl MappedObject {
+    /// A new object of the map: no observation, no ellipsoid, not flagged.
+    fn new(id: TrackId, class: ClassId) -> Self {
+        Self {
+            id,
+            class,
+            observations: Vec::new(),
+            ellipsoid: None,
+            dynamic: false,
+            moving: false,
+            points: Default::default(),
+            fitted_at: 0,
+            motion_strikes: 0,
+            misses: 0,
+            free_frames: 0,
+        }
+    }
+}
+
 /// An ellipsoid fit to run (possibly on another thread): everything it needs, by value.
 #[derive(Debug, Clone)]
 pub struct FitJob {
@@ -650,19 +669,7 @@ impl ObjectMapper {
             if self.merged.contains_key(&id) {
                 continue;
             }
-            let obj = self.objects.entry(id).or_insert_with(|| MappedObject {
-                id,
-                class: d.class,
-                observations: Vec::new(),
-                ellipsoid: None,
-                dynamic: false,
-                moving: false,
-                points: Default::default(),
-                fitted_at: 0,
-                motion_strikes: 0,
-                misses: 0,
-                free_frames: 0,
-            });
+            let obj = self.objects.entry(id).or_insert_with(|| MappedObject::new(id, d.class));
             obj.observations.push(Observation {
                 frame,
                 camera: *camera,
@@ -1335,19 +1342,7 @@ mod tests {
             depth_sigma: 0.4,
             reference: None,
         };
-        let mut obj = MappedObject {
-            id: TrackId(1),
-            class: ClassId(2),
-            observations: Vec::new(),
-            ellipsoid: None,
-            dynamic: false,
-            moving: false,
-            points: Default::default(),
-            fitted_at: 0,
-            motion_strikes: 0,
-            misses: 0,
-            free_frames: 0,
-        };
+        let mut obj = MappedObject::new(TrackId(1), ClassId(2));
         let parked = Vector3::new(-2.0, 1.0, 30.0);
         for i in 0..3 {
             obj.observations.push(observation(i, parked));
