@@ -984,15 +984,25 @@ impl ObjectMapper {
     }
 }
 
+/// The object's observations that have a stereo centroid, in frame order.
+fn with_centroids(obj: &MappedObject) -> Vec<&Observation> {
+    obj.observations.iter().filter(|o| o.centroid.is_some()).collect()
+}
+
+/// Where the stereo points of `with` (observations with a centroid, at least one) put the object: the
+/// per-axis median of their centroids, and the median of their depth σ.
+fn median_centroid(with: &[&Observation]) -> (Vector3<f64>, f64) {
+    let axis = |k: usize| median(&mut with.iter().filter_map(|o| o.centroid.map(|c| c[k])).collect::<Vec<_>>());
+    (Vector3::new(axis(0), axis(1), axis(2)), median(&mut with.iter().map(|o| o.depth_sigma).collect::<Vec<_>>()))
+}
+
 /// Whether an ellipsoid lies where the object's stereo points put it (see
 /// [`MapperConfig::stereo_evidence`]): Mahalanobis distance of its centre from the median keyframe
 /// centroid, along the ray (depth noise and surface spread) and across it (surface spread).
 fn stereo_agrees(obj: &MappedObject, e: &Ellipsoid, sigmas: f64) -> Result<(), String> {
-    let with: Vec<&Observation> = obj.observations.iter().filter(|o| o.centroid.is_some()).collect();
+    let with = with_centroids(obj);
     let Some(last) = with.last() else { return Err("no stereo points on it".into()) };
-    let axis = |k: usize| median(&mut with.iter().filter_map(|o| o.centroid.map(|c| c[k])).collect::<Vec<_>>());
-    let c = Vector3::new(axis(0), axis(1), axis(2));
-    let sigma_z = median(&mut with.iter().map(|o| o.depth_sigma).collect::<Vec<_>>());
+    let (c, sigma_z) = median_centroid(&with);
     let ray =
         (c - last.camera.world_from_camera.translation.vector).try_normalize(1e-9).ok_or("centroid at the camera")?;
     let d = e.centre() - c;
@@ -1006,8 +1016,8 @@ fn stereo_agrees(obj: &MappedObject, e: &Ellipsoid, sigmas: f64) -> Result<(), S
     Ok(())
 }
 
-/// The stereo rig's depth noise and the part of a box whose points are read, for
-/// [`ObjectMapper::check_free_space`].
+/// The stereo rig's depth noise and the part of a box whose points are read: the object's stereo
+/// points of the running system and [`ObjectMapper::check_free_space`] read them alike.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StereoNoise {
     /// Focal length times baseline, pixel metres (depth = this / disparity).
@@ -1023,6 +1033,12 @@ impl StereoNoise {
     /// Depth noise σ at depth `z`: `z² σ_d / (f b)`, metres.
     pub fn depth_sigma(&self, z: f64) -> f64 {
         z * z * self.disparity_sigma_px / self.focal_baseline
+    }
+
+    /// Whether pixel `(u, v)` lies in the central part (`core` of its width and height) of box `b`.
+    pub fn in_core(&self, b: &BBox, u: f64, v: f64) -> bool {
+        let [cu, cv] = b.centre();
+        (u - cu).abs() <= 0.5 * self.core * b.width() && (v - cv).abs() <= 0.5 * self.core * b.height()
     }
 }
 
@@ -1045,15 +1061,14 @@ pub fn free_space_votes(
 ) -> (usize, usize) {
     let from_world = camera.world_from_camera.inverse();
     let centre = (from_world * nalgebra::Point3::from(e.centre())).coords;
-    // in the ellipsoid's own frame, scaled to the unit sphere
-    let to_unit = |v: Vector3<f64>| (e.rotation().transpose() * (from_world.rotation * v)).component_div(&e.semi_axes);
+    // camera-frame directions into the ellipsoid's own frame, scaled to the unit sphere
+    let own_from_camera = e.rotation().transpose() * from_world.rotation.to_rotation_matrix().into_inner();
+    let to_unit = |v: Vector3<f64>| (own_from_camera * v).component_div(&e.semi_axes);
     let c = -to_unit(centre);
-    let [cu, cv] = b.centre();
-    let (hu, hv) = (0.5 * noise.core * b.width(), 0.5 * noise.core * b.height());
     let (mut through, mut on) = (0, 0);
     for p in points {
         let [u, v, _] = p.observation;
-        if (u - cu).abs() > hu || (v - cv).abs() > hv {
+        if !noise.in_core(b, u, v) {
             continue;
         }
         let x = p.camera_point;
@@ -1090,17 +1105,15 @@ const SURFACE_SHAPE_SIGMA: f64 = 0.15;
 /// cannot move it), seen along the mean direction towards the cameras that measured them; σ combines
 /// their median depth noise with [`SURFACE_SHAPE_SIGMA`]. `None` without enough centroids.
 pub fn surface_cue(obj: &MappedObject) -> Option<SurfaceCue> {
-    let with: Vec<&Observation> = obj.observations.iter().filter(|o| o.centroid.is_some()).collect();
+    let with = with_centroids(obj);
     if with.len() < MIN_MOTION_CENTROIDS {
         return None;
     }
-    let axis = |k: usize| median(&mut with.iter().filter_map(|o| o.centroid.map(|c| c[k])).collect::<Vec<_>>());
-    let surface = Vector3::new(axis(0), axis(1), axis(2));
+    let (surface, sigma_z) = median_centroid(&with);
     let towards_camera = with
         .iter()
         .filter_map(|o| (o.camera.world_from_camera.translation.vector - surface).try_normalize(1e-9))
         .sum::<Vector3<f64>>();
-    let sigma_z = median(&mut with.iter().map(|o| o.depth_sigma).collect::<Vec<_>>());
     let shape = SURFACE_SHAPE_SIGMA * class_prior(obj.class).axes.x;
     let sigma_m = (sigma_z * sigma_z + shape * shape).sqrt();
     (towards_camera.norm() > 1e-9 && sigma_m > 0.0).then_some(SurfaceCue { surface, towards_camera, sigma_m })

@@ -276,14 +276,18 @@ impl Tracking {
                 self.counts.new_segments += 1;
             }
         }
-        self.attach_points(tf, detections, &tracks);
-        if tf.state.is_measured() {
-            let noise = StereoNoise {
+        let geometry = PointGeometry {
+            noise: StereoNoise {
                 focal_baseline: self.intrinsics.fx * self.baseline,
                 disparity_sigma_px: self.config.disparity_sigma_px,
                 core: self.config.object_core,
-            };
-            self.objects.check_free_space(&camera, &tf.points, &noise);
+            },
+            k: self.intrinsics,
+            image: self.config.objects.image,
+        };
+        self.attach_points(tf, detections, &tracks, &geometry);
+        if tf.state.is_measured() {
+            self.objects.check_free_space(&camera, &tf.points, &geometry.noise);
             self.counts.free_space_removals = self.objects.free_space_removals();
         }
         let objects = &self.objects;
@@ -306,22 +310,20 @@ impl Tracking {
     /// from the frame's stereo points in every measured frame (the motion test and the stereo evidence
     /// then do not depend on which frames became keyframes), the map-point ids on a keyframe. A tracker
     /// that hands over no frame points gives centroids on keyframes only.
-    fn attach_points(&mut self, tf: &TrackedFrame, detections: &[Detection], tracks: &[Option<slam_core::TrackId>]) {
-        let c = &self.config;
-        let geometry = PointGeometry {
-            core: c.object_core,
-            k: self.intrinsics,
-            baseline: self.baseline,
-            disparity_sigma: c.disparity_sigma_px,
-            image: c.objects.image,
-        };
+    fn attach_points(
+        &mut self,
+        tf: &TrackedFrame,
+        detections: &[Detection],
+        tracks: &[Option<slam_core::TrackId>],
+        geometry: &PointGeometry,
+    ) {
         let measured = tf.state.is_measured();
         for (d, t) in detections.iter().zip(tracks) {
             let Some(id) = t else { continue };
             let on_keyframe =
-                tf.keyframe.as_ref().map(|kf| object_points(&kf.points, &kf.world_from_camera, d, &geometry));
+                tf.keyframe.as_ref().map(|kf| object_points(&kf.points, &kf.world_from_camera, d, geometry));
             let centroid = match (&on_keyframe, measured && !tf.points.is_empty()) {
-                (_, true) => object_points(&tf.points, &tf.world_from_camera, d, &geometry).1,
+                (_, true) => object_points(&tf.points, &tf.world_from_camera, d, geometry).1,
                 (Some((_, c)), false) => *c,
                 (None, false) => None,
             };
@@ -374,12 +376,9 @@ fn height_range(class: ClassId) -> (f64, f64) {
 
 /// What [`object_points`] needs besides the keyframe and the box.
 struct PointGeometry {
-    /// Central part of the box (share of its width and height) whose points count.
-    core: f64,
+    /// Depth noise, and the central part of the box whose points count.
+    noise: StereoNoise,
     k: Intrinsics,
-    baseline: f64,
-    /// Stereo disparity noise, pixels.
-    disparity_sigma: f64,
     image: ImageSize,
 }
 
@@ -399,7 +398,7 @@ fn object_points<'a, P: BoxPoint>(
     d: &Detection,
     g: &PointGeometry,
 ) -> (Vec<&'a P>, Option<PointsCentroid>) {
-    let sigma_z = |z: f64| z * z * g.disparity_sigma / (g.k.fx * g.baseline);
+    let sigma_z = |z: f64| g.noise.depth_sigma(z);
     let cand = box_candidates(points, &d.bbox, d.class, g);
     let half_length = class_prior(d.class).axes.x;
     let windows: Vec<usize> = (0..cand.len())
@@ -433,8 +432,6 @@ fn object_points<'a, P: BoxPoint>(
 /// The points inside the box's core at a depth its height allows for the class, nearest first (ties
 /// in input order).
 fn box_candidates<'a, P: BoxPoint>(points: &'a [P], b: &BBox, class: ClassId, g: &PointGeometry) -> Vec<&'a P> {
-    let (cx, cy) = (0.5 * (b.xmin + b.xmax), 0.5 * (b.ymin + b.ymax));
-    let (hw, hh) = (0.5 * g.core * (b.xmax - b.xmin), 0.5 * g.core * (b.ymax - b.ymin));
     let (hmin, hmax) = height_range(class);
     let bh = b.height().max(1.0);
     let cut = b.touches_border(&g.image, 2.0);
@@ -443,7 +440,7 @@ fn box_candidates<'a, P: BoxPoint>(points: &'a [P], b: &BBox, class: ClassId, g:
         .iter()
         .filter(|p| {
             let o = p.observation();
-            (o[0] - cx).abs() <= hw && (o[1] - cy).abs() <= hh
+            g.noise.in_core(b, o[0], o[1])
         })
         .filter(|p| {
             let z = p.camera_point().z;
