@@ -1062,7 +1062,8 @@ pub fn free_space_votes(
     let from_world = camera.world_from_camera.inverse();
     let centre = (from_world * nalgebra::Point3::from(e.centre())).coords;
     // camera-frame directions into the ellipsoid's own frame, scaled to the unit sphere
-    let own_from_camera = e.rotation().transpose() * from_world.rotation.to_rotation_matrix().into_inner();
+    let own_from_camera =
+        e.rotation().transpose() * camera.world_from_camera.rotation.to_rotation_matrix().into_inner();
     let to_unit = |v: Vector3<f64>| (own_from_camera * v).component_div(&e.semi_axes);
     let c = -to_unit(centre);
     let (mut through, mut on) = (0, 0);
@@ -1400,5 +1401,17 @@ mod tests {
         let aside: Vec<FramePoint> =
             at(40.0).into_iter().map(|p| FramePoint { observation: [b.xmin + 1.0, b.ymin + 1.0, 0.0], ..p }).collect();
         assert_eq!(free_space_votes(&e, &camera, &b, &aside, &noise, 2.0), (0, 0));
+        // the same scene from a camera elsewhere, turned 0.8 rad (the ellipsoid with it): the same votes.
+        // Its far side is 20.85 m away along the view, so a point at 26 m is beyond it by more than
+        // 3 σ (2.60 m there) and the 2 m margin; had the car's long axis (2 m) been taken along the
+        // view, it would not be.
+        let pose = nalgebra::Isometry3::new(Vector3::new(3.0, 0.0, -2.0), Vector3::y() * 0.8);
+        let turned = Camera::new(k, pose);
+        let e2 = Ellipsoid::new(pose * nalgebra::Isometry3::translation(0.0, 0.0, 20.0), e.semi_axes);
+        let b2 = project(&e2, &turned).and_then(|c| c.clipped_bounds(&image)).expect("in view");
+        for (cam, ell, bb) in [(&camera, &e, &b), (&turned, &e2, &b2)] {
+            assert_eq!(free_space_votes(ell, cam, bb, &at(26.0), &noise, 2.0), (4, 0));
+            assert_eq!(free_space_votes(ell, cam, bb, &at(19.2), &noise, 2.0), (0, 4));
+        }
     }
 }
