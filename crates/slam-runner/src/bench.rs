@@ -4,10 +4,9 @@
 
 use std::path::PathBuf;
 
-use slam_core::TrackState;
 use slam_dataset::kitti::stereo::TruthSource;
 use slam_pipeline::{
-    eval::{largest_step_error, trajectory_errors},
+    eval::trajectory_errors,
     report::{median, median_fps, stage_table, state_counts, STATE_NAMES},
 };
 
@@ -228,8 +227,7 @@ pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<
     let truth = seq.truth_from_first();
     let errors = truth.as_ref().and_then(|g| trajectory_errors(&out.poses, g, &[]));
     // only frames the tracker marked "tracked" (not initialised, lost, relocalised or any weaker state)
-    let tracked: Vec<bool> = out.frames.iter().map(|f| matches!(f.state, Some(TrackState::Tracked { .. }))).collect();
-    let step = truth.as_ref().and_then(|g| largest_step_error(&out.poses, g, &tracked));
+    let step = truth.as_ref().and_then(|g| crate::report::largest_tracked_step_error(out, g));
     let cell = |v: Option<f64>, digits: usize| v.map_or("–".to_string(), |v| format!("{v:.digits$}"));
     let states: Vec<String> = state_counts(&out.frames).iter().map(|n| n.to_string()).collect();
     let line = format!(

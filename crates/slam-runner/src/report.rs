@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+use nalgebra::Isometry3;
 use slam_core::TrackState;
 use slam_dataset::{
     kitti::{raw::OxtsPath, stereo::TruthSource},
@@ -14,6 +15,7 @@ use slam_pipeline::{
     eval::{largest_step_error, trajectory_errors},
     objects::MappedObject,
     report::{median_fps, stage_table, tracking_csv},
+    system::RunOutput,
 };
 
 use crate::{
@@ -126,9 +128,7 @@ impl Outcome {
         for (len, t, r, count) in e.rpe {
             lines.push(format!("RPE over {len:.0} m segments ({count}): {t:.2} % translation, {r:.2} deg/100 m"));
         }
-        let tracked: Vec<bool> =
-            self.out.frames.iter().map(|f| matches!(f.state, Some(TrackState::Tracked { .. }))).collect();
-        if let Some((err, k)) = largest_step_error(&self.out.poses, &gt, &tracked) {
+        if let Some((err, k)) = largest_tracked_step_error(&self.out, &gt) {
             lines.push(format!(
                 "largest step error of a frame marked tracked: {err:.3} m (frame {})",
                 self.seq.ids.get(k).copied().unwrap_or(k)
@@ -219,6 +219,13 @@ impl Outcome {
             played_ids(&self.seq, &self.selection)
         )
     }
+}
+
+/// The largest translation error of one frame-to-frame step ending at a frame marked tracked, and that
+/// frame's index in the run (`None` without such a step).
+pub fn largest_tracked_step_error(out: &RunOutput, truth: &[Isometry3<f64>]) -> Option<(f64, usize)> {
+    let tracked: Vec<bool> = out.frames.iter().map(|f| matches!(f.state, Some(TrackState::Tracked { .. }))).collect();
+    largest_step_error(&out.poses, truth, &tracked)
 }
 
 /// What the OXTS path check says ([`slam_dataset::kitti::raw::oxts_path_lengths`]), in one line.
