@@ -134,7 +134,27 @@ impl Outcome {
                 self.seq.ids.get(k).copied().unwrap_or(k)
             ));
         }
+        lines.extend(self.dead_reckoning_line());
         lines
+    }
+
+    /// Errors against a raw drive's INS dead reckoning (its velocities and orientation, no GPS
+    /// position), when the sequence has it.
+    fn dead_reckoning_line(&self) -> Option<String> {
+        let dr = self.seq.dead_reckoned_from_first()?;
+        let e = trajectory_errors(&self.out.poses, &dr, &[])?;
+        let step = largest_tracked_step_error(&self.out, &dr)
+            .map(|(err, k)| {
+                format!(
+                    "; largest step error of a frame marked tracked {err:.3} m (frame {})",
+                    self.seq.ids.get(k).copied().unwrap_or(k)
+                )
+            })
+            .unwrap_or_default();
+        Some(format!(
+            "against the INS's dead reckoning (its velocities and heading integrated, no GPS position: steadier than the positions over a stretch like this): path {:.1} m; ATE {:.3} m (aligned {:.3} m); end-point drift {:.2} %{step}",
+            e.path_m, e.ate_m, e.ate_aligned_m, e.end_drift_pct
+        ))
     }
 
     /// Write camera.json (the run's camera, for scoring the objects later).

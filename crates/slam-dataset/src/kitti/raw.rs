@@ -110,15 +110,51 @@ impl OxtsPath {
     }
 }
 
+/// Indices of `vf`, `vl` and `vu` (metres per second: forward, left, up, in the IMU frame) among an OXTS
+/// packet's 30 values.
+pub const OXTS_BODY_VELOCITY: [usize; 3] = [8, 9, 10];
+
+/// IMU poses from the INS alone, relative to the first packet (as [`oxts_poses`], without the GPS
+/// positions): each packet's orientation, and positions from its velocities in the IMU frame turned
+/// by that orientation and integrated over `times` (trapezoid). Over a drive's stretch this dead
+/// reckoning is far steadier than the positions: velocity errors are a few cm/s (`vel_accuracy`) and
+/// the heading's a fraction of a degree, where GPS positions jump by decimetres (`pos_accuracy`).
+/// `None` for fewer than two packets or times that do not match them.
+pub fn oxts_dead_reckoning(packets: &[OxtsPacket], times: &[f64]) -> Option<Vec<Isometry3<f64>>> {
+    if packets.len() < 2 || times.len() != packets.len() {
+        return None;
+    }
+    let orientation = |p: &OxtsPacket| {
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), p.yaw)
+            * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), p.pitch)
+            * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), p.roll)
+    };
+    let velocity =
+        |p: &OxtsPacket| orientation(p) * Vector3::from_iterator(OXTS_BODY_VELOCITY.iter().map(|&i| p.values[i]));
+    let mut at = Vector3::zeros();
+    let mut absolute = vec![Isometry3::from_parts(Translation3::from(at), orientation(&packets[0]))];
+    for (p, t) in packets.windows(2).zip(times.windows(2)) {
+        at += 0.5 * (velocity(&p[0]) + velocity(&p[1])) * (t[1] - t[0]);
+        absolute.push(Isometry3::from_parts(Translation3::from(at), orientation(&p[1])));
+    }
+    let origin_inv = absolute[0].inverse();
+    Some(absolute.iter().map(|a| origin_inv * a).collect())
+}
+
 /// Poses of the rectified camera 0 (world = the first packet's camera, camera-to-world) from OXTS
 /// packets, as the KITTI devkit chains them: IMU poses of [`oxts_poses`] (Mercator with the first
 /// packet's latitude as scale), then IMU → Velodyne (`calib_imu_to_velo`) → camera 0
 /// (`calib_velo_to_cam`) → rectified camera 0 (`R_rect_00`):
 /// `T_w←cam(i) = C · T_imu₀←imu(i) · C⁻¹` with `C = T_rect←velo · T_velo←imu`.
 pub fn camera_poses_from_oxts(packets: &[OxtsPacket], calib: &RawCalib) -> Vec<Isometry3<f64>> {
+    camera_poses_from_imu(oxts_poses(packets), calib)
+}
+
+/// Camera-0 poses of IMU poses (relative to the first), chained as [`camera_poses_from_oxts`] does.
+pub fn camera_poses_from_imu(imu: Vec<Isometry3<f64>>, calib: &RawCalib) -> Vec<Isometry3<f64>> {
     let cam_from_imu = calib.rect_from_velo() * calib.velo_from_imu;
     let imu_from_cam = cam_from_imu.inverse();
-    oxts_poses(packets).into_iter().map(|p| cam_from_imu * p * imu_from_cam).collect()
+    imu.into_iter().map(|p| cam_from_imu * p * imu_from_cam).collect()
 }
 
 /// Read a KITTI `timestamps.txt` (`YYYY-MM-DD HH:MM:SS.fffffffff` per line) as seconds since the first

@@ -10,8 +10,8 @@ use crate::{
         calib::Calib,
         odometry::{nominal_times, pair_frames, values_of_ids, OdometrySequence},
         raw::{
-            camera_poses_from_oxts, oxts_path_lengths, read_oxts_packet, read_timestamps, OxtsPath, RawCalib,
-            OXTS_POS_ACCURACY,
+            camera_poses_from_imu, camera_poses_from_oxts, oxts_dead_reckoning, oxts_path_lengths, read_oxts_packet,
+            read_timestamps, OxtsPath, RawCalib, OXTS_POS_ACCURACY,
         },
         tracking::{read_tracking_labels, TrackingLabel},
     },
@@ -83,6 +83,10 @@ pub struct StereoSequence {
     pub ground_truth: Option<Vec<Isometry3<f64>>>,
     /// Where `ground_truth` came from.
     pub truth_source: Option<TruthSource>,
+    /// A raw drive's second reference, from the INS alone ([`crate::kitti::raw::oxts_dead_reckoning`]:
+    /// its velocities and orientation, no GPS position), in the frame of `ground_truth`; `None`
+    /// elsewhere or when a packet's time is missing.
+    pub dead_reckoned: Option<Vec<Isometry3<f64>>>,
     /// Object labels (tracking layout), when present; `frame` is the frame id.
     pub labels: Option<Vec<TrackingLabel>>,
     /// Frame ids missing in both cameras between the first and the last frame (skipped, ids kept).
@@ -194,6 +198,7 @@ impl StereoSequence {
             right: pick(&self.right),
             times: keep.iter().map(|&k| self.times[k]).collect(),
             ground_truth: self.ground_truth.as_ref().map(|g| keep.iter().map(|&k| g[k]).collect()),
+            dead_reckoned: self.dead_reckoned.as_ref().map(|g| keep.iter().map(|&k| g[k]).collect()),
             gaps: within(&self.gaps),
             one_camera: within(&self.one_camera).into_iter().filter(|id| sel.keeps(first, *id)).collect(),
             // the path check covers the frames it was made from
@@ -218,6 +223,9 @@ impl StereoSequence {
         if let Some(g) = &mut self.ground_truth {
             g.truncate(n);
         }
+        if let Some(g) = &mut self.dead_reckoned {
+            g.truncate(n);
+        }
         if let Some(&last) = self.ids.last() {
             self.gaps.retain(|&id| id <= last);
             self.one_camera.retain(|&id| id <= last);
@@ -226,10 +234,20 @@ impl StereoSequence {
 
     /// Ground truth expressed in the first entry's camera frame (where a run's trajectory starts).
     pub fn truth_from_first(&self) -> Option<Vec<Isometry3<f64>>> {
-        let g = self.ground_truth.as_ref()?;
-        let origin = g.first()?.inverse();
-        Some(g.iter().map(|p| origin * p).collect())
+        from_first(self.ground_truth.as_ref()?)
     }
+
+    /// The INS's dead reckoning ([`StereoSequence::dead_reckoned`]) expressed in the first entry's
+    /// camera frame.
+    pub fn dead_reckoned_from_first(&self) -> Option<Vec<Isometry3<f64>>> {
+        from_first(self.dead_reckoned.as_ref()?)
+    }
+}
+
+/// Poses expressed in the frame of the first.
+fn from_first(g: &[Isometry3<f64>]) -> Option<Vec<Isometry3<f64>>> {
+    let origin = g.first()?.inverse();
+    Some(g.iter().map(|p| origin * p).collect())
 }
 
 fn pair_from(
@@ -264,6 +282,7 @@ fn open_odometry(dir: &Path) -> Result<StereoSequence, DatasetError> {
         baseline,
         times: seq.times,
         truth_source: seq.ground_truth.as_ref().map(|_| TruthSource::PosesFile),
+        dead_reckoned: None,
         ground_truth: seq.ground_truth,
         labels: None,
         gaps: seq.gaps,
@@ -272,8 +291,9 @@ fn open_odometry(dir: &Path) -> Result<StereoSequence, DatasetError> {
     })
 }
 
-/// Camera poses of every entry, the median GPS position accuracy (metres) and the path check.
-type RawTruth = (Vec<Isometry3<f64>>, f64, Option<OxtsPath>);
+/// Camera poses of every entry, the median GPS position accuracy (metres), the path check, and the
+/// camera poses of the INS's dead reckoning.
+type RawTruth = (Vec<Isometry3<f64>>, f64, Option<OxtsPath>, Option<Vec<Isometry3<f64>>>);
 
 /// Camera-0 ground truth of a raw drive's frames from `oxts/data/<id>.txt` and the date's calibration;
 /// `Ok(None)` (with a warning) when the drive has no `oxts/` or a packet or calibration file is missing.
@@ -310,7 +330,8 @@ fn raw_truth(
     let mut acc: Vec<f64> = packets.iter().map(|p| p.values[OXTS_POS_ACCURACY]).collect();
     acc.sort_by(|a, b| a.total_cmp(b));
     let median = acc[acc.len() / 2];
-    Ok(Some((camera_poses_from_oxts(&packets, &calib), median, oxts_path_lengths(&packets, times))))
+    let dead_reckoned = oxts_dead_reckoning(&packets, times).map(|imu| camera_poses_from_imu(imu, &calib));
+    Ok(Some((camera_poses_from_oxts(&packets, &calib), median, oxts_path_lengths(&packets, times), dead_reckoned)))
 }
 
 fn open_raw(dir: &Path) -> Result<StereoSequence, DatasetError> {
@@ -339,7 +360,7 @@ fn open_raw(dir: &Path) -> Result<StereoSequence, DatasetError> {
     // the OXTS poses are of rectified camera 0; with the colour pair the left camera is camera 2, whose
     // rectified frame differs from camera 0's by a translation only
     let truth = match truth {
-        Some((g, acc, path)) if !grey => {
+        Some((g, acc, path, dr)) if !grey => {
             // camera 2's centre in rectified camera 0: t = K⁻¹ · P_rect_02[:, 3]
             let p2 = calib.matrix3x4("P_rect_02")?;
             let k = p2.fixed_view::<3, 3>(0, 0).into_owned();
@@ -348,7 +369,10 @@ fn open_raw(dir: &Path) -> Result<StereoSequence, DatasetError> {
                 message: "P_rect_02 has a singular K".into(),
             })?;
             let cam0_from_cam2 = Isometry3::translation(-offset.x, -offset.y, -offset.z);
-            Some((g.iter().map(|p| cam0_from_cam2.inverse() * p * cam0_from_cam2).collect(), acc, path))
+            let to_cam2 = |g: Vec<Isometry3<f64>>| -> Vec<Isometry3<f64>> {
+                g.iter().map(|p| cam0_from_cam2.inverse() * p * cam0_from_cam2).collect()
+            };
+            Some((to_cam2(g), acc, path, dr.map(to_cam2)))
         }
         other => other,
     };
@@ -362,6 +386,7 @@ fn open_raw(dir: &Path) -> Result<StereoSequence, DatasetError> {
         baseline,
         times,
         truth_source: truth.as_ref().map(|t| TruthSource::Oxts { median_pos_accuracy_m: t.1, path: t.2 }),
+        dead_reckoned: truth.as_ref().and_then(|t| t.3.clone()),
         ground_truth: truth.map(|t| t.0),
         labels: None,
         gaps: pairs.gaps,
@@ -391,6 +416,7 @@ fn open_tracking(training: &Path, seq: &str) -> Result<StereoSequence, DatasetEr
         times,
         ground_truth: None,
         truth_source: None,
+        dead_reckoned: None,
         labels,
         gaps: pairs.gaps,
         one_camera: pairs.one_camera,
