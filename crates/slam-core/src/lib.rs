@@ -22,8 +22,8 @@ pub use assoc::{Assignment, AssociationInput, Associator, PointPair, TrackView};
 pub use detection::{ClassId, Detection, Mask, Region, TrackId, COCO_NAMES};
 pub use source::{DetectError, DetectionSource, Image};
 pub use tracking::{
-    FramePoint, KeyframeCorrection, KeyframeData, KeyframeId, KeyframePoint, PointId, StageTimes, StereoTracker,
-    TrackError, TrackState, TrackedFrame,
+    FramePoint, KeyframeCorrection, KeyframeData, KeyframeId, KeyframePoint, MovingRegion, PointId, StageTimes,
+    StereoTracker, TrackError, TrackState, TrackedFrame,
 };
 
 /// Common types, meant to be glob-imported: `use slam_core::prelude::*;`.

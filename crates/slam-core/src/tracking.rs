@@ -198,15 +198,39 @@ impl TrackError {
     }
 }
 
+/// Where a moving object is expected in a frame: its box (left image) and, when its stereo points
+/// measured it, the depths it spans. A keypoint inside the box belongs to the object unless its
+/// stereo depth lies outside `depth` (the background seen around the object or through an oversized
+/// box stays usable).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MovingRegion {
+    /// The box, pixels.
+    pub bbox: BBox,
+    /// Nearest and farthest depth of the object, metres (`None`: unknown, the whole box is the object).
+    pub depth: Option<(f64, f64)>,
+}
+
+impl MovingRegion {
+    /// Whether a keypoint at `(u, v)` with stereo depth `z` (if any) belongs to the object.
+    pub fn covers(&self, u: f64, v: f64, z: Option<f64>) -> bool {
+        self.bbox.contains_point(u, v)
+            && match (self.depth, z) {
+                (Some((near, far)), Some(z)) => (near..=far).contains(&z),
+                _ => true,
+            }
+    }
+}
+
 /// A stereo visual front end.
 pub trait StereoTracker: Send {
-    /// Track one rectified stereo pair. Keypoints inside `exclude` boxes (moving objects) are not used.
+    /// Track one rectified stereo pair. Keypoints on the `exclude` regions (moving objects) are not used
+    /// for the pose or the map; their stereo points are still in [`TrackedFrame::points`].
     fn track(
         &mut self,
         frame: usize,
         left: &Image,
         right: &Image,
-        exclude: &[BBox],
+        exclude: &[MovingRegion],
     ) -> Result<TrackedFrame, TrackError>;
 
     /// Apply the mapper's refinement of a keyframe: when it is the reference keyframe (or the reference's
@@ -218,4 +242,33 @@ pub trait StereoTracker: Send {
     /// (for the associator's semantic-inlier cue), restricted to `regions` of the predecessor. Trackers
     /// without flow return an empty list.
     fn flow(&mut self, regions: &[BBox]) -> Result<Vec<PointPair>, TrackError>;
+
+    /// As [`StereoTracker::flow`], from the keypoints that have a stereo point in the predecessor (the
+    /// 3-D motion of objects, scene flow, is read from them). Trackers without stereo points or flow
+    /// return an empty list (the default).
+    fn stereo_flow(&mut self, regions: &[BBox]) -> Result<Vec<PointPair>, TrackError> {
+        let _ = regions;
+        Ok(Vec::new())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A moving region covers keypoints inside its box at the object's depths, and those without a
+    /// stereo depth; the background seen around the object (same box, other depth) stays usable; with
+    /// no depth known the whole box is the object.
+    #[test]
+    fn a_moving_region_covers_its_object_and_not_the_background_in_its_box() {
+        let b = BBox::new(100.0, 50.0, 300.0, 200.0);
+        let r = MovingRegion { bbox: b, depth: Some((10.0, 16.0)) };
+        assert!(r.covers(150.0, 100.0, Some(12.0)));
+        assert!(r.covers(150.0, 100.0, None));
+        assert!(!r.covers(150.0, 100.0, Some(35.0)), "the street behind the car");
+        assert!(!r.covers(150.0, 100.0, Some(5.0)), "a post in front of it");
+        assert!(!r.covers(350.0, 100.0, Some(12.0)), "outside the box");
+        let whole = MovingRegion { bbox: b, depth: None };
+        assert!(whole.covers(150.0, 100.0, Some(35.0)));
+    }
 }

@@ -14,8 +14,8 @@ use std::time::Instant;
 use nalgebra::{DMatrix, Isometry3, Matrix3, Vector3};
 use opencv::{calib3d, core, features2d, prelude::*};
 use slam_core::{
-    geometry::BBox, FramePoint, Image, KeyframeCorrection, KeyframeData, KeyframeId, KeyframePoint, PointId, PointPair,
-    StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
+    geometry::BBox, FramePoint, Image, KeyframeCorrection, KeyframeData, KeyframeId, KeyframePoint, MovingRegion,
+    PointId, PointPair, StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
 };
 use slam_optim::{
     factors::{MonoReprojection, PosePrior, StereoReprojection},
@@ -208,6 +208,37 @@ impl Frame {
     /// The stereo points as the pipeline sees them.
     fn stereo_points(&self) -> Vec<FramePoint> {
         self.points.iter().zip(&self.obs).map(|(p, o)| FramePoint { camera_point: *p, observation: *o }).collect()
+    }
+
+    /// The frame without the keypoints `keep` marks false, nor their stereo points (order kept).
+    fn retain_keypoints(&self, keep: &[bool]) -> Frame {
+        let mut new_point = vec![None; self.points.len()];
+        let (mut points, mut desc, mut obs, mut ids, mut valid) = (vec![], vec![], vec![], vec![], vec![]);
+        for (q, &kp) in self.point_keypoints().iter().enumerate() {
+            if keep.get(kp).copied().unwrap_or(false) {
+                new_point[q] = Some(points.len());
+                points.push(self.points[q]);
+                desc.push(self.desc[q]);
+                obs.push(self.obs[q]);
+                ids.push(self.ids[q]);
+                valid.push(self.valid[q]);
+            }
+        }
+        let kept: Vec<usize> = (0..self.keypoints.len()).filter(|&i| keep.get(i).copied().unwrap_or(false)).collect();
+        let keypoints: Vec<(f64, f64)> = kept.iter().map(|&i| self.keypoints[i]).collect();
+        Frame {
+            points,
+            desc,
+            obs,
+            of_keypoint: kept.iter().map(|&i| self.of_keypoint[i].and_then(|q| new_point[q])).collect(),
+            ids,
+            valid,
+            keypoint_desc: kept.iter().map(|&i| self.keypoint_desc[i]).collect(),
+            octave: kept.iter().map(|&i| self.octave[i]).collect(),
+            angle: kept.iter().map(|&i| self.angle[i]).collect(),
+            grid: KeypointGrid::new(&keypoints),
+            keypoints,
+        }
     }
 
     /// The keypoint of each point.
@@ -408,6 +439,8 @@ pub struct StereoVo {
     /// Grey left images and left keypoints of the previous and current frame (optical flow).
     grey: [Option<Mat>; 2],
     keypoints: [Vec<(f64, f64)>; 2],
+    /// Whether each of those keypoints has a stereo point.
+    keypoint_stereo: [Vec<bool>; 2],
     /// Stereo correspondences of tracked frames with their keyframe (up to `keep_disparity_pairs`).
     pairs: Vec<DisparityPair>,
     /// Solves the two-frame stereo bundle adjustments.
@@ -417,6 +450,10 @@ pub struct StereoVo {
     index: KeyframeIndex,
     archive: BTreeMap<KeyframeId, Reference>,
 }
+
+/// What [`StereoVo::prepare`] gives: the frame for tracking, the stereo points for the pipeline, and
+/// the extraction and stereo times, ms.
+type Prepared = (Frame, Vec<FramePoint>, (f64, f64));
 
 /// A borrowed 8-bit grey image.
 struct GreyView<'a> {
@@ -507,19 +544,6 @@ struct Features {
     desc: Vec<[u8; 32]>,
     octave: Vec<i32>,
     angle: Vec<f32>,
-}
-
-impl Features {
-    fn retain(&mut self, keep: &[bool]) {
-        let mut k = keep.iter();
-        self.points.retain(|_| *k.next().unwrap_or(&true));
-        let mut k = keep.iter();
-        self.desc.retain(|_| *k.next().unwrap_or(&true));
-        let mut k = keep.iter();
-        self.octave.retain(|_| *k.next().unwrap_or(&true));
-        let mut k = keep.iter();
-        self.angle.retain(|_| *k.next().unwrap_or(&true));
-    }
 }
 
 fn extract(orb: &mut core::Ptr<features2d::ORB>, img: &Mat) -> Result<Features, FrontendError> {
@@ -624,6 +648,7 @@ impl StereoVo {
             image_size: (1.0, 1.0),
             grey: [None, None],
             keypoints: [Vec::new(), Vec::new()],
+            keypoint_stereo: [Vec::new(), Vec::new()],
             pairs: Vec::new(),
             optimizer,
             index: KeyframeIndex::default(),
@@ -1427,13 +1452,12 @@ impl StereoVo {
         frame_index: usize,
         left: &Image,
         right: &Image,
-        exclude: &[BBox],
+        exclude: &[MovingRegion],
     ) -> Result<TrackedFrame, FrontendError> {
-        let (frame, (extraction, stereo)) = self.prepare(left, right, exclude)?;
+        let (frame, points, (extraction, stereo)) = self.prepare(left, right, exclude)?;
         let t2 = Instant::now();
         let times = |t3: Instant| StageTimes { extraction, stereo, tracking: (t3 - t2).as_secs_f64() * 1e3 };
         let stereo_points = frame.points.len();
-        let points = frame.stereo_points();
         let Some(reference) = self.reference.as_ref() else {
             let mut tf = self.initialise(frame, frame_index);
             tf.times = times(Instant::now());
@@ -1506,28 +1530,43 @@ impl StereoVo {
         })
     }
 
-    /// ORB features of both images (the left image's outside `exclude`), the stereo points, and the
-    /// grey image and keypoints kept for optical flow; with the extraction and stereo times, ms.
-    fn prepare(&mut self, left: &Image, right: &Image, exclude: &[BBox]) -> Result<(Frame, (f64, f64)), FrontendError> {
+    /// ORB features of both images, the stereo points (as the pipeline sees them), and the grey image
+    /// and keypoints kept for optical flow; with the extraction and stereo times, ms. Keypoints on an
+    /// `exclude` region ([`MovingRegion::covers`]) are dropped after stereo matching (their depth
+    /// decides), so neither tracking, the map, optical flow nor the pipeline's object points see them.
+    fn prepare(&mut self, left: &Image, right: &Image, exclude: &[MovingRegion]) -> Result<Prepared, FrontendError> {
         let t0 = Instant::now();
         let (lm, rm) = (Self::grey_of(left)?, Self::grey_of(right)?);
         self.image_size = (lm.cols().max(1) as f64, lm.rows().max(1) as f64);
-        let mut lf = extract(&mut self.orb, &lm)?;
-        if !exclude.is_empty() {
-            let keep: Vec<bool> =
-                lf.points.iter().map(|&(u, v)| !exclude.iter().any(|b| b.contains_point(u, v))).collect();
-            lf.retain(&keep);
-        }
+        let lf = extract(&mut self.orb, &lm)?;
         let rf = extract(&mut self.orb, &rm)?;
         let t1 = Instant::now();
         let (lg, rg) = (GreyView::of(&lm)?, GreyView::of(&rm)?);
-        let frame = self.stereo(&lf, &rf, (&lg, &rg));
+        let all = self.stereo(&lf, &rf, (&lg, &rg));
+        let frame = if exclude.is_empty() {
+            all
+        } else {
+            let keep: Vec<bool> = lf
+                .points
+                .iter()
+                .zip(&all.of_keypoint)
+                .map(|(&(u, v), q)| {
+                    let z = q.map(|q| all.points[q].z);
+                    !exclude.iter().any(|r| r.covers(u, v, z))
+                })
+                .collect();
+            all.retain_keypoints(&keep)
+        };
+        let points = frame.stereo_points();
+        let stereo: Vec<bool> = frame.of_keypoint.iter().map(Option::is_some).collect();
         let t2 = Instant::now();
         self.grey.swap(0, 1);
         self.grey[1] = Some(lm);
         self.keypoints.swap(0, 1);
-        self.keypoints[1] = lf.points;
-        Ok((frame, ((t1 - t0).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3)))
+        self.keypoints[1] = frame.keypoints.clone();
+        self.keypoint_stereo.swap(0, 1);
+        self.keypoint_stereo[1] = stereo;
+        Ok((frame, points, ((t1 - t0).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3)))
     }
 
     /// The first frame of the run: the first keyframe, at the origin (times left at zero).
@@ -1803,15 +1842,22 @@ impl StereoVo {
     }
 
     /// Forward-backward Lucas-Kanade flow of the previous frame's keypoints inside `regions` into the
-    /// current frame; pairs whose round trip misses by more than a pixel are dropped.
-    pub fn optical_flow(&self, regions: &[BBox]) -> Result<Vec<PointPair>, FrontendError> {
-        let ([Some(prev), Some(curr)], [kp, _]) = (&self.grey, &self.keypoints) else { return Ok(Vec::new()) };
+    /// current frame (only those with a stereo point when `stereo_only`), up to `flow_points_per_region`
+    /// per region evenly spaced; pairs whose round trip misses by more than a pixel are dropped.
+    pub fn optical_flow(&self, regions: &[BBox], stereo_only: bool) -> Result<Vec<PointPair>, FrontendError> {
+        let ([Some(prev), Some(curr)], [kp, _], [stereo, _]) = (&self.grey, &self.keypoints, &self.keypoint_stereo)
+        else {
+            return Ok(Vec::new());
+        };
         let mut pts = core::Vector::<core::Point2f>::new();
         for b in regions {
-            let inside: Vec<&(f64, f64)> = kp.iter().filter(|&&(u, v)| b.contains_point(u, v)).collect();
+            let inside: Vec<usize> = (0..kp.len())
+                .filter(|&i| b.contains_point(kp[i].0, kp[i].1))
+                .filter(|&i| !stereo_only || stereo.get(i).copied().unwrap_or(false))
+                .collect();
             let step = inside.len().div_ceil(self.config.flow_points_per_region.max(1)).max(1);
-            for p in inside.iter().step_by(step) {
-                pts.push(core::Point2f::new(p.0 as f32, p.1 as f32));
+            for &i in inside.iter().step_by(step) {
+                pts.push(core::Point2f::new(kp[i].0 as f32, kp[i].1 as f32));
             }
         }
         if pts.is_empty() {
@@ -1870,7 +1916,7 @@ impl StereoTracker for StereoVo {
         frame: usize,
         left: &Image,
         right: &Image,
-        exclude: &[BBox],
+        exclude: &[MovingRegion],
     ) -> Result<TrackedFrame, TrackError> {
         self.process(frame, left, right, exclude).map_err(TrackError::backend)
     }
@@ -1896,7 +1942,11 @@ impl StereoTracker for StereoVo {
     }
 
     fn flow(&mut self, regions: &[BBox]) -> Result<Vec<PointPair>, TrackError> {
-        self.optical_flow(regions).map_err(TrackError::backend)
+        self.optical_flow(regions, false).map_err(TrackError::backend)
+    }
+
+    fn stereo_flow(&mut self, regions: &[BBox]) -> Result<Vec<PointPair>, TrackError> {
+        self.optical_flow(regions, true).map_err(TrackError::backend)
     }
 }
 
@@ -1920,6 +1970,48 @@ mod tests {
             keypoints,
             keypoint_desc: desc,
         }
+    }
+
+    /// Dropping keypoints keeps every kept keypoint with its own stereo point, descriptor, level and
+    /// angle (indices rebuilt), and drops the stereo points of the dropped ones.
+    #[test]
+    fn retaining_keypoints_keeps_each_with_its_own_stereo_point() {
+        let n = 6;
+        let keypoints: Vec<(f64, f64)> = (0..n).map(|i| (10.0 * i as f64, 5.0 * i as f64)).collect();
+        let desc: Vec<[u8; 32]> = (0..n).map(|i| [i as u8; 32]).collect();
+        let mut f = frame_of(keypoints.clone(), desc);
+        f.octave = (0..n as i32).collect();
+        f.angle = (0..n).map(|i| i as f32).collect();
+        // keypoints 1, 2, 4 and 5 have stereo points (in that order), their depth 10 + keypoint index
+        for i in [1usize, 2, 4, 5] {
+            f.of_keypoint[i] = Some(f.points.len());
+            f.points.push(Vector3::new(0.0, 0.0, 10.0 + i as f64));
+            f.desc.push([i as u8; 32]);
+            f.obs.push([keypoints[i].0, keypoints[i].1, keypoints[i].0 - 3.0]);
+            f.ids.push(100 + i as u64);
+            f.valid.push(true);
+        }
+        let keep = [true, false, true, true, false, true];
+        let r = f.retain_keypoints(&keep);
+        let kept: Vec<usize> = (0..n).filter(|&i| keep[i]).collect();
+        assert_eq!(r.keypoints.len(), kept.len());
+        assert_eq!(r.points.len(), 2, "the stereo points of keypoints 2 and 5");
+        for (new, &old) in kept.iter().enumerate() {
+            assert_eq!(r.keypoints[new], keypoints[old]);
+            assert_eq!(r.keypoint_desc[new], [old as u8; 32]);
+            assert_eq!((r.octave[new], r.angle[new]), (old as i32, old as f32));
+            match r.of_keypoint[new] {
+                Some(q) => {
+                    assert_eq!(r.points[q].z, 10.0 + old as f64);
+                    assert_eq!(
+                        (r.ids[q], r.desc[q], r.obs[q][0]),
+                        (100 + old as u64, [old as u8; 32], keypoints[old].0)
+                    );
+                }
+                None => assert!(f.of_keypoint[old].is_none(), "keypoint {old} lost its stereo point"),
+            }
+        }
+        assert_eq!(r.point_keypoints(), vec![1, 3], "each point knows its keypoint");
     }
 
     #[test]

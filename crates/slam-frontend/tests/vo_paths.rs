@@ -64,7 +64,7 @@ fn flow(first: &[u8], second: Vec<u8>, regions: &[BBox]) -> Vec<([f64; 2], [f64;
     // the right images only feed stereo matching, which the flow does not use
     vo.process(0, &grey(first.to_vec()), &grey(shifted(first, -8, 0)), &[]).expect("frame 0");
     vo.process(1, &grey(second.clone()), &grey(shifted(&second, -8, 0)), &[]).expect("frame 1");
-    vo.optical_flow(regions).expect("flow").into_iter().map(|p| (p.reference, p.current)).collect()
+    vo.optical_flow(regions, false).expect("flow").into_iter().map(|p| (p.reference, p.current)).collect()
 }
 
 const SHIFT: (i64, i64) = (3, 2);

@@ -70,8 +70,13 @@ pub struct SystemConfig {
     pub correction_lag: usize,
     /// Run the detector on frames whose id is a multiple of n (others get no boxes). Default 1.
     pub detect_every: usize,
-    /// Keep keypoints of moving objects out of tracking. Default on.
+    /// Keep keypoints of moving objects out of tracking: inside the object's last box, at the depths its
+    /// stereo points span (`slam_core::MovingRegion`). Default on.
     pub exclude_moving: bool,
+    /// Find moving objects from frame to frame too: the 3-D motion (scene flow) of their stereo points
+    /// followed by optical flow from the frame before ([`crate::objects::ObjectMapper::add_flow`]), next
+    /// to the trend of their centroids. Default on; no effect without stereo points (image-free).
+    pub scene_flow: bool,
     /// Map points inside the central part of a box (this fraction of its width and height) belong to
     /// the object. Default 0.6.
     pub object_core: f64,
@@ -101,6 +106,7 @@ impl Default for SystemConfig {
             correction_lag: 2,
             detect_every: 1,
             exclude_moving: true,
+            scene_flow: true,
             object_core: 0.6,
             disparity_sigma_px: 0.5,
             suppress_duplicates: true,

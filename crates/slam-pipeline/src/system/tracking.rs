@@ -7,7 +7,8 @@ use crossbeam_channel::{Receiver, Sender};
 use nalgebra::{Isometry3, Point3, Vector3};
 use slam_core::{
     geometry::{BBox, Camera, ImageSize, Intrinsics},
-    ClassId, DetectError, Detection, FramePoint, KeyframePoint, StereoTracker, TrackState, TrackedFrame,
+    ClassId, DetectError, Detection, FramePoint, KeyframePoint, MovingRegion, PointPair, StereoTracker, TrackState,
+    TrackedFrame,
 };
 
 use super::{
@@ -16,7 +17,9 @@ use super::{
 };
 use crate::{
     map::{pose_to_array, FramePose},
-    objects::{class_prior, suppress_duplicate_boxes, ObjectMapper, PointsCentroid, StereoNoise},
+    objects::{
+        class_prior, scene_flow, suppress_duplicate_boxes, FlowedPoint, ObjectMapper, PointsCentroid, StereoNoise,
+    },
     report::median,
 };
 
@@ -36,7 +39,10 @@ pub struct Tracking {
     pending: VecDeque<usize>,
     last_reference: Option<(u64, Isometry3<f64>)>,
     prev_boxes: Vec<BBox>,
-    moving_boxes: Vec<BBox>,
+    /// The previous frame's stereo points and pose when it was measured (scene flow of objects).
+    prev_points: Option<(Vec<FramePoint>, Isometry3<f64>)>,
+    /// Where the objects found moving are expected in the next frame (kept out of its tracking).
+    moving_regions: Vec<MovingRegion>,
     last_done: Instant,
 }
 
@@ -65,7 +71,8 @@ impl Tracking {
             pending: VecDeque::new(),
             last_reference: None,
             prev_boxes: Vec::new(),
-            moving_boxes: Vec::new(),
+            prev_points: None,
+            moving_regions: Vec::new(),
             last_done: Instant::now(),
         }
     }
@@ -174,6 +181,7 @@ impl Tracking {
             state: "unreadable".into(),
         });
         self.prev_boxes.clear();
+        self.prev_points = None;
         FrameRecord {
             index: i,
             state: None,
@@ -195,7 +203,7 @@ impl Tracking {
         detections: Vec<Detection>,
         mut times: FrameTimes,
     ) -> Result<FrameRecord, SystemError> {
-        let exclude: &[BBox] = if self.config.exclude_moving { &self.moving_boxes } else { &[] };
+        let exclude: &[MovingRegion] = if self.config.exclude_moving { &self.moving_regions } else { &[] };
         let tf =
             self.tracker.track(i, left, right, exclude).map_err(|source| SystemError::Tracker { frame: i, source })?;
         times.extraction = tf.times.extraction;
@@ -285,25 +293,77 @@ impl Tracking {
             k: self.intrinsics,
             image: self.config.objects.image,
         };
-        self.attach_points(tf, detections, &tracks, &geometry);
+        // each detection's object in this frame's stereo points: where they put it, the depths they span
+        let on_frame: Vec<FrameObject> = detections
+            .iter()
+            .map(|d| {
+                let (kept, centroid) = object_points(&tf.points, &tf.world_from_camera, d, &geometry);
+                let depths = centroid.map(|_| {
+                    kept.iter()
+                        .map(|p| p.camera_point.z)
+                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(n, f), z| (n.min(z), f.max(z)))
+                });
+                FrameObject { centroid, depths }
+            })
+            .collect();
+        self.attach_points(tf, detections, &tracks, (&geometry, &on_frame));
+        if self.config.scene_flow && !self.prev_boxes.is_empty() {
+            let t = Instant::now();
+            match self.tracker.stereo_flow(&self.prev_boxes) {
+                Ok(pairs) => self.attach_flow(tf, detections, &tracks, &pairs, (&geometry, &on_frame)),
+                Err(e) => tracing::debug!(frame = i, "optical flow of stereo points failed: {e}"),
+            }
+            times.flow += t.elapsed().as_secs_f64() * 1e3;
+        }
         if tf.state.is_measured() {
             self.objects.check_free_space(&camera, &tf.points, &geometry.noise);
             self.counts.free_space_removals = self.objects.free_space_removals();
         }
         let objects = &self.objects;
-        self.moving_boxes = detections
+        self.moving_regions = detections
             .iter()
             .zip(&tracks)
-            .filter(|(_, t)| t.and_then(|id| objects.object(id)).is_some_and(|o| o.moving))
-            .map(|(d, _)| {
-                let b = d.bbox;
-                let (mx, my) = (0.1 * (b.xmax - b.xmin), 0.1 * (b.ymax - b.ymin));
-                BBox::new(b.xmin - mx, b.ymin - my, b.xmax + mx, b.ymax + my)
-            })
+            .zip(&on_frame)
+            .filter(|((_, t), _)| t.and_then(|id| objects.object(id)).is_some_and(|o| o.moving))
+            .map(|((d, _), o)| moving_region(d, o.depths, &geometry.noise))
             .collect();
         self.prev_boxes = detections.iter().map(|d| d.bbox).collect();
+        self.prev_points = tf.state.is_measured().then(|| (tf.points.clone(), tf.world_from_camera));
         times.association = t.elapsed().as_secs_f64() * 1e3;
         tracks
+    }
+
+    /// Give each associated object the scene flow of its points from the frame before ([`flowed_points`],
+    /// [`ObjectMapper::add_flow`]): both frames measured; the flowed points that end inside the box at
+    /// the depths of the object's points ([`object_points`]: its depth cluster).
+    fn attach_flow(
+        &mut self,
+        tf: &TrackedFrame,
+        detections: &[Detection],
+        tracks: &[Option<slam_core::TrackId>],
+        pairs: &[PointPair],
+        (geometry, on_frame): (&PointGeometry, &[FrameObject]),
+    ) {
+        let Some((before, world_from_before)) = &self.prev_points else { return };
+        if !tf.state.is_measured() || pairs.is_empty() {
+            return;
+        }
+        let flowed = flowed_points((before, world_from_before), (&tf.points, &tf.world_from_camera), pairs, geometry);
+        let camera = tf.world_from_camera.translation.vector;
+        for ((d, t), o) in detections.iter().zip(tracks).zip(on_frame) {
+            let (Some(id), Some((near, far))) = (t, o.depths) else { continue };
+            let on: Vec<FlowedPoint> = flowed
+                .iter()
+                .filter(|(_, now)| {
+                    let o = now.observation;
+                    d.bbox.contains_point(o[0], o[1]) && (near..=far).contains(&now.camera_point.z)
+                })
+                .map(|(f, _)| *f)
+                .collect();
+            if let Some(flow) = scene_flow(&on, &camera) {
+                self.objects.add_flow(*id, &flow);
+            }
+        }
     }
 
     /// Give each associated object its stereo points in this frame and where they put it: the centroid
@@ -315,15 +375,15 @@ impl Tracking {
         tf: &TrackedFrame,
         detections: &[Detection],
         tracks: &[Option<slam_core::TrackId>],
-        geometry: &PointGeometry,
+        (geometry, on_frame): (&PointGeometry, &[FrameObject]),
     ) {
         let measured = tf.state.is_measured();
-        for (d, t) in detections.iter().zip(tracks) {
+        for ((d, t), o) in detections.iter().zip(tracks).zip(on_frame) {
             let Some(id) = t else { continue };
             let on_keyframe =
                 tf.keyframe.as_ref().map(|kf| object_points(&kf.points, &kf.world_from_camera, d, geometry));
             let centroid = match (&on_keyframe, measured && !tf.points.is_empty()) {
-                (_, true) => object_points(&tf.points, &tf.world_from_camera, d, geometry).1,
+                (_, true) => o.centroid,
                 (Some((_, c)), false) => *c,
                 (None, false) => None,
             };
@@ -359,6 +419,77 @@ impl BoxPoint for FramePoint {
     fn camera_point(&self) -> Vector3<f64> {
         self.camera_point
     }
+}
+
+/// The stereo points of the frame before followed into this frame by optical flow (`pairs`, from
+/// keypoint to keypoint: the flow starts at a keypoint of the frame before that has a stereo point,
+/// and must end within 2 px of a stereo point of this frame: the same corner found again, whose
+/// position an ORB keypoint of pyramid level 3 gives on a 1.7 px grid), with their world positions in
+/// both frames and noise, and the stereo point they end at.
+fn flowed_points<'a>(
+    (before, world_from_before): (&[FramePoint], &Isometry3<f64>),
+    (now, world_from_now): (&'a [FramePoint], &Isometry3<f64>),
+    pairs: &[PointPair],
+    g: &PointGeometry,
+) -> Vec<(FlowedPoint, &'a FramePoint)> {
+    const CELL: f64 = 4.0;
+    let key = |u: f64, v: f64| ((u / CELL).floor() as i64, (v / CELL).floor() as i64);
+    let at: std::collections::HashMap<(u64, u64), &FramePoint> =
+        before.iter().map(|p| ((p.observation[0].to_bits(), p.observation[1].to_bits()), p)).collect();
+    let mut grid: std::collections::HashMap<(i64, i64), Vec<&FramePoint>> = std::collections::HashMap::new();
+    for p in now {
+        grid.entry(key(p.observation[0], p.observation[1])).or_default().push(p);
+    }
+    let across = |z: f64| z / g.k.fx;
+    let mut out = Vec::new();
+    for pair in pairs {
+        let Some(b) = at.get(&(pair.reference[0].to_bits(), pair.reference[1].to_bits())) else { continue };
+        let [u, v] = pair.current;
+        let (cu, cv) = key(u, v);
+        let nearest = (cu - 1..=cu + 1)
+            .flat_map(|x| (cv - 1..=cv + 1).map(move |y| (x, y)))
+            .filter_map(|c| grid.get(&c))
+            .flatten()
+            .map(|p| ((p.observation[0] - u).hypot(p.observation[1] - v), *p))
+            .filter(|(d, _)| *d <= 2.0)
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        let Some((_, n)) = nearest else { continue };
+        let (zb, zn) = (b.camera_point.z, n.camera_point.z);
+        out.push((
+            FlowedPoint {
+                before: (world_from_before * Point3::from(b.camera_point)).coords,
+                now: (world_from_now * Point3::from(n.camera_point)).coords,
+                sigma_along: g.noise.depth_sigma(zb).hypot(g.noise.depth_sigma(zn)),
+                sigma_across: across(zb).hypot(across(zn)),
+            },
+            n,
+        ));
+    }
+    out
+}
+
+/// A detection's object in the frame's stereo points ([`object_points`]): where they put it, and the
+/// nearest and farthest depth among them (both `None` below [`MIN_OBJECT_POINTS`] points).
+struct FrameObject {
+    centroid: Option<PointsCentroid>,
+    depths: Option<(f64, f64)>,
+}
+
+/// Where a moving object of this frame is expected in the next: its box grown by 10 % on each side
+/// (it moves between frames), and the depths its stereo points span widened by the class's
+/// half-length `a` and twice the depth noise on each side (the far side of the object lies up to its
+/// length behind its nearest visible point; `a` also covers a frame's change of its distance for
+/// traffic moving with the camera); no depth limit when too few points measured it.
+fn moving_region(d: &Detection, depths: Option<(f64, f64)>, noise: &StereoNoise) -> MovingRegion {
+    let b = d.bbox;
+    let (mx, my) = (0.1 * (b.xmax - b.xmin), 0.1 * (b.ymax - b.ymin));
+    let bbox = BBox::new(b.xmin - mx, b.ymin - my, b.xmax + mx, b.ymax + my);
+    let depth = depths.map(|(near, far)| {
+        let a = class_prior(d.class).axes.x;
+        let far = far.max(near + 2.0 * a);
+        (near - a - 2.0 * noise.depth_sigma(near), far + a + 2.0 * noise.depth_sigma(far))
+    });
+    MovingRegion { bbox, depth }
 }
 
 /// Fewest map points in a box for its centroid to count.

@@ -8,7 +8,8 @@
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use slam_core::{
     geometry::BBox, ClassId, DetectError, Detection, DetectionSource, FramePoint, Image, KeyframeCorrection,
-    KeyframeData, KeyframePoint, PointPair, StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
+    KeyframeData, KeyframePoint, MovingRegion, PointPair, StageTimes, StereoTracker, TrackError, TrackState,
+    TrackedFrame,
 };
 use slam_pipeline::system::FrameInput;
 use slam_quadric::{project, Camera, Ellipsoid, ImageSize, Intrinsics};
@@ -64,12 +65,14 @@ pub struct ScriptedTracker {
     /// `(keyframe id, its pose as the tracker believes it)`.
     reference: Option<(u64, Isometry3<f64>)>,
     next_kf: u64,
+    /// The stereo points of the frame before and of the last frame (optical flow follows ids).
+    seen: [Vec<KeyframePoint>; 2],
 }
 
 impl ScriptedTracker {
     /// A tracker at the start of `scene`.
     pub fn new(scene: Scene) -> Self {
-        Self { scene, reference: None, next_kf: 0 }
+        Self { scene, reference: None, next_kf: 0, seen: [Vec::new(), Vec::new()] }
     }
 
     /// The visible points of frame `frame` seen from `t`.
@@ -113,7 +116,7 @@ impl ScriptedTracker {
 }
 
 impl StereoTracker for ScriptedTracker {
-    fn track(&mut self, frame: usize, _: &Image, _: &Image, _: &[BBox]) -> Result<TrackedFrame, TrackError> {
+    fn track(&mut self, frame: usize, _: &Image, _: &Image, _: &[MovingRegion]) -> Result<TrackedFrame, TrackError> {
         let pose = (self.scene.believed)(frame);
         let (ref_id, ref_pose) = self.reference.unwrap_or((0, pose));
         let keyframe = (frame % 3 == 0).then(|| {
@@ -127,13 +130,15 @@ impl StereoTracker for ScriptedTracker {
         if let Some(kf) = &keyframe {
             self.reference = Some((kf.id, pose));
         }
+        let seen = self.observations(frame, (self.scene.truth)(frame));
+        self.seen.swap(0, 1);
+        self.seen[1] = seen.clone();
         Ok(TrackedFrame {
             world_from_camera: pose,
             reference: (ref_id, if frame == 0 { Isometry3::identity() } else { relative }),
             state: if frame == 0 { TrackState::Initialised } else { TrackState::Tracked { inliers: 100 } },
             stereo_points: 100,
-            points: self
-                .observations(frame, (self.scene.truth)(frame))
+            points: seen
                 .into_iter()
                 .map(|p| FramePoint { camera_point: p.camera_point, observation: p.observation })
                 .collect(),
@@ -150,6 +155,22 @@ impl StereoTracker for ScriptedTracker {
 
     fn flow(&mut self, _: &[BBox]) -> Result<Vec<PointPair>, TrackError> {
         Ok(Vec::new())
+    }
+
+    /// Exact flow: the points of the frame before inside `regions` to the same ids in the last frame.
+    fn stereo_flow(&mut self, regions: &[BBox]) -> Result<Vec<PointPair>, TrackError> {
+        let [before, now] = &self.seen;
+        Ok(before
+            .iter()
+            .filter(|p| regions.iter().any(|b| b.contains_point(p.observation[0], p.observation[1])))
+            .filter_map(|p| {
+                let q = now.iter().find(|q| q.id == p.id)?;
+                Some(PointPair {
+                    reference: [p.observation[0], p.observation[1]],
+                    current: [q.observation[0], q.observation[1]],
+                })
+            })
+            .collect())
     }
 }
 
