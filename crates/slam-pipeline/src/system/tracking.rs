@@ -307,13 +307,17 @@ impl Tracking {
             })
             .collect();
         self.attach_points(tf, detections, &tracks, (&geometry, &on_frame));
+        // the optical flow of the stereo points counts as flow, the rest as association
+        let mut stereo_flow_ms = 0.0;
         if self.config.scene_flow && !self.prev_boxes.is_empty() {
             let t = Instant::now();
-            match self.tracker.stereo_flow(&self.prev_boxes) {
+            let pairs = self.tracker.stereo_flow(&self.prev_boxes);
+            stereo_flow_ms = t.elapsed().as_secs_f64() * 1e3;
+            match pairs {
                 Ok(pairs) => self.attach_flow(tf, detections, &tracks, &pairs, (&geometry, &on_frame)),
                 Err(e) => tracing::debug!(frame = i, "optical flow of stereo points failed: {e}"),
             }
-            times.flow += t.elapsed().as_secs_f64() * 1e3;
+            times.flow += stereo_flow_ms;
         }
         if tf.state.is_measured() {
             self.objects.check_free_space(&camera, &tf.points, &geometry.noise);
@@ -329,7 +333,7 @@ impl Tracking {
             .collect();
         self.prev_boxes = detections.iter().map(|d| d.bbox).collect();
         self.prev_points = tf.state.is_measured().then(|| (tf.points.clone(), tf.world_from_camera));
-        times.association = t.elapsed().as_secs_f64() * 1e3;
+        times.association = t.elapsed().as_secs_f64() * 1e3 - stereo_flow_ms;
         tracks
     }
 
