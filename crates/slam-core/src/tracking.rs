@@ -154,7 +154,8 @@ pub struct TrackedFrame {
     /// Stereo points found in this frame.
     pub stereo_points: usize,
     /// Those stereo points (empty from a tracker that does not hand them over): the pipeline reads the
-    /// depth of detected objects from them in every frame, not only on keyframes.
+    /// depth of detected objects from them in every frame, not only on keyframes. Without the points on
+    /// the moving regions the tracker was told about.
     pub points: Vec<FramePoint>,
     /// Map points matched in this frame and kept by the pose refinement (reference keyframe and local
     /// map together; 0 when no pose was accepted).
@@ -224,7 +225,7 @@ impl MovingRegion {
 /// A stereo visual front end.
 pub trait StereoTracker: Send {
     /// Track one rectified stereo pair. Keypoints on the `exclude` regions (moving objects) are not used
-    /// for the pose or the map; their stereo points are still in [`TrackedFrame::points`].
+    /// for the pose, the map or [`TrackedFrame::points`].
     fn track(
         &mut self,
         frame: usize,

@@ -216,46 +216,52 @@ fn oxts_path_check_compares_positions_with_velocities() {
     assert!(oxts_path_lengths(&packets(1.0), &times[..5]).is_none());
 }
 
-/// The INS dead reckoning: a car at 10 m/s turning at 0.2 rad/s (yaw from the packets, speed forward
-/// in its own frame) traces the circle of radius 50 m from its start, to the trapezoid rule's error,
-/// whatever its GPS positions say; a car that stands still stays at the start.
+/// The INS dead reckoning: a car at 10 m/s turning at 0.2 rad/s (its velocity over ground `v_e, v_n`
+/// along its heading, the body tilted by a constant roll and pitch) traces the circle of radius 50 m,
+/// expressed in its first pose's frame, to the trapezoid rule's error, whatever its GPS positions
+/// say; a car that stands still stays at the start.
 #[test]
 fn oxts_dead_reckoning_follows_the_velocities_and_the_heading() {
-    use slam_dataset::kitti::raw::{oxts_dead_reckoning, OXTS_BODY_VELOCITY};
-    let (speed, rate, dt) = (10.0, 0.2, 0.1);
+    use slam_dataset::kitti::raw::{oxts_dead_reckoning, OXTS_VELOCITY};
+    let (speed, rate, dt, heading0) = (10.0, 0.2, 0.1, 0.3);
     let packets = |moving: bool| -> Vec<OxtsPacket> {
         (0..31)
             .map(|i| {
                 let mut values = [0.0; 30];
                 values[0] = 49.0; // GPS positions that never move: not used
                 values[1] = 8.4;
-                let yaw = if moving { 0.3 + rate * dt * i as f64 } else { 0.3 };
-                values[5] = yaw;
-                values[OXTS_BODY_VELOCITY[0]] = if moving { speed } else { 0.0 };
-                OxtsPacket { lat: 49.0, lon: 8.4, alt: 0.0, roll: 0.0, pitch: 0.0, yaw, values }
+                let yaw = if moving { heading0 + rate * dt * i as f64 } else { heading0 };
+                let v = if moving { speed } else { 0.0 };
+                values[OXTS_VELOCITY[0]] = v * yaw.sin(); // north
+                values[OXTS_VELOCITY[1]] = v * yaw.cos(); // east
+                OxtsPacket { lat: 49.0, lon: 8.4, alt: 0.0, roll: 0.03, pitch: -0.02, yaw, values }
             })
             .collect()
     };
     let times: Vec<f64> = (0..31).map(|i| dt * i as f64).collect();
-    let poses = oxts_dead_reckoning(&packets(true), &times).expect("poses");
+    let moving = packets(true);
+    let poses = oxts_dead_reckoning(&moving, &times).expect("poses");
     assert_eq!(poses.len(), 31);
     assert!(poses[0].translation.vector.norm() < 1e-12 && poses[0].rotation.angle() < 1e-12);
-    // in the start's frame (x forward, y left): the circle x = R sin θ, y = R (1 − cos θ)
+    let first = moving[0].orientation();
     let r = speed / rate;
     for (i, p) in poses.iter().enumerate() {
-        let theta = rate * dt * i as f64;
-        let expected = nalgebra::Vector3::new(r * theta.sin(), r * (1.0 - theta.cos()), 0.0);
+        let yaw = heading0 + rate * dt * i as f64;
+        let east_north =
+            nalgebra::Vector3::new(r * (yaw.sin() - heading0.sin()), r * (heading0.cos() - yaw.cos()), 0.0);
+        let expected = first.inverse() * east_north;
         assert!((p.translation.vector - expected).norm() < 0.02, "frame {i}: {} vs {expected}", p.translation.vector);
-        assert!((p.rotation.angle() - theta).abs() < 1e-9);
+        assert!((p.rotation.angle_to(&(first.inverse() * moving[i].orientation()))).abs() < 1e-9);
     }
     let still = oxts_dead_reckoning(&packets(false), &times).expect("poses");
     assert!(still.iter().all(|p| p.translation.vector.norm() < 1e-12));
-    assert!(oxts_dead_reckoning(&packets(true), &times[..3]).is_none());
+    assert!(oxts_dead_reckoning(&moving, &times[..3]).is_none());
 }
 
 /// Drive 0005's dead reckoning: one pose per frame, in the frame of the GPS ground truth (the same
-/// start), tracing the path of the packets' velocities (34.9 m) where the GPS positions trace 33.5 m;
-/// a selection keeps it aligned with its frames.
+/// start), tracing about the path of the packets' velocities (34.9 m for the IMU; camera 0's path
+/// differs a little in the turn) where the GPS positions trace 33.5 m; a selection keeps it aligned
+/// with its frames.
 #[test]
 fn drive_0005_dead_reckoning_traces_the_velocities_path() {
     let s = open_stereo(drive_0005()).expect("opens");
@@ -263,9 +269,12 @@ fn drive_0005_dead_reckoning_traces_the_velocities_path() {
     assert_eq!(dr.len(), 91);
     let path: f64 = dr.windows(2).map(|w| (w[1].translation.vector - w[0].translation.vector).norm()).sum();
     assert!((34.5..35.5).contains(&path), "{path}");
-    // it turns as the GPS ground truth does (orientation comes from the same packets)
+    // it ends near the GPS truth's end point (2.5 m apart: the positions' path is 4 % shorter, and
+    // the velocities point about 3° off the packets' yaw on this drive), far from the tens of metres a
+    // wrong axis or sign would put it
     let gt = s.truth_from_first().expect("truth");
-    assert!(dr.iter().zip(&gt).all(|(d, g)| d.rotation.angle_to(&g.rotation) < 1e-9));
+    let gap = (dr[90].translation.vector - gt[90].translation.vector).norm();
+    assert!(gap < 0.1 * path, "{gap}");
     let sub = s.select(&FrameSelection { first: Some(30), end: None, stride: 3 }).expect("select");
     let r = sub.dead_reckoned_from_first().expect("dead reckoning");
     let full = s.dead_reckoned.as_ref().expect("dead reckoning");

@@ -451,7 +451,7 @@ pub struct StereoVo {
     archive: BTreeMap<KeyframeId, Reference>,
 }
 
-/// What [`StereoVo::prepare`] gives: the frame for tracking, the stereo points for the pipeline, and
+/// What [`StereoVo::prepare`] gives: the frame for tracking, its stereo points for the pipeline, and
 /// the extraction and stereo times, ms.
 type Prepared = (Frame, Vec<FramePoint>, (f64, f64));
 

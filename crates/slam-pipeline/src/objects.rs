@@ -414,8 +414,8 @@ pub struct MappedObject {
     fitted_at: usize,
     /// Consecutive keyframes whose centroid failed the motion test.
     motion_strikes: usize,
-    /// Consecutive frames whose points' scene flow failed the motion test ([`ObjectMapper::add_flow`]).
-    flow_strikes: usize,
+    /// The last scene-flow reading and its frame ([`ObjectMapper::add_flow`]).
+    last_flow: Option<(usize, SceneFlow)>,
     /// Consecutive detector frames in which its ellipsoid should have been seen and was not.
     misses: usize,
     /// Consecutive tracked frames whose stereo points see free space through its ellipsoid.
@@ -435,7 +435,7 @@ impl MappedObject {
             points: Default::default(),
             fitted_at: 0,
             motion_strikes: 0,
-            flow_strikes: 0,
+            last_flow: None,
             misses: 0,
             free_frames: 0,
         }
@@ -850,9 +850,11 @@ impl ObjectMapper {
         }
     }
 
-    /// The scene flow of the object's points between the frame before and this one ([`scene_flow`]):
-    /// two readings in a row whose flow stands more than `dynamic_motion_sigmas` σ above its noise
-    /// flag the object as moving. The same points seen in two consecutive frames barely change view,
+    /// The scene flow of the object's points between the frame before and this one (`frame` counts
+    /// the frames played, [`scene_flow`]): two readings of consecutive frames that each stand more than
+    /// `dynamic_motion_sigmas` σ above their noise, and whose sum (the motion over both frames) does
+    /// too, flag the object as moving. The sum is what a single bad pose cannot fake: an error of frame
+    /// k moves every point by +δ in the reading that ends at k and by −δ in the next, which cancel. The same points seen in two consecutive frames barely change view,
     /// so their 3-D motion is measured to their depth noise alone (with twenty points, about 0.4 m per
     /// frame at 15 m, 0.16 m at 6 m is 3 σ): traffic moving against the camera is found within a few
     /// frames, where the centroid test ([`ObjectMapper::add_points`]), which must allow for the visible
@@ -860,14 +862,14 @@ impl ObjectMapper {
     /// An object already mapped as static is left to the centroid test: two frames of motion under a
     /// track its boxes and points have agreed with for many views are likelier another object taken
     /// over by the association than a parked car pulling out.
-    pub fn add_flow(&mut self, id: TrackId, flow: &SceneFlow) {
+    pub fn add_flow(&mut self, id: TrackId, frame: usize, flow: &SceneFlow) {
         let cfg = self.config;
         let Some(obj) = self.objects.get_mut(&id) else { return };
+        let before = obj.last_flow.replace((frame, *flow));
         if obj.ellipsoid.is_some() && !obj.dynamic {
             // mapped as static: its own boxes and points have agreed for views on end, so two frames
             // of motion are likelier another object under its track (an association switch) than a
             // parked car pulling out; the centroid test still watches it
-            obj.flow_strikes = 0;
             return;
         }
         let m = flow.sigmas();
@@ -879,8 +881,11 @@ impl ObjectMapper {
             sigmas = m,
             "scene flow"
         );
-        obj.flow_strikes = if m > cfg.dynamic_motion_sigmas { obj.flow_strikes + 1 } else { 0 };
-        if obj.flow_strikes >= 2 && !obj.moving {
+        let limit = cfg.dynamic_motion_sigmas;
+        let confirmed = before.filter(|(f, _)| f + 1 == frame).is_some_and(|(_, b)| {
+            b.sigmas() > limit && SceneFlow::over_both(&b, flow).is_some_and(|both| both.sigmas() > limit)
+        });
+        if m > limit && confirmed && !obj.moving {
             tracing::info!(
                 "object {} ({}): its {} points moved {:.2} m in a frame ({:.2} m along the viewing ray, {:.2} m across; {m:.1} σ of the stereo noise): moving, not mapped",
                 id.0,
@@ -1187,9 +1192,10 @@ pub struct FlowedPoint {
 /// pipeline).
 pub const MIN_FLOW_POINTS: usize = 5;
 
-/// What every point's motion between two frames shares beyond its own noise: the error of the
-/// tracker's frame-to-frame step (its median is 0.03–0.05 m on the dev drives, docs/system.md), as a
-/// σ in metres.
+/// What every point's motion between two frames shares beyond its own noise, as a σ in metres: the
+/// error of the tracker's frame-to-frame step (median 0.027 m on odometry 06 and 0.028 m on drive 0005
+/// against the INS, session 11) and a keyframe correction from the mapper applied between the two
+/// frames (up to 0.04 m, session 10).
 pub const FLOW_POSE_SIGMA_M: f64 = 0.05;
 
 /// The scene flow of an object's points: the median of their world motions between two frames, split
@@ -1198,6 +1204,10 @@ pub const FLOW_POSE_SIGMA_M: f64 = 0.05;
 /// [`FLOW_POSE_SIGMA_M`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SceneFlow {
+    /// The motion, world frame, metres.
+    pub motion: Vector3<f64>,
+    /// The viewing ray it is split along (unit, world frame).
+    pub ray: Vector3<f64>,
     /// Motion along the viewing ray (away from the camera positive), metres.
     pub along: f64,
     /// Motion across the ray, metres.
@@ -1211,6 +1221,31 @@ pub struct SceneFlow {
 }
 
 impl SceneFlow {
+    /// A reading from a motion (world frame, metres) and its σ along and across `ray` (unit).
+    pub fn new(
+        motion: Vector3<f64>,
+        ray: Vector3<f64>,
+        (sigma_along, sigma_across): (f64, f64),
+        points: usize,
+    ) -> Self {
+        let along = motion.dot(&ray);
+        let across = (motion - ray * along).norm();
+        Self { motion, ray, along, across, sigma_along, sigma_across, points }
+    }
+
+    /// The motion over two consecutive readings (`first`, then `then`): their sum along `then`'s ray,
+    /// σ combined; `None` without points.
+    pub fn over_both(first: &SceneFlow, then: &SceneFlow) -> Option<SceneFlow> {
+        let s = |a: f64, b: f64| a.hypot(b);
+        Some(SceneFlow::new(
+            first.motion + then.motion,
+            then.ray,
+            (s(first.sigma_along, then.sigma_along), s(first.sigma_across, then.sigma_across)),
+            first.points.min(then.points),
+        ))
+        .filter(|f| f.points > 0)
+    }
+
     /// The motion in σ of its noise (Mahalanobis, along and across the ray).
     pub fn sigmas(&self) -> f64 {
         ((self.along / self.sigma_along).powi(2) + (self.across / self.sigma_across).powi(2)).sqrt()
@@ -1238,17 +1273,9 @@ pub fn scene_flow(points: &[FlowedPoint], camera: &Vector3<f64>) -> Option<Scene
     );
     let at = Vector3::new(axis_median(&|p| p.now.x), axis_median(&|p| p.now.y), axis_median(&|p| p.now.z));
     let ray = (at - camera).try_normalize(1e-9)?;
-    let along = motion.dot(&ray);
-    let across = (motion - ray * along).norm();
     let rms = |f: &dyn Fn(&FlowedPoint) -> f64| (points.iter().map(|p| f(p).powi(2)).sum::<f64>() / n as f64).sqrt();
     let of_median = |s: f64| ((1.2533 * s / (n as f64).sqrt()).powi(2) + FLOW_POSE_SIGMA_M.powi(2)).sqrt();
-    Some(SceneFlow {
-        along,
-        across,
-        sigma_along: of_median(rms(&|p| p.sigma_along)),
-        sigma_across: of_median(rms(&|p| p.sigma_across)),
-        points: n,
-    })
+    Some(SceneFlow::new(motion, ray, (of_median(rms(&|p| p.sigma_along)), of_median(rms(&|p| p.sigma_across))), n))
 }
 
 /// Centroids at each end of those the motion test reads whose median depth noise it takes for that

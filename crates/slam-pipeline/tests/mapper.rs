@@ -178,37 +178,55 @@ fn an_ellipsoid_the_stereo_points_see_through_is_removed() {
     assert_eq!((without.len(), removed), (2, 0), "{without:?}");
 }
 
-/// Two scene-flow readings in a row far above their noise flag an object not yet mapped as moving; one
-/// is not enough, and an object already mapped as static is left to the centroid test (two frames of
-/// motion under its track are likelier another object taken over by the association).
+/// Two scene-flow readings of consecutive frames far above their noise, and agreeing (their sum too),
+/// flag an object not yet mapped as moving. One is not enough; two readings that cancel (what one bad
+/// pose makes: +δ into its frame, −δ out of it) or that are not of consecutive frames do not flag it;
+/// an object already mapped as static is left to the centroid test (two frames of motion under its
+/// track are likelier another object taken over by the association).
 #[test]
 fn scene_flow_flags_a_new_object_and_leaves_a_mapped_one_to_the_centroid_test() {
+    use nalgebra::Vector3;
     use slam_pipeline::objects::SceneFlow;
-    let mut mapper = ObjectMapper::new(Box::new(Oda::default()), MapperConfig::default(), lm());
-    let (parked, newcomer) = (car(4.5, 17.0), car(-3.0, 12.0));
-    for f in 0..4 {
-        let cam = Camera::new(K, Isometry3::translation(0.5 * f as f64, 0.0, 0.0));
-        let mut dets = Vec::new();
-        for (e, seen) in [(&parked, true), (&newcomer, f == 3)] {
-            if let (true, Ok(b)) = (seen, project(e, &cam).and_then(|c| c.clipped_bounds(&IMAGE))) {
-                dets.push(Detection::new(ClassId(2), 1.0, b));
+    let setup = || {
+        let mut mapper = ObjectMapper::new(Box::new(Oda::default()), MapperConfig::default(), lm());
+        let (parked, newcomer) = (car(4.5, 17.0), car(-3.0, 12.0));
+        for f in 0..4 {
+            let cam = Camera::new(K, Isometry3::translation(0.5 * f as f64, 0.0, 0.0));
+            let mut dets = Vec::new();
+            for (e, seen) in [(&parked, true), (&newcomer, f == 3)] {
+                if let (true, Ok(b)) = (seen, project(e, &cam).and_then(|c| c.clipped_bounds(&IMAGE))) {
+                    dets.push(Detection::new(ClassId(2), 1.0, b));
+                }
             }
+            mapper.step(f, &cam, &dets);
         }
-        mapper.step(f, &cam, &dets);
-    }
-    let id_of = |mapper: &ObjectMapper, fitted: bool| {
-        mapper.objects().find(|o| o.ellipsoid.is_some() == fitted).map(|o| o.id).expect("object")
+        let id_of =
+            |fitted: bool| mapper.objects().find(|o| o.ellipsoid.is_some() == fitted).map(|o| o.id).expect("object");
+        let (mapped, new) = (id_of(true), id_of(false));
+        (mapper, mapped, new)
     };
-    let (mapped, new) = (id_of(&mapper, true), id_of(&mapper, false));
-    let flow = SceneFlow { along: 0.6, across: 0.1, sigma_along: 0.1, sigma_across: 0.05, points: 20 };
+    let ray = Vector3::new(0.0, 0.0, 1.0);
+    let flow = |dz: f64| SceneFlow::new(Vector3::new(0.0, 0.0, dz), ray, (0.1, 0.05), 20);
+    let moving = |m: &ObjectMapper, id| m.objects().find(|o| o.id == id).expect("object").moving;
+    // pulling away 0.6 m per frame (6 σ) in frames 10 and 11
+    let (mut m, mapped, new) = setup();
     for id in [mapped, new] {
-        mapper.add_flow(id, &flow);
+        m.add_flow(id, 10, &flow(0.6));
     }
-    assert!(!mapper.objects().any(|o| o.moving), "one reading is not enough");
+    assert!(!moving(&m, new) && !moving(&m, mapped), "one reading is not enough");
     for id in [mapped, new] {
-        mapper.add_flow(id, &flow);
+        m.add_flow(id, 11, &flow(0.6));
     }
-    let moving = |id| mapper.objects().find(|o| o.id == id).expect("object").moving;
-    assert!(moving(new), "the new object is moving");
-    assert!(!moving(mapped), "the mapped car stays");
+    assert!(moving(&m, new), "the new object is moving");
+    assert!(!moving(&m, mapped), "the mapped car stays");
+    // one bad pose: +0.6 m into frame 10, −0.6 m out of it
+    let (mut m, _, new) = setup();
+    m.add_flow(new, 10, &flow(0.6));
+    m.add_flow(new, 11, &flow(-0.6));
+    assert!(!moving(&m, new), "readings that cancel");
+    // readings of frames 10 and 12
+    let (mut m, _, new) = setup();
+    m.add_flow(new, 10, &flow(0.6));
+    m.add_flow(new, 12, &flow(0.6));
+    assert!(!moving(&m, new), "not consecutive");
 }

@@ -251,17 +251,8 @@ pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<
             notes.push(format!("{}: {}.", case.name, crate::report::oxts_path_line(&p)));
         }
     }
-    if let Some(dr) = seq.dead_reckoned_from_first() {
-        let e = trajectory_errors(&out.poses, &dr, &[]);
-        let step = crate::report::largest_tracked_step_error(out, &dr);
-        notes.push(format!(
-            "{}: against the INS's dead reckoning (velocities and heading, no GPS position): ATE {} m (aligned {} m), end drift {} %, largest step error {}.",
-            case.name,
-            cell(e.as_ref().map(|e| e.ate_m), 3),
-            cell(e.as_ref().map(|e| e.ate_aligned_m), 3),
-            cell(e.as_ref().map(|e| e.end_drift_pct), 2),
-            step.map_or("–".to_string(), |(e, k)| format!("{e:.3} m ({})", seq.ids[k])),
-        ));
+    if let Some(errors) = crate::report::dead_reckoning_errors(out, seq) {
+        notes.push(format!("{}: {}: {errors}.", case.name, crate::report::DEAD_RECKONING));
     }
     if truth.is_none() {
         notes.push(format!("{}: no ground truth, errors not computed.", case.name));

@@ -7,7 +7,10 @@ use std::path::Path;
 use nalgebra::Isometry3;
 use slam_core::TrackState;
 use slam_dataset::{
-    kitti::{raw::OxtsPath, stereo::TruthSource},
+    kitti::{
+        raw::OxtsPath,
+        stereo::{StereoSequence, TruthSource},
+    },
     trajectory::{write_kitti_poses, write_tum},
 };
 use slam_eval::LabelGeometry;
@@ -141,20 +144,7 @@ impl Outcome {
     /// Errors against a raw drive's INS dead reckoning (its velocities and orientation, no GPS
     /// position), when the sequence has it.
     fn dead_reckoning_line(&self) -> Option<String> {
-        let dr = self.seq.dead_reckoned_from_first()?;
-        let e = trajectory_errors(&self.out.poses, &dr, &[])?;
-        let step = largest_tracked_step_error(&self.out, &dr)
-            .map(|(err, k)| {
-                format!(
-                    "; largest step error of a frame marked tracked {err:.3} m (frame {})",
-                    self.seq.ids.get(k).copied().unwrap_or(k)
-                )
-            })
-            .unwrap_or_default();
-        Some(format!(
-            "against the INS's dead reckoning (its velocities and heading integrated, no GPS position: steadier than the positions over a stretch like this): path {:.1} m; ATE {:.3} m (aligned {:.3} m); end-point drift {:.2} %{step}",
-            e.path_m, e.ate_m, e.ate_aligned_m, e.end_drift_pct
-        ))
+        Some(format!("{}: {}", DEAD_RECKONING, dead_reckoning_errors(&self.out, &self.seq)?))
     }
 
     /// Write camera.json (the run's camera, for scoring the objects later).
@@ -239,6 +229,28 @@ impl Outcome {
             played_ids(&self.seq, &self.selection)
         )
     }
+}
+
+/// What the second reference of a raw drive is, for the output.
+pub(crate) const DEAD_RECKONING: &str = "against the INS's dead reckoning (its velocity over ground integrated, no GPS position: steadier than the positions over a short stretch, but its direction of travel can differ from the packets' yaw by a few degrees, so the aligned ATE is the figure to read)";
+
+/// Errors of a run against its sequence's INS dead reckoning (none without one): ATE, aligned ATE,
+/// end-point drift and the largest step error of a frame marked tracked, as one phrase.
+pub(crate) fn dead_reckoning_errors(out: &RunOutput, seq: &StereoSequence) -> Option<String> {
+    let dr = seq.dead_reckoned_from_first()?;
+    let e = trajectory_errors(&out.poses, &dr, &[])?;
+    let step = largest_tracked_step_error(out, &dr)
+        .map(|(err, k)| {
+            format!(
+                "; largest step error of a frame marked tracked {err:.3} m (frame {})",
+                seq.ids.get(k).copied().unwrap_or(k)
+            )
+        })
+        .unwrap_or_default();
+    Some(format!(
+        "path {:.1} m; ATE {:.3} m (aligned {:.3} m); end-point drift {:.2} %{step}",
+        e.path_m, e.ate_m, e.ate_aligned_m, e.end_drift_pct
+    ))
 }
 
 /// The largest translation error of one frame-to-frame step ending at a frame marked tracked, and that

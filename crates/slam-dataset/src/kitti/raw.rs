@@ -29,6 +29,15 @@ pub struct OxtsPacket {
     pub values: [f64; 30],
 }
 
+impl OxtsPacket {
+    /// The IMU's orientation in the local east-north-up frame: `Rz(yaw)·Ry(pitch)·Rx(roll)`.
+    pub fn orientation(&self) -> UnitQuaternion<f64> {
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), self.yaw)
+            * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), self.pitch)
+            * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), self.roll)
+    }
+}
+
 /// Read one packet file (one line of 30 numbers).
 pub fn read_oxts_packet(path: impl AsRef<Path>) -> Result<OxtsPacket, DatasetError> {
     let path = path.as_ref();
@@ -58,10 +67,7 @@ pub fn oxts_poses(packets: &[OxtsPacket]) -> Vec<Isometry3<f64>> {
     let absolute = |p: &OxtsPacket| {
         let mx = scale * EARTH_RADIUS * p.lon.to_radians();
         let my = scale * EARTH_RADIUS * ((90.0 + p.lat).to_radians() / 2.0).tan().ln();
-        let rot = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), p.yaw)
-            * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), p.pitch)
-            * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), p.roll);
-        Isometry3::from_parts(Translation3::new(mx, my, p.alt), rot)
+        Isometry3::from_parts(Translation3::new(mx, my, p.alt), p.orientation())
     };
     let origin_inv = absolute(first).inverse();
     packets.iter().map(|p| origin_inv * absolute(p)).collect()
@@ -110,32 +116,23 @@ impl OxtsPath {
     }
 }
 
-/// Indices of `vf`, `vl` and `vu` (metres per second: forward, left, up, in the IMU frame) among an OXTS
-/// packet's 30 values.
-pub const OXTS_BODY_VELOCITY: [usize; 3] = [8, 9, 10];
-
 /// IMU poses from the INS alone, relative to the first packet (as [`oxts_poses`], without the GPS
-/// positions): each packet's orientation, and positions from its velocities in the IMU frame turned
-/// by that orientation and integrated over `times` (trapezoid). Over a drive's stretch this dead
-/// reckoning is far steadier than the positions: velocity errors are a few cm/s (`vel_accuracy`) and
-/// the heading's a fraction of a degree, where GPS positions jump by decimetres (`pos_accuracy`).
-/// `None` for fewer than two packets or times that do not match them.
+/// positions): each packet's orientation, and positions from its velocity over ground (`v_e, v_n, v_u`,
+/// east / north / up: the axes of the Mercator frame) integrated over `times` (trapezoid). Over a
+/// drive's stretch this dead reckoning is steadier than the positions, whose GPS fixes jump by
+/// decimetres (`pos_accuracy`) where the velocities are good to a few cm/s (`vel_accuracy`); over
+/// kilometres it drifts. `None` for fewer than two packets or times that do not match them.
 pub fn oxts_dead_reckoning(packets: &[OxtsPacket], times: &[f64]) -> Option<Vec<Isometry3<f64>>> {
     if packets.len() < 2 || times.len() != packets.len() {
         return None;
     }
-    let orientation = |p: &OxtsPacket| {
-        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), p.yaw)
-            * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), p.pitch)
-            * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), p.roll)
-    };
-    let velocity =
-        |p: &OxtsPacket| orientation(p) * Vector3::from_iterator(OXTS_BODY_VELOCITY.iter().map(|&i| p.values[i]));
+    let [n, e, u] = OXTS_VELOCITY;
+    let velocity = |p: &OxtsPacket| Vector3::new(p.values[e], p.values[n], p.values[u]);
     let mut at = Vector3::zeros();
-    let mut absolute = vec![Isometry3::from_parts(Translation3::from(at), orientation(&packets[0]))];
+    let mut absolute = vec![Isometry3::from_parts(Translation3::from(at), packets[0].orientation())];
     for (p, t) in packets.windows(2).zip(times.windows(2)) {
         at += 0.5 * (velocity(&p[0]) + velocity(&p[1])) * (t[1] - t[0]);
-        absolute.push(Isometry3::from_parts(Translation3::from(at), orientation(&p[1])));
+        absolute.push(Isometry3::from_parts(Translation3::from(at), p[1].orientation()));
     }
     let origin_inv = absolute[0].inverse();
     Some(absolute.iter().map(|a| origin_inv * a).collect())

@@ -298,12 +298,7 @@ impl Tracking {
             .iter()
             .map(|d| {
                 let (kept, centroid) = object_points(&tf.points, &tf.world_from_camera, d, &geometry);
-                let depths = centroid.map(|_| {
-                    kept.iter()
-                        .map(|p| p.camera_point.z)
-                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(n, f), z| (n.min(z), f.max(z)))
-                });
-                FrameObject { centroid, depths }
+                FrameObject { centroid, depths: centroid.map(|_| depth_span(&kept)) }
             })
             .collect();
         self.attach_points(tf, detections, &tracks, (&geometry, &on_frame));
@@ -314,7 +309,11 @@ impl Tracking {
             let pairs = self.tracker.stereo_flow(&self.prev_boxes);
             stereo_flow_ms = t.elapsed().as_secs_f64() * 1e3;
             match pairs {
-                Ok(pairs) => self.attach_flow(tf, detections, &tracks, &pairs, (&geometry, &on_frame)),
+                // readings are counted in played frames (ids step by the stride)
+                Ok(pairs) => {
+                    let played = self.records.len();
+                    self.attach_flow((played, tf), detections, &tracks, &pairs, (&geometry, &on_frame))
+                }
                 Err(e) => tracing::debug!(frame = i, "optical flow of stereo points failed: {e}"),
             }
             times.flow += stereo_flow_ms;
@@ -323,6 +322,9 @@ impl Tracking {
             self.objects.check_free_space(&camera, &tf.points, &geometry.noise);
             self.counts.free_space_removals = self.objects.free_space_removals();
         }
+        // where each moving object is expected in the next frame, from its points in this one (the
+        // points its region kept out of this frame are not handed over: after its first masked frame
+        // an object has few points of its own left, and its region then covers its whole box)
         let objects = &self.objects;
         self.moving_regions = detections
             .iter()
@@ -342,7 +344,7 @@ impl Tracking {
     /// the depths of the object's points ([`object_points`]: its depth cluster).
     fn attach_flow(
         &mut self,
-        tf: &TrackedFrame,
+        (frame, tf): (usize, &TrackedFrame),
         detections: &[Detection],
         tracks: &[Option<slam_core::TrackId>],
         pairs: &[PointPair],
@@ -365,7 +367,7 @@ impl Tracking {
                 .map(|(f, _)| *f)
                 .collect();
             if let Some(flow) = scene_flow(&on, &camera) {
-                self.objects.add_flow(*id, &flow);
+                self.objects.add_flow(*id, frame, &flow);
             }
         }
     }
@@ -436,28 +438,18 @@ fn flowed_points<'a>(
     pairs: &[PointPair],
     g: &PointGeometry,
 ) -> Vec<(FlowedPoint, &'a FramePoint)> {
-    const CELL: f64 = 4.0;
-    let key = |u: f64, v: f64| ((u / CELL).floor() as i64, (v / CELL).floor() as i64);
-    let at: std::collections::HashMap<(u64, u64), &FramePoint> =
-        before.iter().map(|p| ((p.observation[0].to_bits(), p.observation[1].to_bits()), p)).collect();
-    let mut grid: std::collections::HashMap<(i64, i64), Vec<&FramePoint>> = std::collections::HashMap::new();
-    for p in now {
-        grid.entry(key(p.observation[0], p.observation[1])).or_default().push(p);
-    }
+    let (before_grid, now_grid) = (PointGrid::of(before), PointGrid::of(now));
     let across = |z: f64| z / g.k.fx;
     let mut out = Vec::new();
+    // a keypoint inside two boxes of the frame before is followed once per box: count it once
+    let mut seen = std::collections::HashSet::new();
     for pair in pairs {
-        let Some(b) = at.get(&(pair.reference[0].to_bits(), pair.reference[1].to_bits())) else { continue };
-        let [u, v] = pair.current;
-        let (cu, cv) = key(u, v);
-        let nearest = (cu - 1..=cu + 1)
-            .flat_map(|x| (cv - 1..=cv + 1).map(move |y| (x, y)))
-            .filter_map(|c| grid.get(&c))
-            .flatten()
-            .map(|p| ((p.observation[0] - u).hypot(p.observation[1] - v), *p))
-            .filter(|(d, _)| *d <= 2.0)
-            .min_by(|a, b| a.0.total_cmp(&b.0));
-        let Some((_, n)) = nearest else { continue };
+        // the flow starts at the keypoint itself (to float rounding)
+        let Some(b) = before_grid.nearest(pair.reference, 0.01) else { continue };
+        if !seen.insert((b.observation[0].to_bits(), b.observation[1].to_bits())) {
+            continue;
+        }
+        let Some(n) = now_grid.nearest(pair.current, 2.0) else { continue };
         let (zb, zn) = (b.camera_point.z, n.camera_point.z);
         out.push((
             FlowedPoint {
@@ -472,11 +464,51 @@ fn flowed_points<'a>(
     out
 }
 
+/// Nearest and farthest depth of points.
+fn depth_span(points: &[&FramePoint]) -> (f64, f64) {
+    points.iter().map(|p| p.camera_point.z).fold((f64::INFINITY, f64::NEG_INFINITY), |(n, f), z| (n.min(z), f.max(z)))
+}
+
 /// A detection's object in the frame's stereo points ([`object_points`]): where they put it, and the
 /// nearest and farthest depth among them (both `None` below [`MIN_OBJECT_POINTS`] points).
 struct FrameObject {
     centroid: Option<PointsCentroid>,
     depths: Option<(f64, f64)>,
+}
+
+/// Stereo points in square cells of their left-image position, for nearest-point lookups.
+struct PointGrid<'p> {
+    cells: std::collections::HashMap<(i64, i64), Vec<&'p FramePoint>>,
+}
+
+impl<'p> PointGrid<'p> {
+    /// Cell side, pixels: at least the largest lookup radius (2 px).
+    const CELL: f64 = 4.0;
+
+    fn key(u: f64, v: f64) -> (i64, i64) {
+        ((u / Self::CELL).floor() as i64, (v / Self::CELL).floor() as i64)
+    }
+
+    fn of(points: &'p [FramePoint]) -> Self {
+        let mut cells: std::collections::HashMap<(i64, i64), Vec<&'p FramePoint>> = Default::default();
+        for p in points {
+            cells.entry(Self::key(p.observation[0], p.observation[1])).or_default().push(p);
+        }
+        Self { cells }
+    }
+
+    /// The point nearest to `(u, v)` within `radius` pixels (at most the cell side).
+    fn nearest(&self, [u, v]: [f64; 2], radius: f64) -> Option<&'p FramePoint> {
+        let (cu, cv) = Self::key(u, v);
+        (cu - 1..=cu + 1)
+            .flat_map(|x| (cv - 1..=cv + 1).map(move |y| (x, y)))
+            .filter_map(|c| self.cells.get(&c))
+            .flatten()
+            .map(|p| ((p.observation[0] - u).hypot(p.observation[1] - v), *p))
+            .filter(|(d, _)| *d <= radius)
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(_, p)| p)
+    }
 }
 
 /// Where a moving object of this frame is expected in the next: its box grown by 10 % on each side
