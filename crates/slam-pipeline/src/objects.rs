@@ -414,8 +414,9 @@ pub struct MappedObject {
     fitted_at: usize,
     /// Consecutive keyframes whose centroid failed the motion test.
     motion_strikes: usize,
-    /// The last scene-flow reading and its frame ([`ObjectMapper::add_flow`]).
-    last_flow: Option<(usize, SceneFlow)>,
+    /// Its scene-flow readings ([`ObjectMapper::add_flow`]): frame id, frame ids since the frame the
+    /// flow started in, the reading.
+    flows: Vec<(usize, usize, SceneFlow)>,
     /// Consecutive detector frames in which its ellipsoid should have been seen and was not.
     misses: usize,
     /// Consecutive tracked frames whose stereo points see free space through its ellipsoid.
@@ -435,7 +436,7 @@ impl MappedObject {
             points: Default::default(),
             fitted_at: 0,
             motion_strikes: 0,
-            last_flow: None,
+            flows: Vec::new(),
             misses: 0,
             free_frames: 0,
         }
@@ -835,7 +836,14 @@ impl ObjectMapper {
         let sigma_along = (now.powi(2) + first.powi(2) + s * s).sqrt();
         let sigma_across = (first.powi(2) + s * s).sqrt();
         let m = ((along / sigma_along).powi(2) + (across / sigma_across).powi(2)).sqrt();
-        obj.motion_strikes = if m > cfg.dynamic_motion_sigmas { obj.motion_strikes + 1 } else { 0 };
+        let (from, to) = (read[0].0, read[read.len() - 1].0);
+        let trend_rate = (d / (to - from).max(1) as f64, (sigma_along, sigma_across));
+        let vetoed = m > cfg.dynamic_motion_sigmas
+            && flow_refutes(&obj.flows, (from, to), trend_rate, &ray, cfg.dynamic_motion_sigmas);
+        if vetoed {
+            tracing::debug!(object = %id, sigmas = m, "centroid trend refuted by the points' own scene flow");
+        }
+        obj.motion_strikes = if m > cfg.dynamic_motion_sigmas && !vetoed { obj.motion_strikes + 1 } else { 0 };
         if obj.motion_strikes >= 2 && !obj.moving {
             tracing::info!(
                 "object {} ({}) moved {:.1} m ({:.1} m along the viewing ray, {:.1} m across; {m:.1} σ of the stereo noise): moving, not mapped",
@@ -862,10 +870,11 @@ impl ObjectMapper {
     /// An object already mapped as static is left to the centroid test: two frames of motion under a
     /// track its boxes and points have agreed with for many views are likelier another object taken
     /// over by the association than a parked car pulling out.
-    pub fn add_flow(&mut self, id: TrackId, frame: usize, flow: &SceneFlow) {
+    pub fn add_flow(&mut self, id: TrackId, (frame, gap): (usize, usize), flow: &SceneFlow) {
         let cfg = self.config;
         let Some(obj) = self.objects.get_mut(&id) else { return };
-        let before = obj.last_flow.replace((frame, *flow));
+        let before = obj.flows.last().map(|&(f, _, b)| (f, b));
+        obj.flows.push((frame, gap, *flow));
         if obj.ellipsoid.is_some() && !obj.dynamic {
             // mapped as static: its own boxes and points have agreed for views on end, so two frames
             // of motion are likelier another object under its track (an association switch) than a
@@ -882,7 +891,7 @@ impl ObjectMapper {
             "scene flow"
         );
         let limit = cfg.dynamic_motion_sigmas;
-        let confirmed = before.filter(|(f, _)| f + 1 == frame).is_some_and(|(_, b)| {
+        let confirmed = before.filter(|(f, _)| f + gap == frame).is_some_and(|(_, b)| {
             b.sigmas() > limit && SceneFlow::over_both(&b, flow).is_some_and(|both| both.sigmas() > limit)
         });
         if m > limit && confirmed && !obj.moving {
@@ -1278,6 +1287,47 @@ pub fn scene_flow(points: &[FlowedPoint], camera: &Vector3<f64>) -> Option<Scene
     Some(SceneFlow::new(motion, ray, (of_median(rms(&|p| p.sigma_along)), of_median(rms(&|p| p.sigma_across))), n))
 }
 
+/// Fewest scene-flow readings over a trend's span that can refute it ([`flow_refutes`]).
+const MIN_REFUTING_READINGS: usize = 3;
+
+/// Whether the object's scene-flow readings over the frames `span` (at least
+/// [`MIN_REFUTING_READINGS`]) refute its centroid trend: their mean rate (motion per frame id, σ from
+/// each reading's) stands within `limit` σ of standing still and more than `limit` σ (the two rates'
+/// σ combined; the trend's is its displacement's σ over the span) away from the trend's rate
+/// (`trend`: rate and the σ along and across `ray` of its displacement). The trend reads where the
+/// object's points put it frame after frame, so centroids on another object (a box that slid, a track
+/// merged into this one) move it; the flow follows the same points from each frame to the next and
+/// does not see them. A slow mover whose flow is too noisy to exclude its trend is not refuted.
+fn flow_refutes(
+    flows: &[(usize, usize, SceneFlow)],
+    (from, to): (usize, usize),
+    (rate, (sigma_along, sigma_across)): (Vector3<f64>, (f64, f64)),
+    ray: &Vector3<f64>,
+    limit: f64,
+) -> bool {
+    let within: Vec<&(usize, usize, SceneFlow)> =
+        flows.iter().filter(|(f, gap, _)| *f > from && *f <= to && *gap > 0).collect();
+    let k = within.len();
+    if k < MIN_REFUTING_READINGS {
+        return false;
+    }
+    let kf = k as f64;
+    let mean = within.iter().map(|(_, gap, r)| r.motion / *gap as f64).sum::<Vector3<f64>>() / kf;
+    let var = |s: &dyn Fn(&SceneFlow) -> f64| {
+        within.iter().map(|(_, gap, r)| (s(r) / *gap as f64).powi(2)).sum::<f64>() / (kf * kf)
+    };
+    let (flow_along, flow_across) = (var(&|r| r.sigma_along).sqrt(), var(&|r| r.sigma_across).sqrt());
+    let span = (to - from).max(1) as f64;
+    let split = |v: Vector3<f64>| {
+        let along = v.dot(ray);
+        (along, (v - ray * along).norm())
+    };
+    let norm = |(a, c): (f64, f64), (sa, sc): (f64, f64)| ((a / sa).powi(2) + (c / sc).powi(2)).sqrt();
+    let still = norm(split(mean), (flow_along, flow_across)) <= limit;
+    let combined = (flow_along.hypot(sigma_along / span), flow_across.hypot(sigma_across / span));
+    still && norm(split(rate - mean), combined) > limit
+}
+
 /// Centroids at each end of those the motion test reads whose median depth noise it takes for that
 /// end (see [`ObjectMapper::add_points`]).
 pub const MOTION_WINDOW: usize = 3;
@@ -1455,6 +1505,29 @@ mod tests {
         let partly_road = scene_flow(&points(0.8, 30, 0.25), &camera).expect("a reading");
         assert!(partly_road.sigmas() > 3.0 && partly_road.along > 0.3, "{partly_road:?}");
         assert!(scene_flow(&points(1.0, MIN_FLOW_POINTS - 1, 0.0), &camera).is_none());
+    }
+
+    /// The scene flow refutes a centroid trend only when its own readings over the trend's span say
+    /// "still" precisely enough to exclude the trend's rate: a parked van whose centroids were pulled
+    /// 10 m by another object's (0.33 m per frame over 30 frames) is refuted by readings of 0 ± 0.1 m
+    /// per frame; a van pulling away at that rate, read so by its flow, is not; a slow mover (0.05 m per
+    /// frame) whose readings are too noisy to tell is not; nor with fewer than three readings in the
+    /// span, or readings outside it.
+    #[test]
+    fn scene_flow_refutes_a_trend_only_when_it_can_exclude_it() {
+        let ray = Vector3::new(0.0, 0.0, 1.0);
+        let reading = |dz: f64, sigma: f64| SceneFlow::new(Vector3::new(0.0, 0.0, dz), ray, (sigma, 0.05), 20);
+        let readings = |dz: f64, sigma: f64, frames: &[usize]| -> Vec<(usize, usize, SceneFlow)> {
+            frames.iter().map(|&f| (f, 1, reading(dz, sigma))).collect()
+        };
+        let trend = |rate: f64| (Vector3::new(0.0, 0.0, rate), (1.3, 1.2));
+        let span = (10, 40);
+        let some: Vec<usize> = vec![12, 20, 27, 33, 38];
+        assert!(flow_refutes(&readings(0.02, 0.1, &some), span, trend(10.0 / 30.0), &ray, 3.0), "a parked van");
+        assert!(!flow_refutes(&readings(0.33, 0.1, &some), span, trend(10.0 / 30.0), &ray, 3.0), "a van pulling away");
+        assert!(!flow_refutes(&readings(0.0, 0.6, &some), span, trend(0.05), &ray, 3.0), "a slow mover, noisy flow");
+        assert!(!flow_refutes(&readings(0.02, 0.1, &[12, 20]), span, trend(10.0 / 30.0), &ray, 3.0), "two readings");
+        assert!(!flow_refutes(&readings(0.02, 0.1, &[2, 5, 8, 45]), span, trend(10.0 / 30.0), &ray, 3.0), "outside");
     }
 
     #[test]

@@ -211,22 +211,22 @@ fn scene_flow_flags_a_new_object_and_leaves_a_mapped_one_to_the_centroid_test() 
     // pulling away 0.6 m per frame (6 σ) in frames 10 and 11
     let (mut m, mapped, new) = setup();
     for id in [mapped, new] {
-        m.add_flow(id, 10, &flow(0.6));
+        m.add_flow(id, (10, 1), &flow(0.6));
     }
     assert!(!moving(&m, new) && !moving(&m, mapped), "one reading is not enough");
     for id in [mapped, new] {
-        m.add_flow(id, 11, &flow(0.6));
+        m.add_flow(id, (11, 1), &flow(0.6));
     }
     assert!(moving(&m, new), "the new object is moving");
     assert!(!moving(&m, mapped), "the mapped car stays");
     // one bad pose: +0.6 m into frame 10, −0.6 m out of it
     let (mut m, _, new) = setup();
-    m.add_flow(new, 10, &flow(0.6));
-    m.add_flow(new, 11, &flow(-0.6));
+    m.add_flow(new, (10, 1), &flow(0.6));
+    m.add_flow(new, (11, 1), &flow(-0.6));
     assert!(!moving(&m, new), "readings that cancel");
     // readings of frames 10 and 12
     let (mut m, _, new) = setup();
-    m.add_flow(new, 10, &flow(0.6));
-    m.add_flow(new, 12, &flow(0.6));
+    m.add_flow(new, (10, 1), &flow(0.6));
+    m.add_flow(new, (12, 1), &flow(0.6));
     assert!(!moving(&m, new), "not consecutive");
 }

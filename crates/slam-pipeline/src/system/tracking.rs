@@ -39,8 +39,8 @@ pub struct Tracking {
     pending: VecDeque<usize>,
     last_reference: Option<(u64, Isometry3<f64>)>,
     prev_boxes: Vec<BBox>,
-    /// The previous frame's stereo points and pose when it was measured (scene flow of objects).
-    prev_points: Option<(Vec<FramePoint>, Isometry3<f64>)>,
+    /// The previous frame's id, stereo points and pose when it was measured (scene flow of objects).
+    prev_points: Option<(usize, Vec<FramePoint>, Isometry3<f64>)>,
     /// Where the objects found moving are expected in the next frame (kept out of its tracking).
     moving_regions: Vec<MovingRegion>,
     last_done: Instant,
@@ -309,11 +309,7 @@ impl Tracking {
             let pairs = self.tracker.stereo_flow(&self.prev_boxes);
             stereo_flow_ms = t.elapsed().as_secs_f64() * 1e3;
             match pairs {
-                // readings are counted in played frames (ids step by the stride)
-                Ok(pairs) => {
-                    let played = self.records.len();
-                    self.attach_flow((played, tf), detections, &tracks, &pairs, (&geometry, &on_frame))
-                }
+                Ok(pairs) => self.attach_flow((i, tf), detections, &tracks, &pairs, (&geometry, &on_frame)),
                 Err(e) => tracing::debug!(frame = i, "optical flow of stereo points failed: {e}"),
             }
             times.flow += stereo_flow_ms;
@@ -334,7 +330,7 @@ impl Tracking {
             .map(|((d, _), o)| moving_region(d, o.depths, &geometry.noise))
             .collect();
         self.prev_boxes = detections.iter().map(|d| d.bbox).collect();
-        self.prev_points = tf.state.is_measured().then(|| (tf.points.clone(), tf.world_from_camera));
+        self.prev_points = tf.state.is_measured().then(|| (i, tf.points.clone(), tf.world_from_camera));
         times.association = t.elapsed().as_secs_f64() * 1e3 - stereo_flow_ms;
         tracks
     }
@@ -350,7 +346,8 @@ impl Tracking {
         pairs: &[PointPair],
         (geometry, on_frame): (&PointGeometry, &[FrameObject]),
     ) {
-        let Some((before, world_from_before)) = &self.prev_points else { return };
+        let Some((before_id, before, world_from_before)) = &self.prev_points else { return };
+        let gap = frame.saturating_sub(*before_id);
         if !tf.state.is_measured() || pairs.is_empty() {
             return;
         }
@@ -367,7 +364,7 @@ impl Tracking {
                 .map(|(f, _)| *f)
                 .collect();
             if let Some(flow) = scene_flow(&on, &camera) {
-                self.objects.add_flow(*id, frame, &flow);
+                self.objects.add_flow(*id, (frame, gap), &flow);
             }
         }
     }
