@@ -858,22 +858,34 @@ impl ObjectMapper {
         }
     }
 
-    /// The scene flow of the object's points between the frame before and this one (`frame` counts
-    /// the frames played, [`scene_flow`]): two readings of consecutive frames that each stand more than
-    /// `dynamic_motion_sigmas` σ above their noise, and whose sum (the motion over both frames) does
-    /// too, flag the object as moving. The sum is what a single bad pose cannot fake: an error of frame
-    /// k moves every point by +δ in the reading that ends at k and by −δ in the next, which cancel. The same points seen in two consecutive frames barely change view,
-    /// so their 3-D motion is measured to their depth noise alone (with twenty points, about 0.4 m per
-    /// frame at 15 m, 0.16 m at 6 m is 3 σ): traffic moving against the camera is found within a few
+    /// The scene flow of the object's points between the frame before and this one (`frame` and `gap`:
+    /// this frame's id and the ids since the frame before, [`scene_flow`]): two readings of consecutive
+    /// frames that each stand more than `dynamic_motion_sigmas` σ above their noise, and whose sum (the
+    /// motion over both frames) does too, flag the object as moving. The first reading is the object's
+    /// own, or else `same_box`: that of the box its box overlaps in the frame before (the caller's
+    /// IoU ≥ 0.5), the same physical object under another track (the association
+    /// starts a new track when the detector calls a van a car, then a truck). The sum is what a single
+    /// bad pose cannot fake: an error of frame k moves every point by +δ in the reading that ends at k
+    /// and by −δ in the next, which cancel. The same points seen in two consecutive frames barely change
+    /// view, so their 3-D motion is measured to their depth noise alone (with twenty points, about 0.4 m
+    /// per frame at 15 m, 0.16 m at 6 m is 3 σ): traffic moving against the camera is found within a few
     /// frames, where the centroid test ([`ObjectMapper::add_points`]), which must allow for the visible
-    /// surface wandering over the object as the view turns, needs it to move by about its own size.
-    /// An object already mapped as static is left to the centroid test: two frames of motion under a
-    /// track its boxes and points have agreed with for many views are likelier another object taken
-    /// over by the association than a parked car pulling out.
-    pub fn add_flow(&mut self, id: TrackId, (frame, gap): (usize, usize), flow: &SceneFlow) {
+    /// surface wandering over the object as the view turns, needs it to move by about its own size. An
+    /// object already mapped as static is left to the centroid test: two frames of motion under a track
+    /// its boxes and points have agreed with for many views are likelier another object taken over by
+    /// the association than a parked car pulling out.
+    pub fn add_flow(
+        &mut self,
+        id: TrackId,
+        (frame, gap): (usize, usize),
+        flow: &SceneFlow,
+        same_box: Option<&SceneFlow>,
+    ) {
         let cfg = self.config;
         let Some(obj) = self.objects.get_mut(&id) else { return };
-        let before = obj.flows.last().map(|&(f, _, b)| (f, b));
+        // the reading of the frame before: its own, else that of the box it overlaps there
+        let own = obj.flows.last().filter(|(f, _, _)| f + gap == frame).map(|&(_, _, b)| b);
+        let before = own.or(same_box.copied());
         obj.flows.push((frame, gap, *flow));
         if obj.ellipsoid.is_some() && !obj.dynamic {
             // mapped as static: its own boxes and points have agreed for views on end, so two frames
@@ -891,7 +903,7 @@ impl ObjectMapper {
             "scene flow"
         );
         let limit = cfg.dynamic_motion_sigmas;
-        let confirmed = before.filter(|(f, _)| f + gap == frame).is_some_and(|(_, b)| {
+        let confirmed = before.is_some_and(|b| {
             b.sigmas() > limit && SceneFlow::over_both(&b, flow).is_some_and(|both| both.sigmas() > limit)
         });
         if m > limit && confirmed && !obj.moving {

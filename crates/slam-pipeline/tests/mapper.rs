@@ -179,7 +179,8 @@ fn an_ellipsoid_the_stereo_points_see_through_is_removed() {
 }
 
 /// Two scene-flow readings of consecutive frames far above their noise, and agreeing (their sum too),
-/// flag an object not yet mapped as moving. One is not enough; two readings that cancel (what one bad
+/// flag an object not yet mapped as moving; the first may be its own or that of the box it overlaps in
+/// the frame before (a new track of the same object). One is not enough; two readings that cancel (what one bad
 /// pose makes: +δ into its frame, −δ out of it) or that are not of consecutive frames do not flag it;
 /// an object already mapped as static is left to the centroid test (two frames of motion under its
 /// track are likelier another object taken over by the association).
@@ -211,22 +212,30 @@ fn scene_flow_flags_a_new_object_and_leaves_a_mapped_one_to_the_centroid_test() 
     // pulling away 0.6 m per frame (6 σ) in frames 10 and 11
     let (mut m, mapped, new) = setup();
     for id in [mapped, new] {
-        m.add_flow(id, (10, 1), &flow(0.6));
+        m.add_flow(id, (10, 1), &flow(0.6), None);
     }
     assert!(!moving(&m, new) && !moving(&m, mapped), "one reading is not enough");
     for id in [mapped, new] {
-        m.add_flow(id, (11, 1), &flow(0.6));
+        m.add_flow(id, (11, 1), &flow(0.6), None);
     }
     assert!(moving(&m, new), "the new object is moving");
     assert!(!moving(&m, mapped), "the mapped car stays");
     // one bad pose: +0.6 m into frame 10, −0.6 m out of it
     let (mut m, _, new) = setup();
-    m.add_flow(new, (10, 1), &flow(0.6));
-    m.add_flow(new, (11, 1), &flow(-0.6));
+    m.add_flow(new, (10, 1), &flow(0.6), None);
+    m.add_flow(new, (11, 1), &flow(-0.6), None);
     assert!(!moving(&m, new), "readings that cancel");
     // readings of frames 10 and 12
     let (mut m, _, new) = setup();
-    m.add_flow(new, (10, 1), &flow(0.6));
-    m.add_flow(new, (12, 1), &flow(0.6));
+    m.add_flow(new, (10, 1), &flow(0.6), None);
+    m.add_flow(new, (12, 1), &flow(0.6), None);
     assert!(!moving(&m, new), "not consecutive");
+    // a new track (no reading of its own before) whose box overlaps a box of the frame before that read
+    // the same motion: the same object under another track id
+    let (mut m, _, new) = setup();
+    m.add_flow(new, (11, 1), &flow(0.6), Some(&flow(0.6)));
+    assert!(moving(&m, new), "the box's reading of the frame before confirms it");
+    let (mut m, _, new) = setup();
+    m.add_flow(new, (11, 1), &flow(0.6), Some(&flow(-0.6)));
+    assert!(!moving(&m, new), "a box reading that cancels does not");
 }
