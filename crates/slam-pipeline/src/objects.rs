@@ -830,12 +830,11 @@ impl ObjectMapper {
         let Some(ray) = (all[all.len() - 1].1 - camera).try_normalize(1e-9) else {
             return;
         };
-        let along = d.dot(&ray);
-        let across = (d - ray * along).norm();
+        let split = RaySplit::of(&d, &ray);
         let s = class_prior(class).axes.x / 3f64.sqrt();
         let sigma_along = (now.powi(2) + first.powi(2) + s * s).sqrt();
         let sigma_across = (first.powi(2) + s * s).sqrt();
-        let m = ((along / sigma_along).powi(2) + (across / sigma_across).powi(2)).sqrt();
+        let m = split.sigmas((sigma_along, sigma_across));
         let (from, to) = (read[0].0, read[read.len() - 1].0);
         let trend_rate = (d / (to - from).max(1) as f64, (sigma_along, sigma_across));
         let vetoed = m > cfg.dynamic_motion_sigmas
@@ -850,8 +849,8 @@ impl ObjectMapper {
                 id.0,
                 obj.class.name(),
                 d.norm(),
-                along,
-                across
+                split.along,
+                split.across
             );
             obj.moving = true;
             obj.dynamic = true;
@@ -897,24 +896,22 @@ impl ObjectMapper {
         tracing::debug!(
             object = %id,
             points = flow.points,
-            along = flow.along,
-            across = flow.across,
+            along = flow.split().along,
+            across = flow.split().across,
             sigmas = m,
             "scene flow"
         );
         let limit = cfg.dynamic_motion_sigmas;
-        let confirmed = before.is_some_and(|b| {
-            b.sigmas() > limit && SceneFlow::over_both(&b, flow).is_some_and(|both| both.sigmas() > limit)
-        });
+        let confirmed = before.is_some_and(|b| b.sigmas() > limit && SceneFlow::over_both(&b, flow).sigmas() > limit);
         if m > limit && confirmed && !obj.moving {
             tracing::info!(
                 "object {} ({}): its {} points moved {:.2} m in a frame ({:.2} m along the viewing ray, {:.2} m across; {m:.1} σ of the stereo noise): moving, not mapped",
                 id.0,
                 obj.class.name(),
                 flow.points,
-                flow.displacement(),
-                flow.along,
-                flow.across
+                flow.split().norm(),
+                flow.split().along,
+                flow.split().across
             );
             obj.moving = true;
             obj.dynamic = true;
@@ -1079,11 +1076,9 @@ fn stereo_agrees(obj: &MappedObject, e: &Ellipsoid, sigmas: f64) -> Result<(), S
     let (c, sigma_z) = median_centroid(&with);
     let ray =
         (c - last.camera.world_from_camera.translation.vector).try_normalize(1e-9).ok_or("centroid at the camera")?;
-    let d = e.centre() - c;
-    let along = d.dot(&ray);
-    let across = (d - ray * along).norm();
+    let RaySplit { along, across } = RaySplit::of(&(e.centre() - c), &ray);
     let s = class_prior(obj.class).axes.x / 3f64.sqrt();
-    let m = ((along / (sigma_z * sigma_z + s * s).sqrt()).powi(2) + (across / s).powi(2)).sqrt();
+    let m = RaySplit { along, across }.sigmas(((sigma_z * sigma_z + s * s).sqrt(), s));
     if m > sigmas {
         return Err(format!("{m:.1} σ from its stereo points ({along:+.1} m along the ray, {across:.1} m across)"));
     }
@@ -1229,13 +1224,9 @@ pub struct SceneFlow {
     pub motion: Vector3<f64>,
     /// The viewing ray it is split along (unit, world frame).
     pub ray: Vector3<f64>,
-    /// Motion along the viewing ray (away from the camera positive), metres.
-    pub along: f64,
-    /// Motion across the ray, metres.
-    pub across: f64,
-    /// σ of `along`, metres.
+    /// σ of the motion along the ray, metres.
     pub sigma_along: f64,
-    /// σ of `across`, metres.
+    /// σ of the motion across the ray, metres.
     pub sigma_across: f64,
     /// Points it was read from.
     pub points: usize,
@@ -1249,31 +1240,56 @@ impl SceneFlow {
         (sigma_along, sigma_across): (f64, f64),
         points: usize,
     ) -> Self {
-        let along = motion.dot(&ray);
-        let across = (motion - ray * along).norm();
-        Self { motion, ray, along, across, sigma_along, sigma_across, points }
+        Self { motion, ray, sigma_along, sigma_across, points }
     }
 
     /// The motion over two consecutive readings (`first`, then `then`): their sum along `then`'s ray,
-    /// σ combined; `None` without points.
-    pub fn over_both(first: &SceneFlow, then: &SceneFlow) -> Option<SceneFlow> {
+    /// σ combined.
+    pub fn over_both(first: &SceneFlow, then: &SceneFlow) -> SceneFlow {
         let s = |a: f64, b: f64| a.hypot(b);
-        Some(SceneFlow::new(
+        SceneFlow::new(
             first.motion + then.motion,
             then.ray,
             (s(first.sigma_along, then.sigma_along), s(first.sigma_across, then.sigma_across)),
             first.points.min(then.points),
-        ))
-        .filter(|f| f.points > 0)
+        )
+    }
+
+    /// The motion along the ray (away from the camera positive) and across it, metres.
+    pub fn split(&self) -> RaySplit {
+        RaySplit::of(&self.motion, &self.ray)
     }
 
     /// The motion in σ of its noise (Mahalanobis, along and across the ray).
     pub fn sigmas(&self) -> f64 {
-        ((self.along / self.sigma_along).powi(2) + (self.across / self.sigma_across).powi(2)).sqrt()
+        self.split().sigmas((self.sigma_along, self.sigma_across))
+    }
+}
+
+/// A displacement split along a viewing ray (unit) and across it, metres: how every motion test here
+/// reads a displacement, since stereo depth noise lies along the ray.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RaySplit {
+    /// Along the ray (away from the camera positive).
+    pub along: f64,
+    /// Across it.
+    pub across: f64,
+}
+
+impl RaySplit {
+    /// `v` split along and across `ray`.
+    pub fn of(v: &Vector3<f64>, ray: &Vector3<f64>) -> Self {
+        let along = v.dot(ray);
+        Self { along, across: (v - ray * along).norm() }
     }
 
-    /// The motion, metres.
-    pub fn displacement(&self) -> f64 {
+    /// In σ of noise with these σ along and across (Mahalanobis, the two independent).
+    pub fn sigmas(&self, (sigma_along, sigma_across): (f64, f64)) -> f64 {
+        ((self.along / sigma_along).powi(2) + (self.across / sigma_across).powi(2)).sqrt()
+    }
+
+    /// Its length, metres.
+    pub fn norm(&self) -> f64 {
         self.along.hypot(self.across)
     }
 }
@@ -1330,14 +1346,9 @@ fn flow_refutes(
     };
     let (flow_along, flow_across) = (var(&|r| r.sigma_along).sqrt(), var(&|r| r.sigma_across).sqrt());
     let span = (to - from).max(1) as f64;
-    let split = |v: Vector3<f64>| {
-        let along = v.dot(ray);
-        (along, (v - ray * along).norm())
-    };
-    let norm = |(a, c): (f64, f64), (sa, sc): (f64, f64)| ((a / sa).powi(2) + (c / sc).powi(2)).sqrt();
-    let still = norm(split(mean), (flow_along, flow_across)) <= limit;
+    let still = RaySplit::of(&mean, ray).sigmas((flow_along, flow_across)) <= limit;
     let combined = (flow_along.hypot(sigma_along / span), flow_across.hypot(sigma_across / span));
-    still && norm(split(rate - mean), combined) > limit
+    still && RaySplit::of(&(rate - mean), ray).sigmas(combined) > limit
 }
 
 /// Centroids at each end of those the motion test reads whose median depth noise it takes for that
@@ -1513,9 +1524,9 @@ mod tests {
         let parked = scene_flow(&points(0.0, 20, 0.0), &camera).expect("a reading");
         assert!(parked.sigmas() < 3.0, "{parked:?}");
         let pulling = scene_flow(&points(0.5, 20, 0.0), &camera).expect("a reading");
-        assert!(pulling.sigmas() > 3.0 && pulling.along > 0.3, "{pulling:?}");
+        assert!(pulling.sigmas() > 3.0 && pulling.split().along > 0.3, "{pulling:?}");
         let partly_road = scene_flow(&points(0.8, 30, 0.25), &camera).expect("a reading");
-        assert!(partly_road.sigmas() > 3.0 && partly_road.along > 0.3, "{partly_road:?}");
+        assert!(partly_road.sigmas() > 3.0 && partly_road.split().along > 0.3, "{partly_road:?}");
         assert!(scene_flow(&points(1.0, MIN_FLOW_POINTS - 1, 0.0), &camera).is_none());
     }
 
