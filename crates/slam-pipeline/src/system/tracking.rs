@@ -334,7 +334,8 @@ impl Tracking {
             .map(|((d, _), o)| moving_region(d, o.depths, &geometry.noise))
             .collect();
         self.prev_boxes = detections.iter().map(|d| d.bbox).collect();
-        self.prev_points = tf.state.is_measured().then(|| (i, tf.points.clone(), tf.world_from_camera));
+        self.prev_points =
+            (self.config.scene_flow && tf.state.is_measured()).then(|| (i, tf.points.clone(), tf.world_from_camera));
         times.association = t.elapsed().as_secs_f64() * 1e3 - stereo_flow_ms;
         tracks
     }
