@@ -48,7 +48,8 @@ enum Command {
     /// objects, with detections from a file, and with the shipped detector.
     RunBench(run_cmd::RunBenchArgs),
     /// Tracking accuracy on every dev case in one table (odometry 06 at strides 1-4, raw drive 0005
-    /// against OXTS, and any --case PATH[:STRIDE]), without objects (with --objects: the full system):
+    /// against OXTS at strides 1, 4 and 8, and any --case PATH[:STRIDE]), without objects (with
+    /// --objects: the full system):
     /// ATE, drift, largest step error of tracked frames, lost / relocalised, median frames/s.
     TrackBench(run_cmd::TrackBenchArgs),
     /// ATE, drift and RPE of a trajectory file (KITTI or TUM) against ground truth.

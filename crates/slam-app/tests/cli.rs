@@ -331,6 +331,12 @@ fn trajectory_eval_reads_kitti_and_tum_and_names_bad_files() {
         text.contains("| ATE (first poses aligned) | 0.000 m |") && text.contains("| path (ground truth) | 59.9 m |"),
         "{text}"
     );
+    // the excerpt's first 12 poses turn by the same rotation every step: interpolated, and said so
+    assert!(
+        text.contains("ground-truth check: frames 0-11 turn by the same rotation every step")
+            && text.contains("from frame 11 on (both re-anchored there): path 46.7 m; ATE 0.000 m"),
+        "{text}"
+    );
     // a TUM file of the same poses, 2 m too far along z at the end: the drift shows
     let dir = std::env::temp_dir().join(format!("slam-app-traj-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("dir");

@@ -125,9 +125,130 @@ pub fn largest_step_error(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], counted
         .max_by(|a, b| a.0.total_cmp(&b.0))
 }
 
+/// Largest change of the step rotation between two consecutive steps (degrees) that a stretch of
+/// ground truth may show and still be taken as interpolated rather than measured. A car on a road
+/// changes its attitude from one 0.1 s step to the next by road roughness and steering: the measured
+/// stretches of the dev data change by at least 0.015° (odometry 06 from frame 12) and 0.037° (the OXTS
+/// attitude of raw drive 0005), with medians of 0.07° and 0.18°. An interpolated or smoothed stretch
+/// turns by the same rotation every step to within rounding (below 0.001° at the start of odometry
+/// 06). 0.005° lies between the two on a log scale, three times below the smallest measured change.
+pub const INTERPOLATED_TURN_DEG: f64 = 0.005;
+
+/// Fewest consecutive steps with the same rotation for a stretch to count as interpolated: three
+/// changes below [`INTERPOLATED_TURN_DEG`] in a row, which one quiet moment of a measured drive does
+/// not produce.
+pub const INTERPOLATED_MIN_STEPS: usize = 4;
+
+/// A step shorter than this (metres) is standing still, where a measured attitude may hold steady: it
+/// never counts towards an interpolated stretch.
+pub const STANDING_STEP_M: f64 = 0.1;
+
+/// Stretches of ground truth over which every step turns by the same rotation (to within
+/// [`INTERPOLATED_TURN_DEG`]) while the camera moves: smoothed or interpolated poses, not measured
+/// ones. Returns `(first frame, last frame)` index pairs, each spanning at least
+/// [`INTERPOLATED_MIN_STEPS`] steps.
+pub fn interpolated_stretches(gt: &[Isometry3<f64>]) -> Vec<(usize, usize)> {
+    let steps: Vec<Isometry3<f64>> = gt.windows(2).map(|w| w[0].inverse() * w[1]).collect();
+    // same[k]: step k (frame k → k+1) turns as step k−1 did, both moving
+    let moving = |s: &Isometry3<f64>| s.translation.vector.norm() >= STANDING_STEP_M;
+    let same: Vec<bool> = (0..steps.len())
+        .map(|k| {
+            k > 0
+                && moving(&steps[k])
+                && moving(&steps[k - 1])
+                && (steps[k].rotation.scaled_axis() - steps[k - 1].rotation.scaled_axis()).norm().to_degrees()
+                    < INTERPOLATED_TURN_DEG
+        })
+        .collect();
+    let mut out = Vec::new();
+    let mut k = 0;
+    while k < same.len() {
+        if !same[k] {
+            k += 1;
+            continue;
+        }
+        let start = k;
+        while k < same.len() && same[k] {
+            k += 1;
+        }
+        // steps start−1 ..= k−1 turn alike: frames start−1 ..= k
+        if k - start + 1 >= INTERPOLATED_MIN_STEPS {
+            out.push((start - 1, k));
+        }
+    }
+    out
+}
+
+/// [`trajectory_errors`] of the poses from index `from` on, both trajectories re-anchored there (each
+/// expressed in the frame of its pose at `from`).
+pub fn errors_from(
+    est: &[Isometry3<f64>],
+    gt: &[Isometry3<f64>],
+    from: usize,
+    lengths: &[f64],
+) -> Option<TrajectoryErrors> {
+    let n = est.len().min(gt.len());
+    if from + 2 > n {
+        return None;
+    }
+    let anchor = |p: &[Isometry3<f64>]| -> Vec<Isometry3<f64>> {
+        let origin = p[from].inverse();
+        p[from..n].iter().map(|q| origin * q).collect()
+    };
+    trajectory_errors(&anchor(est), &anchor(gt), lengths)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A drive along z at `step` m per frame that turns by `turn(k)` radians about y at step k.
+    fn turning(n: usize, step: f64, turn: impl Fn(usize) -> f64) -> Vec<Isometry3<f64>> {
+        let mut p = Isometry3::identity();
+        let mut out = vec![p];
+        for k in 0..n - 1 {
+            let s = Isometry3::from_parts(
+                Translation3::new(0.0, 0.0, step),
+                UnitQuaternion::from_axis_angle(&Vector3::y_axis(), turn(k)),
+            );
+            p *= s;
+            out.push(p);
+        }
+        out
+    }
+
+    #[test]
+    fn an_interpolated_stretch_is_found_and_measured_driving_is_not() {
+        // measured-like: the step rotation changes by 0.06° from one step to the next
+        let wobble = |k: usize| if k % 2 == 0 { 0.08f64.to_radians() } else { 0.02f64.to_radians() };
+        let measured = turning(30, 1.2, wobble);
+        assert!(interpolated_stretches(&measured).is_empty());
+        // frames 0..=10 turn by exactly 0.04° per step, then measured-like driving
+        let drive = turning(30, 1.2, |k| if k < 10 { 0.04f64.to_radians() } else { wobble(k) });
+        assert_eq!(interpolated_stretches(&drive), vec![(0, 10)]);
+        // a short constant run (3 steps) is not enough
+        let short = turning(30, 1.2, |k| if (5..8).contains(&k) { 0.04f64.to_radians() } else { wobble(k) });
+        assert!(interpolated_stretches(&short).is_empty(), "{:?}", interpolated_stretches(&short));
+        // standing still with a steady attitude is not interpolation
+        let standing = turning(30, 0.0, |_| 0.0);
+        assert!(interpolated_stretches(&standing).is_empty());
+    }
+
+    #[test]
+    fn errors_from_a_frame_ignore_what_went_wrong_before_it() {
+        let gt = straight(20, 1.0);
+        // 0.3 m too far at frame 5 and every frame after (one bad step), exact from there on
+        let est: Vec<Isometry3<f64>> = gt
+            .iter()
+            .enumerate()
+            .map(|(k, g)| if k >= 5 { Isometry3::translation(0.0, 0.0, 0.3) * g } else { *g })
+            .collect();
+        let all = trajectory_errors(&est, &gt, &[]).expect("errors");
+        assert!(all.ate_m > 0.2, "{}", all.ate_m);
+        let later = errors_from(&est, &gt, 5, &[]).expect("errors");
+        assert!(later.ate_m < 1e-9 && later.frames == 15, "{later:?}");
+        assert!(errors_from(&est, &gt, 19, &[]).is_none(), "one pose is too few");
+    }
 
     #[test]
     fn the_largest_step_error_counts_only_the_marked_frames() {

@@ -153,7 +153,9 @@ impl TrackCase {
         Ok(TrackCase { name: format!("{path}, stride {stride}"), path: PathBuf::from(path), stride })
     }
 
-    /// The shipped dev cases: odometry 06 (folder `odometry`) at strides 1-4 and raw drive 0005 (`raw`).
+    /// The shipped dev cases: odometry 06 (folder `odometry`) at strides 1-4, and raw drive 0005
+    /// (`raw`) at strides 1, 4 and 8: that drive moves 0.39 m per frame, so every 4th frame is 1.6 m
+    /// and every 8th 3.1 m per frame, fast motion on a second drive (odometry 06 at strides 1 and 3).
     pub fn dev_cases(odometry: PathBuf, raw: PathBuf) -> Vec<Self> {
         let mut cases: Vec<Self> = (1..=4)
             .map(|stride| TrackCase {
@@ -162,7 +164,14 @@ impl TrackCase {
                 stride,
             })
             .collect();
-        cases.push(TrackCase { name: "raw drive 0005, frames 0-90 (vs OXTS)".into(), path: raw, stride: 1 });
+        cases.push(TrackCase { name: "raw drive 0005, frames 0-90 (vs OXTS)".into(), path: raw.clone(), stride: 1 });
+        for stride in [4, 8] {
+            cases.push(TrackCase {
+                name: format!("raw drive 0005, frames 0-88, stride {stride}"),
+                path: raw.clone(),
+                stride,
+            });
+        }
         cases
     }
 }
@@ -251,6 +260,10 @@ pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<
             notes.push(format!("{}: {}.", case.name, crate::report::oxts_path_line(&p)));
         }
     }
+    if let Some(g) = &truth {
+        let check = crate::report::interpolation_lines(&out.poses, g, &seq.ids);
+        notes.extend(check.into_iter().map(|l| format!("{}: {l}.", case.name)));
+    }
     if let Some(errors) = crate::report::dead_reckoning_errors(out, seq) {
         notes.push(format!("{}: {}: {errors}.", case.name, crate::report::DEAD_RECKONING));
     }
@@ -276,7 +289,7 @@ mod tests {
         assert!(TrackCase::parse("seq:0").expect_err("zero").to_string().contains("at least 1"));
         assert!(TrackCase::parse("seq:99999999999999999999999").is_err(), "overflow");
         let dev = TrackCase::dev_cases("o".into(), "r".into());
-        assert_eq!(dev.iter().map(|c| c.stride).collect::<Vec<_>>(), [1, 2, 3, 4, 1]);
+        assert_eq!(dev.iter().map(|c| c.stride).collect::<Vec<_>>(), [1, 2, 3, 4, 1, 4, 8]);
     }
 
     #[test]

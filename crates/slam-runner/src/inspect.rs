@@ -38,6 +38,11 @@ pub fn trajectory_eval(estimate: &Path, truth: &Path, max_diff: f64) -> Result<S
     for (len, t, r, count) in e.rpe {
         lines.push(format!("| RPE {len:.0} m ({count} segments) | {t:.2} % / {r:.2} deg/100 m |"));
     }
+    let matched = |v: &[nalgebra::Isometry3<f64>], first: bool| -> Vec<nalgebra::Isometry3<f64>> {
+        c.pairs.iter().map(|&(i, j)| v[if first { i } else { j }]).collect()
+    };
+    let ids: Vec<usize> = c.pairs.iter().map(|&(_, j)| j).collect();
+    lines.extend(crate::report::interpolation_lines(&matched(est.poses(), true), &matched(gt.poses(), false), &ids));
     Ok(lines.join("\n"))
 }
 

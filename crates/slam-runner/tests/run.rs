@@ -68,3 +68,20 @@ fn a_track_bench_row_replaces_path_stride_and_detector() {
     let e = bench::track_row(&base, &missing, false).expect_err("no such sequence");
     assert_eq!(e.to_string(), "case nowhere");
 }
+
+/// The ground-truth check flags the interpolated start of the odometry excerpt and nothing of drive
+/// 0005's OXTS poses, which are measured throughout (their step rotations change by 0.037° or more).
+#[test]
+fn the_ground_truth_check_tells_interpolated_from_measured_poses() {
+    use slam_pipeline::eval::interpolated_stretches;
+    let fixtures = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures");
+    let odometry = slam_dataset::kitti::stereo::open_stereo(fixtures.join("kitti_odom_06/sequences/06")).expect("06");
+    assert_eq!(interpolated_stretches(&odometry.truth_from_first().expect("06 poses")), vec![(0, 11)]);
+    let raw =
+        slam_dataset::kitti::stereo::open_stereo(fixtures.join("kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync"))
+            .expect("0005");
+    let oxts = raw.truth_from_first().expect("OXTS poses");
+    assert_eq!(oxts.len(), 91);
+    assert!(interpolated_stretches(&oxts).is_empty());
+    assert!(interpolated_stretches(&raw.dead_reckoned_from_first().expect("INS")).is_empty());
+}
