@@ -171,6 +171,18 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     if dir.join("objects.json").is_file() && dir.join("trajectory.kitti.txt").is_file() {
         return eval_run_folder(&dir, a);
     }
+    // a run folder missing one of the files scoring reads: say which
+    let run_files = ["objects.json", "trajectory.kitti.txt", "camera.json"];
+    let present: Vec<&str> = run_files.iter().copied().filter(|f| dir.join(f).is_file()).collect();
+    if !present.is_empty() && !dir.join("label_02.txt").is_file() {
+        let missing: Vec<&str> = run_files.iter().copied().filter(|f| !present.contains(f)).collect();
+        bail!(
+            "{}: looks like the output of `slam-app run` ({} present) but {} missing: scoring a run needs objects.json, trajectory.kitti.txt and camera.json",
+            dir.display(),
+            present.join(", "),
+            if missing.len() == 1 { format!("{} is", missing[0]) } else { format!("{} are", missing.join(", ")) }
+        );
+    }
     let seqs = slam_dataset::folders::tracking_sequences(&dir)?;
     let (associator, method) = (a.input.associator.name(), a.input.method.fit());
     println!("{}", study_title(&a.input.noise(), associator, method.name(), &criteria));

@@ -152,7 +152,7 @@ pub struct TrajEvalArgs {
     /// --max-diff, as evo does); otherwise pose i of one file is pose i of the other
     ground_truth: PathBuf,
     /// Largest time difference of a TUM match, seconds
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = 0.01, value_parser = crate::args::non_negative)]
     max_diff: f64,
 }
 

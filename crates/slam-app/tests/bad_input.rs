@@ -507,8 +507,15 @@ fn files_of_every_command() {
     let bad_pose = seq_with("badpose", "poses_orbslam3.txt", &poses.replacen("0.000987017", "x", 1));
     let no_p2 =
         seq_with("nop2", "calib.txt", &calib.lines().filter(|l| !l.starts_with("P2")).collect::<Vec<_>>().join("\n"));
+    let neg_p2 = seq_with("negp2", "calib.txt", &calib.replacen("P2: 7", "P2: -7", 1));
+    let space_label = seq_with("spacelabel", "label_02.txt", &labels.replacen(" Car ", " Spaceship ", 1));
     let no_labels = d.join("nolabels");
     std::fs::create_dir_all(&no_labels).expect("dir");
+    // a run folder that lost its objects.json
+    let half_run = d.join("halfrun");
+    std::fs::create_dir_all(&half_run).expect("dir");
+    std::fs::write(half_run.join("trajectory.kitti.txt"), format!("{pose}\n")).expect("write");
+    std::fs::write(half_run.join("camera.json"), "{}").expect("write");
     // detection files for `run --detector file` on 3 frames of the shipped sequence
     let det = |name: &str, text: &str| write(&d.join(format!("{name}.json")), text);
     let frame = |b: &str| {
@@ -545,6 +552,22 @@ fn files_of_every_command() {
             "class.json",
         ),
         ("detections: box of 3", det("box3", &frame("[10, 10, 20]")), "box3.json"),
+        (
+            "detections: class 999",
+            det("c999", &frame("[10, 10, 20, 40]").replace(r#""class":2"#, r#""class":999"#)),
+            "frame 0 detection 0: class 999 is not a COCO class index (0-79)",
+        ),
+        (
+            "detections: a mask not of the image's size",
+            det(
+                "mask10",
+                &frame("[10, 10, 20, 40]").replace(
+                    r#""box":[10, 10, 20, 40]"#,
+                    r#""box":[10, 10, 20, 40],"mask":{"rle":{"size":[10,10],"counts":[100]}}"#,
+                ),
+            ),
+            "detections for 10×10 images, but",
+        ),
         (
             "detections: other image size",
             det(
@@ -629,7 +652,7 @@ fn files_of_every_command() {
             "objects: fewer poses than frames",
             &[&"objects", &few_poses, &"--out", &d.join("x.json")],
             1,
-            &["3 poses for"],
+            &["poses_orbslam3.txt", "3 poses, but the labels of", "label_02.txt go up to frame"],
         ),
         case(
             "objects: word in a pose",
@@ -645,6 +668,30 @@ fn files_of_every_command() {
         ),
         case("objects: missing folder", &[&"objects", &d.join("nope"), &"--out", &d.join("x.json")], 1, &["nope"]),
         case("eval: no sequences", &[&"eval", &no_labels], 1, &["is neither a sequence folder"]),
+        case(
+            "eval: a run folder without objects.json",
+            &[&"eval", &half_run, &"--labels", &src.join("label_02.txt")],
+            1,
+            &["halfrun", "objects.json is missing"],
+        ),
+        case(
+            "objects: negative focal length",
+            &[&"objects", &neg_p2, &"--out", &d.join("x.json")],
+            1,
+            &["calib.txt", "focal lengths", "must be positive"],
+        ),
+        case(
+            "objects: unknown label type",
+            &[&"objects", &space_label, &"--out", &d.join("x.json")],
+            1,
+            &["label_02.txt:", "unknown type 'Spaceship'"],
+        ),
+        case(
+            "trajectory-eval --max-diff nan",
+            &[&"trajectory-eval", &gt, &gt, &"--max-diff", &"nan"],
+            2,
+            &["--max-diff", "not a finite number at least 0"],
+        ),
         case("assoc kitti: no sequences", &[&"assoc", &"kitti", &no_labels], 1, &["is neither a sequence folder"]),
         case(
             "detect: empty folder",

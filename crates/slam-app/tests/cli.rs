@@ -646,7 +646,8 @@ fn odometry_copy(name: &str, frames: &[(usize, usize)], lines: usize) -> std::pa
     std::fs::copy(src.join("sequences/06/calib.txt"), seq.join("calib.txt")).expect("calib");
     let gt: Vec<String> =
         std::fs::read_to_string(src.join("poses/06.txt")).expect("gt").lines().map(String::from).collect();
-    let mut source_of = vec![0; lines];
+    // a line without images keeps its own frame's time and pose, as KITTI's files do
+    let mut source_of: Vec<usize> = (0..lines).collect();
     for &(id, source) in frames {
         if id < lines {
             source_of[id] = source;

@@ -34,6 +34,9 @@ use crate::{classes, read_text, DatasetError};
 /// Current schema version.
 pub const SCHEMA_VERSION: u32 = 1;
 
+/// Number of COCO-80 class indices (`class` runs from 0 to 79).
+pub const COCO_CLASSES: usize = 80;
+
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct FileJson {
@@ -187,6 +190,8 @@ impl DetectionFile {
             return Err(invalid(format!("schema version {} (this reader knows {SCHEMA_VERSION})", parsed.version)));
         }
         let mut frames = BTreeMap::new();
+        // an RLE mask covers the whole image: its size is the image size, the file's or the first mask's
+        let mut image_size = parsed.image_size;
         for f in parsed.frames {
             let mut dets = Vec::with_capacity(f.detections.len());
             for (k, d) in f.detections.into_iter().enumerate() {
@@ -195,9 +200,23 @@ impl DetectionFile {
                 if !(0.0..=1.0).contains(&d.score) {
                     return Err(invalid(format!("{where_}: score {} outside [0, 1]", d.score)));
                 }
+                if usize::from(d.class) >= COCO_CLASSES {
+                    return Err(invalid(format!(
+                        "{where_}: class {} is not a COCO class index (0-{})",
+                        d.class,
+                        COCO_CLASSES - 1
+                    )));
+                }
                 let mask = match d.mask {
                     None => None,
                     Some(MaskJson::Rle { size, counts }) => {
+                        let [w, h] = *image_size.get_or_insert([size[1], size[0]]);
+                        if size != [h, w] {
+                            return Err(invalid(format!(
+                                "{where_}: mask size {}×{} (height × width) is not the image's {h}×{w}: an RLE mask covers the whole image",
+                                size[0], size[1]
+                            )));
+                        }
                         Some(mask_from_rle(size[0], size[1], &counts).map_err(|e| invalid(format!("{where_}: {e}")))?)
                     }
                     Some(MaskJson::Polygon(p)) => {
@@ -210,7 +229,7 @@ impl DetectionFile {
                 return Err(invalid(format!("frame {} appears twice", f.frame)));
             }
         }
-        Ok(Self { image_size: parsed.image_size, frames })
+        Ok(Self { image_size, frames })
     }
 
     /// Write the file atomically. Masks are written as RLE when the image size is known, else dropped

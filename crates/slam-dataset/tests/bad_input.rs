@@ -120,6 +120,55 @@ fn every_reader_names_file_and_line() {
             "not a number: 'o'",
         ),
         // TUM
+        (
+            "poses-far.txt",
+            unit(parse_kitti_poses(&p("poses-far.txt"), &format!("{POSE}\n1 0 0 1e300 0 1 0 0 0 0 1 0\n"))),
+            Some(2),
+            "a drive's poses stay within",
+        ),
+        (
+            "oxts-lat.txt",
+            unit(parse_oxts_packet(&p("oxts-lat.txt"), &OXTS.replacen("49.0", "95.0", 1))),
+            Some(1),
+            "not geographic coordinates",
+        ),
+        (
+            "ts-clock.txt",
+            unit(parse_timestamps(&p("ts-clock.txt"), "2011-09-26 25:99:32.4\n")),
+            Some(1),
+            "not a time of day",
+        ),
+        (
+            "ts-back.txt",
+            unit(parse_timestamps(&p("ts-back.txt"), "2011-09-26 13:02:25.9\n2011-09-26 13:02:25.8\n")),
+            Some(2),
+            "is not after the line before",
+        ),
+        (
+            "labels-type.txt",
+            unit(parse_tracking_labels(&p("labels-type.txt"), &LABEL.replacen("Car", "Spaceship", 1))),
+            Some(1),
+            "unknown type 'Spaceship'",
+        ),
+        (
+            "labels-size.txt",
+            unit(parse_tracking_labels(&p("labels-size.txt"), &LABEL.replacen("1.5 1.6 3.9", "1.5 0 3.9", 1))),
+            Some(1),
+            "each must be positive",
+        ),
+        ("labels-empty.txt", unit(parse_tracking_labels(&p("labels-empty.txt"), "\n")), None, "no labels"),
+        (
+            "calib-twice.txt",
+            unit(Calib::parse(&p("calib-twice.txt"), "P1: 1 2 3\nP1: 4 5 6\n")),
+            Some(2),
+            "key 'P1' again (first on line 1)",
+        ),
+        (
+            "calib-rot.txt",
+            unit(Calib::parse(&p("calib-rot.txt"), "R: 1 0 0 0 2 0 0 0 1\n").and_then(|c| c.rotation("R"))),
+            Some(1),
+            "'R' is not a rotation",
+        ),
         ("tum-7.tum", unit(parse_tum(&p("tum-7.tum"), "0 0 0 0 0 0 1\n")), Some(1), "expected 8 numbers, found 7"),
         (
             "tum-zero-q.tum",

@@ -68,9 +68,10 @@ fn malformed_labels_name_the_line() {
     // non-UTF-8
     let p = write_tmp("bin.txt", b"0 0 Car\n\xff\xfe\n");
     assert_eq!(parse_line(read_tracking_labels(&p).expect_err("binary")), 2);
-    // empty file: no labels, not an error
+    // empty file: nothing to score against or play as detections, so an error naming it
     let p = write_tmp("empty.txt", b"");
-    assert!(read_tracking_labels(&p).expect("empty").is_empty());
+    let e = read_tracking_labels(&p).expect_err("empty");
+    assert!(e.to_string().contains("empty.txt") && e.to_string().contains("no labels"), "{e}");
     // missing file
     let e = read_tracking_labels("/nonexistent/label.txt").expect_err("missing");
     assert!(matches!(e, DatasetError::Io { .. }) && e.to_string().contains("/nonexistent/label.txt"));

@@ -40,20 +40,33 @@ impl LabelledSequence {
     /// Read the labels (`label_02.txt` format), the poses (KITTI format) and the calibration (with P2);
     /// refuses fewer poses than labelled frames.
     pub fn load(labels: &Path, poses: &Path, calib: &Path) -> Result<Self, EvalError> {
-        let labels = read_tracking_labels(labels)?;
-        let poses = read_kitti_poses(poses)?;
-        let calib = Calib::read(calib)?;
+        let (label_path, pose_path, calib_path) = (labels, poses, calib);
+        let labels = read_tracking_labels(label_path)?;
+        let poses = read_kitti_poses(pose_path)?;
+        let calib = Calib::read(calib_path)?;
         let p2 = calib.matrix3x4("P2")?;
         let k = Intrinsics { fx: p2[(0, 0)], fy: p2[(1, 1)], skew: p2[(0, 1)], cx: p2[(0, 2)], cy: p2[(1, 2)] };
-        let kinv = p2
-            .fixed_view::<3, 3>(0, 0)
-            .into_owned()
-            .try_inverse()
-            .ok_or_else(|| EvalError::Invalid("P2 has a singular K".into()))?;
+        if !(k.fx > 0.0 && k.fy > 0.0) {
+            return Err(EvalError::Invalid(format!(
+                "{}: P2's focal lengths are {} and {} px: both must be positive",
+                calib_path.display(),
+                k.fx,
+                k.fy
+            )));
+        }
+        let kinv = p2.fixed_view::<3, 3>(0, 0).into_owned().try_inverse().ok_or_else(|| {
+            EvalError::Invalid(format!("{}: the camera matrix of P2 is singular", calib_path.display()))
+        })?;
         let t2 = kinv * p2.column(3).into_owned();
         let frames = labels.iter().map(|l| l.frame + 1).max().unwrap_or(0);
         if poses.len() < frames {
-            return Err(EvalError::Invalid(format!("{} poses for {frames} labelled frames", poses.len())));
+            return Err(EvalError::Invalid(format!(
+                "{}: {} poses, but the labels of {} go up to frame {} (line k of the pose file is frame k)",
+                pose_path.display(),
+                poses.len(),
+                label_path.display(),
+                frames - 1
+            )));
         }
         Ok(Self { labels, poses, k, t2 })
     }

@@ -70,8 +70,11 @@ impl DnnDetector {
                 .map(str::to_string)
                 .ok_or(FrontendError::Model { path: p.to_path_buf(), message: "path is not UTF-8".into() })
         };
-        let net = dnn::read_net_from_darknet(&utf8(cfg)?, &utf8(weights)?)
-            .map_err(|e| FrontendError::Model { path: weights.to_path_buf(), message: e.to_string() })?;
+        // OpenCV's message does not say which of the two files it could not read: name both
+        let net = dnn::read_net_from_darknet(&utf8(cfg)?, &utf8(weights)?).map_err(|e| FrontendError::Model {
+            path: cfg.to_path_buf(),
+            message: format!("this .cfg with the weights {} does not load: {e}", weights.display()),
+        })?;
         Self::from_net(net, config, weights)
     }
 

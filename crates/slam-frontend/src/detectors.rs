@@ -1,7 +1,8 @@
 //! Wrappers around any detection source (the network, a file, labels), used by `slam-app run`:
 //! - [`ClassFilter`]: keeps the classes the system maps as objects ([`OBJECT_CLASSES`]);
-//! - [`DetectionGuard`]: bounds on what a source hands the system: boxes clipped to the image (refused
-//!   when nothing of them is inside), at most `max` per frame (the highest scores), every change counted;
+//! - [`DetectionGuard`]: bounds on what a source hands the system: the mapped classes only, boxes
+//!   clipped to the image (refused when nothing of them is inside), at most `max` per frame (the highest
+//!   scores), every change counted;
 //! - [`unused_frames`]: reports of detections that no frame of the run will use.
 
 use std::sync::{
@@ -14,6 +15,8 @@ use slam_core::{geometry::BBox, DetectError, Detection, DetectionSource, Image};
 /// What the guard changed, over a run.
 #[derive(Debug, Default)]
 pub struct DetectionCounts {
+    /// Boxes of classes the system does not map as objects ([`OBJECT_CLASSES`]), skipped.
+    pub other_classes: AtomicUsize,
     /// Boxes reaching past the image border, clipped to it.
     pub clipped: AtomicUsize,
     /// Boxes with nothing inside the image (or non-finite), refused.
@@ -30,11 +33,13 @@ impl DetectionCounts {
         let get = |a: &AtomicUsize| a.load(Ordering::Relaxed);
         format!(
             "detection bounds: {} boxes clipped to the image, {} refused (outside the image), {} dropped over the \
-             limit of {max} per frame (in {} frames)",
+             limit of {max} per frame (in {} frames), {} of classes not mapped as objects skipped (mapped: person, \
+             bicycle, car, motorcycle, bus, truck)",
             get(&self.clipped),
             get(&self.outside),
             get(&self.over_limit),
-            get(&self.frames_limited)
+            get(&self.frames_limited),
+            get(&self.other_classes)
         )
     }
 }
@@ -115,7 +120,10 @@ impl DetectionSource for DetectionGuard {
         self.inner.needs_image()
     }
     fn detect(&mut self, frame: usize, image: Option<&Image>) -> Result<Vec<Detection>, DetectError> {
-        let raw = self.inner.detect(frame, image)?;
+        let mut raw = self.inner.detect(frame, image)?;
+        let all = raw.len();
+        raw.retain(|d| OBJECT_CLASSES.contains(&d.class.0));
+        self.counts.other_classes.fetch_add(all - raw.len(), Ordering::Relaxed);
         let [w, h] = self.size;
         let (mut clipped, mut outside) = (0, 0);
         let mut dets = Vec::with_capacity(raw.len());

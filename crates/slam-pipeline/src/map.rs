@@ -43,6 +43,7 @@ pub fn pose_from_array(a: &PoseArray) -> Isometry3<f64> {
 
 /// A keyframe of the map.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct MapKeyframe {
     /// Frame index in the sequence.
     pub frame: usize,
@@ -78,6 +79,7 @@ mod observation_list {
 
 /// A map point.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct MapPoint {
     /// World position, metres.
     pub position: [f64; 3],
@@ -87,6 +89,7 @@ pub struct MapPoint {
 
 /// An object (ellipsoid landmark) of the map.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct MapObject {
     /// Object id.
     pub id: u64,
@@ -115,6 +118,7 @@ pub struct MapObject {
 
 /// The pose of one input frame, relative to a keyframe (so it follows the keyframe's refinement).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct FramePose {
     /// Frame index.
     pub frame: usize,
@@ -128,6 +132,7 @@ pub struct FramePose {
 
 /// The map database.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Map {
     /// Always [`MAP_FORMAT`].
     pub format: String,
@@ -315,6 +320,18 @@ impl Map {
                     return Err((format!("keyframes.{id}.parent"), format!("keyframe {p} does not exist")));
                 }
             }
+            // parents lead back to a segment's first keyframe: a chain that meets itself is a cycle
+            let mut seen = std::collections::BTreeSet::from([*id]);
+            let mut at = k.parent;
+            while let Some(p) = at {
+                if !seen.insert(p) {
+                    return Err((
+                        format!("keyframes.{id}.parent"),
+                        format!("keyframe {p} is its own ancestor (a cycle of parents)"),
+                    ));
+                }
+                at = self.keyframes.get(&p).and_then(|q| q.parent);
+            }
             for (i, (pid, o)) in k.observations.iter().enumerate() {
                 let field = format!("keyframes.{id}.observations[{i}]");
                 if !self.points.contains_key(pid) {
@@ -345,6 +362,9 @@ impl Map {
             if !o.semi_axes.iter().all(|a| a.is_finite() && *a > 0.0) {
                 return Err((at("semi_axes"), format!("must be positive and finite: {:?}", o.semi_axes)));
             }
+            if let Some(p) = o.points.iter().find(|p| !self.points.contains_key(p)) {
+                return Err((at("points"), format!("point {p} does not exist")));
+            }
             let r = nalgebra::Matrix3::from_row_slice(&o.rotation);
             let err = (r * r.transpose() - nalgebra::Matrix3::identity()).abs().max();
             if err > 1e-3 || r.determinant() < 0.0 {
@@ -360,6 +380,12 @@ impl Map {
                 return Err((format!("trajectory[{i}].keyframe"), format!("keyframe {} does not exist", f.keyframe)));
             }
             pose(format!("trajectory[{i}].relative"), &f.relative)?;
+            if !crate::report::STATE_NAMES.contains(&f.state.as_str()) {
+                return Err((
+                    format!("trajectory[{i}].state"),
+                    format!("'{}' is not a tracking state ({})", f.state, crate::report::STATE_NAMES.join(", ")),
+                ));
+            }
             if last.is_some_and(|l| f.frame <= l) {
                 return Err((
                     format!("trajectory[{i}].frame"),
@@ -367,6 +393,13 @@ impl Map {
                 ));
             }
             last = Some(f.frame);
+        }
+        // an object's frames are frames of its detections, each one a frame of the trajectory
+        let frames: std::collections::BTreeSet<usize> = self.trajectory.iter().map(|f| f.frame).collect();
+        for (i, o) in self.objects.iter().enumerate() {
+            if let Some(f) = o.frames.iter().find(|f| !self.trajectory.is_empty() && !frames.contains(f)) {
+                return Err((format!("objects[{i}].frames"), format!("frame {f} is not in the trajectory")));
+            }
         }
         Ok(())
     }
@@ -657,7 +690,7 @@ mod tests {
   "points": {{"7": {{"position": [0.5, 0.1, 9.0], "observed_by": [0, 1]}},
              "8": {{"position": [-1.0, 0.2, 12.0], "observed_by": [0]}}}},
   "objects": [{{"id": 4, "class": 2, "center": [1, 0.8, 15], "semi_axes": [2.1, 0.8, 0.85],
-               "rotation": [1, 0, 0, 0, 1, 0, 0, 0, 1], "frames": [0, 3], "dynamic": false, "points": [8]}}],
+               "rotation": [1, 0, 0, 0, 1, 0, 0, 0, 1], "frames": [0], "dynamic": false, "points": [8]}}],
   "trajectory": [{{"frame": 0, "keyframe": 0, "relative": [0, 0, 0, 1, 0, 0, 0], "state": "initialised"}}]}}"#
         );
         std::fs::write(&path, v1).expect("write");
@@ -771,6 +804,18 @@ mod tests {
                     "points.7.observed_by",
                     "keyframe 5 does not exist",
                 ),
+                (
+                    "own-parent",
+                    |m| m.keyframes.get_mut(&1).expect("kf").parent = Some(1),
+                    "keyframes.1.parent",
+                    "keyframe 1 is its own ancestor",
+                ),
+                (
+                    "parent-cycle",
+                    |m| m.keyframes.get_mut(&0).expect("kf").parent = Some(1),
+                    "keyframes.0.parent",
+                    "is its own ancestor",
+                ),
             ],
         );
     }
@@ -793,6 +838,12 @@ mod tests {
                     "trajectory[0].relative",
                     "zero quaternion",
                 ),
+                (
+                    "trajectory-state",
+                    |m| m.trajectory[0].state = "flying".into(),
+                    "trajectory[0].state",
+                    "'flying' is not a tracking state",
+                ),
             ],
         );
     }
@@ -806,6 +857,13 @@ mod tests {
                 ("object-rotation", |m| m.objects[0].rotation[0] = 3.0, "objects[0].rotation", "not a rotation"),
                 ("object-twice", |m| m.objects.push(m.objects[0].clone()), "objects[1].id", "appears twice"),
                 ("object-mirror", |m| m.objects[0].rotation[0] = -1.0, "objects[0].rotation", "det -1"),
+                ("object-point", |m| m.objects[0].points.push(99), "objects[0].points", "point 99 does not exist"),
+                (
+                    "object-frame",
+                    |m| m.objects[0].frames.push(99999),
+                    "objects[0].frames",
+                    "frame 99999 is not in the trajectory",
+                ),
             ],
         );
     }

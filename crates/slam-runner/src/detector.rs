@@ -146,7 +146,7 @@ impl DetectorChoice {
     ) -> Result<Option<Box<dyn DetectionSource>>> {
         Ok(match self {
             DetectorChoice::None => None,
-            // the mapped classes are kept by `ClassFilter`, for every source alike
+            // the mapped classes are kept (and the rest counted) by `DetectionGuard`, for every source alike
             DetectorChoice::Network(load) => Some(load().context_with(|| "loading the detector".into())?),
             DetectorChoice::File(path) => {
                 let file = DetectionFile::read(path)?;

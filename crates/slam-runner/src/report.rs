@@ -76,11 +76,14 @@ impl Outcome {
         let (out, c) = (&self.out, self.out.counts);
         let mut lines = vec![
             format!(
-                "{} frames in {:.2} s: {:.1} frames/s overall, {:.1} frames/s median (all threads, incl. image decoding)",
+                "{} frames in {:.2} s: {:.1} frames/s overall, {} (all threads, incl. image decoding)",
                 c.frames,
                 self.elapsed,
                 c.frames as f64 / self.elapsed,
-                median_fps(out)
+                match median_fps(out) {
+                    f if f.is_finite() => format!("{f:.1} frames/s median"),
+                    _ => "no median frames/s (it needs two frames)".to_string(),
+                }
             ),
             format!(
                 "keyframes {}, lost {}, relocalised {}, new map segments {}, unreadable {}, detector errors {}, culled observations {}, duplicate or part boxes suppressed {}, ellipsoids of impossible size refused {}, removed for free space seen through them {}",
@@ -124,9 +127,17 @@ impl Outcome {
                 lines.push(oxts_path_line(&p));
             }
         }
+        // drift needs a ground-truth path, the scale an estimate that moves too
+        let drift = if e.end_drift_pct.is_finite() {
+            format!("{:.2} %", e.end_drift_pct)
+        } else {
+            "– (the ground truth does not move)".to_string()
+        };
+        let scale =
+            if e.scale.is_finite() { format!("{:.4}", e.scale) } else { "– (a path does not move)".to_string() };
         lines.push(format!(
-            "\nground truth: path {:.1} m over {} frames; ATE {:.3} m (aligned {:.3} m); end-point drift {:.2} %; scale {:.4}",
-            e.path_m, e.frames, e.ate_m, e.ate_aligned_m, e.end_drift_pct, e.scale
+            "\nground truth: path {:.1} m over {} frames; ATE {:.3} m (aligned {:.3} m); end-point drift {drift}; scale {scale}",
+            e.path_m, e.frames, e.ate_m, e.ate_aligned_m
         ));
         for (len, t, r, count) in e.rpe {
             lines.push(format!("RPE over {len:.0} m segments ({count}): {t:.2} % translation, {r:.2} deg/100 m"));

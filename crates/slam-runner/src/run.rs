@@ -14,7 +14,7 @@ use slam_dataset::{
 };
 use slam_eval::LabelGeometry;
 use slam_frontend::{
-    detectors::{ClassFilter, DetectionCounts, DetectionGuard},
+    detectors::{DetectionCounts, DetectionGuard},
     read_image, StereoRig, StereoVo, VoConfig,
 };
 use slam_optim::SharedOptimizer;
@@ -239,8 +239,8 @@ fn guarded(
 ) -> Result<Guarded> {
     let mut counts = None;
     let det = s.detector.build(seq, image, labels, notes)?.map(|d| {
-        let (g, c) =
-            DetectionGuard::new(Box::new(ClassFilter(d)), [image.width, image.height], s.system.max_detections);
+        // the guard keeps the mapped classes and counts the rest
+        let (g, c) = DetectionGuard::new(d, [image.width, image.height], s.system.max_detections);
         counts = Some(c);
         Box::new(g) as Box<dyn DetectionSource>
     });

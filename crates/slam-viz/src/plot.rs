@@ -231,10 +231,18 @@ where
     // frame: the trajectories and objects, plus a margin; points only inside it
     let mut lo = [f64::INFINITY; 2];
     let mut hi = [f64::NEG_INFINITY; 2];
+    for (what, path) in [("estimate", Some(m.estimate)), ("ground truth", m.truth)] {
+        if let Some(k) = path.and_then(|p| p.iter().position(|q| !q.iter().all(|v| v.is_finite()))) {
+            return Err(format!("position {k} of the {what} is not finite: {:?}", path.map(|p| p[k])));
+        }
+    }
+    // non-finite outlines cannot be drawn (and make the axes' ticks loop): left out of the frame
     let mut grow = |p: &[f64; 2]| {
-        for k in 0..2 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
+        if p.iter().all(|v| v.is_finite()) {
+            for k in 0..2 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
         }
     };
     m.estimate.iter().for_each(&mut grow);
@@ -243,6 +251,12 @@ where
     if !lo[0].is_finite() {
         lo = [-10.0, -10.0];
         hi = [10.0, 10.0];
+    }
+    let span = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    if span.is_nan() || span > MAX_SPAN_M {
+        return Err(format!(
+            "the trajectories and objects span {span:.3e} m; a top-down map is drawn up to {MAX_SPAN_M:.0e} m (a pose in the wrong units?)"
+        ));
     }
     let margin = 15.0;
     let (mut x0, mut x1, mut z0, mut z1) = (lo[0] - margin, hi[0] + margin, lo[1] - margin, hi[1] + margin);
@@ -396,6 +410,9 @@ where
     Ok(())
 }
 
+/// Largest extent of a top-down map, metres: a continent; beyond it the positions are not a drive's.
+pub const MAX_SPAN_M: f64 = 1e7;
+
 /// Write the top-down map as `<stem>.svg` and `<stem>.png`.
 pub fn topdown_figure(m: &TopDown<'_>, out: &Path, stem: &str) -> Result<Vec<PathBuf>, VizError> {
     register_font();
@@ -407,4 +424,28 @@ pub fn topdown_figure(m: &TopDown<'_>, out: &Path, stem: &str) -> Result<Vec<Pat
     draw_topdown(BitMapBackend::new(&png, size).into_drawing_area(), m)
         .map_err(|message| VizError::Draw { path: png.clone(), message })?;
     Ok(vec![svg, png])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Positions no drive has (a pose file in the wrong units, a corrupt number) are refused with a
+    /// message instead of drawn: drawing axes over 1e300 m never finished.
+    #[test]
+    fn a_map_too_large_or_not_finite_is_refused_not_drawn() {
+        let dir = std::env::temp_dir().join(format!("topdown-refuse-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        let estimate = [[0.0, 0.0], [0.1, 1.2], [0.2, 2.4]];
+        let draw = |truth: &[[f64; 2]]| {
+            topdown_figure(&TopDown { estimate: &estimate, truth: Some(truth), points: &[], objects: &[] }, &dir, "m")
+        };
+        let far = draw(&[[0.0, 0.0], [0.0, 1.2], [1e300, 2.4]]).expect_err("1e300 m").to_string();
+        assert!(far.contains("span 1.000e300 m") && far.contains("m.svg"), "{far}");
+        let nan = draw(&[[0.0, 0.0], [f64::NAN, 1.2], [0.0, 2.4]]).expect_err("NaN").to_string();
+        assert!(nan.contains("position 1 of the ground truth is not finite"), "{nan}");
+        let files = draw(&[[0.0, 0.0], [0.0, 1.2], [0.0, 2.4]]).expect("a drive's map is drawn");
+        assert!(files.iter().all(|f| f.is_file()));
+        std::fs::remove_dir_all(&dir).ok();
+    }
 }

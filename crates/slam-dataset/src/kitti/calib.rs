@@ -47,9 +47,20 @@ impl Calib {
                     message: format!("key '{key}' has no values"),
                 });
             }
-            entries.insert(key, (i + 1, values));
+            if let Some((first, _)) = entries.insert(key.clone(), (i + 1, values)) {
+                return Err(DatasetError::Parse {
+                    path: path.to_path_buf(),
+                    line: i + 1,
+                    message: format!("key '{key}' again (first on line {first}): which one holds is ambiguous"),
+                });
+            }
         }
         Ok(Self { path: path.to_path_buf(), entries })
+    }
+
+    /// The file it was read from.
+    pub fn path(&self) -> &Path {
+        &self.path
     }
 
     /// Keys present, sorted.
@@ -91,10 +102,27 @@ impl Calib {
         Ok(Matrix3::from_row_slice(&self.numbers(key, Some(9))?))
     }
 
-    /// A rigid transform from a rotation key (9 numbers) and a translation key (3 numbers), as in
-    /// `calib_velo_to_cam.txt` (`R`, `T`); the rotation is re-orthonormalised.
+    /// A rotation matrix (9 numbers, row-major): `RᵀR` within 1e-3 of the identity (KITTI prints 6–7
+    /// significant digits) and determinant +1, else an error naming the key's line.
+    pub fn rotation(&self, key: &str) -> Result<Matrix3<f64>, DatasetError> {
+        let r = self.matrix3(key)?;
+        let err = (r.transpose() * r - Matrix3::identity()).norm();
+        if !(err <= 1e-3 && r.determinant() > 0.0) {
+            let line = self.entries.get(key).map_or(0, |e| e.0);
+            return Err(DatasetError::Parse {
+                path: self.path.clone(),
+                line,
+                message: format!("'{key}' is not a rotation (‖RᵀR − I‖ = {err:.2e}, det {:.3})", r.determinant()),
+            });
+        }
+        Ok(r)
+    }
+
+    /// A rigid transform from a rotation key (9 numbers, checked by [`Calib::rotation`]) and a
+    /// translation key (3 numbers), as in `calib_velo_to_cam.txt` (`R`, `T`); the rotation is
+    /// re-orthonormalised.
     pub fn rigid(&self, rotation_key: &str, translation_key: &str) -> Result<Isometry3<f64>, DatasetError> {
-        let r = self.matrix3(rotation_key)?;
+        let r = self.rotation(rotation_key)?;
         let t = self.numbers(translation_key, Some(3))?;
         let rot = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&r));
         Ok(Isometry3::from_parts(Translation3::from(Vector3::new(t[0], t[1], t[2])), rot))

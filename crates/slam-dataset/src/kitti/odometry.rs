@@ -189,6 +189,11 @@ pub(crate) fn nominal_times(ids: &[usize]) -> Vec<f64> {
     ids.iter().map(|&i| 0.1 * i as f64).collect()
 }
 
+/// The warning of a sequence whose time file `missing` is absent.
+pub(crate) fn nominal_times_note(missing: &Path) -> String {
+    format!("{} is missing: frame times are KITTI's nominal 0.1 s per frame id", missing.display())
+}
+
 pub(crate) fn list_images(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
     let rd = std::fs::read_dir(dir).map_err(|source| DatasetError::Io { path: dir.to_path_buf(), source })?;
     let mut v: Vec<PathBuf> = rd
@@ -215,12 +220,25 @@ impl OdometrySequence {
         let times_path = dir.join("times.txt");
         let times = if times_path.exists() {
             let text = read_text(&times_path)?;
-            let mut t = Vec::new();
+            let mut t: Vec<f64> = Vec::new();
             for (n, l) in crate::frame_lines(&times_path, &text)? {
-                t.extend(crate::parse_numbers(&times_path, n, &[l.trim()])?);
+                let v = crate::parse_numbers(&times_path, n, &[l.trim()])?;
+                if let (Some(&now), Some(&before)) = (v.first(), t.last()) {
+                    if now <= before {
+                        return Err(DatasetError::Parse {
+                            path: times_path.clone(),
+                            line: n,
+                            message: format!(
+                                "time {now} s is not after the line before ({before} s): frames are in time order"
+                            ),
+                        });
+                    }
+                }
+                t.extend(v);
             }
             values_of_ids(&t, &pairs.ids, &times_path, "times")?
         } else {
+            warnings.push(nominal_times_note(&times_path));
             nominal_times(&pairs.ids)
         };
         let gt_path = dir

@@ -6,6 +6,10 @@ use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vect
 
 use crate::{parse_exact, read_text, DatasetError};
 
+/// Farthest a pose may lie from its file's origin, metres: the Earth's diameter (1.27e7 m) is a bound no
+/// trajectory in metres can pass; beyond it the file holds other units or a corrupt number.
+pub const MAX_POSITION_M: f64 = 1.3e7;
+
 /// Read a KITTI pose file. Each line is a camera-to-world pose `T_w←c` (as KITTI ground truth and
 /// ORB-SLAM3 write them). Blank lines are an error (they would shift frame indices).
 pub fn read_kitti_poses(path: impl AsRef<Path>) -> Result<Vec<Isometry3<f64>>, DatasetError> {
@@ -27,6 +31,17 @@ pub fn parse_kitti_poses(path: &Path, text: &str) -> Result<Vec<Isometry3<f64>>,
                 path: path.to_path_buf(),
                 line: i + 1,
                 message: format!("rotation part is not a rotation (‖RᵀR − I‖ = {err:.2e})"),
+            });
+        }
+        let t = Vector3::new(v[3], v[7], v[11]);
+        if t.amax() > MAX_POSITION_M {
+            return Err(DatasetError::Parse {
+                path: path.to_path_buf(),
+                line: i + 1,
+                message: format!(
+                    "position coordinate {:.3e} m: a drive's poses stay within {MAX_POSITION_M:.0e} m of the origin (wrong units or a corrupt line?)",
+                    t.amax()
+                ),
             });
         }
         let rot = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&r));

@@ -54,7 +54,28 @@ pub fn parse_oxts_packet(path: &Path, text: &str) -> Result<OxtsPacket, DatasetE
     let v = parse_exact(path, i + 1, &fields, 30)?;
     let mut values = [0.0; 30];
     values.copy_from_slice(&v);
+    // geographic coordinates: the Mercator projection of the poses is defined for |lat| < 90
+    if !(v[0].abs() < 90.0 && v[1].abs() <= 180.0) {
+        return Err(DatasetError::Parse {
+            path: path.to_path_buf(),
+            line: i + 1,
+            message: format!(
+                "latitude {} / longitude {} are not geographic coordinates (|lat| < 90, |lon| <= 180)",
+                short(v[0]),
+                short(v[1])
+            ),
+        });
+    }
     Ok(OxtsPacket { lat: v[0], lon: v[1], alt: v[2], roll: v[3], pitch: v[4], yaw: v[5], values })
+}
+
+/// A number for a message: as written up to a million, in scientific notation beyond.
+fn short(v: f64) -> String {
+    if v.abs() < 1e6 {
+        format!("{v}")
+    } else {
+        format!("{v:.3e}")
+    }
 }
 
 /// IMU poses in a local metric frame, as the KITTI devkit's `convertOxtsToPose`: a Mercator projection
@@ -180,10 +201,21 @@ pub fn parse_timestamps(path: &Path, text: &str) -> Result<Vec<f64>, DatasetErro
         if !(h.is_finite() && m.is_finite() && s.is_finite()) {
             return Err(err("non-finite time"));
         }
+        // a clock time: hours 0–23, minutes 0–59, seconds below 61 (a leap second)
+        if !((0.0..24.0).contains(&h) && (0.0..60.0).contains(&m) && (0.0..61.0).contains(&s)) {
+            return Err(err(&format!("{time} is not a time of day (HH 0-23, MM 0-59, SS below 61)")));
+        }
         let mut t = h * 3600.0 + m * 60.0 + s + day_offset;
+        // past midnight the clock starts again: a drop of more than half a day is the next day
         if t < last - 43_200.0 {
             day_offset += 86_400.0;
             t += 86_400.0;
+        }
+        if t <= last {
+            return Err(err(&format!(
+                "time {time} is not after the line before ({:.3} s earlier or the same): frames are in time order",
+                last - t
+            )));
         }
         last = t;
         out.push(t);
@@ -223,7 +255,7 @@ impl RawCalib {
         let size = c2c.numbers("S_rect_02", Some(2))?;
         Ok(Self {
             p_rect: [p("P_rect_00")?, p("P_rect_01")?, p("P_rect_02")?, p("P_rect_03")?],
-            r_rect_00: c2c.matrix3("R_rect_00")?,
+            r_rect_00: c2c.rotation("R_rect_00")?,
             cam0_from_velo: v2c.rigid("R", "T")?,
             velo_from_imu: i2v.rigid("R", "T")?,
             image_size: [size[0], size[1]],

@@ -8,7 +8,7 @@ use nalgebra::{Isometry3, Matrix3x4};
 use crate::{
     kitti::{
         calib::Calib,
-        odometry::{nominal_times, pair_frames, values_of_ids, OdometrySequence},
+        odometry::{nominal_times, nominal_times_note, pair_frames, values_of_ids, OdometrySequence},
         raw::{
             camera_poses_from_imu, camera_poses_from_oxts, oxts_dead_reckoning, oxts_path_lengths, read_oxts_packet,
             read_timestamps, OxtsPath, RawCalib, OXTS_POS_ACCURACY,
@@ -340,6 +340,21 @@ fn open_raw(dir: &Path) -> Result<StereoSequence, DatasetError> {
     let calib = Calib::read(&calib_path)?;
     // prefer the grey pair (00/01) when present: better stereo texture
     let grey = dir.join("image_00/data").is_dir() && dir.join("image_01/data").is_dir();
+    let colour = dir.join("image_02/data").is_dir() && dir.join("image_03/data").is_dir();
+    if !grey && !colour {
+        let missing: Vec<String> = ["image_00", "image_01", "image_02", "image_03"]
+            .iter()
+            .filter(|c| !dir.join(c).join("data").is_dir())
+            .map(|c| format!("{c}/data"))
+            .collect();
+        return Err(DatasetError::Invalid {
+            path: dir.to_path_buf(),
+            message: format!(
+                "a raw drive needs a stereo pair: image_00/data with image_01/data (grey) or image_02/data with image_03/data (colour); missing: {}",
+                missing.join(", ")
+            ),
+        });
+    }
     let (l, r, pl, pr) = if grey {
         ("image_00", "image_01", "P_rect_00", "P_rect_01")
     } else {
@@ -354,6 +369,7 @@ fn open_raw(dir: &Path) -> Result<StereoSequence, DatasetError> {
     let times = if ts.exists() {
         values_of_ids(&read_timestamps(&ts)?, &pairs.ids, &ts, "timestamps")?
     } else {
+        warnings.push(nominal_times_note(&ts));
         nominal_times(&pairs.ids)
     };
     let truth = raw_truth(dir, date, &pairs.left, &pairs.ids, &times, &mut warnings)?;

@@ -67,8 +67,17 @@ pub fn parse_tracking_labels(path: &Path, text: &str) -> Result<Vec<TrackingLabe
         let v = parse_numbers(path, i + 1, &[&f[3..4], &f[5..17]].concat())?;
         let bbox = BBox::new(v[2], v[3], v[4], v[5]);
         let kind = f[2].to_string();
+        if !KITTI_TYPES.contains(&kind.as_str()) {
+            return Err(err(format!("unknown type '{kind}' (KITTI's are {})", KITTI_TYPES.join(", "))));
+        }
         if kind != "DontCare" && bbox.validated().is_err() {
             return Err(err(format!("empty box [{}, {}, {}, {}]", v[2], v[3], v[4], v[5])));
+        }
+        if kind != "DontCare" && !(v[6] > 0.0 && v[7] > 0.0 && v[8] > 0.0) {
+            return Err(err(format!(
+                "3-D size {} × {} × {} m (height, width, length): each must be positive",
+                v[6], v[7], v[8]
+            )));
         }
         out.push(TrackingLabel {
             frame,
@@ -83,8 +92,16 @@ pub fn parse_tracking_labels(path: &Path, text: &str) -> Result<Vec<TrackingLabe
             rotation_y: v[12],
         });
     }
+    if out.is_empty() {
+        return Err(DatasetError::Invalid { path: path.to_path_buf(), message: "no labels in the file".into() });
+    }
     Ok(out)
 }
+
+/// The object types of KITTI's label files (object and tracking benchmarks; the tracking labels write
+/// `Person` for a sitting person).
+pub const KITTI_TYPES: [&str; 10] =
+    ["Car", "Van", "Truck", "Pedestrian", "Person", "Person_sitting", "Cyclist", "Tram", "Misc", "DontCare"];
 
 /// A KITTI tracking sequence in either layout:
 ///
@@ -146,7 +163,12 @@ impl TrackingSequence {
         if poses.len() < frames {
             return Err(DatasetError::Invalid {
                 path: d.join("poses_orbslam3.txt"),
-                message: format!("{} poses for {frames} labelled frames", poses.len()),
+                message: format!(
+                    "{} poses, but the labels of {} go up to frame {} (line k of the pose file is frame k)",
+                    poses.len(),
+                    d.join("label_02.txt").display(),
+                    frames - 1
+                ),
             });
         }
         Ok(Self { labels, calib, images: Vec::new(), poses: Some(poses), imu_poses: None })
@@ -159,8 +181,8 @@ impl TrackingSequence {
         let k = p2.fixed_view::<3, 3>(0, 0).into_owned();
         let col: nalgebra::Vector3<f64> = p2.column(3).into_owned();
         k.try_inverse().map(|ki| ki * col).ok_or_else(|| DatasetError::Invalid {
-            path: std::path::PathBuf::from("calib"),
-            message: "P2 has a singular K".into(),
+            path: self.calib.path().to_path_buf(),
+            message: "the camera matrix of P2 is singular".into(),
         })
     }
 }
