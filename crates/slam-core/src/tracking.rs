@@ -157,6 +157,10 @@ pub struct TrackedFrame {
     /// depth of detected objects from them in every frame, not only on keyframes. Without the points on
     /// the moving regions the tracker was told about.
     pub points: Vec<FramePoint>,
+    /// The stereo points on those moving regions, kept out of tracking, the map and `points` (empty
+    /// from a tracker that does not hand them over): only the scene flow reads them, so that an object
+    /// masked as moving goes on being measured.
+    pub masked_points: Vec<FramePoint>,
     /// Map points matched in this frame and kept by the pose refinement (reference keyframe and local
     /// map together; 0 when no pose was accepted).
     pub tracked_map_points: usize,

@@ -439,8 +439,8 @@ pub struct StereoVo {
     /// Grey left images and left keypoints of the previous and current frame (optical flow).
     grey: [Option<Mat>; 2],
     keypoints: [Vec<(f64, f64)>; 2],
-    /// Whether each of those keypoints has a stereo point.
-    keypoint_stereo: [Vec<bool>; 2],
+    /// The stereo keypoints of the last two frames, those on moving regions included (the scene flow's).
+    flow_keypoints: [Vec<(f64, f64)>; 2],
     /// Stereo correspondences of tracked frames with their keyframe (up to `keep_disparity_pairs`).
     pairs: Vec<DisparityPair>,
     /// Solves the two-frame stereo bundle adjustments.
@@ -453,7 +453,7 @@ pub struct StereoVo {
 
 /// What [`StereoVo::prepare`] gives: the frame for tracking, its stereo points for the pipeline, and
 /// the extraction and stereo times, ms.
-type Prepared = (Frame, Vec<FramePoint>, (f64, f64));
+type Prepared = (Frame, Vec<FramePoint>, Vec<FramePoint>, (f64, f64));
 
 /// A borrowed 8-bit grey image.
 struct GreyView<'a> {
@@ -648,7 +648,7 @@ impl StereoVo {
             image_size: (1.0, 1.0),
             grey: [None, None],
             keypoints: [Vec::new(), Vec::new()],
-            keypoint_stereo: [Vec::new(), Vec::new()],
+            flow_keypoints: [Vec::new(), Vec::new()],
             pairs: Vec::new(),
             optimizer,
             index: KeyframeIndex::default(),
@@ -1454,7 +1454,7 @@ impl StereoVo {
         right: &Image,
         exclude: &[MovingRegion],
     ) -> Result<TrackedFrame, FrontendError> {
-        let (frame, points, (extraction, stereo)) = self.prepare(left, right, exclude)?;
+        let (frame, points, masked_points, (extraction, stereo)) = self.prepare(left, right, exclude)?;
         let t2 = Instant::now();
         let times = |t3: Instant| StageTimes { extraction, stereo, tracking: (t3 - t2).as_secs_f64() * 1e3 };
         let stereo_points = frame.points.len();
@@ -1462,6 +1462,7 @@ impl StereoVo {
             let mut tf = self.initialise(frame, frame_index);
             tf.times = times(Instant::now());
             tf.points = points;
+            tf.masked_points = masked_points;
             return Ok(tf);
         };
         let (ref_id, world_from_ref) = (reference.id, reference.world_from_kf);
@@ -1523,6 +1524,7 @@ impl StereoVo {
             state,
             stereo_points,
             points,
+            masked_points,
             tracked_map_points,
             reprojection_rms_px: rms,
             keyframe,
@@ -1543,8 +1545,11 @@ impl StereoVo {
         let t1 = Instant::now();
         let (lg, rg) = (GreyView::of(&lm)?, GreyView::of(&rm)?);
         let all = self.stereo(&lf, &rf, (&lg, &rg));
-        let frame = if exclude.is_empty() {
-            all
+        // every stereo keypoint, masked or not, is followed by the scene flow
+        let flow_keypoints: Vec<(f64, f64)> =
+            all.keypoints.iter().zip(&all.of_keypoint).filter(|(_, q)| q.is_some()).map(|(k, _)| *k).collect();
+        let (frame, masked) = if exclude.is_empty() {
+            (all, Vec::new())
         } else {
             let keep: Vec<bool> = lf
                 .points
@@ -1555,18 +1560,24 @@ impl StereoVo {
                     !exclude.iter().any(|r| r.covers(u, v, z))
                 })
                 .collect();
-            all.retain_keypoints(&keep)
+            let masked: Vec<FramePoint> = all
+                .of_keypoint
+                .iter()
+                .zip(&keep)
+                .filter_map(|(q, &k)| q.filter(|_| !k))
+                .map(|q| FramePoint { camera_point: all.points[q], observation: all.obs[q] })
+                .collect();
+            (all.retain_keypoints(&keep), masked)
         };
         let points = frame.stereo_points();
-        let stereo: Vec<bool> = frame.of_keypoint.iter().map(Option::is_some).collect();
         let t2 = Instant::now();
         self.grey.swap(0, 1);
         self.grey[1] = Some(lm);
         self.keypoints.swap(0, 1);
         self.keypoints[1] = frame.keypoints.clone();
-        self.keypoint_stereo.swap(0, 1);
-        self.keypoint_stereo[1] = stereo;
-        Ok((frame, points, ((t1 - t0).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3)))
+        self.flow_keypoints.swap(0, 1);
+        self.flow_keypoints[1] = flow_keypoints;
+        Ok((frame, points, masked, ((t1 - t0).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3)))
     }
 
     /// The first frame of the run: the first keyframe, at the origin (times left at zero).
@@ -1584,6 +1595,7 @@ impl StereoVo {
             state: TrackState::Initialised,
             stereo_points,
             points: Vec::new(),
+            masked_points: Vec::new(),
             tracked_map_points: 0,
             reprojection_rms_px: f64::NAN,
             keyframe: Some(kf),
@@ -1842,19 +1854,19 @@ impl StereoVo {
     }
 
     /// Forward-backward Lucas-Kanade flow of the previous frame's keypoints inside `regions` into the
-    /// current frame (only those with a stereo point when `stereo_only`), up to `flow_points_per_region`
-    /// per region evenly spaced; pairs whose round trip misses by more than a pixel are dropped.
+    /// current frame (with `stereo_only`, the keypoints with a stereo point, those the frame's moving
+    /// regions kept out of tracking included), up to `flow_points_per_region` per region evenly spaced;
+    /// pairs whose round trip misses by more than a pixel are dropped.
     pub fn optical_flow(&self, regions: &[BBox], stereo_only: bool) -> Result<Vec<PointPair>, FrontendError> {
-        let ([Some(prev), Some(curr)], [kp, _], [stereo, _]) = (&self.grey, &self.keypoints, &self.keypoint_stereo)
-        else {
+        let [Some(prev), Some(curr)] = &self.grey else {
             return Ok(Vec::new());
         };
+        // the stereo points' flow starts from every stereo keypoint of the frame before, those on
+        // moving regions too (the scene flow measures the objects the tracking leaves out)
+        let kp = if stereo_only { &self.flow_keypoints[0] } else { &self.keypoints[0] };
         let mut pts = core::Vector::<core::Point2f>::new();
         for b in regions {
-            let inside: Vec<usize> = (0..kp.len())
-                .filter(|&i| b.contains_point(kp[i].0, kp[i].1))
-                .filter(|&i| !stereo_only || stereo.get(i).copied().unwrap_or(false))
-                .collect();
+            let inside: Vec<usize> = (0..kp.len()).filter(|&i| b.contains_point(kp[i].0, kp[i].1)).collect();
             let step = inside.len().div_ceil(self.config.flow_points_per_region.max(1)).max(1);
             for &i in inside.iter().step_by(step) {
                 pts.push(core::Point2f::new(kp[i].0 as f32, kp[i].1 as f32));

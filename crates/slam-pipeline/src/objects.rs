@@ -421,6 +421,21 @@ pub struct MappedObject {
     misses: usize,
     /// Consecutive tracked frames whose stereo points see free space through its ellipsoid.
     free_frames: usize,
+    /// Set when the centroid trend flagged it moving: what the trend read, so that its own scene flow
+    /// can refute it afterwards ([`ObjectMapper::add_flow`]).
+    trend_flag: Option<TrendFlag>,
+}
+
+/// What flagged an object moving by its centroid trend: the frame, the trend's rate (world motion per
+/// frame id) and that rate's σ along and across `ray`, and whether the object was flagged dynamic
+/// before.
+#[derive(Debug, Clone, Copy)]
+struct TrendFlag {
+    frame: usize,
+    rate: Vector3<f64>,
+    rate_sigma: (f64, f64),
+    ray: Vector3<f64>,
+    was_dynamic: bool,
 }
 
 impl MappedObject {
@@ -439,6 +454,7 @@ impl MappedObject {
             flows: Vec::new(),
             misses: 0,
             free_frames: 0,
+            trend_flag: None,
         }
     }
 }
@@ -845,13 +861,21 @@ impl ObjectMapper {
         obj.motion_strikes = if m > cfg.dynamic_motion_sigmas && !vetoed { obj.motion_strikes + 1 } else { 0 };
         if obj.motion_strikes >= 2 && !obj.moving {
             tracing::info!(
-                "object {} ({}) moved {:.1} m ({:.1} m along the viewing ray, {:.1} m across; {m:.1} σ of the stereo noise): moving, not mapped",
+                "object {} ({}) moved {:.1} m from frame {from} to {to} ({:.1} m along the viewing ray, {:.1} m across; {m:.1} σ of the stereo noise): moving, not mapped",
                 id.0,
                 obj.class.name(),
                 d.norm(),
                 split.along,
                 split.across
             );
+            let span = (to - from).max(1) as f64;
+            obj.trend_flag = Some(TrendFlag {
+                frame: to,
+                rate: trend_rate.0,
+                rate_sigma: (sigma_along / span, sigma_across / span),
+                ray,
+                was_dynamic: obj.dynamic,
+            });
             obj.moving = true;
             obj.dynamic = true;
         }
@@ -886,6 +910,35 @@ impl ObjectMapper {
         let own = obj.flows.last().filter(|(f, _, _)| f + gap == frame).map(|&(_, _, b)| b);
         let before = own.or(same_box.copied());
         obj.flows.push((frame, gap, *flow));
+        if obj.moving {
+            // flagged by its centroid trend (which mixes the objects an association switch put under
+            // one track), refuted by its own points: still, and excluding the trend's rate, over the
+            // last readings, all after the flag
+            let Some(t) = obj.trend_flag else { return };
+            let k = obj.flows.len();
+            if k < MIN_REFUTING_READINGS {
+                return;
+            }
+            let (first, first_gap, _) = obj.flows[k - MIN_REFUTING_READINGS];
+            let from = first.saturating_sub(first_gap);
+            let span = (frame - from).max(1) as f64;
+            let sigmas = (t.rate_sigma.0 * span, t.rate_sigma.1 * span);
+            if from >= t.frame
+                && flow_refutes(&obj.flows, (from, frame), (t.rate, sigmas), &t.ray, cfg.dynamic_motion_sigmas)
+            {
+                tracing::info!(
+                    "object {} ({}): flagged moving by its centroid trend at frame {}, its points have stood still since frame {from} (scene flow): static again",
+                    id.0,
+                    obj.class.name(),
+                    t.frame
+                );
+                obj.moving = false;
+                obj.dynamic = t.was_dynamic;
+                obj.trend_flag = None;
+                obj.motion_strikes = 0;
+            }
+            return;
+        }
         if obj.ellipsoid.is_some() && !obj.dynamic {
             // mapped as static: its own boxes and points have agreed for views on end, so two frames
             // of motion are likelier another object under its track (an association switch) than a
@@ -905,7 +958,7 @@ impl ObjectMapper {
         let confirmed = before.is_some_and(|b| b.sigmas() > limit && SceneFlow::over_both(&b, flow).sigmas() > limit);
         if m > limit && confirmed && !obj.moving {
             tracing::info!(
-                "object {} ({}): its {} points moved {:.2} m in a frame ({:.2} m along the viewing ray, {:.2} m across; {m:.1} σ of the stereo noise): moving, not mapped",
+                "object {} ({}): its {} points moved {:.2} m into frame {frame} ({:.2} m along the viewing ray, {:.2} m across; {m:.1} σ of the stereo noise): moving, not mapped",
                 id.0,
                 obj.class.name(),
                 flow.points,

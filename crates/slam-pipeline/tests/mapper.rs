@@ -239,3 +239,48 @@ fn scene_flow_flags_a_new_object_and_leaves_a_mapped_one_to_the_centroid_test() 
     m.add_flow(new, (11, 1), &flow(0.6), Some(&flow(-0.6)));
     assert!(!moving(&m, new), "a box reading that cancels does not");
 }
+
+/// An object flagged moving by its centroid trend because its track took in another object's
+/// centroids (an association switch: from frame 6 on, those of a car crossing 1 m per frame) is static
+/// again once its own points, followed from frame to frame, stand still precisely enough to exclude the
+/// trend's rate over 3 readings after the flag (the track back on a parked car); readings too noisy to
+/// exclude it leave the flag.
+#[test]
+fn scene_flow_that_excludes_the_trend_lifts_its_moving_flag() {
+    use nalgebra::Vector3;
+    use slam_pipeline::objects::{PointsCentroid, SceneFlow};
+    let flagged = || {
+        let mut m = ObjectMapper::new(Box::new(Oda::default()), MapperConfig::default(), lm());
+        let parked = car(4.0, 20.0);
+        let mut id = None;
+        for f in 0..18 {
+            let cam = Camera::new(K, Isometry3::translation(0.0, 0.0, 0.4 * f as f64));
+            let b = project(&parked, &cam).and_then(|c| c.clipped_bounds(&IMAGE)).expect("in view");
+            let ids = m.step(f, &cam, &[Detection::new(ClassId(2), 1.0, b)]);
+            let track = ids[0].expect("associated");
+            assert!(id.is_none_or(|i| i == track), "one track");
+            id = Some(track);
+            // from frame 6 the centroids are those of a car crossing 1 m per frame
+            let x = if f < 6 { 3.2 } else { 3.2 - 1.0 * (f - 5) as f64 };
+            m.add_points(track, &[], Some(PointsCentroid { position: Vector3::new(x, 0.9, 19.0), depth_sigma: 0.3 }));
+        }
+        let id = id.expect("track");
+        let o = m.objects().find(|o| o.id == id).expect("object");
+        assert!(o.moving, "the trend flags it");
+        (m, id)
+    };
+    let ray = Vector3::new(0.2, 0.0, 1.0).normalize();
+    let still = |sigma: f64| SceneFlow::new(Vector3::new(0.01, 0.0, -0.02), ray, (sigma, sigma / 2.0), 20);
+    let moving = |m: &ObjectMapper, id| m.objects().find(|o| o.id == id).expect("object").moving;
+    let (mut m, id) = flagged();
+    m.add_flow(id, (18, 1), &still(0.1), None);
+    m.add_flow(id, (19, 1), &still(0.1), None);
+    assert!(moving(&m, id), "two readings are not enough");
+    m.add_flow(id, (20, 1), &still(0.1), None);
+    assert!(!moving(&m, id), "three precise readings of standing still refute the trend");
+    let (mut m, id) = flagged();
+    for f in 18..22 {
+        m.add_flow(id, (f, 1), &still(3.0), None);
+    }
+    assert!(moving(&m, id), "readings with 3 m of noise cannot exclude 1 m per frame");
+}

@@ -129,3 +129,101 @@ fn scene_flow_finds_a_car_driving_ahead_within_three_frames() {
     assert_eq!(flagged(carried_texture), (true, false), "the car ahead moving, the parked car not");
     assert_eq!(flagged(texture), (false, false), "no points to follow on the car");
 }
+
+/// The scripted boxes, with the car ahead at the camera's speed called a bus from frame
+/// [`RELABELLED_FROM`] on (the shipped detector calls a van car, truck or bus from frame to frame): the
+/// association gives it a new track there.
+struct Relabelled(ScriptedBoxes);
+
+const RELABELLED_FROM: usize = 6;
+
+impl slam_core::DetectionSource for Relabelled {
+    fn name(&self) -> &str {
+        "relabelled"
+    }
+    fn needs_image(&self) -> bool {
+        false
+    }
+    fn detect(
+        &mut self,
+        frame: usize,
+        image: Option<&slam_core::Image>,
+    ) -> Result<Vec<slam_core::Detection>, slam_core::DetectError> {
+        let cam = Camera::new(K, pose(frame));
+        let ahead = project(&same_speed(frame), &cam).and_then(|c| c.clipped_bounds(&IMAGE)).expect("in view");
+        let mut boxes = self.0.detect(frame, image)?;
+        for d in &mut boxes {
+            if frame >= RELABELLED_FROM && d.bbox.iou(&ahead) > 0.9 {
+                d.class = slam_core::ClassId(5);
+            }
+        }
+        Ok(boxes)
+    }
+}
+
+/// A tracker that withholds the points of the moving regions (`masked_points`), as trackers did before
+/// they handed them over.
+struct Withholding(ScriptedTracker);
+
+impl slam_core::StereoTracker for Withholding {
+    fn track(
+        &mut self,
+        frame: usize,
+        left: &slam_core::Image,
+        right: &slam_core::Image,
+        exclude: &[slam_core::MovingRegion],
+    ) -> Result<slam_core::TrackedFrame, slam_core::TrackError> {
+        let mut tf = self.0.track(frame, left, right, exclude)?;
+        tf.masked_points.clear();
+        Ok(tf)
+    }
+    fn correct(&mut self, c: &slam_core::KeyframeCorrection) {
+        self.0.correct(c)
+    }
+    fn flow(
+        &mut self,
+        regions: &[slam_core::geometry::BBox],
+    ) -> Result<Vec<slam_core::PointPair>, slam_core::TrackError> {
+        self.0.flow(regions)
+    }
+    fn stereo_flow(
+        &mut self,
+        regions: &[slam_core::geometry::BBox],
+    ) -> Result<Vec<slam_core::PointPair>, slam_core::TrackError> {
+        self.0.stereo_flow(regions)
+    }
+}
+
+/// A car masked out of tracking as moving goes on being measured: the scene flow follows its masked
+/// points, so when the detector renames it (a new track from frame 6) the new track is found moving by
+/// frame 7, from the flow into frames 6 and 7. Without the masked points the new track's first
+/// reading is the flow into frame 7 (its points in frame 6 were still masked by the old track's
+/// region), and it is not flagged by then.
+#[test]
+fn a_masked_car_stays_measured_through_a_new_track() {
+    let new_track_moving = |withhold: bool| {
+        let scene = Scene { truth: pose, believed: pose, cars, field: field(5, 600), texture: carried_texture };
+        let tracker: Box<dyn slam_core::StereoTracker> = if withhold {
+            Box::new(Withholding(ScriptedTracker::new(scene)))
+        } else {
+            Box::new(ScriptedTracker::new(scene))
+        };
+        let boxes = Relabelled(ScriptedBoxes { truth: pose, cars });
+        let mut config = SystemConfig::default();
+        config.objects.image = IMAGE;
+        let out = run(frames(8, None), tracker, Some(Box::new(boxes)), K, B, &config, lm(), &mut |_| {}).expect("runs");
+        let track_at = |frame: usize| {
+            let cam = Camera::new(K, pose(frame));
+            let b = project(&same_speed(frame), &cam).and_then(|c| c.clipped_bounds(&IMAGE)).expect("in view");
+            let k = out.frames[frame].detections.iter().position(|d| d.bbox.iou(&b) > 0.9).expect("detected");
+            out.frames[frame].tracks[k].expect("associated")
+        };
+        let (old, new) = (track_at(RELABELLED_FROM - 1), track_at(7));
+        assert_ne!(old, new, "the renamed car gets a new track");
+        let moving = |id| out.objects.iter().find(|o| o.id == id).expect("object").moving;
+        assert!(moving(old), "the car ahead was found moving before it was renamed");
+        moving(new)
+    };
+    assert!(new_track_moving(false), "with the masked points, the new track is flagged by frame 7");
+    assert!(!new_track_moving(true), "without them, not yet");
+}

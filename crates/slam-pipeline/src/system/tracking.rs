@@ -306,14 +306,35 @@ impl Tracking {
             })
             .collect();
         self.attach_points(tf, detections, &tracks, (&geometry, &on_frame));
+        // the scene flow reads every stereo point of the frame, those on moving regions too (kept out of
+        // tracking, the map and the objects' points above): a masked object goes on being measured
+        let all_points: Vec<FramePoint> = tf.points.iter().chain(&tf.masked_points).copied().collect();
         // the optical flow of the stereo points counts as flow, the rest as association
         let mut stereo_flow_ms = 0.0;
         if self.config.scene_flow && !self.prev_boxes.is_empty() {
             let t = Instant::now();
             let pairs = self.tracker.stereo_flow(&self.prev_boxes);
             stereo_flow_ms = t.elapsed().as_secs_f64() * 1e3;
+            // a box reads the masked points only when it is the masked object's box again (it overlaps
+            // the region this frame was masked with, IoU ≥ 0.5): another object's box on the same
+            // bearing would otherwise take the masked object's points, and its motion, for its own
+            let masked_object =
+                |d: &Detection| self.moving_regions.iter().any(|r| r.bbox.iou(&d.bbox) >= SAME_OBJECT_IOU);
+            let flow_objects: Vec<FrameObject> = detections
+                .iter()
+                .zip(&on_frame)
+                .map(|(d, o)| {
+                    if tf.masked_points.is_empty() || !masked_object(d) {
+                        return *o;
+                    }
+                    let (kept, centroid) = object_points(&all_points, &tf.world_from_camera, d, &geometry);
+                    FrameObject { centroid, depths: centroid.map(|_| depth_span(&kept)) }
+                })
+                .collect();
             match pairs {
-                Ok(pairs) => self.attach_flow((i, tf), detections, &tracks, &pairs, (&geometry, &on_frame)),
+                Ok(pairs) => {
+                    self.attach_flow((i, tf), &all_points, detections, &tracks, &pairs, (&geometry, &flow_objects))
+                }
                 Err(e) => tracing::debug!(frame = i, "optical flow of stereo points failed: {e}"),
             }
             times.flow += stereo_flow_ms;
@@ -322,9 +343,9 @@ impl Tracking {
             self.objects.check_free_space(&camera, &tf.points, &geometry.noise);
             self.counts.free_space_removals = self.objects.free_space_removals();
         }
-        // where each moving object is expected in the next frame, from its points in this one (the
-        // points its region kept out of this frame are not handed over: after its first masked frame
-        // an object has few points of its own left, and its region then covers its whole box)
+        // where each moving object is expected in the next frame, from its points in this one (not
+        // the masked ones: after its first masked frame an object has few points of its own left, and
+        // its region then covers its whole box)
         let objects = &self.objects;
         self.moving_regions = detections
             .iter()
@@ -335,7 +356,7 @@ impl Tracking {
             .collect();
         self.prev_boxes = detections.iter().map(|d| d.bbox).collect();
         self.prev_points =
-            (self.config.scene_flow && tf.state.is_measured()).then(|| (i, tf.points.clone(), tf.world_from_camera));
+            (self.config.scene_flow && tf.state.is_measured()).then_some((i, all_points, tf.world_from_camera));
         times.association = t.elapsed().as_secs_f64() * 1e3 - stereo_flow_ms;
         tracks
     }
@@ -346,6 +367,7 @@ impl Tracking {
     fn attach_flow(
         &mut self,
         (frame, tf): (usize, &TrackedFrame),
+        points: &[FramePoint],
         detections: &[Detection],
         tracks: &[Option<slam_core::TrackId>],
         pairs: &[PointPair],
@@ -356,7 +378,7 @@ impl Tracking {
         if !tf.state.is_measured() || pairs.is_empty() {
             return;
         }
-        let flowed = flowed_points((before, world_from_before), (&tf.points, &tf.world_from_camera), pairs, geometry);
+        let flowed = flowed_points((before, world_from_before), (points, &tf.world_from_camera), pairs, geometry);
         let camera = tf.world_from_camera.translation.vector;
         // the readings of the frame before, for the box that overlaps each one now: the same physical
         // object whatever track the association gave it in either frame
@@ -385,6 +407,7 @@ impl Tracking {
                 .map(|(f, _)| *f)
                 .collect();
             if let Some(flow) = scene_flow(&on, &camera) {
+                tracing::trace!(frame, object = %id, bbox = ?d.bbox, sigmas = flow.sigmas(), points = flow.points, "scene flow of a box");
                 self.objects.add_flow(*id, (frame, gap), &flow, earlier(&d.bbox).as_ref());
                 now_flows.push((d.bbox, flow));
             }
@@ -491,6 +514,7 @@ fn depth_span(points: &[&FramePoint]) -> (f64, f64) {
 
 /// A detection's object in the frame's stereo points ([`object_points`]): where they put it, and the
 /// nearest and farthest depth among them (both `None` below [`MIN_OBJECT_POINTS`] points).
+#[derive(Clone, Copy)]
 struct FrameObject {
     centroid: Option<PointsCentroid>,
     depths: Option<(f64, f64)>,

@@ -116,7 +116,13 @@ impl ScriptedTracker {
 }
 
 impl StereoTracker for ScriptedTracker {
-    fn track(&mut self, frame: usize, _: &Image, _: &Image, _: &[MovingRegion]) -> Result<TrackedFrame, TrackError> {
+    fn track(
+        &mut self,
+        frame: usize,
+        _: &Image,
+        _: &Image,
+        exclude: &[MovingRegion],
+    ) -> Result<TrackedFrame, TrackError> {
         let pose = (self.scene.believed)(frame);
         let (ref_id, ref_pose) = self.reference.unwrap_or((0, pose));
         let keyframe = (frame % 3 == 0).then(|| {
@@ -138,10 +144,8 @@ impl StereoTracker for ScriptedTracker {
             reference: (ref_id, if frame == 0 { Isometry3::identity() } else { relative }),
             state: if frame == 0 { TrackState::Initialised } else { TrackState::Tracked { inliers: 100 } },
             stereo_points: 100,
-            points: seen
-                .into_iter()
-                .map(|p| FramePoint { camera_point: p.camera_point, observation: p.observation })
-                .collect(),
+            points: frame_points(&seen, exclude, false),
+            masked_points: frame_points(&seen, exclude, true),
             tracked_map_points: 100,
             reprojection_rms_px: 0.5,
             keyframe,
@@ -172,6 +176,16 @@ impl StereoTracker for ScriptedTracker {
             })
             .collect())
     }
+}
+
+/// The points of `seen` on (`masked`) or off the moving regions `exclude`, as `StereoVo` splits them.
+fn frame_points(seen: &[KeyframePoint], exclude: &[MovingRegion], masked: bool) -> Vec<FramePoint> {
+    seen.iter()
+        .filter(|p| {
+            exclude.iter().any(|r| r.covers(p.observation[0], p.observation[1], Some(p.camera_point.z))) == masked
+        })
+        .map(|p| FramePoint { camera_point: p.camera_point, observation: p.observation })
+        .collect()
 }
 
 /// Exact boxes (class car, score 0.9) of the scene's cars in the true cameras, those wider than 4 px.
