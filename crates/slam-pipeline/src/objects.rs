@@ -927,7 +927,7 @@ impl ObjectMapper {
                 && flow_refutes(&obj.flows, (from, frame), (t.rate, sigmas), &t.ray, cfg.dynamic_motion_sigmas)
             {
                 tracing::info!(
-                    "object {} ({}): flagged moving by its centroid trend at frame {}, its points have stood still since frame {from} (scene flow): static again",
+                    "object {} ({}): flagged moving by its centroid trend at frame {}, its points have stood still since frame {from} (scene flow): static again, its observations before that dropped",
                     id.0,
                     obj.class.name(),
                     t.frame
@@ -936,6 +936,11 @@ impl ObjectMapper {
                 obj.dynamic = t.was_dynamic;
                 obj.trend_flag = None;
                 obj.motion_strikes = 0;
+                // what made the trend was another object under this track: its boxes and centroids
+                // before the still readings are dropped, and the object is fitted afresh from the rest
+                obj.observations.retain(|o| o.frame >= from);
+                obj.ellipsoid = None;
+                obj.fitted_at = 0;
             }
             return;
         }

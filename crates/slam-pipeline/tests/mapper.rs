@@ -243,8 +243,8 @@ fn scene_flow_flags_a_new_object_and_leaves_a_mapped_one_to_the_centroid_test() 
 /// An object flagged moving by its centroid trend because its track took in another object's
 /// centroids (an association switch: from frame 6 on, those of a car crossing 1 m per frame) is static
 /// again once its own points, followed from frame to frame, stand still precisely enough to exclude the
-/// trend's rate over 3 readings after the flag (the track back on a parked car); readings too noisy to
-/// exclude it leave the flag.
+/// trend's rate over 3 readings after the flag (the track back on a parked car), and its observations
+/// from before those readings are dropped; readings too noisy to exclude it leave the flag.
 #[test]
 fn scene_flow_that_excludes_the_trend_lifts_its_moving_flag() {
     use nalgebra::Vector3;
@@ -278,6 +278,10 @@ fn scene_flow_that_excludes_the_trend_lifts_its_moving_flag() {
     assert!(moving(&m, id), "two readings are not enough");
     m.add_flow(id, (20, 1), &still(0.1), None);
     assert!(!moving(&m, id), "three precise readings of standing still refute the trend");
+    // what made the trend was another object under the track: its observations are dropped, and the
+    // object is fitted afresh from those since the still readings began (none yet here)
+    let o = m.objects().find(|o| o.id == id).expect("object");
+    assert!(o.observations.iter().all(|x| x.frame >= 17) && o.ellipsoid.is_none(), "{:?}", o.observations.first());
     let (mut m, id) = flagged();
     for f in 18..22 {
         m.add_flow(id, (f, 1), &still(3.0), None);
