@@ -1167,3 +1167,32 @@ fn run_associator_changes_the_objects() {
         assert!(objects != oda, "--method {method} gives the objects of Tri+Yaw+refine");
     }
 }
+
+/// Local mapping culls map points that no keyframe observes any more, while the objects keep the ids
+/// they were given: the saved map refers only to points it holds, so `slam-app map` reads it back
+/// (drive 0005 at every 4th frame, frames 0-59, culled 5 points some object held).
+#[test]
+fn a_saved_map_refers_only_to_points_it_holds() {
+    let out = std::env::temp_dir().join(format!("slam-app-culled-{}", std::process::id()));
+    let o = app()
+        .args(["run", "fixtures/kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync", "--stride", "4"])
+        .args(["--frames", "0..60", "--out"])
+        .arg(&out)
+        .output()
+        .expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = app().arg("map").arg(out.join("map.json")).output().expect("map runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let map: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("map.json")).expect("map")).expect("json");
+    let points = map["points"].as_object().expect("points");
+    let held: Vec<String> = map["objects"]
+        .as_array()
+        .expect("objects")
+        .iter()
+        .flat_map(|o| o["points"].as_array().expect("ids").iter().map(|p| p.to_string()))
+        .collect();
+    assert!(!held.is_empty(), "objects hold points");
+    assert!(held.iter().all(|p| points.contains_key(p)), "every object point is in the map");
+    std::fs::remove_dir_all(&out).ok();
+}

@@ -158,6 +158,21 @@ fn every_reader_names_file_and_line() {
         ),
         ("labels-empty.txt", unit(parse_tracking_labels(&p("labels-empty.txt"), "\n")), None, "no labels"),
         (
+            "det-mask-size.json",
+            unit(DetectionFile::parse(
+                &p("det-mask-size.json"),
+                r#"{"version":1,"image_size":[1242,375],"frames":[{"frame":0,"detections":[{"class":2,"score":0.5,"box":[1,1,5,5],"mask":{"rle":{"size":[10,10],"counts":[100]}}}]}]}"#,
+            )),
+            None,
+            "mask size 10×10 (height × width) is not the image's 375×1242",
+        ),
+        (
+            "labels-trunc.txt",
+            unit(parse_tracking_labels(&p("labels-trunc.txt"), &LABEL.replacen("Car 0 0", "Car 7 0", 1))),
+            Some(1),
+            "truncated 7 outside 0-2",
+        ),
+        (
             "calib-twice.txt",
             unit(Calib::parse(&p("calib-twice.txt"), "P1: 1 2 3\nP1: 4 5 6\n")),
             Some(2),

@@ -248,17 +248,22 @@ mod tests {
         let mut boxes = vec![det(0.8, [10.0, 10.0, 50.0, 40.0]), det(0.7, [-5.0, 0.0, 20.0, 20.0])];
         boxes.push(det(0.9, [2000.0, 10.0, 2100.0, 40.0]));
         boxes.extend((0..5).map(|i| det(0.1, [i as f64, 0.0, 30.0, 30.0])));
+        // a traffic light and a bench: classes not mapped as objects, skipped first and counted
+        boxes.push(Detection::new(ClassId(9), 0.95, BBox::new(1.0, 1.0, 9.0, 20.0)));
+        boxes.push(Detection::new(ClassId(13), 0.95, BBox::new(30.0, 1.0, 90.0, 20.0)));
         let (mut g, counts) = DetectionGuard::new(Box::new(Fixed(boxes)), [1242.0, 375.0], 4);
         let out = g.detect(0, None).expect("detects");
         assert_eq!(out.len(), 4);
         assert_eq!(out[0].score, 0.8);
         assert_eq!(out[1].bbox.xmin, 0.0);
+        assert!(out.iter().all(|d| d.class == ClassId(2)));
         let s = counts.summary(4);
         assert!(
             s.contains("1 boxes clipped")
                 && s.contains("1 refused")
                 && s.contains("3 dropped")
-                && s.contains("in 1 frames"),
+                && s.contains("in 1 frames")
+                && s.contains("2 of classes not mapped as objects skipped"),
             "{s}"
         );
     }

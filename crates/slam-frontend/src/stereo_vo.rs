@@ -453,6 +453,8 @@ pub struct StereoVo {
 
 /// What [`StereoVo::prepare`] gives: the frame for tracking, its stereo points for the pipeline, and
 /// the extraction and stereo times, ms.
+/// What [`StereoVo::prepare`] makes of a stereo pair: the frame, its stereo points, the stereo points
+/// on the moving regions (kept out of the frame), and the extraction and stereo times, ms.
 type Prepared = (Frame, Vec<FramePoint>, Vec<FramePoint>, (f64, f64));
 
 /// A borrowed 8-bit grey image.
@@ -1532,10 +1534,13 @@ impl StereoVo {
         })
     }
 
-    /// ORB features of both images, the stereo points (as the pipeline sees them), and the grey image
-    /// and keypoints kept for optical flow; with the extraction and stereo times, ms. Keypoints on an
-    /// `exclude` region ([`MovingRegion::covers`]) are dropped after stereo matching (their depth
-    /// decides), so neither tracking, the map, optical flow nor the pipeline's object points see them.
+    /// ORB features of both images, the stereo points (as the pipeline sees them), the stereo points
+    /// on the `exclude` regions apart, and the grey image and keypoints kept for optical flow; with the
+    /// extraction and stereo times, ms. Keypoints on an `exclude` region ([`MovingRegion::covers`]) are
+    /// dropped after stereo matching (their depth decides), so neither tracking, the map, the optical
+    /// flow of association nor the pipeline's object points see them; their stereo points are handed
+    /// over apart (`TrackedFrame::masked_points`) and the stereo points' optical flow (the scene flow)
+    /// still starts from them.
     fn prepare(&mut self, left: &Image, right: &Image, exclude: &[MovingRegion]) -> Result<Prepared, FrontendError> {
         let t0 = Instant::now();
         let (lm, rm) = (Self::grey_of(left)?, Self::grey_of(right)?);

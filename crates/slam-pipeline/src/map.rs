@@ -359,8 +359,12 @@ impl Map {
             if !o.center.iter().chain(&o.rotation).all(|v| v.is_finite()) {
                 return Err((at("center/rotation"), "not finite".into()));
             }
-            if !o.semi_axes.iter().all(|a| a.is_finite() && *a > 0.0) {
-                return Err((at("semi_axes"), format!("must be positive and finite: {:?}", o.semi_axes)));
+            // no object a map holds is a kilometre long: larger is a corrupt number or other units
+            if !o.semi_axes.iter().all(|a| a.is_finite() && *a > 0.0 && *a <= 1e3) {
+                return Err((
+                    at("semi_axes"),
+                    format!("must be positive, finite and at most 1000 m: {:?}", o.semi_axes),
+                ));
             }
             if let Some(p) = o.points.iter().find(|p| !self.points.contains_key(p)) {
                 return Err((at("points"), format!("point {p} does not exist")));
@@ -854,6 +858,7 @@ mod tests {
             "objects",
             &[
                 ("object-axes", |m| m.objects[0].semi_axes[1] = -1.0, "objects[0].semi_axes", "must be positive"),
+                ("object-huge", |m| m.objects[0].semi_axes[0] = 1e200, "objects[0].semi_axes", "at most 1000 m"),
                 ("object-rotation", |m| m.objects[0].rotation[0] = 3.0, "objects[0].rotation", "not a rotation"),
                 ("object-twice", |m| m.objects.push(m.objects[0].clone()), "objects[1].id", "appears twice"),
                 ("object-mirror", |m| m.objects[0].rotation[0] = -1.0, "objects[0].rotation", "det -1"),

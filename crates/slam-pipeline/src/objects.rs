@@ -424,6 +424,9 @@ pub struct MappedObject {
     /// Set when the centroid trend flagged it moving: what the trend read, so that its own scene flow
     /// can refute it afterwards ([`ObjectMapper::add_flow`]).
     trend_flag: Option<TrendFlag>,
+    /// How many times its observations were dropped (a refuted trend flag): a fit job made before
+    /// that, answered after, is discarded.
+    generation: u32,
 }
 
 /// What flagged an object moving by its centroid trend: the frame, the trend's rate (world motion per
@@ -455,6 +458,7 @@ impl MappedObject {
             misses: 0,
             free_frames: 0,
             trend_flag: None,
+            generation: 0,
         }
     }
 }
@@ -472,6 +476,8 @@ pub struct FitJob {
     pub references: Vec<Option<(KeyframeId, nalgebra::Isometry3<f64>)>>,
     /// Its map points (the runner looks up their positions for texture planes).
     pub points: Vec<PointId>,
+    /// The object's generation when the job was made (see [`FitResult::generation`]).
+    generation: u32,
     method: FitMethod,
     box_shape: BoxShape,
     point_yaw: bool,
@@ -494,6 +500,9 @@ pub struct FitResult {
     pub dynamic: bool,
     /// The size alone: semi-axes farther than `dynamic_prior_sigmas` from the class prior.
     pub odd_size: bool,
+    /// The object's generation the job was made in: a result from before its observations were
+    /// dropped (a refuted trend flag) is discarded.
+    pub generation: u32,
 }
 
 impl FitJob {
@@ -543,7 +552,7 @@ impl FitJob {
         match fitted {
             Ok(e) if too_far(&e) => {
                 tracing::debug!(object = %self.id, "ellipsoid beyond {} m discarded", self.max_depth_m);
-                FitResult { id: self.id, ellipsoid: None, dynamic: false, odd_size: false }
+                FitResult { id: self.id, ellipsoid: None, dynamic: false, odd_size: false, generation: self.generation }
             }
             Ok(e) => {
                 let rms = box_rms(views, &self.image, &e, self.box_shape);
@@ -568,11 +577,11 @@ impl FitJob {
                     heights.sort_by(f64::total_cmp);
                     tracing::debug!(object = %self.id, rms = ?rms, views = views.len(), median_box_height = heights.get(heights.len() / 2).copied().unwrap_or(0.0), "box misfit: dynamic");
                 }
-                FitResult { id: self.id, ellipsoid: Some(e), dynamic, odd_size }
+                FitResult { id: self.id, ellipsoid: Some(e), dynamic, odd_size, generation: self.generation }
             }
             Err(err) => {
                 tracing::debug!(object = %self.id, "no ellipsoid yet: {err}");
-                FitResult { id: self.id, ellipsoid: None, dynamic: false, odd_size: false }
+                FitResult { id: self.id, ellipsoid: None, dynamic: false, odd_size: false, generation: self.generation }
             }
         }
     }
@@ -936,11 +945,16 @@ impl ObjectMapper {
                 obj.dynamic = t.was_dynamic;
                 obj.trend_flag = None;
                 obj.motion_strikes = 0;
-                // what made the trend was another object under this track: its boxes and centroids
-                // before the still readings are dropped, and the object is fitted afresh from the rest
+                // what made the trend was another object under this track: its boxes, centroids and
+                // map points before the still readings are dropped (the next keyframes give it points
+                // again), and the object is fitted afresh from the rest, with fresh counters
                 obj.observations.retain(|o| o.frame >= from);
+                obj.points.clear();
                 obj.ellipsoid = None;
                 obj.fitted_at = 0;
+                obj.misses = 0;
+                obj.free_frames = 0;
+                obj.generation += 1;
             }
             return;
         }
@@ -987,6 +1001,10 @@ impl ObjectMapper {
     pub fn apply(&mut self, result: FitResult) {
         let id = result.id;
         let Some(obj) = self.objects.get_mut(&id) else { return };
+        if result.generation != obj.generation {
+            tracing::debug!(object = %id, "fit of observations since dropped: discarded");
+            return;
+        }
         if let Some(e) = result.ellipsoid {
             // a size no real object of its class has: removed (refitted later, with more views)
             if let Err(why) = physically_plausible(obj.class, &e.semi_axes) {
@@ -1100,6 +1118,7 @@ impl ObjectMapper {
             views,
             references,
             points: obj.points.iter().copied().collect(),
+            generation: obj.generation,
             method: self.method.clone(),
             box_shape: cfg.box_shape,
             point_yaw: cfg.point_yaw,

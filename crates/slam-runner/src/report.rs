@@ -294,13 +294,17 @@ pub fn interpolation_lines(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], ids: &
         })
         .collect();
     if let Some(e) = stretches.last().and_then(|&(_, b)| errors_from(est, gt, b, &[]).map(|e| (b, e))) {
+        let drift = if e.1.end_drift_pct.is_finite() {
+            format!("{:.2} %", e.1.end_drift_pct)
+        } else {
+            "– (the ground truth does not move)".to_string()
+        };
         lines.push(format!(
-            "from frame {} on (both re-anchored there): path {:.1} m; ATE {:.3} m (aligned {:.3} m); end-point drift {:.2} %",
+            "from frame {} on (both re-anchored there): path {:.1} m; ATE {:.3} m (aligned {:.3} m); end-point drift {drift}",
             id(e.0),
             e.1.path_m,
             e.1.ate_m,
             e.1.ate_aligned_m,
-            e.1.end_drift_pct
         ));
     }
     lines

@@ -73,6 +73,10 @@ pub fn parse_tracking_labels(path: &Path, text: &str) -> Result<Vec<TrackingLabe
         if kind != "DontCare" && bbox.validated().is_err() {
             return Err(err(format!("empty box [{}, {}, {}, {}]", v[2], v[3], v[4], v[5])));
         }
+        // truncation: 0–1 (object benchmark, a fraction) or 0, 1, 2 (tracking benchmark, levels)
+        if kind != "DontCare" && !(0.0..=2.0).contains(&v[0]) {
+            return Err(err(format!("truncated {} outside 0-2", v[0])));
+        }
         if kind != "DontCare" && !(v[6] > 0.0 && v[7] > 0.0 && v[8] > 0.0) {
             return Err(err(format!(
                 "3-D size {} × {} × {} m (height, width, length): each must be positive",

@@ -238,6 +238,11 @@ impl System {
         let mut map = mapping.join().map_err(|_| SystemError::Thread("local mapping"))?;
         map.trajectory = tracking.trajectory;
         map.objects = tracking.objects.objects().filter_map(MappedObject::to_map_object).collect();
+        // local mapping culls points no keyframe observes any more; an object keeps the ids it was
+        // given, so only those still in the map go into the file (which refers to nothing else)
+        for o in &mut map.objects {
+            o.points.retain(|p| map.points.contains_key(p));
+        }
         let poses = map.frame_poses().into_iter().map(|p| p.unwrap_or_else(Isometry3::identity)).collect();
         Ok(RunOutput {
             map,

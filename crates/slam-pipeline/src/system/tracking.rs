@@ -308,16 +308,22 @@ impl Tracking {
         self.attach_points(tf, detections, &tracks, (&geometry, &on_frame));
         // the scene flow reads every stereo point of the frame, those on moving regions too (kept out of
         // tracking, the map and the objects' points above): a masked object goes on being measured
-        let all_points: Vec<FramePoint> = tf.points.iter().chain(&tf.masked_points).copied().collect();
+        // (the frame's own points first, then the masked ones)
+        let all_points: Vec<FramePoint> = if self.config.scene_flow {
+            tf.points.iter().chain(&tf.masked_points).copied().collect()
+        } else {
+            Vec::new()
+        };
         // the optical flow of the stereo points counts as flow, the rest as association
         let mut stereo_flow_ms = 0.0;
         if self.config.scene_flow && !self.prev_boxes.is_empty() {
             let t = Instant::now();
             let pairs = self.tracker.stereo_flow(&self.prev_boxes);
             stereo_flow_ms = t.elapsed().as_secs_f64() * 1e3;
-            // a box reads the masked points only when it is the masked object's box again (it overlaps
-            // the region this frame was masked with, IoU ≥ 0.5): another object's box on the same
-            // bearing would otherwise take the masked object's points, and its motion, for its own
+            // a box takes its depths from the masked points too only when it is the masked object's box
+            // again (it overlaps a region this frame was masked with, IoU ≥ 0.5): another object's box
+            // on the same bearing would otherwise take the masked object's depth cluster, and its
+            // motion, for its own; any box reads the flowed points at its depths, masked or not
             let masked_object =
                 |d: &Detection| self.moving_regions.iter().any(|r| r.bbox.iou(&d.bbox) >= SAME_OBJECT_IOU);
             let flow_objects: Vec<FrameObject> = detections
@@ -398,11 +404,14 @@ impl Tracking {
         let mut now_flows = Vec::new();
         for ((d, t), o) in detections.iter().zip(tracks).zip(on_frame) {
             let (Some(id), Some((near, far))) = (t, o.depths) else { continue };
+            // the flowed points in the box at the depths of the box's object, masked or not: a masked
+            // point there is that object's (its depths come from the unmasked points alone unless the box
+            // is the masked object's again)
             let on: Vec<FlowedPoint> = flowed
                 .iter()
                 .filter(|(_, now)| {
-                    let o = now.observation;
-                    d.bbox.contains_point(o[0], o[1]) && (near..=far).contains(&now.camera_point.z)
+                    let at = now.observation;
+                    d.bbox.contains_point(at[0], at[1]) && (near..=far).contains(&now.camera_point.z)
                 })
                 .map(|(f, _)| *f)
                 .collect();
