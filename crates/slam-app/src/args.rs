@@ -76,7 +76,8 @@ pub struct DetectorArgs {
     pub label_noise: Option<f64>,
     /// KITTI tracking labels of this sequence (label_02.txt format): the run's objects are scored
     /// against them (printed, and objects_score.json), and `--detector labels` takes its boxes from them
-    /// on any layout (3-D boxes projected into the grey camera 0)
+    /// on any layout (3-D boxes projected into the grey camera 0; with a colour pair, the labels' own 2-D
+    /// boxes)
     #[arg(long)]
     pub labels: Option<PathBuf>,
     #[command(flatten)]

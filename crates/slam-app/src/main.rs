@@ -50,14 +50,14 @@ enum Command {
     /// Tracking accuracy on every dev case in one table (odometry 06 at strides 1-4, raw drive 0005
     /// against OXTS at strides 1, 4 and 8, and any --case PATH[:STRIDE]), without objects (with
     /// --objects: the full system):
-    /// ATE, drift, largest step error of tracked frames, lost / relocalised, median frames/s.
+    /// ATE, drift, largest step error of tracked frames, frames per tracking state, median frames/s.
     TrackBench(run_cmd::TrackBenchArgs),
     /// ATE, drift and RPE of a trajectory file (KITTI or TUM) against ground truth.
     TrajectoryEval(run_cmd::TrajEvalArgs),
     /// Estimate the stereo rig's disparity offset (a rectification error that scales depth) from the
     /// sequence itself: tracks the frames, then scans offsets for the least two-view adjustment cost.
     StereoCheck(run_cmd::StereoCheckArgs),
-    /// Inspect a saved map (counts, objects) and export it (PLY points, trajectory, top-down picture).
+    /// Inspect a saved map (counts, objects) and export it (PLY points, a 3-D scene, trajectory, top-down picture).
     Map(run_cmd::MapArgs),
     /// Compare object associators (ODA vs IoU-only): ID switches on simulated crossings and on real
     /// KITTI tracking annotations.

@@ -331,6 +331,7 @@ fn trajectory_eval_reads_kitti_and_tum_and_names_bad_files() {
         text.contains("| ATE (first poses aligned) | 0.000 m |") && text.contains("| path (ground truth) | 59.9 m |"),
         "{text}"
     );
+    assert!(!text.contains("have no partner"), "same lengths: {text}");
     // the excerpt's first 12 poses turn by the same rotation every step: interpolated, and said so
     assert!(
         text.contains("ground-truth check: frames 0-11 turn by the same rotation every step")
@@ -357,6 +358,25 @@ fn trajectory_eval_reads_kitti_and_tum_and_names_bad_files() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(text.contains("| end-point drift | 3.34 % |"), "{text}");
+    // a shorter estimate, matched by line: the run says how many ground-truth poses have no partner
+    let first20: String =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06/poses/06.txt"))
+            .expect("gt")
+            .lines()
+            .take(20)
+            .map(|l| format!("{l}\n"))
+            .collect();
+    let short = dir.join("short.txt");
+    std::fs::write(&short, first20).expect("write");
+    let o = app().arg("trajectory-eval").arg(&short).arg(gt).output().expect("runs");
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success()
+            && text.contains(
+                "the estimate holds 20 poses and the ground truth 51: the last 31 of the ground truth have no partner"
+            ),
+        "{text}"
+    );
     let bad = dir.join("bad.txt");
     std::fs::write(&bad, "1 2 3\n").expect("write");
     let o = app().arg("trajectory-eval").arg(&bad).arg(gt).output().expect("runs");

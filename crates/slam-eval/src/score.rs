@@ -465,7 +465,8 @@ impl RunScore {
         );
         s.push_str(&format!(
             "static map objects {}: matched {}, duplicate {}, moving object mapped as static {}, in a DontCare \
-             region {}, matching nothing {}{}; flagged dynamic {} ({} on moving labels)\n",
+             region {}, matching nothing {}{}; flagged dynamic {} ({} on moving labels; counted among the objects \
+             with an ellipsoid: one found moving before its first fit has none and is not mapped)\n",
             c.static_objects,
             c.matched,
             c.duplicate,

@@ -25,6 +25,14 @@ pub fn trajectory_eval(estimate: &Path, truth: &Path, max_diff: f64) -> Result<S
         gt.poses().len(),
         c.how
     )];
+    let (ne, ng) = (est.poses().len(), gt.poses().len());
+    if c.how.starts_with("by line") && ne != ng {
+        lines.push(format!(
+            "note: the estimate holds {ne} poses and the ground truth {ng}: the last {} of the {} have no partner. Matched by line, pose i is compared with pose i: check that both files are of the same sequence and start at the same frame",
+            ne.abs_diff(ng),
+            if ne > ng { "estimate" } else { "ground truth" }
+        ));
+    }
     let e = c
         .errors
         .ok_or_else(|| RunnerError::Invalid(format!("fewer than two matched poses ({} matched)", c.pairs.len())))?;
