@@ -56,17 +56,7 @@ pub fn parse_tum(path: &Path, text: &str) -> Result<(Vec<f64>, Vec<Isometry3<f64
             });
         }
         let t = Translation3::new(v[1], v[2], v[3]);
-        if t.vector.amax() > crate::kitti::poses::MAX_POSITION_M {
-            return Err(DatasetError::Parse {
-                path: path.to_path_buf(),
-                line: i + 1,
-                message: format!(
-                    "position coordinate {:.3e} m: a drive's poses stay within {:.0e} m of the origin (wrong units or a corrupt line?)",
-                    t.vector.amax(),
-                    crate::kitti::poses::MAX_POSITION_M
-                ),
-            });
-        }
+        crate::kitti::poses::check_position(path, i + 1, &t.vector)?;
         ts.push(v[0]);
         poses.push(Isometry3::from_parts(t, UnitQuaternion::from_quaternion(q)));
     }

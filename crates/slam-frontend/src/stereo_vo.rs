@@ -451,8 +451,6 @@ pub struct StereoVo {
     archive: BTreeMap<KeyframeId, Reference>,
 }
 
-/// What [`StereoVo::prepare`] gives: the frame for tracking, its stereo points for the pipeline, and
-/// the extraction and stereo times, ms.
 /// What [`StereoVo::prepare`] makes of a stereo pair: the frame, its stereo points, the stereo points
 /// on the moving regions (kept out of the frame), and the extraction and stereo times, ms.
 type Prepared = (Frame, Vec<FramePoint>, Vec<FramePoint>, (f64, f64));

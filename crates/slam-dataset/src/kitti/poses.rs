@@ -10,6 +10,21 @@ use crate::{parse_exact, read_text, DatasetError};
 /// trajectory in metres can pass; beyond it the file holds other units or a corrupt number.
 pub const MAX_POSITION_M: f64 = 1.3e7;
 
+/// An error naming `path` and `line` when a position coordinate lies beyond [`MAX_POSITION_M`].
+pub(crate) fn check_position(path: &Path, line: usize, t: &Vector3<f64>) -> Result<(), DatasetError> {
+    if t.amax() > MAX_POSITION_M {
+        return Err(DatasetError::Parse {
+            path: path.to_path_buf(),
+            line,
+            message: format!(
+                "position coordinate {:.3e} m: a drive's poses stay within {MAX_POSITION_M:.0e} m of the origin (wrong units or a corrupt line?)",
+                t.amax()
+            ),
+        });
+    }
+    Ok(())
+}
+
 /// Read a KITTI pose file. Each line is a camera-to-world pose `T_w←c` (as KITTI ground truth and
 /// ORB-SLAM3 write them). Blank lines are an error (they would shift frame indices).
 pub fn read_kitti_poses(path: impl AsRef<Path>) -> Result<Vec<Isometry3<f64>>, DatasetError> {
@@ -34,16 +49,7 @@ pub fn parse_kitti_poses(path: &Path, text: &str) -> Result<Vec<Isometry3<f64>>,
             });
         }
         let t = Vector3::new(v[3], v[7], v[11]);
-        if t.amax() > MAX_POSITION_M {
-            return Err(DatasetError::Parse {
-                path: path.to_path_buf(),
-                line: i + 1,
-                message: format!(
-                    "position coordinate {:.3e} m: a drive's poses stay within {MAX_POSITION_M:.0e} m of the origin (wrong units or a corrupt line?)",
-                    t.amax()
-                ),
-            });
-        }
+        check_position(path, i + 1, &t)?;
         let rot = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&r));
         poses.push(Isometry3::from_parts(Translation3::from(Vector3::new(v[3], v[7], v[11])), rot));
     }
