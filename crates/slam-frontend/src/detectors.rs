@@ -79,6 +79,11 @@ pub fn limit(dets: &mut Vec<Detection>, max: usize) -> usize {
 /// COCO classes mapped as objects: person, bicycle, car, motorcycle, bus, truck.
 pub const OBJECT_CLASSES: [u16; 6] = [0, 1, 2, 3, 5, 7];
 
+/// Whether a detection is of a class mapped as objects ([`OBJECT_CLASSES`]).
+fn mapped(d: &Detection) -> bool {
+    OBJECT_CLASSES.contains(&d.class.0)
+}
+
 /// Keeps the detections of the mapped classes ([`OBJECT_CLASSES`]) only.
 pub struct ClassFilter(pub Box<dyn DetectionSource>);
 
@@ -91,7 +96,7 @@ impl DetectionSource for ClassFilter {
     }
     fn detect(&mut self, frame: usize, image: Option<&Image>) -> Result<Vec<Detection>, DetectError> {
         let mut d = self.0.detect(frame, image)?;
-        d.retain(|d| OBJECT_CLASSES.contains(&d.class.0));
+        d.retain(mapped);
         Ok(d)
     }
 }
@@ -122,7 +127,7 @@ impl DetectionSource for DetectionGuard {
     fn detect(&mut self, frame: usize, image: Option<&Image>) -> Result<Vec<Detection>, DetectError> {
         let mut raw = self.inner.detect(frame, image)?;
         let all = raw.len();
-        raw.retain(|d| OBJECT_CLASSES.contains(&d.class.0));
+        raw.retain(mapped);
         self.counts.other_classes.fetch_add(all - raw.len(), Ordering::Relaxed);
         let [w, h] = self.size;
         let (mut clipped, mut outside) = (0, 0);

@@ -128,11 +128,7 @@ impl Outcome {
             }
         }
         // drift needs a ground-truth path, the scale an estimate that moves too
-        let drift = if e.end_drift_pct.is_finite() {
-            format!("{:.2} %", e.end_drift_pct)
-        } else {
-            "– (the ground truth does not move)".to_string()
-        };
+        let drift = drift_text(e.end_drift_pct);
         let scale =
             if e.scale.is_finite() { format!("{:.4}", e.scale) } else { "– (a path does not move)".to_string() };
         lines.push(format!(
@@ -294,11 +290,7 @@ pub fn interpolation_lines(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], ids: &
         })
         .collect();
     if let Some(e) = stretches.last().and_then(|&(_, b)| errors_from(est, gt, b, &[]).map(|e| (b, e))) {
-        let drift = if e.1.end_drift_pct.is_finite() {
-            format!("{:.2} %", e.1.end_drift_pct)
-        } else {
-            "– (the ground truth does not move)".to_string()
-        };
+        let drift = drift_text(e.1.end_drift_pct);
         lines.push(format!(
             "from frame {} on (both re-anchored there): path {:.1} m; ATE {:.3} m (aligned {:.3} m); end-point drift {drift}",
             id(e.0),
@@ -308,6 +300,15 @@ pub fn interpolation_lines(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], ids: &
         ));
     }
     lines
+}
+
+/// An end-point drift as printed: a percentage, or a dash when the ground truth has no path to divide by.
+fn drift_text(pct: f64) -> String {
+    if pct.is_finite() {
+        format!("{pct:.2} %")
+    } else {
+        "– (the ground truth does not move)".to_string()
+    }
 }
 
 /// The largest translation error of one frame-to-frame step ending at a frame marked tracked, and that
