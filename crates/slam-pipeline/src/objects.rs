@@ -861,7 +861,9 @@ impl ObjectMapper {
         let sigma_across = (first.powi(2) + s * s).sqrt();
         let m = split.sigmas((sigma_along, sigma_across));
         let (from, to) = (read[0].0, read[read.len() - 1].0);
-        let trend_rate = (d / (to - from).max(1) as f64, (sigma_along, sigma_across));
+        // the trend's rate (motion per frame id) and its σ along and across the ray
+        let span = (to - from).max(1) as f64;
+        let trend_rate = (d / span, (sigma_along / span, sigma_across / span));
         let vetoed = m > cfg.dynamic_motion_sigmas
             && flow_refutes(&obj.flows, (from, to), trend_rate, &ray, cfg.dynamic_motion_sigmas);
         if vetoed {
@@ -877,11 +879,10 @@ impl ObjectMapper {
                 split.along,
                 split.across
             );
-            let span = (to - from).max(1) as f64;
             obj.trend_flag = Some(TrendFlag {
                 frame: to,
                 rate: trend_rate.0,
-                rate_sigma: (sigma_along / span, sigma_across / span),
+                rate_sigma: trend_rate.1,
                 ray,
                 was_dynamic: obj.dynamic,
             });
@@ -930,10 +931,8 @@ impl ObjectMapper {
             }
             let (first, first_gap, _) = obj.flows[k - MIN_REFUTING_READINGS];
             let from = first.saturating_sub(first_gap);
-            let span = (frame - from).max(1) as f64;
-            let sigmas = (t.rate_sigma.0 * span, t.rate_sigma.1 * span);
             if from >= t.frame
-                && flow_refutes(&obj.flows, (from, frame), (t.rate, sigmas), &t.ray, cfg.dynamic_motion_sigmas)
+                && flow_refutes(&obj.flows, (from, frame), (t.rate, t.rate_sigma), &t.ray, cfg.dynamic_motion_sigmas)
             {
                 tracing::info!(
                     "object {} ({}): flagged moving by its centroid trend at frame {}, its points have stood still since frame {from} (scene flow): static again, its observations before that dropped",
@@ -1398,15 +1397,15 @@ const MIN_REFUTING_READINGS: usize = 3;
 /// Whether the object's scene-flow readings over the frames `span` (at least
 /// [`MIN_REFUTING_READINGS`]) refute its centroid trend: their mean rate (motion per frame id, σ from
 /// each reading's) stands within `limit` σ of standing still and more than `limit` σ (the two rates'
-/// σ combined; the trend's is its displacement's σ over the span) away from the trend's rate
-/// (`trend`: rate and the σ along and across `ray` of its displacement). The trend reads where the
+/// σ combined) away from the trend's rate (`trend`: rate, motion per frame id, and its σ along and
+/// across `ray`). The trend reads where the
 /// object's points put it frame after frame, so centroids on another object (a box that slid, a track
 /// merged into this one) move it; the flow follows the same points from each frame to the next and
 /// does not see them. A slow mover whose flow is too noisy to exclude its trend is not refuted.
 fn flow_refutes(
     flows: &[(usize, usize, SceneFlow)],
     (from, to): (usize, usize),
-    (rate, (sigma_along, sigma_across)): (Vector3<f64>, (f64, f64)),
+    (rate, (rate_along, rate_across)): (Vector3<f64>, (f64, f64)),
     ray: &Vector3<f64>,
     limit: f64,
 ) -> bool {
@@ -1422,9 +1421,8 @@ fn flow_refutes(
         within.iter().map(|(_, gap, r)| (s(r) / *gap as f64).powi(2)).sum::<f64>() / (kf * kf)
     };
     let (flow_along, flow_across) = (var(&|r| r.sigma_along).sqrt(), var(&|r| r.sigma_across).sqrt());
-    let span = (to - from).max(1) as f64;
     let still = RaySplit::of(&mean, ray).sigmas((flow_along, flow_across)) <= limit;
-    let combined = (flow_along.hypot(sigma_along / span), flow_across.hypot(sigma_across / span));
+    let combined = (flow_along.hypot(rate_along), flow_across.hypot(rate_across));
     still && RaySplit::of(&(rate - mean), ray).sigmas(combined) > limit
 }
 
@@ -1620,7 +1618,8 @@ mod tests {
         let readings = |dz: f64, sigma: f64, frames: &[usize]| -> Vec<(usize, usize, SceneFlow)> {
             frames.iter().map(|&f| (f, 1, reading(dz, sigma))).collect()
         };
-        let trend = |rate: f64| (Vector3::new(0.0, 0.0, rate), (1.3, 1.2));
+        // the trend's displacement σ (1.3 m along, 1.2 m across) over its 30 frames
+        let trend = |rate: f64| (Vector3::new(0.0, 0.0, rate), (1.3 / 30.0, 1.2 / 30.0));
         let span = (10, 40);
         let some: Vec<usize> = vec![12, 20, 27, 33, 38];
         assert!(flow_refutes(&readings(0.02, 0.1, &some), span, trend(10.0 / 30.0), &ray, 3.0), "a parked van");
