@@ -25,6 +25,28 @@ impl VoConfig {
         number("ransac_px", self.ransac_px as f64, Range::above(0.0, 1000.0), "px")?;
         // a pose has 6 degrees of freedom: PnP needs at least 4 points
         count("min_inliers", self.min_inliers, 4, usize::MAX)?;
+        // a weak frame has fewer inliers than a tracked one, still enough for PnP
+        count("weak_inliers", self.weak_inliers, 4, self.min_inliers.max(4)).map_err(|e| InvalidValue {
+            valid: format!("an integer in [4, min_inliers ({})]", self.min_inliers),
+            ..e
+        })?;
+        // cells of a 4 × 4 grid
+        count("min_spread_cells", self.min_spread_cells, 0, 16)?;
+        number("max_rms_px", self.max_rms_px, Range::above(0.0, 1000.0), "px")?;
+        // 0: from the sequence's times; a frame period of minutes is no longer video
+        number("frame_period_s", self.frame_period_s, Range::closed(0.0, 60.0), "s (0: from the sequence)")?;
+        // limits of a road vehicle's motion, with room for any vehicle a camera rides on (10 g, 1000 km/h)
+        number("max_acceleration", self.max_acceleration, Range::above(0.0, 100.0), "m/s²")?;
+        number("max_angular_acceleration", self.max_angular_acceleration, Range::above(0.0, 100.0), "rad/s²")?;
+        number("max_speed", self.max_speed, Range::above(0.0, 300.0), "m/s")?;
+        number("step_tolerance_m", self.step_tolerance_m, Range::closed(0.0, 100.0), "m")?;
+        number("rotation_tolerance_rad", self.rotation_tolerance_rad, Range::closed(0.0, std::f64::consts::PI), "rad")?;
+        // `1e9` (a finite number) weights every point alike
+        number("far_baselines", self.far_baselines, pos, "baselines")?;
+        number("max_lost_s", self.max_lost_s, Range::closed(0.0, 3600.0), "s")?;
+        number("keyframe_overlap", self.keyframe_overlap, Range::closed(0.0, 1.0), "(share of the keyframe's points)")?;
+        count("flow_points_per_region", self.flow_points_per_region, 0, 100_000)?;
+        count("relocalisation_keyframes", self.relocalisation_keyframes, 0, 100_000)?;
         number("keyframe_inlier_ratio", self.keyframe_inlier_ratio, Range::closed(0.0, 1.0), "")?;
         count("keyframe_max_gap", self.keyframe_max_gap, 1, usize::MAX)?;
         count("local_keyframes", self.local_keyframes, 0, 1000)?;
@@ -49,7 +71,7 @@ mod tests {
     fn the_defaults_pass_and_each_bad_value_is_named() {
         VoConfig::default().validate().expect("defaults valid");
         type Case = (fn(&mut VoConfig), &'static str);
-        let cases: [Case; 6] = [
+        let cases: [Case; 11] = [
             (|c| c.features = 0, "features 0: must be an integer in [1, 100000]"),
             (|c| c.ransac_px = f32::NAN, "ransac_px NaN: must be a finite number in (0, 1000] px"),
             (|c| c.depth_range = (5.0, 2.0), "depth_range (far) 2: must be a finite number in (5, ∞) m (beyond near)"),
@@ -58,6 +80,17 @@ mod tests {
             (
                 |c| c.triangulate_parallax_deg = 90.0,
                 "triangulate_parallax_deg 90: must be a finite number in (0, 90) degrees",
+            ),
+            (|c| c.weak_inliers = 40, "weak_inliers 40: must be an integer in [4, min_inliers (30)]"),
+            (|c| c.max_rms_px = f64::NAN, "max_rms_px NaN: must be a finite number in (0, 1000] px"),
+            (|c| c.max_speed = -5.0, "max_speed -5: must be a finite number in (0, 300] m/s"),
+            (
+                |c| c.keyframe_overlap = 7.0,
+                "keyframe_overlap 7: must be a finite number in [0, 1] (share of the keyframe's points)",
+            ),
+            (
+                |c| c.frame_period_s = -1.0,
+                "frame_period_s -1: must be a finite number in [0, 60] s (0: from the sequence)",
             ),
         ];
         for (corrupt, want) in cases {

@@ -100,6 +100,7 @@ impl MapperConfig {
         let prior = self.dynamic_prior_sigmas.unwrap_or(0.0);
         number("dynamic_prior_sigmas", prior, Range::closed(0.0, f64::INFINITY), "(0: off)")?;
         number("max_depth_m", self.max_depth_m, POSITIVE, "m")?;
+        number("visible_depth_m", self.visible_depth_m, POSITIVE, "m")?;
         number("merge_distance_m", self.merge_distance_m, Range::closed(0.0, f64::INFINITY), "m")
     }
 }
@@ -120,6 +121,8 @@ impl SystemConfig {
         count("correction_lag", self.correction_lag, 0, 1000)?;
         count("detect_every", self.detect_every, 1, usize::MAX)?;
         number("object_core", self.object_core, Range::above(0.0, 1.0), "(share of the box)")?;
+        // a matcher's disparity error: a fraction of a pixel to a few pixels; 100 px is no measurement
+        number("disparity_sigma_px", self.disparity_sigma_px, Range::above(0.0, 100.0), "px")?;
         let gate = self.projected_gate.unwrap_or(0.0);
         number("projected_gate", gate, Range::closed(0.0, 1.0), "(IoU; 0: off)")?;
         count("max_detections", self.max_detections, 1, 10_000)
@@ -161,6 +164,10 @@ mod validate_tests {
         assert_eq!(t.validate().expect_err("points").to_string(), "min_points 2: must be at least 3");
         let sys = SystemConfig { object_core: 0.0, ..SystemConfig::default() };
         assert_eq!(sys.validate().expect_err("core").key, "object_core");
+        let sys = SystemConfig { disparity_sigma_px: -1.0, ..SystemConfig::default() };
+        assert_eq!(sys.validate().expect_err("disparity σ").key, "disparity_sigma_px");
+        let objects = MapperConfig { visible_depth_m: f64::NAN, ..MapperConfig::default() };
+        assert_eq!(objects.validate().expect_err("visible depth").key, "visible_depth_m");
         let sys = SystemConfig { max_detections: 0, ..SystemConfig::default() };
         assert_eq!(sys.validate().expect_err("max").to_string(), "max_detections 0: must be an integer in [1, 10000]");
     }

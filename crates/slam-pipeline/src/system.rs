@@ -60,7 +60,7 @@ pub struct SystemConfig {
     #[serde(skip)]
     pub mapping: MappingConfig,
     /// Object mapping. Default: the mapper's defaults with `dynamic_rms_px` at
-    /// [`DETECTOR_DYNAMIC_RMS_PX`].
+    /// [`DETECTOR_DYNAMIC_RMS_PX`] and `stereo_evidence` on (the tracker's stereo points are there).
     #[serde(skip)]
     pub objects: MapperConfig,
     /// Texture planes.
@@ -68,7 +68,8 @@ pub struct SystemConfig {
     pub texture: TextureConfig,
     /// Input frames between a keyframe and the application of the mapper's reply to it. Default 2.
     pub correction_lag: usize,
-    /// Run the detector on frames whose id is a multiple of n (others get no boxes). Default 1.
+    /// Run the detector on every n-th frame played (the first, the (n+1)-th, ...; the others get no
+    /// boxes), whatever the frame ids. Default 1.
     pub detect_every: usize,
     /// Keep keypoints of moving objects out of tracking: inside the object's last box, at the depths its
     /// stereo points span (`slam_core::MovingRegion`). Default on.
@@ -101,7 +102,11 @@ impl Default for SystemConfig {
     fn default() -> Self {
         Self {
             mapping: MappingConfig::default(),
-            objects: MapperConfig { dynamic_rms_px: DETECTOR_DYNAMIC_RMS_PX, ..MapperConfig::default() },
+            objects: MapperConfig {
+                dynamic_rms_px: DETECTOR_DYNAMIC_RMS_PX,
+                stereo_evidence: true,
+                ..MapperConfig::default()
+            },
             texture: TextureConfig::default(),
             correction_lag: 2,
             detect_every: 1,

@@ -155,3 +155,16 @@ fn a_builder_without_a_tracker_or_an_optimiser_is_an_error() {
     let no_source = SystemBuilder::new(K, B).tracker(tracker()).optimizer(lm()).build().expect("builds");
     assert!(matches!(no_source.run(&mut |_| {}), Err(SystemError::Missing("frame source"))));
 }
+
+/// `detect_every` counts the frames played, not their ids: played every 2nd id from an odd one (ids 1,
+/// 3, 5, ...), every 2nd frame gets boxes; counting ids would give none (no odd id is a multiple of 2).
+#[test]
+fn detect_every_counts_played_frames_not_ids() {
+    let odd: Box<dyn Iterator<Item = FrameInput> + Send> =
+        Box::new(common::frames(16, None).map(|f| FrameInput { index: 2 * f.index + 1, ..f }));
+    let cfg = SystemConfig { detect_every: 2, ..config() };
+    let out = run(odd, tracker(), boxes(), K, B, &cfg, lm(), &mut |_| {}).expect("runs");
+    let with_boxes: Vec<usize> =
+        out.frames.iter().enumerate().filter(|(_, r)| !r.detections.is_empty()).map(|(k, _)| k).collect();
+    assert_eq!(with_boxes, (0..16).step_by(2).collect::<Vec<_>>(), "the 1st, 3rd, 5th ... played frame");
+}

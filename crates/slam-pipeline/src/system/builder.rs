@@ -16,7 +16,7 @@ use super::{
 use crate::{
     map::Map,
     mapping::LocalMapper,
-    objects::{FitMethod, MappedObject, MapperConfig, ObjectMapper},
+    objects::{FitMethod, MappedObject, ObjectMapper},
 };
 
 /// A source of input frames, in increasing id order.
@@ -163,10 +163,7 @@ impl SystemBuilder {
                 ..slam_assoc::OdaConfig::default()
             }))
         });
-        // with stereo points, an ellipsoid must agree with them
-        let objects =
-            ObjectMapper::new(associator, MapperConfig { stereo_evidence: true, ..config.objects }, optimizer)
-                .with_method(self.method);
+        let objects = ObjectMapper::new(associator, config.objects, optimizer).with_method(self.method);
         let tracking = Tracking::new(tracker, objects, self.intrinsics, self.baseline, config, req_tx, reply_rx);
         Ok(System { source: self.source, frames: Some(frame_tx), detected: Some(det_rx), detection, mapping, tracking })
     }

@@ -37,8 +37,10 @@ pub(crate) struct MapperReply {
     pub(crate) culled: usize,
 }
 
-/// The detection thread: runs `detector` on every `detect_every`-th frame id of `frames` (an unreadable
-/// frame is not tracked, so it gets no boxes) and passes each frame on with its boxes.
+/// The detection thread: runs `detector` on every `detect_every`-th frame of `frames` as they come
+/// (the first, then every n-th: a count of frames, not of frame ids, so that a played subset with a
+/// stride still gets boxes; an unreadable frame is not tracked, so it gets no boxes) and passes each
+/// frame on with its boxes.
 pub(crate) fn detection_thread(
     mut detector: Option<Box<dyn DetectionSource>>,
     detect_every: usize,
@@ -46,10 +48,10 @@ pub(crate) fn detection_thread(
     detected: Sender<Detected>,
 ) {
     let detect_every = detect_every.max(1);
-    for f in frames {
+    for (played, f) in frames.into_iter().enumerate() {
         let t = Instant::now();
         let dets = match (&mut detector, &f.images) {
-            (Some(d), Ok((left, _))) if f.index % detect_every == 0 => {
+            (Some(d), Ok((left, _))) if played % detect_every == 0 => {
                 let img = d.needs_image().then_some(left);
                 d.detect(f.index, img)
             }
