@@ -36,8 +36,17 @@ pub struct SequenceArgs {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct FrameRange(Option<usize>, Option<usize>);
 
-fn parse_frame_range(text: &str) -> Result<FrameRange, String> {
+/// Parse `--frames`.
+pub fn parse_frame_range(text: &str) -> Result<FrameRange, String> {
     FrameSelection::parse_range(text).map(|(a, b)| FrameRange(a, b))
+}
+
+impl FrameRange {
+    /// The selection of an optional range and a stride.
+    pub fn selection(range: Option<FrameRange>, stride: u64) -> FrameSelection {
+        let FrameRange(first, end) = range.unwrap_or(FrameRange(None, None));
+        FrameSelection { first, end, stride: stride as usize }
+    }
 }
 
 /// A finite number at least 0 (a tolerance, a time difference).
@@ -52,8 +61,7 @@ pub fn non_negative(text: &str) -> Result<f64, String> {
 impl SequenceArgs {
     /// The frame selection of --frames and --stride.
     pub fn selection(&self) -> FrameSelection {
-        let FrameRange(first, end) = self.frames.unwrap_or(FrameRange(None, None));
-        FrameSelection { first, end, stride: self.stride as usize }
+        FrameRange::selection(self.frames, self.stride)
     }
 
     /// The sequence folder (default: the shipped odometry excerpt).

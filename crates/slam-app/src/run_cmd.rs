@@ -154,11 +154,19 @@ pub struct TrajEvalArgs {
     /// Largest time difference of a TUM match, seconds
     #[arg(long, default_value_t = 0.01, value_parser = crate::args::non_negative)]
     max_diff: f64,
+    /// Compare with these ground-truth lines only, line k being frame id k (as `run --frames`: A..B,
+    /// A..=B, A.., ..B): for a run of a subset of frames
+    #[arg(long, value_parser = crate::args::parse_frame_range)]
+    frames: Option<crate::args::FrameRange>,
+    /// ... and every N-th of them from the first (as `run --stride`)
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    stride: u64,
 }
 
 /// `slam-app trajectory-eval`: ATE, drift and RPE of any trajectory file against ground truth.
 pub fn trajectory_eval(a: &TrajEvalArgs) -> anyhow::Result<()> {
-    println!("{}", inspect::trajectory_eval(&a.estimate, &a.ground_truth, a.max_diff)?);
+    let selection = crate::args::FrameRange::selection(a.frames, a.stride);
+    println!("{}", inspect::trajectory_eval(&a.estimate, &a.ground_truth, a.max_diff, &selection)?);
     Ok(())
 }
 
@@ -167,8 +175,8 @@ pub fn trajectory_eval(a: &TrajEvalArgs) -> anyhow::Result<()> {
 pub struct StereoCheckArgs {
     /// KITTI stereo sequence folder (odometry, raw or tracking layout); default: the shipped sequence.
     pub path: Option<PathBuf>,
-    /// Frames tracked to collect frame pairs.
-    #[arg(long, default_value_t = 51)]
+    /// Frames tracked to collect frame pairs, from the first (a count, as `run --max-frames`).
+    #[arg(long = "max-frames", default_value_t = 51)]
     pub frames: usize,
     /// Largest residual offset scanned either side of zero, pixels.
     #[arg(long, default_value_t = 0.6)]

@@ -281,7 +281,12 @@ fn numbers_and_settings_are_checked_at_the_edge() {
             &["--step 1"],
         ),
         case("stereo-check --rounds 0", &[&"stereo-check", &"--rounds", &"0"], 1, &["--rounds 0"]),
-        case("stereo-check --frames 1", &[&"stereo-check", &"--frames", &"1"], 1, &["--frames 1: must be at least 2"]),
+        case(
+            "stereo-check --max-frames 1",
+            &[&"stereo-check", &"--max-frames", &"1"],
+            1,
+            &["--max-frames 1: must be at least 2"],
+        ),
         case("assoc sim --frames 0", &[&"assoc", &"sim", &"--frames", &"0"], 1, &["--frames 0"]),
         case("assoc sim --scenes 0", &[&"assoc", &"sim", &"--scenes", &"0"], 1, &["--scenes 0"]),
         case("optim-bench --reps 0", &[&"optim-bench", &"--reps", &"0"], 1, &["--reps 0"]),

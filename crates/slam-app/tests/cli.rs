@@ -501,8 +501,8 @@ fn stereo_check_finds_a_shifted_right_camera() {
     let (shifted, text) = offset(&dst);
     assert!((shifted - shipped + 1.0).abs() < 0.1, "{text}");
     let _ = std::fs::remove_dir_all(&dst);
-    let bad = app().args(["stereo-check", "--frames", "1"]).output().expect("runs");
-    assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("--frames"));
+    let bad = app().args(["stereo-check", "--max-frames", "1"]).output().expect("runs");
+    assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("--max-frames"));
 }
 
 #[test]

@@ -449,24 +449,35 @@ impl RunScore {
     pub fn report(&self) -> String {
         let v = &self.vehicles;
         let c = &self.census;
-        let mut s = format!(
-            "objects vs labels ({} frames): static labelled vehicles {}, found {} (success {:.3}); IoU2D {:.3}, \
-             e_trans {:.3} m, e_axe {:.3} m, e_yaw {:.1} deg, within {:.0} deg {:.0} %\n",
-            self.frames,
-            v.vehicles,
-            v.found,
-            v.success,
-            v.iou2d,
-            v.e_trans,
-            v.e_axe,
-            v.e_yaw,
-            self.config.yaw_within_deg,
-            100.0 * v.yaw_within
-        );
+        // a figure over no vehicle is no figure: "–", not NaN
+        let fig = |x: f64, digits: usize| if x.is_finite() { format!("{x:.digits$}") } else { "–".to_string() };
+        let mut s = if v.vehicles == 0 {
+            format!(
+                "objects vs labels ({} frames): static labelled vehicles 0 (no Car or Van track of at least {} \
+                 labelled frames stays within {} m under this run's poses), so no success, IoU2D or errors; \
+                 labels of another sequence also look like this\n",
+                self.frames, self.config.min_frames, self.config.static_m
+            )
+        } else {
+            format!(
+                "objects vs labels ({} frames): static labelled vehicles {}, found {} (success {}); IoU2D {}, \
+                 e_trans {} m, e_axe {} m, e_yaw {} deg, within {:.0} deg {} %\n",
+                self.frames,
+                v.vehicles,
+                v.found,
+                fig(v.success, 3),
+                fig(v.iou2d, 3),
+                fig(v.e_trans, 3),
+                fig(v.e_axe, 3),
+                fig(v.e_yaw, 1),
+                self.config.yaw_within_deg,
+                fig(100.0 * v.yaw_within, 0)
+            )
+        };
         s.push_str(&format!(
             "static map objects {}: matched {}, duplicate {}, moving object mapped as static {}, in a DontCare \
-             region {}, matching nothing {}{}; flagged dynamic {} ({} on moving labels; counted among the objects \
-             with an ellipsoid: one found moving before its first fit has none and is not mapped)\n",
+             region {}, matching nothing {}{}; objects flagged dynamic (with an ellipsoid) {}, {} of them on a \
+             moving label (an object found moving before its first fit has no ellipsoid and is not counted)\n",
             c.static_objects,
             c.matched,
             c.duplicate,

@@ -22,10 +22,8 @@ impl PoseFile {
     pub fn read(path: &Path) -> Result<Self, EvalError> {
         let text =
             std::fs::read_to_string(path).map_err(|e| EvalError::Io(format!("cannot read {}", path.display()), e))?;
-        let fields = text
-            .lines()
-            .find(|l| !l.trim().is_empty() && !l.starts_with('#'))
-            .map_or(0, |l| l.split_whitespace().count());
+        let first = text.lines().enumerate().find(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'));
+        let fields = first.map_or(0, |(_, l)| l.split_whitespace().count());
         Ok(match fields {
             12 => PoseFile::Kitti(slam_dataset::kitti::poses::parse_kitti_poses(path, &text)?),
             8 => {
@@ -33,12 +31,29 @@ impl PoseFile {
                 PoseFile::Tum(t, p)
             }
             n => {
+                // a comma-separated first line is a table (e.g. a run's tracking.csv), not a trajectory
+                let csv = first.is_some_and(|(_, l)| l.contains(','));
                 return Err(EvalError::Invalid(format!(
-                    "{}: lines of {n} numbers: expected 12 (KITTI) or 8 (TUM)",
-                    path.display()
-                )))
+                    "{}:{}: {n} whitespace-separated fields: a trajectory line has 12 (KITTI) or 8 (TUM){}",
+                    path.display(),
+                    first.map_or(1, |(k, _)| k + 1),
+                    if csv {
+                        " (this looks like a comma-separated table; a run writes trajectory.kitti.txt and trajectory.tum.txt)"
+                    } else {
+                        ""
+                    }
+                )));
             }
         })
+    }
+
+    /// The same file with only the poses at `keep` (positions, in order; out-of-range ones skipped).
+    pub fn subset(&self, keep: &[usize]) -> PoseFile {
+        let pick = |v: &[Isometry3<f64>]| keep.iter().filter_map(|&k| v.get(k).copied()).collect::<Vec<_>>();
+        match self {
+            PoseFile::Kitti(p) => PoseFile::Kitti(pick(p)),
+            PoseFile::Tum(t, p) => PoseFile::Tum(keep.iter().filter_map(|&k| t.get(k).copied()).collect(), pick(p)),
+        }
     }
 
     /// The poses.

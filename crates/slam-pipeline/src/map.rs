@@ -282,7 +282,19 @@ impl Map {
             version: u32,
         }
         let fmt = |e: serde_json::Error| MapError::Format { path: path.to_path_buf(), message: e.to_string() };
-        let header: Header = serde_json::from_str(&text).map_err(fmt)?;
+        let header: Header = serde_json::from_str(&text).map_err(|e| {
+            // an object map (objects.json) has "objects" but no "format": say which file to give
+            let objects_only = serde_json::from_str::<serde_json::Value>(&text)
+                .is_ok_and(|v| v.get("objects").is_some() && v.get("format").is_none());
+            if objects_only {
+                MapError::Format {
+                    path: path.to_path_buf(),
+                    message: "this is an object map (a run's objects.json), not a map; give the run's map.json".into(),
+                }
+            } else {
+                fmt(e)
+            }
+        })?;
         if header.format != MAP_FORMAT {
             return Err(MapError::Format {
                 path: path.to_path_buf(),

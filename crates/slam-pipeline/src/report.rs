@@ -20,33 +20,48 @@ pub fn median(v: &mut [f64]) -> f64 {
     }
 }
 
+type Stage = (&'static str, fn(&FrameTimes) -> f64);
+
+/// The stages timed per frame, in table order.
+const STAGES: [Stage; 8] = [
+    ("detection (own thread)", |t| t.detection),
+    ("ORB extraction", |t| t.extraction),
+    ("stereo matching", |t| t.stereo),
+    ("tracking (local map + PnP + refinement)", |t| t.tracking),
+    ("optical flow", |t| t.flow),
+    ("association", |t| t.association),
+    ("local BA (keyframes, mapping thread)", |t| t.bundle_adjustment),
+    ("object init + optimisation (keyframes)", |t| t.objects),
+];
+
+/// The times of one stage over the frames where it can run: tracked frames (not unreadable ones), and
+/// only keyframes for the stages that run on keyframes (local BA, objects).
+fn stage_times(out: &RunOutput, (name, f): &Stage) -> Vec<f64> {
+    let keyframe_only = name.contains("keyframes");
+    out.frames.iter().filter(|r| r.state.is_some() && (!keyframe_only || r.keyframe)).map(|r| f(&r.times)).collect()
+}
+
 /// Median per stage, over the frames where the stage ran: `(stage, median ms, frames)`; the stages that
-/// run on keyframes only (local BA, objects) over keyframes.
+/// run on keyframes only (local BA, objects) over keyframes. Every stage has a row, in a fixed order.
 pub fn stage_table(out: &RunOutput) -> Vec<(&'static str, f64, usize)> {
-    type Stage = (&'static str, fn(&FrameTimes) -> f64);
-    let stages: [Stage; 8] = [
-        ("detection (own thread)", |t| t.detection),
-        ("ORB extraction", |t| t.extraction),
-        ("stereo matching", |t| t.stereo),
-        ("tracking (local map + PnP + refinement)", |t| t.tracking),
-        ("optical flow", |t| t.flow),
-        ("association", |t| t.association),
-        ("local BA (keyframes, mapping thread)", |t| t.bundle_adjustment),
-        ("object init + optimisation (keyframes)", |t| t.objects),
-    ];
-    stages
+    STAGES
         .iter()
-        .map(|(name, f)| {
-            let keyframe_only = name.contains("keyframes");
-            let mut v: Vec<f64> = out
-                .frames
-                .iter()
-                .filter(|r| r.state.is_some() && (!keyframe_only || r.keyframe))
-                .map(|r| f(&r.times))
-                .collect();
+        .map(|stage| {
+            let mut v = stage_times(out, stage);
             let n = v.len();
-            (*name, median(&mut v), n)
+            (stage.0, median(&mut v), n)
         })
+        .collect()
+}
+
+/// [`stage_table`] without the stages that took no time in any frame: those switched off for the run
+/// (no detector, no objects, no bundle adjustment).
+pub fn stages_run(out: &RunOutput) -> Vec<(&'static str, f64, usize)> {
+    stage_table(out)
+        .into_iter()
+        .zip(&STAGES)
+        .filter(|(_, stage)| stage_times(out, stage).iter().any(|&t| t > 0.0))
+        .map(|(row, _)| row)
         .collect()
 }
 
@@ -163,6 +178,9 @@ mod tests {
         assert_eq!(row("ORB extraction"), ("ORB extraction", 2.0, 3));
         // local BA: keyframes 0 and 2 only (0 and 20 ms): the upper median
         assert_eq!(row("local BA"), ("local BA (keyframes, mapping thread)", 20.0, 2));
+        // the stages that took no time anywhere (the records time nothing else) are left out
+        let run: Vec<&str> = stages_run(&out).iter().map(|r| r.0).collect();
+        assert_eq!(run, ["ORB extraction", "local BA (keyframes, mapping thread)"]);
         let csv = tracking_csv(&out).expect("csv");
         assert_eq!(csv.lines().count(), 5);
         assert!(csv.lines().nth(4).expect("row").starts_with("3,unreadable,0,7,,"), "{csv}");

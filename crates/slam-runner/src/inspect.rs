@@ -14,17 +14,49 @@ pub const RPE_LENGTHS_M: [f64; 7] = [10.0, 20.0, 40.0, 100.0, 200.0, 400.0, 800.
 
 /// The `trajectory-eval` table of `estimate` against `truth` (TUM pairs matched within `max_diff` s):
 /// a line on the matching, then a markdown table.
-pub fn trajectory_eval(estimate: &Path, truth: &Path, max_diff: f64) -> Result<String> {
+pub fn trajectory_eval(
+    estimate: &Path,
+    truth: &Path,
+    max_diff: f64,
+    selection: &slam_dataset::kitti::stereo::FrameSelection,
+) -> Result<String> {
     let est = PoseFile::read(estimate)?;
-    let gt = PoseFile::read(truth)?;
+    let all = PoseFile::read(truth)?;
+    // the ground truth's line k is frame id k: a run of a subset (`run --frames --stride`) is compared
+    // with the same subset
+    let whole = *selection == slam_dataset::kitti::stereo::FrameSelection::default();
+    let gt = if whole {
+        all
+    } else {
+        let ids: Vec<usize> = (0..all.poses().len()).collect();
+        let keep = selection.kept(&ids);
+        if keep.len() < 2 {
+            return Err(RunnerError::Invalid(format!(
+                "{} holds {} poses: {} keeps {} of them",
+                truth.display(),
+                ids.len(),
+                selection.describe(),
+                keep.len()
+            )));
+        }
+        all.subset(&keep)
+    };
+    let mut lines = Vec::new();
+    if !whole {
+        lines.push(format!(
+            "ground truth {}: {} only (its line k is frame id k)",
+            truth.display(),
+            selection.describe()
+        ));
+    }
     let c = slam_eval::trajectory::compare(&est, &gt, max_diff, &RPE_LENGTHS_M);
-    let mut lines = vec![format!(
+    lines.push(format!(
         "matched {} of {} estimated poses to the {} ground-truth poses {}",
         c.pairs.len(),
         est.poses().len(),
         gt.poses().len(),
         c.how
-    )];
+    ));
     let (ne, ng) = (est.poses().len(), gt.poses().len());
     if c.how.starts_with("by line") && ne != ng {
         lines.push(format!(
@@ -165,6 +197,8 @@ pub fn export_map(map: &Map, path: &Path, x: &MapExports, wrote: &mut dyn FnMut(
 mod tests {
     use super::*;
 
+    use slam_dataset::kitti::stereo::FrameSelection;
+
     fn write_kitti(path: &Path, xs: &[f64]) {
         let text: String = xs.iter().map(|x| format!("1 0 0 {x} 0 1 0 0 0 0 1 0\n")).collect();
         std::fs::write(path, text).expect("write");
@@ -180,12 +214,26 @@ mod tests {
         write_kitti(&est, &truth.iter().map(|x| 0.99 * x).collect::<Vec<_>>());
         write_kitti(&gt, &truth);
         write_kitti(&one, &[0.0]);
-        let table = trajectory_eval(&est, &gt, 0.01).expect("evaluates");
+        let all = FrameSelection::default();
+        let table = trajectory_eval(&est, &gt, 0.01, &all).expect("evaluates");
         assert!(table.starts_with("matched 20 of 20 estimated poses"), "{table}");
         assert!(table.contains("| path (ground truth) | 19.0 m |"), "{table}");
         assert!(table.contains("| end-point drift | 1.00 % |"), "{table}");
-        let e = trajectory_eval(&one, &gt, 0.01).expect_err("one pose").to_string();
+        let e = trajectory_eval(&one, &gt, 0.01, &all).expect_err("one pose").to_string();
         assert!(e.contains("fewer than two matched poses"), "{e}");
+        // a run of every 3rd frame from frame 2 (ids 2, 5, ..., 17): compared with those ground-truth
+        // lines, the exact estimate has no error; against the first six lines it would
+        let strided = dir.join("strided.txt");
+        write_kitti(&strided, &(2..20).step_by(3).map(|i| i as f64 - 2.0).collect::<Vec<_>>());
+        let every_3rd = FrameSelection { first: Some(2), end: None, stride: 3 };
+        let table = trajectory_eval(&strided, &gt, 0.01, &every_3rd).expect("evaluates");
+        assert!(table.contains("| ATE (first poses aligned) | 0.000 m |"), "{table}");
+        assert!(table.contains("| path (ground truth) | 15.0 m |"), "{table}");
+        let by_line = trajectory_eval(&strided, &gt, 0.01, &all).expect("evaluates");
+        assert!(!by_line.contains("| ATE (first poses aligned) | 0.000 m |"), "{by_line}");
+        let none = FrameSelection { first: Some(30), end: None, stride: 1 };
+        let e = trajectory_eval(&strided, &gt, 0.01, &none).expect_err("no lines").to_string();
+        assert!(e.contains("keeps 0 of them"), "{e}");
         std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -17,7 +17,7 @@ use slam_eval::LabelGeometry;
 use slam_pipeline::{
     eval::{errors_from, interpolated_stretches, largest_step_error, trajectory_errors, INTERPOLATED_TURN_DEG},
     objects::MappedObject,
-    report::{median_fps, stage_table, tracking_csv},
+    report::{median_fps, stages_run, tracking_csv},
     system::RunOutput,
 };
 
@@ -101,7 +101,7 @@ impl Outcome {
             st.keyframes, st.points, st.observations, st.objects, st.dynamic_objects
         ));
         lines.push("\n| stage | median ms | frames |\n|---|---:|---:|".into());
-        for (name, ms, count) in stage_table(out) {
+        for (name, ms, count) in stages_run(out) {
             lines.push(format!("| {name} | {ms:.1} | {count} |"));
         }
         lines.extend(self.truth_lines());
@@ -117,7 +117,14 @@ impl Outcome {
     /// Errors against the sequence's ground truth (none without it).
     fn truth_lines(&self) -> Vec<String> {
         let mut lines = Vec::new();
-        let Some(gt) = self.seq.truth_from_first() else { return lines };
+        let Some(gt) = self.seq.truth_from_first() else {
+            lines.push(
+                "\nground truth: none for this sequence, so no ATE/RPE (the odometry layout's poses/NN.txt beside \
+                 sequences/, a raw drive's oxts/; the log says what was missing)"
+                    .into(),
+            );
+            return lines;
+        };
         let Some(e) = trajectory_errors(&self.out.poses, &gt, &[10.0, 20.0, 40.0]) else { return lines };
         if let Some(TruthSource::Oxts { median_pos_accuracy_m, path }) = self.seq.truth_source {
             lines.push(format!(
@@ -283,7 +290,7 @@ pub fn interpolation_lines(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], ids: &
         .iter()
         .map(|&(a, b)| {
             format!(
-                "ground-truth check: frames {}-{} turn by the same rotation every step (to within {INTERPOLATED_TURN_DEG}°; measured driving changes by 0.015° or more from step to step): an interpolated stretch, not a measurement",
+                "ground-truth check: frames {}-{} turn by the same rotation every step (successive steps differ by less than the test's bound of {INTERPOLATED_TURN_DEG}°; measured driving changes by 0.015° or more from step to step): an interpolated stretch, not a measurement",
                 id(a),
                 id(b)
             )

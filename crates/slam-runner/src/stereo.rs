@@ -107,7 +107,7 @@ impl StereoCheck {
     /// Range checks, the keys named as the command line names them (`--range`).
     pub fn validate(&self) -> std::result::Result<(), slam_core::check::InvalidValue> {
         use slam_core::check::{count, number, Range};
-        count("--frames", self.frames, 2, usize::MAX)?;
+        count("--max-frames", self.frames, 2, usize::MAX)?;
         // a rectification error of more than 10 px is a wrong calibration, not an offset to estimate
         number("--range", self.range, Range::above(0.0, 10.0), "px")?;
         let step = Range::above(self.range / 10_000.0, self.range);

@@ -254,7 +254,11 @@ impl OdometrySequence {
                     None
                 }
             },
-            _ => None,
+            Some(p) => {
+                warnings.push(format!("no ground truth: {} not found (no ATE/RPE)", p.display()));
+                None
+            }
+            None => None,
         };
         Ok(Self {
             p0: calib.matrix3x4("P0")?,

@@ -151,6 +151,13 @@ impl FrameSelection {
         id >= first && self.end.is_none_or(|e| id < e) && (id - first) % self.stride.max(1) == 0
     }
 
+    /// The positions in `ids` (frame ids in order) that the selection keeps; without a first id the
+    /// stride counts from the first of `ids`.
+    pub fn kept(&self, ids: &[usize]) -> Vec<usize> {
+        let first = self.first.unwrap_or_else(|| ids.first().copied().unwrap_or(0));
+        (0..ids.len()).filter(|&k| self.keeps(first, ids[k])).collect()
+    }
+
     /// How this selection reads, e.g. `frames 0..=50, every 3rd`.
     pub fn describe(&self) -> String {
         let range = match (self.first, self.end) {
@@ -181,7 +188,7 @@ impl StereoSequence {
     /// error naming the folder when it keeps none.
     pub fn select(&self, sel: &FrameSelection) -> Result<StereoSequence, DatasetError> {
         let first = sel.first.unwrap_or_else(|| self.ids.first().copied().unwrap_or(0));
-        let keep: Vec<usize> = (0..self.ids.len()).filter(|&k| sel.keeps(first, self.ids[k])).collect();
+        let keep = sel.kept(&self.ids);
         if keep.is_empty() {
             let (a, b) = (self.ids.first().copied().unwrap_or(0), self.ids.last().copied().unwrap_or(0));
             return Err(DatasetError::Invalid {
@@ -307,6 +314,7 @@ fn raw_truth(
 ) -> Result<Option<RawTruth>, DatasetError> {
     let oxts = drive.join("oxts").join("data");
     if !oxts.is_dir() {
+        warnings.push(format!("no ground truth: {} not found (no ATE/RPE)", oxts.display()));
         return Ok(None);
     }
     for f in ["calib_imu_to_velo.txt", "calib_velo_to_cam.txt"] {
