@@ -52,7 +52,7 @@ pub struct Track {
     pub missed: u32,
     /// Number of matched frames.
     pub hits: u32,
-    /// Region in the last reference keyframe where it was matched.
+    /// Its region in the last reference frame, when it was matched there.
     pub reference: Option<OwnedRegion>,
 }
 
@@ -63,9 +63,10 @@ pub struct TrackerInput<'a> {
     pub detections: &'a [Detection],
     /// Boxes of the projected ellipsoids of tracks that have one.
     pub projected: &'a BTreeMap<TrackId, BBox>,
-    /// Keypoints tracked from the last reference keyframe to this frame.
+    /// Keypoints tracked from the last reference frame to this frame.
     pub flow: &'a [PointPair],
-    /// This frame becomes the new reference keyframe (flow of later frames starts here).
+    /// This frame becomes the new reference frame (the flow of later frames starts here; the running
+    /// system sets it on every frame).
     pub keyframe: bool,
 }
 

@@ -2,7 +2,9 @@
 //!
 //! An [`Associator`] sees, for each track, what the pipeline knows: its class, the box of its projected
 //! ellipsoid (if it has one yet), a motion-predicted box, and its region in the reference frame (the
-//! last keyframe) to which keypoints were tracked. It returns which detection belongs to which track.
+//! frame the flow starts from: the caller's choice; the running system makes every frame the reference
+//! of the next, so the flow spans one frame) from which keypoints were tracked. It returns which
+//! detection belongs to which track.
 //! Creating tracks for unmatched detections and retiring lost ones is the caller's job (see
 //! `slam_assoc::ObjectTracker`), so associators stay small and swappable.
 
@@ -13,7 +15,7 @@ use crate::detection::{ClassId, Detection, Region, TrackId};
 /// A keypoint tracked from the reference frame to the current frame (after a forward-backward check).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PointPair {
-    /// Position in the reference frame (the last keyframe), pixels.
+    /// Position in the reference frame (where the flow starts, see the module doc), pixels.
     pub reference: [f64; 2],
     /// Position in the current frame, pixels.
     pub current: [f64; 2],

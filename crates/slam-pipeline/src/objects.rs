@@ -159,10 +159,12 @@ pub struct MapperConfig {
     /// (docs/objects.md).
     #[serde(with = "crate::settings::zero_is_off")]
     pub dynamic_prior_sigmas: Option<f64>,
-    /// An object whose stereo-point centroid at a keyframe lies farther than this many standard
-    /// deviations from the median of its earlier centroids is moving (Mahalanobis, along and across the
-    /// viewing ray; σ from the stereo depth noise of both and the spread of the visible surface over
-    /// the object, see [`ObjectMapper::add_points`]). Default 3.
+    /// Standard deviations beyond which the stereo cues call an object moving or misplaced: the robust
+    /// trend of its stereo-point centroids (one per measured frame, the last 30) moving farther than
+    /// this (Mahalanobis along and across the viewing ray; σ from the depth noise at both ends and the
+    /// spread of the visible surface over the object, [`ObjectMapper::add_points`]) on two frames
+    /// running; a scene-flow reading and its confirmation ([`ObjectMapper::add_flow`]); the flow that
+    /// refutes a trend; and the stereo-evidence gate (`stereo_evidence`). Default 3.
     pub dynamic_motion_sigmas: f64,
     /// A fitted ellipsoid farther than this from the camera of its latest view is discarded (beyond
     /// the stereo range, boxes alone do not fix the depth), metres. Default 80.
@@ -190,8 +192,9 @@ pub struct MapperConfig {
     pub free_space_frames: Option<usize>,
     /// An ellipsoid is accepted only where the object's stereo points put it: it must lie within
     /// `dynamic_motion_sigmas` σ (depth noise and surface spread, as in the motion test) of the median
-    /// of the object's keyframe centroids, and an object without any is not mapped. Off in the
-    /// image-free mode (no points); the running system turns it on.
+    /// of the object's centroids (one per measured frame), and an object without any is not mapped.
+    /// Off in the library's default (the image-free mode has no points); on in the running system's
+    /// (`system::SystemConfig::default`).
     pub stereo_evidence: bool,
     /// Use the stereo-point yaw cue in fits that have map points (the running system): the principal
     /// horizontal direction of the object's points as a soft prior on its length axis, when confident
@@ -363,8 +366,9 @@ pub fn suppress_duplicate_boxes(detections: Vec<Detection>) -> (Vec<Detection>, 
     (detections.into_iter().zip(keep).filter_map(|(d, k)| k.then_some(d)).collect(), dropped)
 }
 
-/// Where an object's stereo points put it at one keyframe: the median world position of its points and
-/// the standard deviation of that position along the viewing ray from stereo depth noise.
+/// Where an object's stereo points put it in one frame (its box's depth cluster of that frame's stereo
+/// points, or of a keyframe's): the median world position of its points and the standard deviation of
+/// that position along the viewing ray from stereo depth noise.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PointsCentroid {
     /// Median world position, metres.
@@ -384,7 +388,8 @@ pub struct Observation {
     pub bbox: BBox,
     /// Index of the detection in that frame's input (lets callers trace detections back).
     pub detection: usize,
-    /// Median world position of the map points inside the box (keyframes of the full pipeline).
+    /// Median world position of the stereo points on the object in that frame (full pipeline, measured
+    /// frames; `None` image-free or with too few points).
     pub centroid: Option<Vector3<f64>>,
     /// Standard deviation of that centroid along its viewing ray from stereo depth noise, metres (0
     /// without a centroid).
@@ -405,14 +410,16 @@ pub struct MappedObject {
     pub observations: Vec<Observation>,
     /// Fitted ellipsoid (world frame), once there is one.
     pub ellipsoid: Option<Ellipsoid>,
-    /// Flagged as moving (box misfit or moving map points).
+    /// Flagged dynamic: moving, or (until the motion test has centroids enough) a box misfit or a size
+    /// unlike its class.
     pub dynamic: bool,
-    /// Its map points moved: it is never fitted again.
+    /// Its stereo points moved (scene flow or centroid trend): not fitted while set. A flag set by the
+    /// trend alone is lifted when the object's own scene flow refutes it ([`ObjectMapper::add_flow`]).
     pub moving: bool,
     /// Map points on the object (full pipeline), for texture planes.
     pub points: std::collections::BTreeSet<PointId>,
     fitted_at: usize,
-    /// Consecutive keyframes whose centroid failed the motion test.
+    /// Consecutive measured frames whose centroid trend failed the motion test.
     motion_strikes: usize,
     /// Its scene-flow readings ([`ObjectMapper::add_flow`]): frame id, frame ids since the frame the
     /// flow started in, the reading.
