@@ -718,6 +718,32 @@ fn frames_and_stride_keep_ids_and_ground_truth_aligned() {
     for key in ["ATE ", "(aligned ", "drift "] {
         assert_eq!(number_after(&a, key), number_after(&b, key), "{key}\n{a}\n{b}");
     }
+    // trajectory-eval with the same --frames and --stride compares the selected run with the same
+    // ground-truth lines: the run's own figures
+    let gt = full.parent().and_then(|p| p.parent()).expect("root").join("poses/06.txt");
+    let o = app()
+        .arg("trajectory-eval")
+        .arg(out.join("selected/trajectory.kitti.txt"))
+        .arg(&gt)
+        .args(["--frames", "10..=30", "--stride", "2"])
+        .output()
+        .expect("runs");
+    let table = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(number_after(&table, "| ATE (first poses aligned) | "), number_after(&a, "ATE "), "{table}\n{a}");
+    assert_eq!(number_after(&table, "| ATE (rigid alignment) | "), number_after(&a, "(aligned "), "{table}");
+    // without poses/06.txt the run says there is no ground truth, and the log says what was missing
+    std::fs::remove_file(&gt).expect("remove poses");
+    let o = app()
+        .args(["run", "--detector", "none", "--frames", "0..4"])
+        .arg(&full)
+        .arg("--out")
+        .arg(out.join("no-truth"))
+        .output()
+        .expect("runs");
+    let (text, log) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success() && text.contains("ground truth: none for this sequence, so no ATE/RPE"), "{text}");
+    assert!(log.contains("no ground truth:") && log.contains("06.txt not found"), "{log}");
     // TUM lines carry the played frames' own times (times.txt line = frame id)
     let t = tum_times(&out.join("selected"));
     assert_eq!(t.len(), 11);

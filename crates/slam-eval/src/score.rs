@@ -571,6 +571,20 @@ mod tests {
         scripted_scene(20);
     }
 
+    /// Labels with no static vehicle (one car driving ahead at the camera's speed: what labels of
+    /// another drive also look like under a run's poses): the report says so, and prints no NaN.
+    #[test]
+    fn a_run_without_a_static_labelled_vehicle_says_so() {
+        let poses: Vec<Isometry3<f64>> = (0..12).map(|i| Isometry3::translation(0.0, 0.0, i as f64)).collect();
+        let ids: Vec<usize> = (0..12).collect();
+        let labels: Vec<TrackingLabel> = ids.iter().map(|&f| car(f, 2, Vector3::new(-3.0, 1.6, 15.0))).collect();
+        let score = score_run(&labels, &poses, &ids, &G, &[], &ScoreConfig::default());
+        assert_eq!(score.vehicles.vehicles, 0);
+        let text = score.report();
+        assert!(text.contains("static labelled vehicles 0 (no Car or Van track of at least 10"), "{text}");
+        assert!(!text.contains("NaN"), "{text}");
+    }
+
     /// The scripted scene with every frame id shifted by `first`, plus labels of frames before and
     /// after the run (which must be ignored).
     fn scripted_scene(first: usize) {

@@ -132,6 +132,18 @@ mod tests {
     use super::*;
     use nalgebra::{Translation3, UnitQuaternion};
 
+    /// A run's tracking.csv given as a trajectory: the error names the line and says what the file is.
+    #[test]
+    fn a_csv_table_is_not_read_as_a_trajectory() {
+        let dir = std::env::temp_dir().join(format!("traj-csv-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("tmp dir");
+        let path = dir.join("tracking.csv");
+        std::fs::write(&path, "# note\nframe,state,inliers\n0,initialised,0\n").expect("write");
+        let e = PoseFile::read(&path).err().expect("not a trajectory").to_string();
+        assert!(e.contains("tracking.csv:2:") && e.contains("comma-separated table"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
     #[test]
     fn times_match_nearest_within_the_limit_each_truth_once() {
         // estimates at 0.0, 0.1, 0.102, 0.5; truth (unsorted) at 0.1, 0.0, 0.3

@@ -693,6 +693,19 @@ mod tests {
     /// A version-1 file, as builds before left-only observations wrote it (every observation has its
     /// right column as a number), loads unchanged: same keyframes, points, objects and trajectory, and
     /// saving it again writes the current version.
+    /// An object map (a run's objects.json) given where a map is expected: the error says which file to
+    /// give.
+    #[test]
+    fn an_object_map_given_as_a_map_names_the_file_to_give() {
+        let dir = std::env::temp_dir().join(format!("map-objects-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("tmp dir");
+        let path = dir.join("objects.json");
+        std::fs::write(&path, r#"{"version": 1, "frame": "world", "objects": []}"#).expect("write");
+        let e = Map::load(&path).expect_err("not a map").to_string();
+        assert!(e.contains("objects.json") && e.contains("give the run's map.json"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
     #[test]
     fn loads_a_version_1_map() {
         let dir = std::env::temp_dir().join(format!("map-v1-{}", std::process::id()));
