@@ -154,11 +154,13 @@ pub struct TrajEvalArgs {
     /// Largest time difference of a TUM match, seconds
     #[arg(long, default_value_t = 0.01, value_parser = crate::args::non_negative)]
     max_diff: f64,
-    /// Compare with these ground-truth lines only, line k being frame id k (as `run --frames`: A..B,
-    /// A..=B, A.., ..B): for a run of a subset of frames
+    /// Compare with these ground-truth lines only, line k being frame id k (A..B, A..=B, A.., ..B): for
+    /// a run of a subset of frames matched by line, give the run's own --frames (and --stride). Pairs
+    /// by line: a run that skipped unreadable frames lines up only by time (TUM files)
     #[arg(long, value_parser = crate::args::parse_frame_range)]
     frames: Option<crate::args::FrameRange>,
-    /// ... and every N-th of them from the first (as `run --stride`)
+    /// ... and every N-th line from the first of --frames (from line 0 without --frames: a run whose
+    /// first frame id is not 0 needs its --frames too)
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
     stride: u64,
 }

@@ -449,8 +449,14 @@ impl RunScore {
     pub fn report(&self) -> String {
         let v = &self.vehicles;
         let c = &self.census;
-        // a figure over no vehicle is no figure: "–", not NaN
-        let fig = |x: f64, digits: usize| if x.is_finite() { format!("{x:.digits$}") } else { "–".to_string() };
+        // a figure over no vehicle is no figure: "–", not NaN (its unit goes with the number)
+        let fig = |x: f64, digits: usize, unit: &str| {
+            if x.is_finite() {
+                format!("{x:.digits$}{unit}")
+            } else {
+                "–".to_string()
+            }
+        };
         let mut s = if v.vehicles == 0 {
             format!(
                 "objects vs labels ({} frames): static labelled vehicles 0 (no Car or Van track of at least {} \
@@ -461,17 +467,17 @@ impl RunScore {
         } else {
             format!(
                 "objects vs labels ({} frames): static labelled vehicles {}, found {} (success {}); IoU2D {}, \
-                 e_trans {} m, e_axe {} m, e_yaw {} deg, within {:.0} deg {} %\n",
+                 e_trans {}, e_axe {}, e_yaw {}, within {:.0} deg {}\n",
                 self.frames,
                 v.vehicles,
                 v.found,
-                fig(v.success, 3),
-                fig(v.iou2d, 3),
-                fig(v.e_trans, 3),
-                fig(v.e_axe, 3),
-                fig(v.e_yaw, 1),
+                fig(v.success, 3, ""),
+                fig(v.iou2d, 3, ""),
+                fig(v.e_trans, 3, " m"),
+                fig(v.e_axe, 3, " m"),
+                fig(v.e_yaw, 1, " deg"),
                 self.config.yaw_within_deg,
-                fig(100.0 * v.yaw_within, 0)
+                fig(100.0 * v.yaw_within, 0, " %")
             )
         };
         s.push_str(&format!(

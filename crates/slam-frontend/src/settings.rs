@@ -27,7 +27,10 @@ impl VoConfig {
         count("min_inliers", self.min_inliers, 4, usize::MAX)?;
         // a weak frame has fewer inliers than a tracked one, still enough for PnP
         count("weak_inliers", self.weak_inliers, 4, self.min_inliers.max(4)).map_err(|e| InvalidValue {
-            valid: format!("an integer in [4, min_inliers ({})]", self.min_inliers),
+            valid: format!(
+                "an integer in [4, min_inliers ({})] (lowering min_inliers below it, lower weak_inliers too)",
+                self.min_inliers
+            ),
             ..e
         })?;
         // cells of a 4 × 4 grid
@@ -81,7 +84,10 @@ mod tests {
                 |c| c.triangulate_parallax_deg = 90.0,
                 "triangulate_parallax_deg 90: must be a finite number in (0, 90) degrees",
             ),
-            (|c| c.weak_inliers = 40, "weak_inliers 40: must be an integer in [4, min_inliers (30)]"),
+            (
+                |c| c.weak_inliers = 40,
+                "weak_inliers 40: must be an integer in [4, min_inliers (30)] (lowering min_inliers below it, lower weak_inliers too)",
+            ),
             (|c| c.max_rms_px = f64::NAN, "max_rms_px NaN: must be a finite number in (0, 1000] px"),
             (|c| c.max_speed = -5.0, "max_speed -5: must be a finite number in (0, 300] m/s"),
             (

@@ -34,6 +34,18 @@ const STAGES: [Stage; 8] = [
     ("object init + optimisation (keyframes)", |t| t.objects),
 ];
 
+/// The stages of [`STAGES`] that work on detections (they idle, and are timed near 0, without boxes).
+const OBJECT_STAGES: [&str; 4] = [STAGES[0].0, STAGES[4].0, STAGES[5].0, STAGES[7].0];
+
+/// Which of a run's optional stages were switched on ([`stages_run`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StagesOn {
+    /// A detection source: detection, optical flow, association and object fits.
+    pub objects: bool,
+    /// Local bundle adjustment.
+    pub bundle_adjustment: bool,
+}
+
 /// The times of one stage over the frames where it can run: tracked frames (not unreadable ones), and
 /// only keyframes for the stages that run on keyframes (local BA, objects).
 fn stage_times(out: &RunOutput, (name, f): &Stage) -> Vec<f64> {
@@ -54,14 +66,15 @@ pub fn stage_table(out: &RunOutput) -> Vec<(&'static str, f64, usize)> {
         .collect()
 }
 
-/// [`stage_table`] without the stages that took no time in any frame: those switched off for the run
-/// (no detector, no objects, no bundle adjustment).
-pub fn stages_run(out: &RunOutput) -> Vec<(&'static str, f64, usize)> {
+/// [`stage_table`] without the stages the run switched off (`on`): without a detection source the
+/// object stages, without bundle adjustment local BA (they still pass through the threads, in
+/// microseconds, so their times alone do not say so).
+pub fn stages_run(out: &RunOutput, on: StagesOn) -> Vec<(&'static str, f64, usize)> {
     stage_table(out)
         .into_iter()
-        .zip(&STAGES)
-        .filter(|(_, stage)| stage_times(out, stage).iter().any(|&t| t > 0.0))
-        .map(|(row, _)| row)
+        .filter(|(name, _, _)| {
+            (on.objects || !OBJECT_STAGES.contains(name)) && (on.bundle_adjustment || *name != STAGES[6].0)
+        })
         .collect()
 }
 
@@ -178,9 +191,13 @@ mod tests {
         assert_eq!(row("ORB extraction"), ("ORB extraction", 2.0, 3));
         // local BA: keyframes 0 and 2 only (0 and 20 ms): the upper median
         assert_eq!(row("local BA"), ("local BA (keyframes, mapping thread)", 20.0, 2));
-        // the stages that took no time anywhere (the records time nothing else) are left out
-        let run: Vec<&str> = stages_run(&out).iter().map(|r| r.0).collect();
-        assert_eq!(run, ["ORB extraction", "local BA (keyframes, mapping thread)"]);
+        // a run without a detection source leaves out the object stages; without BA, local BA too
+        let names = |on| stages_run(&out, on).iter().map(|r| r.0).collect::<Vec<_>>();
+        let tracking = ["ORB extraction", "stereo matching", "tracking (local map + PnP + refinement)"];
+        let ba = "local BA (keyframes, mapping thread)";
+        assert_eq!(names(StagesOn { objects: false, bundle_adjustment: true }), [&tracking[..], &[ba]].concat());
+        assert_eq!(names(StagesOn { objects: false, bundle_adjustment: false }), tracking);
+        assert_eq!(names(StagesOn { objects: true, bundle_adjustment: true }).len(), 8);
         let csv = tracking_csv(&out).expect("csv");
         assert_eq!(csv.lines().count(), 5);
         assert!(csv.lines().nth(4).expect("row").starts_with("3,unreadable,0,7,,"), "{csv}");

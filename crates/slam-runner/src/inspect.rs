@@ -25,6 +25,13 @@ pub fn trajectory_eval(
     // the ground truth's line k is frame id k: a run of a subset (`run --frames --stride`) is compared
     // with the same subset
     let whole = *selection == slam_dataset::kitti::stereo::FrameSelection::default();
+    if !whole && matches!((&est, &all), (PoseFile::Tum(..), PoseFile::Tum(..))) {
+        return Err(RunnerError::Invalid(
+            "--frames/--stride pick ground-truth lines for matching by line; two TUM files are matched by \
+             time and need none"
+                .into(),
+        ));
+    }
     let gt = if whole {
         all
     } else {

@@ -101,7 +101,7 @@ impl Outcome {
             st.keyframes, st.points, st.observations, st.objects, st.dynamic_objects
         ));
         lines.push("\n| stage | median ms | frames |\n|---|---:|---:|".into());
-        for (name, ms, count) in stages_run(out) {
+        for (name, ms, count) in stages_run(out, self.stages) {
             lines.push(format!("| {name} | {ms:.1} | {count} |"));
         }
         lines.extend(self.truth_lines());

@@ -97,6 +97,8 @@ pub struct Outcome {
     pub notes: Vec<String>,
     /// The frame selection, for the summary.
     pub selection: FrameSelection,
+    /// The optional stages the run switched on (for the timing table).
+    pub stages: slam_pipeline::report::StagesOn,
 }
 
 /// Open the sequence, apply the selection and `max_frames`, and check image sizes and calibration before
@@ -205,7 +207,11 @@ impl Prepared {
             .build()?
             .run(on_frame)?;
         let elapsed = start.elapsed().as_secs_f64();
-        Ok(Outcome { out, labels, seq, elapsed, k, image, colour, detections, notes, selection })
+        let stages = slam_pipeline::report::StagesOn {
+            objects: detections.is_some(),
+            bundle_adjustment: sys.mapping.bundle_adjustment,
+        };
+        Ok(Outcome { out, labels, seq, elapsed, k, image, colour, detections, notes, selection, stages })
     }
 }
 

@@ -444,8 +444,17 @@ fn open_tracking(training: &Path, seq: &str) -> Result<StereoSequence, DatasetEr
         labels,
         gaps: pairs.gaps,
         one_camera: pairs.one_camera,
-        warnings: pairs.warnings,
+        warnings: [pairs.warnings, vec![NO_TRUTH_IN_TRACKING.to_string()]].concat(),
     })
+}
+
+/// The warning of every tracking-layout sequence: KITTI's tracking benchmark ships no poses.
+const NO_TRUTH_IN_TRACKING: &str = "no ground truth: the tracking layout has no poses (no ATE/RPE)";
+
+/// Whether a sequence warning is the one that says there is no ground truth (every such warning starts
+/// "no ground truth:"): commands that compute no ATE leave it out.
+pub fn is_no_truth_warning(w: &str) -> bool {
+    w.starts_with("no ground truth:")
 }
 
 fn first_subdir(dir: &Path, keep: impl Fn(&Path) -> bool) -> Option<PathBuf> {
