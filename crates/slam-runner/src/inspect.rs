@@ -241,6 +241,12 @@ mod tests {
         let none = FrameSelection { first: Some(30), end: None, stride: 1 };
         let e = trajectory_eval(&strided, &gt, 0.01, &none).expect_err("no lines").to_string();
         assert!(e.contains("keeps 0 of them"), "{e}");
+        // two TUM files are matched by time: a selection of lines is refused
+        let tum = dir.join("gt.tum");
+        let text: String = (0..20).map(|i| format!("{:.1} {i} 0 0 0 0 0 1\n", 0.1 * i as f64)).collect();
+        std::fs::write(&tum, text).expect("write");
+        let e = trajectory_eval(&tum, &tum, 0.01, &every_3rd).expect_err("TUM with lines").to_string();
+        assert!(e.contains("matched by time"), "{e}");
         std::fs::remove_dir_all(&dir).ok();
     }
 }
