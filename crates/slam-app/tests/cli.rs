@@ -988,11 +988,17 @@ fn run_scores_its_objects_against_labels_and_eval_repeats_it() {
     assert!(census.contains("static map objects 1: matched 1, duplicate 0"), "{text}");
     assert!(census.contains("moving object mapped as static 0") && census.contains("matching nothing 0"), "{text}");
     assert!(text.contains("label   3 Van") && text.contains("(static): object"), "the parked van is found: {text}");
+    // with the labels' own boxes the association follows each labelled object on one track or two,
+    // and no track holds two objects
+    let association = line(&text, "association vs labels:");
+    assert!(number_after(&association, "label tracks (IoU ≥ 0.5); ") <= 1.5, "{association}");
+    assert!(association.contains(", 0 tracks holding two or more label tracks"), "{association}");
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("objects_score.json")).expect("score file"))
             .expect("json");
     assert_eq!(json["vehicles"]["found"], 1);
     assert_eq!(json["census"]["duplicate"], 0);
+    assert_eq!(json["association"]["mixed_tracks"], 0);
     let o = app().arg("eval").arg(&out).args(["--labels", labels]).output().expect("eval runs");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let again = String::from_utf8_lossy(&o.stdout).to_string();

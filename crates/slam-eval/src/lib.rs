@@ -21,7 +21,9 @@ use serde::Deserialize;
 use slam_core::geometry::Ellipsoid;
 
 pub use labels::LabelGeometry;
-pub use score::{score_run, Census, Fate, RunScore, ScoreConfig, ScoredInput};
+pub use score::{
+    association_score, score_run, AssociationScore, Census, Fate, FrameBoxes, RunScore, ScoreConfig, ScoredInput,
+};
 
 /// Errors of the evaluation.
 #[derive(Debug, thiserror::Error)]

@@ -205,6 +205,99 @@ pub struct RunScore {
     pub objects: Vec<ObjectScore>,
     /// Per label track (DontCare excluded).
     pub tracks: Vec<TrackScore>,
+    /// How the run's association followed the label tracks, when its per-frame boxes and their
+    /// tracks are known ([`association_score`]; a run folder scored again has no boxes).
+    pub association: Option<AssociationScore>,
+}
+
+/// Least IoU of a detection box with a label box for the box to be that label's (the usual detection
+/// threshold).
+pub const ASSOCIATION_IOU: f64 = 0.5;
+
+/// How the association followed the labelled objects: the detection boxes that match a label box
+/// (IoU ≥ [`ASSOCIATION_IOU`], one to one, best first) and the track each box was given. One physical
+/// object should be one track: a label's boxes on several tracks are fragments (the track was lost and
+/// restarted, or its boxes went elsewhere), and a track holding boxes of two labels mixes objects.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct AssociationScore {
+    /// Detection boxes matched to a label box.
+    pub boxes: usize,
+    /// Label tracks with at least one matched box.
+    pub label_tracks: usize,
+    /// Mean number of tracks per label track (1 is one track per object).
+    pub tracks_per_label: f64,
+    /// Changes of track between consecutive matched boxes of one label track.
+    pub switches: usize,
+    /// Tracks holding matched boxes of two or more label tracks.
+    pub mixed_tracks: usize,
+    /// Per label track: its id and the tracks of its boxes (ascending).
+    pub per_label: Vec<(i64, Vec<u64>)>,
+}
+
+/// One played frame's association: its frame id, and each detection box with the track the association
+/// gave it (`None`: none).
+pub type FrameBoxes = (usize, Vec<(BBox, Option<u64>)>);
+
+/// [`AssociationScore`] of a run from its frames' boxes ([`FrameBoxes`]).
+pub fn association_score(labels: &[TrackingLabel], geometry: &LabelGeometry, boxes: &[FrameBoxes]) -> AssociationScore {
+    let mut by_frame: BTreeMap<usize, Vec<(i64, BBox)>> = BTreeMap::new();
+    for l in labels.iter().filter(|l| !l.is_dont_care() && l.track_id >= 0) {
+        if let Some(b) = geometry.label_box(l) {
+            by_frame.entry(l.frame).or_default().push((l.track_id, b));
+        }
+    }
+    // per label track, its matched boxes' tracks in frame order
+    let mut seen: BTreeMap<i64, Vec<u64>> = BTreeMap::new();
+    let mut matched = 0;
+    for (frame, dets) in boxes {
+        let Some(truth) = by_frame.get(frame) else { continue };
+        let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
+        for (i, (b, _)) in dets.iter().enumerate() {
+            for (j, (_, t)) in truth.iter().enumerate() {
+                let iou = b.iou(t);
+                if iou >= ASSOCIATION_IOU {
+                    pairs.push((iou, i, j));
+                }
+            }
+        }
+        // best first; ties by position, so the result does not depend on the sort's stability
+        pairs.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+        let (mut used_det, mut used_label) = (vec![false; dets.len()], vec![false; truth.len()]);
+        for (_, i, j) in pairs {
+            if used_det[i] || used_label[j] {
+                continue;
+            }
+            used_det[i] = true;
+            used_label[j] = true;
+            matched += 1;
+            if let Some(track) = dets[i].1 {
+                seen.entry(truth[j].0).or_default().push(track);
+            }
+        }
+    }
+    let switches = seen.values().map(|v| v.windows(2).filter(|w| w[0] != w[1]).count()).sum();
+    let mut holders: BTreeMap<u64, std::collections::BTreeSet<i64>> = BTreeMap::new();
+    let per_label: Vec<(i64, Vec<u64>)> = seen
+        .iter()
+        .map(|(&label, v)| {
+            let mut tracks = v.clone();
+            tracks.sort_unstable();
+            tracks.dedup();
+            for &t in &tracks {
+                holders.entry(t).or_default().insert(label);
+            }
+            (label, tracks)
+        })
+        .collect();
+    let n = per_label.len();
+    AssociationScore {
+        boxes: matched,
+        label_tracks: n,
+        tracks_per_label: per_label.iter().map(|(_, t)| t.len()).sum::<usize>() as f64 / n.max(1) as f64,
+        switches,
+        mixed_tracks: holders.values().filter(|l| l.len() >= 2).count(),
+        per_label,
+    }
 }
 
 /// The label tracks inside the run, with their world centres.
@@ -441,6 +534,7 @@ pub fn score_run(
         vehicles: figures,
         objects: scores,
         tracks: track_scores,
+        association: None,
     }
 }
 
@@ -494,6 +588,20 @@ impl RunScore {
             c.dynamic_objects,
             c.dynamic_on_moving
         ));
+        if let Some(a) = &self.association {
+            s.push_str(&format!(
+                "association vs labels: {} detection boxes on {} label tracks (IoU ≥ {ASSOCIATION_IOU}); {:.2} tracks \
+                 per label track (1: one track per object), {} track switches, {} tracks holding two or more \
+                 label tracks\n",
+                a.boxes, a.label_tracks, a.tracks_per_label, a.switches, a.mixed_tracks
+            ));
+        }
+        let tracks_of = |label: i64| {
+            self.association
+                .as_ref()
+                .and_then(|a| a.per_label.iter().find(|(l, _)| *l == label))
+                .map_or(String::new(), |(_, t)| format!("; its boxes on tracks {t:?}"))
+        };
         for t in self.tracks.iter().filter(|t| t.vehicle || t.motion == "moving") {
             s.push_str(&format!(
                 "  label {:>3} {:<10} {:>3} frames, spread {:5.2} m ({}): {}\n",
@@ -514,6 +622,12 @@ impl RunScore {
                     (None, _) => "not mapped".into(),
                 }
             ));
+            // the track list goes on the line just written
+            if s.ends_with('\n') {
+                s.pop();
+                s.push_str(&tracks_of(t.track));
+                s.push('\n');
+            }
         }
         s
     }
@@ -575,6 +689,32 @@ mod tests {
     #[test]
     fn a_run_not_starting_at_frame_0_is_scored_by_frame_id() {
         scripted_scene(20);
+    }
+
+    /// Two cars over 6 frames. Car 1's boxes go to track 10, then (frames 3-5) to track 11: 2 tracks,
+    /// 1 switch. Car 2's boxes go to track 11 in frames 0-2: track 11 holds both cars (mixed). A box
+    /// that overlaps no label (a false detection) and one below the IoU threshold count nowhere.
+    #[test]
+    fn association_score_counts_fragments_switches_and_mixed_tracks() {
+        let mut labels = Vec::new();
+        let mut boxes = Vec::new();
+        for f in 0..6 {
+            let (a, b) = (car(f, 1, Vector3::new(4.0, 1.6, 20.0)), car(f, 2, Vector3::new(-4.0, 1.6, 25.0)));
+            let (ba, bb) = (G.label_box(&a).expect("in view"), G.label_box(&b).expect("in view"));
+            let mut dets = vec![(ba, Some(if f < 3 { 10 } else { 11 })), (BBox::new(0.0, 0.0, 30.0, 30.0), Some(99))];
+            if f < 3 {
+                dets.push((bb, Some(11)));
+            } else {
+                // a box of car 2 shifted by its own width: IoU 0 with the label
+                dets.push((BBox::new(bb.xmax, bb.ymin, 2.0 * bb.xmax - bb.xmin, bb.ymax), Some(12)));
+            }
+            boxes.push((f, dets));
+            labels.extend([a, b]);
+        }
+        let a = association_score(&labels, &G, &boxes);
+        assert_eq!((a.boxes, a.label_tracks, a.switches, a.mixed_tracks), (9, 2, 1, 1), "{a:?}");
+        assert_eq!(a.per_label, vec![(1, vec![10, 11]), (2, vec![11])]);
+        assert!((a.tracks_per_label - 1.5).abs() < 1e-12);
     }
 
     /// Labels with no static vehicle (one car driving ahead at the camera's speed: what labels of

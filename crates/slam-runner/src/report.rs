@@ -187,8 +187,14 @@ impl Outcome {
             })
             .collect();
         let ids: Vec<usize> = out.frames.iter().map(|r| r.index).collect();
-        let score =
+        let mut score =
             slam_eval::score_run(labels, &out.poses, &ids, geometry, &objects, &slam_eval::ScoreConfig::default());
+        let boxes: Vec<slam_eval::FrameBoxes> = out
+            .frames
+            .iter()
+            .map(|r| (r.index, r.detections.iter().zip(&r.tracks).map(|(d, t)| (d.bbox, t.map(|t| t.0))).collect()))
+            .collect();
+        score.association = Some(slam_eval::association_score(labels, geometry, &boxes));
         score.write_json(&dir.join("objects_score.json"))?;
         Ok(Some(score.report()))
     }
