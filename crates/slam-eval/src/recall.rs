@@ -89,26 +89,33 @@ fn vehicle_labels(label: &Path) -> Result<Vec<BBox>, EvalError> {
 /// Greedy one-to-one matching of labelled boxes to detections at IoU > [`MATCH_IOU`], best overlaps
 /// first (ties by index, so the count is deterministic); returns the matched count.
 pub fn matched(labels: &[BBox], dets: &[BBox]) -> usize {
+    matched_pairs(labels, dets, |iou| iou > MATCH_IOU).len()
+}
+
+/// Greedy one-to-one matching of labelled boxes to detections whose IoU `accept`s, best overlaps first
+/// (ties by label, then detection index, so the result is deterministic): `(label, detection)` index
+/// pairs, best first.
+pub fn matched_pairs(labels: &[BBox], dets: &[BBox], accept: impl Fn(f64) -> bool) -> Vec<(usize, usize)> {
     let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
     for (i, l) in labels.iter().enumerate() {
         for (j, d) in dets.iter().enumerate() {
             let iou = l.iou(d);
-            if iou > MATCH_IOU {
+            if accept(iou) {
                 pairs.push((iou, i, j));
             }
         }
     }
     pairs.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
     let (mut used_l, mut used_d) = (vec![false; labels.len()], vec![false; dets.len()]);
-    let mut n = 0;
+    let mut out = Vec::new();
     for (_, i, j) in pairs {
         if !used_l[i] && !used_d[j] {
             used_l[i] = true;
             used_d[j] = true;
-            n += 1;
+            out.push((i, j));
         }
     }
-    n
+    out
 }
 
 #[cfg(test)]

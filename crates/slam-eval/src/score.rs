@@ -251,24 +251,9 @@ pub fn association_score(labels: &[TrackingLabel], geometry: &LabelGeometry, box
     let mut matched = 0;
     for (frame, dets) in boxes {
         let Some(truth) = by_frame.get(frame) else { continue };
-        let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
-        for (i, (b, _)) in dets.iter().enumerate() {
-            for (j, (_, t)) in truth.iter().enumerate() {
-                let iou = b.iou(t);
-                if iou >= ASSOCIATION_IOU {
-                    pairs.push((iou, i, j));
-                }
-            }
-        }
-        // best first; ties by position, so the result does not depend on the sort's stability
-        pairs.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
-        let (mut used_det, mut used_label) = (vec![false; dets.len()], vec![false; truth.len()]);
-        for (_, i, j) in pairs {
-            if used_det[i] || used_label[j] {
-                continue;
-            }
-            used_det[i] = true;
-            used_label[j] = true;
+        let label_boxes: Vec<BBox> = truth.iter().map(|t| t.1).collect();
+        let det_boxes: Vec<BBox> = dets.iter().map(|d| d.0).collect();
+        for (j, i) in crate::recall::matched_pairs(&label_boxes, &det_boxes, |iou| iou >= ASSOCIATION_IOU) {
             matched += 1;
             if let Some(track) = dets[i].1 {
                 seen.entry(truth[j].0).or_default().push(track);

@@ -20,22 +20,31 @@ pub fn median(v: &mut [f64]) -> f64 {
     }
 }
 
-type Stage = (&'static str, fn(&FrameTimes) -> f64);
+/// What a stage needs to run at all.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Needs {
+    /// Every run (tracking).
+    Nothing,
+    /// A detection source (the object stages idle, and are timed near 0, without boxes).
+    Objects,
+    /// Local bundle adjustment switched on.
+    BundleAdjustment,
+}
+
+/// One stage timed per frame: its name, its time, whether it runs on keyframes only, what it needs.
+type Stage = (&'static str, fn(&FrameTimes) -> f64, bool, Needs);
 
 /// The stages timed per frame, in table order.
 const STAGES: [Stage; 8] = [
-    ("detection (own thread)", |t| t.detection),
-    ("ORB extraction", |t| t.extraction),
-    ("stereo matching", |t| t.stereo),
-    ("tracking (local map + PnP + refinement)", |t| t.tracking),
-    ("optical flow", |t| t.flow),
-    ("association", |t| t.association),
-    ("local BA (keyframes, mapping thread)", |t| t.bundle_adjustment),
-    ("object init + optimisation (keyframes)", |t| t.objects),
+    ("detection (own thread)", |t| t.detection, false, Needs::Objects),
+    ("ORB extraction", |t| t.extraction, false, Needs::Nothing),
+    ("stereo matching", |t| t.stereo, false, Needs::Nothing),
+    ("tracking (local map + PnP + refinement)", |t| t.tracking, false, Needs::Nothing),
+    ("optical flow", |t| t.flow, false, Needs::Objects),
+    ("association", |t| t.association, false, Needs::Objects),
+    ("local BA (keyframes, mapping thread)", |t| t.bundle_adjustment, true, Needs::BundleAdjustment),
+    ("object init + optimisation (keyframes)", |t| t.objects, true, Needs::Objects),
 ];
-
-/// The stages of [`STAGES`] that work on detections (they idle, and are timed near 0, without boxes).
-const OBJECT_STAGES: [&str; 4] = [STAGES[0].0, STAGES[4].0, STAGES[5].0, STAGES[7].0];
 
 /// Which of a run's optional stages were switched on ([`stages_run`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -46,36 +55,47 @@ pub struct StagesOn {
     pub bundle_adjustment: bool,
 }
 
-/// The times of one stage over the frames where it can run: tracked frames (not unreadable ones), and
-/// only keyframes for the stages that run on keyframes (local BA, objects).
-fn stage_times(out: &RunOutput, (name, f): &Stage) -> Vec<f64> {
-    let keyframe_only = name.contains("keyframes");
-    out.frames.iter().filter(|r| r.state.is_some() && (!keyframe_only || r.keyframe)).map(|r| f(&r.times)).collect()
+impl StagesOn {
+    fn has(&self, needs: Needs) -> bool {
+        match needs {
+            Needs::Nothing => true,
+            Needs::Objects => self.objects,
+            Needs::BundleAdjustment => self.bundle_adjustment,
+        }
+    }
+}
+
+/// Median per stage, over the frames where the stage ran (tracked frames, not unreadable ones; only
+/// keyframes for the stages that run on keyframes: local BA, objects): `(stage, median ms, frames)`,
+/// every stage in a fixed order; `on` leaves out the stages a run switched off.
+fn stage_rows(out: &RunOutput, on: Option<StagesOn>) -> Vec<(&'static str, f64, usize)> {
+    STAGES
+        .iter()
+        .filter(|(_, _, _, needs)| on.is_none_or(|on| on.has(*needs)))
+        .map(|&(name, time, keyframes_only, _)| {
+            let mut v: Vec<f64> = out
+                .frames
+                .iter()
+                .filter(|r| r.state.is_some() && (!keyframes_only || r.keyframe))
+                .map(|r| time(&r.times))
+                .collect();
+            let n = v.len();
+            (name, median(&mut v), n)
+        })
+        .collect()
 }
 
 /// Median per stage, over the frames where the stage ran: `(stage, median ms, frames)`; the stages that
 /// run on keyframes only (local BA, objects) over keyframes. Every stage has a row, in a fixed order.
 pub fn stage_table(out: &RunOutput) -> Vec<(&'static str, f64, usize)> {
-    STAGES
-        .iter()
-        .map(|stage| {
-            let mut v = stage_times(out, stage);
-            let n = v.len();
-            (stage.0, median(&mut v), n)
-        })
-        .collect()
+    stage_rows(out, None)
 }
 
 /// [`stage_table`] without the stages the run switched off (`on`): without a detection source the
 /// object stages, without bundle adjustment local BA (they still pass through the threads, in
 /// microseconds, so their times alone do not say so).
 pub fn stages_run(out: &RunOutput, on: StagesOn) -> Vec<(&'static str, f64, usize)> {
-    stage_table(out)
-        .into_iter()
-        .filter(|(name, _, _)| {
-            (on.objects || !OBJECT_STAGES.contains(name)) && (on.bundle_adjustment || *name != STAGES[6].0)
-        })
-        .collect()
+    stage_rows(out, Some(on))
 }
 
 /// Seconds per step of the frame index (the tracker counts frame intervals by index differences): the

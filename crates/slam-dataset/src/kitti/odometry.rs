@@ -250,12 +250,12 @@ impl OdometrySequence {
             Some(p) if p.exists() => match values_of_ids(&read_kitti_poses(&p)?, &pairs.ids, &p, "poses") {
                 Ok(g) => Some(g),
                 Err(e) => {
-                    warnings.push(format!("no ground truth: {e}"));
+                    warnings.push(super::stereo::no_truth(e));
                     None
                 }
             },
             Some(p) => {
-                warnings.push(format!("no ground truth: {} not found (no ATE/RPE)", p.display()));
+                warnings.push(super::stereo::no_truth(format_args!("{} not found (no ATE/RPE)", p.display())));
                 None
             }
             None => None,

@@ -314,12 +314,12 @@ fn raw_truth(
 ) -> Result<Option<RawTruth>, DatasetError> {
     let oxts = drive.join("oxts").join("data");
     if !oxts.is_dir() {
-        warnings.push(format!("no ground truth: {} not found (no ATE/RPE)", oxts.display()));
+        warnings.push(no_truth(format_args!("{} not found (no ATE/RPE)", oxts.display())));
         return Ok(None);
     }
     for f in ["calib_imu_to_velo.txt", "calib_velo_to_cam.txt"] {
         if !date.join(f).is_file() {
-            warnings.push(format!("no ground truth: {} is missing (needed with oxts/)", date.join(f).display()));
+            warnings.push(no_truth(format_args!("{} is missing (needed with oxts/)", date.join(f).display())));
             return Ok(None);
         }
     }
@@ -330,7 +330,7 @@ fn raw_truth(
         let name = img.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
         let path = oxts.join(format!("{name}.txt"));
         if !path.is_file() {
-            warnings.push(format!("no ground truth: the OXTS packet of frame {id} ({}) is missing", path.display()));
+            warnings.push(no_truth(format_args!("the OXTS packet of frame {id} ({}) is missing", path.display())));
             return Ok(None);
         }
         packets.push(read_oxts_packet(&path)?);
@@ -444,17 +444,23 @@ fn open_tracking(training: &Path, seq: &str) -> Result<StereoSequence, DatasetEr
         labels,
         gaps: pairs.gaps,
         one_camera: pairs.one_camera,
-        warnings: [pairs.warnings, vec![NO_TRUTH_IN_TRACKING.to_string()]].concat(),
+        // KITTI's tracking benchmark ships no poses
+        warnings: [pairs.warnings, vec![no_truth("the tracking layout has no poses (no ATE/RPE)")]].concat(),
     })
 }
 
-/// The warning of every tracking-layout sequence: KITTI's tracking benchmark ships no poses.
-const NO_TRUTH_IN_TRACKING: &str = "no ground truth: the tracking layout has no poses (no ATE/RPE)";
+/// How every warning that a sequence has no ground truth starts ([`no_truth`]).
+const NO_TRUTH: &str = "no ground truth:";
 
-/// Whether a sequence warning is the one that says there is no ground truth (every such warning starts
-/// "no ground truth:"): commands that compute no ATE leave it out.
+/// The warning that a sequence has no ground truth, and why.
+pub(crate) fn no_truth(why: impl std::fmt::Display) -> String {
+    format!("{NO_TRUTH} {why}")
+}
+
+/// Whether a sequence warning is one that says there is no ground truth ([`no_truth`]): commands that
+/// compute no ATE leave it out.
 pub fn is_no_truth_warning(w: &str) -> bool {
-    w.starts_with("no ground truth:")
+    w.starts_with(NO_TRUTH)
 }
 
 fn first_subdir(dir: &Path, keep: impl Fn(&Path) -> bool) -> Option<PathBuf> {
