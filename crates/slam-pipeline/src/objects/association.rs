@@ -8,7 +8,7 @@ use slam_assoc::TrackerInput;
 use slam_core::{geometry::BBox, Detection, KeyframeId, PointPair, TrackId};
 use slam_quadric::{project, Camera};
 
-use super::{classes::class_group, MappedObject, ObjectMapper, Observation};
+use super::{MappedObject, ObjectMapper, Observation};
 
 /// IoU above which two boxes of one class group are one object (the detector's own class-wise NMS
 /// threshold).
@@ -36,7 +36,7 @@ pub fn suppress_duplicate_boxes(detections: Vec<Detection>) -> (Vec<Detection>, 
         let d = &detections[i];
         let duplicate = kept.iter().any(|&j| {
             let o = &detections[j];
-            class_group(o.class) == class_group(d.class)
+            o.class.group() == d.class.group()
                 && (o.bbox.iou(&d.bbox) > DUPLICATE_IOU
                     || o.bbox.intersection(&d.bbox).is_some_and(|x| x.area() >= NESTED_SHARE * d.bbox.area()))
         });

@@ -1,6 +1,6 @@
-//! What the mapper knows of each class: the size prior of its fits ([`class_prior`]), the extents no real
-//! object of the class has ([`physical_limits`]), and which classes a detector confuses on one object
-//! ([`class_group`]).
+//! What the mapper knows of each class: the size prior of its fits ([`class_prior`]) and the extents no
+//! real object of the class has ([`physical_limits`]). (The classes a detector confuses on one object
+//! are grouped by `slam_core::ClassId::group`.)
 
 use nalgebra::Vector3;
 use slam_core::ClassId;
@@ -81,16 +81,6 @@ pub fn physically_plausible(class: ClassId, semi_axes: &Vector3<f64>) -> Result<
         return Err(format!("{middle:.2} m wide or tall: no {name} exceeds {} m", l.max_middle));
     }
     Ok(())
-}
-
-/// Classes a detector confuses with each other on one object are merged as one group: vehicles (car,
-/// bus, truck), two-wheelers (bicycle, motorcycle); others stand alone.
-pub(super) fn class_group(c: ClassId) -> u16 {
-    match c.0 {
-        2 | 5 | 7 => 2,
-        1 | 3 => 1,
-        other => other,
-    }
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@ use slam_assoc::ObjectTracker;
 use slam_core::{Associator, TrackId};
 use slam_optim::SharedOptimizer;
 
-use super::{classes::class_group, FitMethod, MappedObject, MapperConfig};
+use super::{FitMethod, MappedObject, MapperConfig};
 
 /// The object mapper.
 pub struct ObjectMapper {
@@ -83,7 +83,7 @@ impl ObjectMapper {
         let Some(c) = self.objects.get(&id).and_then(|o| o.ellipsoid.map(|e| (e.centre(), o.class))) else { return };
         let other = self.objects.values().find(|o| {
             o.id != id
-                && class_group(o.class) == class_group(c.1)
+                && o.class.group() == c.1.group()
                 && !o.moving
                 && o.ellipsoid.is_some_and(|e| (e.centre() - c.0).norm() < self.config.merge_distance_m)
         });
