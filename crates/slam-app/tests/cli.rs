@@ -537,13 +537,16 @@ fn eval_scores_a_tracking_sequence_with_both_box_models() {
             + number_after(&text, "flagged dynamic: ")
             + number_after(&text, "never fitted: ");
         assert_eq!(movers, parts, "{text}");
-        let floor = number_after(&text, "ground-truth ellipsoids themselves over the same vehicles: ");
+        let floor = number_after(&text, "over the same vehicles: IoU2D ");
         assert!(floor > 0.5 && floor < 0.75, "{text}");
+        // on the box IoU2D the ground truth scores higher (its own 3-D box against boxes drawn around the car)
+        let box_floor = number_after(&text, "box IoU2D ");
+        assert!(box_floor > floor && box_floor < 1.0, "{text}");
         let csv = std::fs::read_to_string(&csv).expect("csv");
         let line = csv.lines().find(|l| l.starts_with("0003,")).expect("row").to_string();
         let v: Vec<f64> = line.split(',').skip(1).map(|x| x.parse().expect("number")).collect();
-        assert_eq!(v.len(), 9, "{line}");
-        v // vehicles, found, success, iou2d, e_trans, e_axe, e_ray, e_yaw, share within 15 degrees
+        assert_eq!(v.len(), 10, "{line}");
+        v // vehicles, found, success, iou2d, box_iou2d, e_trans, e_axe, e_ray, e_yaw, share within 15 degrees
     };
     // issue 18, point 4: one sequence folder is taken as it is, with the progress on stderr
     let one = app().arg("eval").arg(dir.join("0003")).output().expect("runs");
@@ -552,13 +555,15 @@ fn eval_scores_a_tracking_sequence_with_both_box_models() {
     assert!(String::from_utf8_lossy(&one.stderr).contains("eval: 1/1 sequences"));
     let ellipse = row("ellipse");
     assert_eq!((ellipse[0], ellipse[1]), (6.0, 6.0), "{ellipse:?}");
-    assert!(ellipse[3] > 0.8 && ellipse[4] < 1.0 && ellipse[5] < 0.35, "{ellipse:?}");
+    assert!(ellipse[3] > 0.8 && ellipse[5] < 1.0 && ellipse[6] < 0.35, "{ellipse:?}");
     // e_ray depends on the labels and poses only, and ours beats it here
-    assert!(ellipse[6] > 0.5 && ellipse[4] < ellipse[6], "{ellipse:?}");
+    assert!(ellipse[7] > 0.5 && ellipse[5] < ellipse[7], "{ellipse:?}");
     let cuboid = row("cuboid");
-    assert_eq!(cuboid[6], ellipse[6]);
-    // the cuboid model gets the axes closer and projects a smaller ellipse (lower IoU2D)
-    assert!(cuboid[5] < ellipse[5] && cuboid[3] < ellipse[3], "{cuboid:?} vs {ellipse:?}");
+    assert_eq!(cuboid[7], ellipse[7]);
+    // the cuboid model gets the axes closer and projects a smaller ellipse (lower IoU2D), its own 3-D box
+    // nearer the label box (higher box IoU2D)
+    assert!(cuboid[6] < ellipse[6] && cuboid[3] < ellipse[3], "{cuboid:?} vs {ellipse:?}");
+    assert!(cuboid[4] > ellipse[4], "{cuboid:?} vs {ellipse:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
