@@ -98,11 +98,13 @@ impl ObjectMapper {
                 frame,
                 camera: *camera,
                 bbox: d.bbox,
+                class: d.class,
                 detection: k,
                 centroid: None,
                 depth_sigma: 0.0,
                 reference,
             });
+            obj.class = obj.majority_class();
         }
         out.tracks
     }

@@ -260,6 +260,7 @@ mod tests {
             frame: i,
             camera: Camera::new(k, nalgebra::Isometry3::translation(0.0, 0.0, i as f64)),
             bbox: BBox::new(600.0, 150.0, 700.0, 220.0),
+            class: ClassId(2),
             detection: 0,
             centroid: Some(centroid),
             depth_sigma: 0.4,

@@ -27,6 +27,8 @@ pub struct Observation {
     pub camera: Camera,
     /// The detected box.
     pub bbox: BBox,
+    /// The detected class (a track takes boxes of its class group: car, bus and truck are one group).
+    pub class: ClassId,
     /// Index of the detection in that frame's input (lets callers trace detections back).
     pub detection: usize,
     /// Median world position of the stereo points on the object in that frame (full pipeline, measured
@@ -45,7 +47,7 @@ pub struct Observation {
 pub struct MappedObject {
     /// Identity (the track's).
     pub id: TrackId,
-    /// Class.
+    /// Class: the most frequent of its boxes' classes (the earliest on a tie).
     pub class: ClassId,
     /// Observations, in frame order.
     pub observations: Vec<Observation>,
@@ -90,6 +92,19 @@ pub(super) struct TrendFlag {
 }
 
 impl MappedObject {
+    /// The most frequent class of its boxes, the earliest seen on a tie (its class when it has none).
+    pub fn majority_class(&self) -> ClassId {
+        let mut counts: Vec<(ClassId, usize)> = Vec::new();
+        for o in &self.observations {
+            match counts.iter_mut().find(|c| c.0 == o.class) {
+                Some(c) => c.1 += 1,
+                None => counts.push((o.class, 1)),
+            }
+        }
+        // max_by_key keeps the last maximum: reversed, the first seen wins a tie
+        counts.into_iter().rev().max_by_key(|c| c.1).map_or(self.class, |c| c.0)
+    }
+
     /// A new object of the map: no observation, no ellipsoid, not flagged.
     pub(super) fn new(id: TrackId, class: ClassId) -> Self {
         Self {
@@ -108,5 +123,38 @@ impl MappedObject {
             trend_flag: None,
             generation: 0,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use slam_quadric::Intrinsics;
+
+    #[test]
+    fn an_object_takes_the_most_frequent_class_of_its_boxes() {
+        let k = Intrinsics::new(721.5, 721.5, 609.6, 172.9);
+        let seen = |frame: usize, class: u16| Observation {
+            frame,
+            camera: Camera::new(k, nalgebra::Isometry3::identity()),
+            bbox: BBox::new(600.0, 150.0, 700.0, 220.0),
+            class: ClassId(class),
+            detection: 0,
+            centroid: None,
+            depth_sigma: 0.0,
+            reference: None,
+        };
+        let mut van = MappedObject::new(TrackId(4), ClassId(5));
+        assert_eq!(van.majority_class(), ClassId(5), "no box yet: its own class");
+        // a van called bus first, then car three times and truck twice: a car
+        for (f, c) in [(0, 5), (1, 2), (2, 7), (3, 2), (4, 7), (5, 2)] {
+            van.observations.push(seen(f, c));
+        }
+        assert_eq!(van.majority_class(), ClassId(2));
+        // a tie goes to the class seen first
+        van.observations.push(seen(6, 7));
+        assert_eq!(van.majority_class(), ClassId(2));
+        van.observations.truncate(2);
+        assert_eq!(van.majority_class(), ClassId(5), "bus and car once each: bus came first");
     }
 }
