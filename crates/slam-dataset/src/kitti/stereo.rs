@@ -8,7 +8,8 @@ use nalgebra::{Isometry3, Matrix3x4};
 use crate::{
     kitti::{
         calib::Calib,
-        odometry::{nominal_times, nominal_times_note, pair_frames, values_of_ids, OdometrySequence},
+        frames::{no_truth, nominal_times, nominal_times_note, pair_frames, values_of_ids},
+        odometry::OdometrySequence,
         raw::{
             camera_poses_from_imu, camera_poses_from_oxts, oxts_dead_reckoning, oxts_path_lengths, read_oxts_packet,
             read_timestamps, OxtsPath, RawCalib, OXTS_POS_ACCURACY,
@@ -17,6 +18,8 @@ use crate::{
     },
     DatasetError,
 };
+
+pub use super::frames::is_no_truth_warning;
 
 /// Which KITTI layout a sequence came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -447,20 +450,6 @@ fn open_tracking(training: &Path, seq: &str) -> Result<StereoSequence, DatasetEr
         // KITTI's tracking benchmark ships no poses
         warnings: [pairs.warnings, vec![no_truth("the tracking layout has no poses (no ATE/RPE)")]].concat(),
     })
-}
-
-/// How every warning that a sequence has no ground truth starts ([`no_truth`]).
-const NO_TRUTH: &str = "no ground truth:";
-
-/// The warning that a sequence has no ground truth, and why.
-pub(crate) fn no_truth(why: impl std::fmt::Display) -> String {
-    format!("{NO_TRUTH} {why}")
-}
-
-/// Whether a sequence warning is one that says there is no ground truth ([`no_truth`]): commands that
-/// compute no ATE leave it out.
-pub fn is_no_truth_warning(w: &str) -> bool {
-    w.starts_with(NO_TRUTH)
 }
 
 fn first_subdir(dir: &Path, keep: impl Fn(&Path) -> bool) -> Option<PathBuf> {
