@@ -577,10 +577,26 @@ fn scaled(step: &Isometry3<f64>, r: f64) -> Isometry3<f64> {
     repeat(step, whole as usize) * Isometry3::identity().lerp_slerp(step, r.max(0.0) - whole)
 }
 
-/// `step` applied `k` times.
+/// `step` applied `k` times: one product after another up to [`REPEAT_FOLD`] steps, by repeated
+/// squaring beyond (a gap of 10⁸ frame ids costs 27 products, not 10⁸).
 fn repeat(step: &Isometry3<f64>, k: usize) -> Isometry3<f64> {
-    (0..k).fold(Isometry3::identity(), |acc, _| acc * step)
+    if k <= REPEAT_FOLD {
+        return (0..k).fold(Isometry3::identity(), |acc, _| acc * step);
+    }
+    let (mut out, mut base, mut k) = (Isometry3::identity(), *step, k);
+    while k > 0 {
+        if k & 1 == 1 {
+            out *= base;
+        }
+        base *= base;
+        k >>= 1;
+    }
+    out
 }
+
+/// Steps up to which [`repeat`] multiplies one step after another (every gap a drive's recording
+/// drops, so the tracker's predictions stay as they were); longer gaps are squared.
+const REPEAT_FOLD: usize = 64;
 
 /// Keeps the matches whose keypoint orientation changes agree with the bulk: a histogram of the
 /// changes in 12° bins, matches in the three fullest bins kept (the second and third only when they
@@ -2238,6 +2254,22 @@ mod tests {
             let at = keyframe_at[&best[0].0];
             assert!(at.abs_diff(i) <= 4, "frame {i}: best keyframe at frame {at}: {best:?}");
         }
+    }
+
+    #[test]
+    fn a_step_repeated_over_a_long_gap_is_squared_and_agrees_with_the_product() {
+        let step = Isometry3::new(Vector3::new(0.01, 0.0, 0.9), Vector3::new(0.0, 0.001, 0.0));
+        let fold = |k: usize| (0..k).fold(Isometry3::identity(), |acc, _| acc * step);
+        for k in [0, 1, 2, 16, REPEAT_FOLD] {
+            assert_eq!(repeat(&step, k), fold(k), "k = {k}: the product itself");
+        }
+        for k in [REPEAT_FOLD + 1, 100, 1000] {
+            let d = repeat(&step, k).inverse() * fold(k);
+            assert!(d.translation.vector.norm() < 1e-9 && d.rotation.angle() < 1e-12, "k = {k}: {d:?}");
+        }
+        // 10¹² steps: squared (a fold would not finish); a pure rotation stays one
+        let turn = Isometry3::rotation(Vector3::new(0.0, 1e-6, 0.0));
+        assert!(repeat(&turn, 1_000_000_000_000).translation.vector.norm() < 1e-9);
     }
 
     #[test]

@@ -30,8 +30,8 @@ pub struct FramePairs {
     pub left: Vec<PathBuf>,
     /// Right image of each id (the expected path when only the left one exists).
     pub right: Vec<PathBuf>,
-    /// Ids between the first and the last one with no image in either camera.
-    pub gaps: Vec<usize>,
+    /// Ids between the first and the last one with no image in either camera, as runs.
+    pub gaps: IdRuns,
     /// Ids with an image in one camera only.
     pub one_camera: Vec<usize>,
     /// One sentence per oddity (see [`super::odometry::OdometrySequence::warnings`]).
@@ -102,9 +102,10 @@ pub fn pair_frames(left_dir: &Path, right_dir: &Path) -> Result<FramePairs, Data
         out.left.push(lp);
         out.right.push(rp);
     }
-    let (first, last) = (out.ids[0], out.ids[out.ids.len() - 1]);
-    out.gaps = (first..=last).filter(|id| !ids.contains(id)).collect();
-    for run in runs(&out.gaps) {
+    // the missing ids as runs between neighbours: memory in proportion to the frames that exist, however
+    // far apart their ids are (one image named 4294967296.png among frames 0-3 is one run)
+    out.gaps = IdRuns::between(&out.ids);
+    for &run in out.gaps.runs() {
         warnings.push(format!(
             "frame{} missing in both cameras: skipped; the other frames keep their ids (ground truth, labels and \
              detections stay aligned)",
@@ -118,16 +119,49 @@ pub fn pair_frames(left_dir: &Path, right_dir: &Path) -> Result<FramePairs, Data
     Ok(out)
 }
 
-/// Consecutive runs `(first, last)` of sorted ids.
-pub(crate) fn runs(ids: &[usize]) -> Vec<(usize, usize)> {
-    let mut out: Vec<(usize, usize)> = Vec::new();
-    for &id in ids {
-        match out.last_mut() {
-            Some((_, b)) if *b + 1 == id => *b = id,
-            _ => out.push((id, id)),
-        }
+/// Frame ids as inclusive runs `(first, last)`, increasing and apart (two runs never touch): the
+/// memory is in proportion to the runs, not to the ids they hold.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct IdRuns(Vec<(usize, usize)>);
+
+impl IdRuns {
+    /// The ids missing between neighbours of `ids` (increasing): a run `(a + 1, b − 1)` for each pair
+    /// of neighbours `a`, `b` more than one apart.
+    pub fn between(ids: &[usize]) -> Self {
+        Self(ids.windows(2).filter(|w| w[1] > w[0] + 1).map(|w| (w[0] + 1, w[1] - 1)).collect())
     }
-    out
+
+    /// The runs, increasing.
+    pub fn runs(&self) -> &[(usize, usize)] {
+        &self.0
+    }
+
+    /// Whether there is no id.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// How many ids the runs hold (at most `u64::MAX`).
+    pub fn count(&self) -> u64 {
+        self.0.iter().fold(0u64, |n, &(a, b)| n.saturating_add((b - a) as u64).saturating_add(1))
+    }
+
+    /// Whether `id` lies in a run.
+    pub fn contains(&self, id: usize) -> bool {
+        let k = self.0.partition_point(|&(_, b)| b < id);
+        self.0.get(k).is_some_and(|&(a, _)| a <= id)
+    }
+
+    /// The ids in `first..=last` (runs cut at both ends).
+    pub fn within(&self, first: usize, last: usize) -> Self {
+        Self(
+            self.0
+                .iter()
+                .filter(|&&(a, b)| b >= first && a <= last)
+                .map(|&(a, b)| (a.max(first), b.min(last)))
+                .collect(),
+        )
+    }
 }
 
 /// The values of the given frame ids from a per-frame file whose `k`-th value is frame `k` (KITTI's
@@ -181,4 +215,50 @@ pub(crate) fn no_truth(why: impl std::fmt::Display) -> String {
 /// compute no ATE leave it out.
 pub fn is_no_truth_warning(w: &str) -> bool {
     w.starts_with(NO_TRUTH)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn touch(dir: &Path, ids: &[usize]) {
+        std::fs::create_dir_all(dir).expect("dir");
+        for i in ids {
+            std::fs::write(dir.join(format!("{i:06}.png")), b"").expect("file");
+        }
+    }
+
+    #[test]
+    fn pairs_by_id_with_gaps_as_runs_whatever_the_ids() {
+        let root = std::env::temp_dir().join(format!("frames-pairs-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let (l, r) = (root.join("l"), root.join("r"));
+        // frames 0-3, 6 and one named 4294967296 (2³²); frame 2 only on the left
+        touch(&l, &[0, 1, 2, 3, 6, 1 << 32]);
+        touch(&r, &[0, 1, 3, 6, 1 << 32]);
+        let p = pair_frames(&l, &r).expect("pairs");
+        assert_eq!(p.ids, [0, 1, 2, 3, 6, 1 << 32]);
+        assert_eq!(p.one_camera, [2]);
+        assert_eq!(p.right[2], r.join("000002.png"), "the missing image's path");
+        // two runs, not four billion ids
+        assert_eq!(p.gaps.runs(), [(4, 5), (7, (1 << 32) - 1)]);
+        assert_eq!(p.gaps.count(), 2 + (1 << 32) - 7);
+        assert!(
+            p.warnings.iter().any(|w| w.contains("frames 7..=4294967295 missing in both cameras")),
+            "{:?}",
+            p.warnings
+        );
+        std::fs::remove_dir_all(&root).ok();
+    }
+
+    #[test]
+    fn runs_count_clip_and_find_ids() {
+        let g = IdRuns::between(&[0, 3, 4, 10, usize::MAX]);
+        assert_eq!(g.runs(), [(1, 2), (5, 9), (11, usize::MAX - 1)]);
+        assert_eq!(g.count(), u64::MAX - 11 + 7, "no overflow");
+        assert!(g.contains(1) && g.contains(9) && g.contains(12) && !g.contains(3) && !g.contains(10));
+        assert_eq!(g.within(2, 6).runs(), [(2, 2), (5, 6)]);
+        assert!(g.within(3, 4).is_empty());
+        assert!(IdRuns::between(&[4, 5, 6]).is_empty());
+    }
 }

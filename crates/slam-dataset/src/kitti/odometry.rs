@@ -8,7 +8,7 @@ use nalgebra::{Isometry3, Matrix3x4};
 use crate::{
     kitti::{
         calib::Calib,
-        frames::{no_truth, nominal_times, nominal_times_note, pair_frames, values_of_ids},
+        frames::{no_truth, nominal_times, nominal_times_note, pair_frames, values_of_ids, IdRuns},
         poses::read_kitti_poses,
     },
     read_text, DatasetError,
@@ -38,8 +38,8 @@ pub struct OdometrySequence {
     /// Ground-truth camera-0-to-world pose of each entry (line `id` of `poses/NN.txt`), when that file
     /// exists and covers every frame.
     pub ground_truth: Option<Vec<Isometry3<f64>>>,
-    /// Frame ids missing in both cameras between the first and the last frame (skipped, ids kept).
-    pub gaps: Vec<usize>,
+    /// Frame ids missing in both cameras between the first and the last frame (skipped, ids kept), as runs.
+    pub gaps: IdRuns,
     /// Frame ids with one image missing (played as unreadable frames).
     pub one_camera: Vec<usize>,
     /// What was odd about the input and how it was handled (gaps, one-sided frames, files that are not

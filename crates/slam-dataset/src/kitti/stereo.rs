@@ -8,7 +8,7 @@ use nalgebra::{Isometry3, Matrix3x4};
 use crate::{
     kitti::{
         calib::Calib,
-        frames::{no_truth, nominal_times, nominal_times_note, pair_frames, values_of_ids},
+        frames::{no_truth, nominal_times, nominal_times_note, pair_frames, values_of_ids, IdRuns},
         odometry::OdometrySequence,
         raw::{
             camera_poses_from_imu, camera_poses_from_oxts, oxts_dead_reckoning, oxts_path_lengths, read_oxts_packet,
@@ -92,8 +92,8 @@ pub struct StereoSequence {
     pub dead_reckoned: Option<Vec<Isometry3<f64>>>,
     /// Object labels (tracking layout), when present; `frame` is the frame id.
     pub labels: Option<Vec<TrackingLabel>>,
-    /// Frame ids missing in both cameras between the first and the last frame (skipped, ids kept).
-    pub gaps: Vec<usize>,
+    /// Frame ids missing in both cameras between the first and the last frame (skipped, ids kept), as runs.
+    pub gaps: IdRuns,
     /// Frame ids with one image missing (kept, played as unreadable).
     pub one_camera: Vec<usize>,
     /// What was odd about the input and how it was handled, one sentence each (the caller logs them and
@@ -135,12 +135,13 @@ impl FrameSelection {
         };
         let (first, end) = if let Some((a, b)) = t.split_once("..=") {
             let b = num(b)?.ok_or_else(|| format!("'{text}': ..= needs a last frame id"))?;
-            (num(a)?, Some(b + 1))
+            // the largest id has no id after it: up to it is up to the end
+            (num(a)?, b.checked_add(1))
         } else if let Some((a, b)) = t.split_once("..") {
             (num(a)?, num(b)?)
         } else {
             let a = num(t)?.ok_or_else(|| format!("'{text}': empty frame range"))?;
-            (Some(a), Some(a + 1))
+            (Some(a), a.checked_add(1))
         };
         if let (Some(a), Some(b)) = (first, end) {
             if b <= a {
@@ -209,7 +210,7 @@ impl StereoSequence {
             times: keep.iter().map(|&k| self.times[k]).collect(),
             ground_truth: self.ground_truth.as_ref().map(|g| keep.iter().map(|&k| g[k]).collect()),
             dead_reckoned: self.dead_reckoned.as_ref().map(|g| keep.iter().map(|&k| g[k]).collect()),
-            gaps: within(&self.gaps),
+            gaps: self.gaps.within(first, last),
             one_camera: within(&self.one_camera).into_iter().filter(|id| sel.keeps(first, *id)).collect(),
             // the path check covers the frames it was made from
             truth_source: if keep.len() == self.ids.len() {
@@ -237,7 +238,7 @@ impl StereoSequence {
             g.truncate(n);
         }
         if let Some(&last) = self.ids.last() {
-            self.gaps.retain(|&id| id <= last);
+            self.gaps = self.gaps.within(0, last);
             self.one_camera.retain(|&id| id <= last);
         }
     }
@@ -532,6 +533,10 @@ mod tests {
         assert_eq!(p("5.."), Ok((Some(5), None)));
         assert_eq!(p("..=7"), Ok((None, Some(8))));
         assert_eq!(p("3"), Ok((Some(3), Some(4))));
+        // the largest id: no overflow, up to the end
+        assert_eq!(p(&format!("..={}", usize::MAX)), Ok((None, None)));
+        assert_eq!(p(&format!("7..={}", usize::MAX)), Ok((Some(7), None)));
+        assert_eq!(p(&usize::MAX.to_string()), Ok((Some(usize::MAX), None)));
         for bad in ["20..10", "5..5", "a..3", "-1..4", "..=", "", "1.5..3"] {
             assert!(p(bad).is_err(), "{bad}");
         }
@@ -556,7 +561,7 @@ mod tests {
         std::fs::write(root.join("poses/00.txt"), poses).expect("poses");
         let s = open_stereo(&seq).expect("opens");
         assert_eq!(s.ids, vec![0, 1, 2, 3, 4, 6, 7, 8, 9, 10, 11]);
-        assert_eq!(s.gaps, vec![5]);
+        assert_eq!(s.gaps.runs(), [(5, 5)]);
         assert!(s.warnings.iter().any(|w| w.contains("frame 5 missing in both cameras")), "{:?}", s.warnings);
         let z = |s: &StereoSequence| -> Vec<f64> {
             s.ground_truth.as_ref().expect("truth").iter().map(|g| g.translation.vector.z).collect()
@@ -572,7 +577,7 @@ mod tests {
         assert_eq!(sub.ids, vec![3, 7, 9]);
         assert_eq!(z(&sub), vec![3.0, 7.0, 9.0]);
         assert_eq!(sub.times, vec![0.75, 1.75, 2.25]);
-        assert_eq!(sub.gaps, vec![5]);
+        assert_eq!(sub.gaps.runs(), [(5, 5)]);
         let rebased: Vec<f64> = sub.truth_from_first().expect("truth").iter().map(|g| g.translation.vector.z).collect();
         assert_eq!(rebased, vec![0.0, 4.0, 6.0]);
         let e = s.select(&FrameSelection { first: Some(40), end: None, stride: 1 }).expect_err("empty").to_string();
