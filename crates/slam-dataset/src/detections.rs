@@ -174,7 +174,7 @@ impl DetectionFile {
     /// Read and validate a detection file.
     pub fn read(path: impl AsRef<Path>) -> Result<Self, DatasetError> {
         let path = path.as_ref();
-        let text = read_text(path)?;
+        let text = read_text(path, &slam_core::files::DOCUMENT)?;
         Self::parse(path, &text)
     }
 
@@ -236,6 +236,11 @@ impl DetectionFile {
     /// with a warning.
     pub fn write(&self, path: impl AsRef<Path>) -> Result<(), DatasetError> {
         let path = path.as_ref();
+        Ok(slam_core::files::write_atomic(path, self.to_json(path)?.as_bytes())?)
+    }
+
+    /// The file's JSON text ([`DetectionFile::write`]); `path` names the file in messages.
+    pub fn to_json(&self, path: &Path) -> Result<String, DatasetError> {
         let mut dropped = 0usize;
         let frames = self
             .frames
@@ -264,11 +269,8 @@ impl DetectionFile {
             tracing::warn!(dropped, path = %path.display(), "masks not written: image size unknown");
         }
         let json = FileJson { version: SCHEMA_VERSION, image_size: self.image_size, frames };
-        let text = serde_json::to_string(&json)
-            .map_err(|e| DatasetError::Invalid { path: path.to_path_buf(), message: e.to_string() })?;
-        let tmp = path.with_extension("json.tmp");
-        std::fs::write(&tmp, text).map_err(|source| DatasetError::Io { path: tmp.clone(), source })?;
-        std::fs::rename(&tmp, path).map_err(|source| DatasetError::Io { path: path.to_path_buf(), source })
+        serde_json::to_string(&json)
+            .map_err(|e| DatasetError::Invalid { path: path.to_path_buf(), message: e.to_string() })
     }
 }
 

@@ -102,14 +102,14 @@ impl LabelGeometry {
 
     /// Read `camera.json`.
     pub fn read(path: &Path) -> Result<Self, EvalError> {
-        let text = std::fs::read_to_string(path).map_err(|e| EvalError::Io(path.display().to_string(), e))?;
+        let text = slam_core::files::read_text(path, &slam_core::files::SMALL)?;
         serde_json::from_str(&text).map_err(|e| EvalError::Invalid(format!("{}: {e}", path.display())))
     }
 
     /// Write `camera.json`.
     pub fn write(&self, path: &Path) -> Result<(), EvalError> {
         let text = serde_json::to_string_pretty(self).map_err(|e| EvalError::Invalid(e.to_string()))?;
-        std::fs::write(path, text).map_err(|e| EvalError::Io(path.display().to_string(), e))
+        Ok(slam_core::files::write_atomic(path, text.as_bytes())?)
     }
 
     /// A label's 3-D box centre in the run's camera.

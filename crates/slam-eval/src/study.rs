@@ -22,7 +22,7 @@ use crate::{
 /// starts at id 20, so the line number is not the id. Errors name the file and line; a row count that
 /// differs from `poses` is an error (the files are not of the same run).
 pub fn played_frame_ids(path: &Path, poses: usize) -> Result<Vec<usize>, EvalError> {
-    let text = std::fs::read_to_string(path).map_err(|e| EvalError::Io(format!("reading {}", path.display()), e))?;
+    let text = slam_core::files::read_text(path, &slam_core::files::TABLE)?;
     let ids = text
         .lines()
         .enumerate()
@@ -93,7 +93,10 @@ pub fn map_to_file(
     let seq = LabelledSequence::load(labels, poses, calib)?;
     let (mapper, _) = run_mapper(&seq, noise, mapper);
     let objs: Vec<_> = mapper.objects().collect();
-    file.write_with(|tmp| slam_pipeline::objects::write_object_map(tmp, &objs))?;
+    // the file was made writable before the work: its temporary gets the text, then takes its place
+    let text = slam_pipeline::objects::object_map_text(&objs, slam_pipeline::objects::INPUT_POSES_WORLD)
+        .map_err(|e| EvalError::Io(format!("cannot write {}", out.display()), e))?;
+    file.write_with(|tmp| std::fs::write(tmp, text))?;
     let with = objs.iter().filter(|o| o.ellipsoid.is_some()).count();
     let dynamic = objs.iter().filter(|o| o.ellipsoid.is_some() && o.dynamic).count();
     Ok(format!(

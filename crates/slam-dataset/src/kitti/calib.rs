@@ -20,7 +20,7 @@ impl Calib {
     /// Read `KEY: v1 v2 ...` (or `KEY v1 v2 ...`) lines; blank lines are skipped.
     pub fn read(path: impl AsRef<Path>) -> Result<Self, DatasetError> {
         let path = path.as_ref();
-        let text = read_text(path)?;
+        let text = read_text(path, &slam_core::files::SMALL)?;
         Self::parse(path, &text)
     }
 

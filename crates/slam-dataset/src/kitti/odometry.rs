@@ -62,7 +62,7 @@ impl OdometrySequence {
         let mut warnings = pairs.warnings;
         let times_path = dir.join("times.txt");
         let times = if times_path.exists() {
-            let text = read_text(&times_path)?;
+            let text = read_text(&times_path, &slam_core::files::TABLE)?;
             let mut t: Vec<f64> = Vec::new();
             for (n, l) in crate::frame_lines(&times_path, &text)? {
                 let v = crate::parse_numbers(&times_path, n, &[l.trim()])?;

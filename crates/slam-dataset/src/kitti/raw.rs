@@ -41,7 +41,7 @@ impl OxtsPacket {
 /// Read one packet file (one line of 30 numbers).
 pub fn read_oxts_packet(path: impl AsRef<Path>) -> Result<OxtsPacket, DatasetError> {
     let path = path.as_ref();
-    let text = read_text(path)?;
+    let text = read_text(path, &slam_core::files::SMALL)?;
     parse_oxts_packet(path, &text)
 }
 
@@ -179,7 +179,7 @@ pub fn camera_poses_from_imu(imu: Vec<Isometry3<f64>>, calib: &RawCalib) -> Vec<
 /// line (midnight crossings are handled; dates are otherwise ignored).
 pub fn read_timestamps(path: impl AsRef<Path>) -> Result<Vec<f64>, DatasetError> {
     let path = path.as_ref();
-    let text = read_text(path)?;
+    let text = read_text(path, &slam_core::files::TABLE)?;
     parse_timestamps(path, &text)
 }
 

@@ -45,7 +45,7 @@ impl TrackingLabel {
 /// Read a tracking label file. Errors name the file and line.
 pub fn read_tracking_labels(path: impl AsRef<Path>) -> Result<Vec<TrackingLabel>, DatasetError> {
     let path = path.as_ref();
-    let text = read_text(path)?;
+    let text = read_text(path, &slam_core::files::TABLE)?;
     parse_tracking_labels(path, &text)
 }
 
@@ -141,7 +141,7 @@ impl TrackingSequence {
         images.sort();
         let oxts_path = t.join("oxts").join(format!("{seq}.txt"));
         let imu_poses = if oxts_path.exists() {
-            let text = read_text(&oxts_path)?;
+            let text = read_text(&oxts_path, &slam_core::files::TABLE)?;
             let mut packets = Vec::new();
             for (i, line) in text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty()) {
                 let p = crate::kitti::raw::parse_oxts_packet(&oxts_path, line).map_err(|e| match e {
