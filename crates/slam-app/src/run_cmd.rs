@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use slam_dataset::output::{refuse_overwriting_inputs, Written};
 use slam_pipeline::{map::Map, system::FrameRecord};
 use slam_runner::{
     bench,
@@ -67,6 +68,14 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     // the output folder is written beside the old one and swapped in at the end; checked writable now
     catch_interrupt();
     let out = &a.output.out;
+    // nothing a run reads may lie in the folder it replaces
+    let seq = a.seq.path();
+    let mut inputs = vec![("the sequence", seq.as_path())];
+    inputs.extend(a.settings.config.as_deref().map(|p| ("--config", p)));
+    inputs.extend(a.detector.detections.as_deref().map(|p| ("--detections", p)));
+    inputs.extend(a.detector.labels.as_deref().map(|p| ("--labels", p)));
+    inputs.extend(a.detector.model.files());
+    refuse_overwriting_inputs(&inputs, &[Written::Folder("--out", out)])?;
     let dir = slam_dataset::output::OutputDir::create(out, "--out", "run", run_output_name)?;
     let s = a.seq.run_settings(&cfg, &a.wiring, a.detector.choice()?, a.detector.labels.clone());
     let outcome = run_with_progress(&s);
@@ -242,6 +251,14 @@ pub struct MapArgs {
 
 /// `slam-app map`: a saved map's counts and objects, and its exports.
 pub fn map(a: &MapArgs) -> anyhow::Result<()> {
+    let pictures: Vec<PathBuf> =
+        a.picture.iter().flat_map(|d| slam_viz::MAP_PICTURE_FILES.map(|n| d.join(n))).collect();
+    let mut outputs: Vec<Written> = [("--ply", &a.ply), ("--scene", &a.scene), ("--trajectory", &a.trajectory)]
+        .into_iter()
+        .filter_map(|(option, p)| p.as_deref().map(|p| Written::File(option, p)))
+        .collect();
+    outputs.extend(pictures.iter().map(|p| Written::File("--picture", p)));
+    refuse_overwriting_inputs(&[("the map", &a.map)], &outputs)?;
     let map = Map::load(&a.map)?;
     println!("{}", inspect::map_summary(&map, &a.map));
     let exports = inspect::MapExports {

@@ -44,6 +44,9 @@ pub fn played_frame_ids(path: &Path, poses: usize) -> Result<Vec<usize>, EvalErr
     Ok(ids)
 }
 
+/// The files of a run's output folder that scoring reads.
+pub const RUN_FOLDER_FILES: [&str; 4] = ["trajectory.kitti.txt", "camera.json", "objects.json", "tracking.csv"];
+
 /// Score the output folder of a run (`trajectory.kitti.txt`, `camera.json`, `objects.json`,
 /// `tracking.csv`) against the tracking labels at `labels`.
 pub fn score_run_folder(dir: &Path, labels: &Path, config: &ScoreConfig) -> Result<RunScore, EvalError> {
@@ -61,6 +64,8 @@ pub fn score_run_folder_to_file(dir: &Path, labels: &Path, config: &ScoreConfig)
     let score = score_run_folder(dir, labels, config)?;
     let out = dir.join("objects_score.json");
     score.write_json(&out)?;
+    // a run writes this file too: listed in the folder's marker, the folder stays the run's to replace
+    slam_dataset::output::record_in_marker(dir, "objects_score.json")?;
     Ok(format!("{}wrote {}", score.report(), out.display()))
 }
 

@@ -16,7 +16,7 @@ pub mod plot;
 
 use std::path::PathBuf;
 
-pub use map::{footprint, map_picture};
+pub use map::{footprint, map_picture, MAP_PICTURE_FILES};
 pub use overlay::{frame_overlay, write_overlays, OverlayOptions};
 pub use plot::{simulation_figure, topdown_figure, MapShape, ObjectState, TopDown};
 
