@@ -14,6 +14,7 @@ pub use detector::nms;
 pub mod image_io;
 pub mod image_size;
 mod keyframe_index;
+mod keyframe_motion;
 mod matching;
 pub mod model;
 mod pose_only;

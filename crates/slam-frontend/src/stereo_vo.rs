@@ -1503,7 +1503,12 @@ impl StereoVo {
         let tracked_map_points = refined.as_ref().map_or(0, |r| r.inliers.len());
         let rms = refined.as_ref().map_or(f64::NAN, |r| r.rms);
         let world_from_curr = world_from_ref * kf_from_curr;
-        let keyframe = if self.wants_keyframe(state, refined.as_ref(), &map, stereo_points) {
+        // retrieval does not consult the motion model (a revisit or a long gap breaks it legitimately):
+        // the velocity is unknown until two measured frames give it again
+        if measured && matches!(route, Some(Route::Retrieved(_))) {
+            self.velocity_known = false;
+        }
+        let keyframe = if self.wants_keyframe(state, refined.as_ref(), &map, (stereo_points, &frame.keypoints)) {
             // a frame lost for too long starts a new map segment: no parent, no carried points, at the
             // first unverified candidate pose when there was one, else at the motion prediction
             let (parent, world_from_kf) = if let (true, Some(Route::Retrieved(id))) = (measured, route) {
@@ -1721,16 +1726,24 @@ impl StereoVo {
     }
 
     /// Whether the frame becomes a keyframe: a tracked frame when its tracked map points fell below
-    /// `keyframe_inlier_ratio` of the keyframe's first frame's, after `keyframe_max_gap` frames, or
-    /// when it shares less than `keyframe_overlap` of the reference keyframe's points; every weak or
-    /// relocalised frame; a frame lost for longer than `max_lost_s` that still has stereo points.
+    /// `keyframe_inlier_ratio` of the keyframe's first frame's, after `keyframe_max_gap` frames if it
+    /// moved, or when it shares less than `keyframe_overlap` of the reference keyframe's points; a weak
+    /// frame that moved; every relocalised frame; a frame lost for longer than `max_lost_s` that still
+    /// has stereo points. Moved: its tracked points moved in the image since the reference keyframe
+    /// ([`crate::keyframe_motion`]), so a keyframe brings new information.
     fn wants_keyframe(
         &mut self,
         state: TrackState,
         refined: Option<&Refined>,
         map: &LocalMap,
-        stereo_points: usize,
+        (stereo_points, keypoints): (usize, &[(f64, f64)]),
     ) -> bool {
+        let moved = refined.is_none_or(|r| {
+            crate::keyframe_motion::moved(r.inliers.iter().filter_map(|&(i, c)| {
+                let (_, o) = map.views[i].iter().find(|v| v.0 == 0)?;
+                Some(((o[0], o[1]), *keypoints.get(c)?))
+            }))
+        });
         let tracked_map_points = refined.map_or(0, |r| r.inliers.len());
         // share of the reference keyframe's points tracked in this frame (its overlap with the keyframe)
         let overlap = refined.map_or(0.0, |r| {
@@ -1746,10 +1759,11 @@ impl StereoVo {
             TrackState::Tracked { .. } => {
                 let base = *self.kf_inliers.get_or_insert(tracked_map_points);
                 (tracked_map_points as f64) < self.config.keyframe_inlier_ratio * base as f64
-                    || self.since_kf >= self.config.keyframe_max_gap
+                    || (self.since_kf >= self.config.keyframe_max_gap && moved)
                     || overlap < self.config.keyframe_overlap
             }
-            TrackState::Weak { .. } | TrackState::Relocalised { .. } => true,
+            TrackState::Weak { .. } => moved,
+            TrackState::Relocalised { .. } => true,
             _ => lost_too_long,
         }
     }
