@@ -57,7 +57,17 @@ pub fn parse_tum(path: &Path, text: &str) -> Result<(Vec<f64>, Vec<Isometry3<f64
         let t = Translation3::new(v[1], v[2], v[3]);
         crate::kitti::poses::check_position(path, i + 1, &t.vector)?;
         ts.push(v[0]);
+        lines.push(i + 1);
         poses.push(Isometry3::from_parts(t, UnitQuaternion::from_quaternion(q)));
+    }
+    let mut order: Vec<usize> = (0..ts.len()).collect();
+    order.sort_by(|&a, &b| ts[a].total_cmp(&ts[b]).then(a.cmp(&b)));
+    if let Some(w) = order.windows(2).find(|w| ts[w[0]] == ts[w[1]]) {
+        return Err(DatasetError::Parse {
+            path: path.to_path_buf(),
+            line: lines[w[1]],
+            message: format!("time {} s again (first on line {}): one time has one pose", ts[w[1]], lines[w[0]]),
+        });
     }
     Ok((ts, poses))
 }
