@@ -333,9 +333,26 @@ fn sequences_calibration_and_image_sizes() {
     let empty = d.join("empty");
     std::fs::create_dir_all(&empty).expect("dir");
     let fx = sequence(&d, "fx", 2, Some(&calib_with("P0", 0, "0.001").replace("7.070912000000e+02 0.0", "0.001 0.0")));
-    let cx = sequence(&d, "cx", 2, Some(&calib_with("P0", 2, "5000")));
-    let cy = sequence(&d, "cy", 2, Some(&calib_with("P0", 6, "-20")));
-    let fy = sequence(&d, "fy", 2, Some(&calib_with("P0", 5, "70")));
+    // the same intrinsics in both cameras (a rectified pair shares them), outside what the images allow
+    let both = |index: usize, value: &str| {
+        let one = calib_with("P0", index, value);
+        let text: Vec<String> = one
+            .lines()
+            .map(|l| {
+                if l.starts_with("P1:") {
+                    let mut f: Vec<&str> = l.split_whitespace().collect();
+                    f[1 + index] = value;
+                    f.join(" ")
+                } else {
+                    l.to_string()
+                }
+            })
+            .collect();
+        text.join("\n")
+    };
+    let cx = sequence(&d, "cx", 2, Some(&both(2, "5000")));
+    let cy = sequence(&d, "cy", 2, Some(&both(6, "-20")));
+    let fy = sequence(&d, "fy", 2, Some(&both(5, "70")));
     let base = sequence(&d, "baseline", 2, Some(&calib_with("P1", 3, "0")));
     let nan = sequence(&d, "nan", 2, Some(&calib_with("P0", 0, "nan")));
     let short = sequence(

@@ -7,12 +7,12 @@ use nalgebra::{Isometry3, Matrix3x4};
 
 use crate::{
     kitti::{
-        calib::Calib,
+        calib::{rectified_pair, Calib},
         frames::{no_truth, nominal_times, nominal_times_note, pair_frames, values_of_ids, IdRuns},
         odometry::OdometrySequence,
         raw::{
-            camera_poses_from_imu, camera_poses_from_oxts, oxts_dead_reckoning, oxts_path_lengths, read_oxts_packet,
-            read_timestamps, OxtsPath, RawCalib, OXTS_POS_ACCURACY,
+            camera_poses_from_imu, camera_poses_from_oxts, check_oxts_steps, oxts_dead_reckoning, oxts_path_lengths,
+            read_oxts_packet, read_timestamps, OxtsPath, RawCalib, OXTS_POS_ACCURACY,
         },
         tracking::{read_tracking_labels, TrackingLabel},
     },
@@ -261,28 +261,20 @@ fn from_first(g: &[Isometry3<f64>]) -> Option<Vec<Isometry3<f64>>> {
     Some(g.iter().map(|p| origin * p).collect())
 }
 
+/// The intrinsics and baseline of a layout's stereo pair, its projection matrices checked to be a
+/// rectified pair ([`crate::kitti::calib::rectified_pair`]); the error names the calibration file.
 fn pair_from(
-    layout: Layout,
-    dir: &Path,
-    pl: &Matrix3x4<f64>,
-    pr: &Matrix3x4<f64>,
+    (pl, pr): (&Matrix3x4<f64>, &Matrix3x4<f64>),
+    keys: (&str, &str),
     calib: &Path,
 ) -> Result<([f64; 4], f64), DatasetError> {
-    let fx = pl[(0, 0)];
-    let baseline = (pl[(0, 3)] - pr[(0, 3)]) / fx;
-    if !(fx > 0.0 && baseline > 0.0 && baseline.is_finite()) {
-        return Err(DatasetError::Invalid {
-            path: calib.to_path_buf(),
-            message: format!("{layout:?} stereo pair of {} has focal {fx} and baseline {baseline}", dir.display()),
-        });
-    }
-    Ok(([fx, pl[(1, 1)], pl[(0, 2)], pl[(1, 2)]], baseline))
+    rectified_pair(pl, pr, keys).map_err(|message| DatasetError::Invalid { path: calib.to_path_buf(), message })
 }
 
 fn open_odometry(dir: &Path) -> Result<StereoSequence, DatasetError> {
     let seq = OdometrySequence::open(dir)?;
     let calib = dir.join("calib.txt");
-    let (intrinsics, baseline) = pair_from(Layout::Odometry, dir, &seq.p0, &seq.p1, &calib)?;
+    let (intrinsics, baseline) = pair_from((&seq.p0, &seq.p1), ("P0", "P1"), &calib)?;
     Ok(StereoSequence {
         layout: Layout::Odometry,
         dir: dir.to_path_buf(),
@@ -329,6 +321,7 @@ fn raw_truth(
     }
     let calib = RawCalib::read(date)?;
     let mut packets = Vec::with_capacity(ids.len());
+    let mut names = Vec::with_capacity(ids.len());
     for (img, &id) in left.iter().zip(ids) {
         // the packet of a frame has the image's file stem (`0000000042.txt`)
         let name = img.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
@@ -338,7 +331,12 @@ fn raw_truth(
             return Ok(None);
         }
         packets.push(read_oxts_packet(&path)?);
+        names.push(path);
     }
+    // a packet no vehicle could have reached from the one before is an error naming it, here rather
+    // than as a ground truth kilometres off (or a map too wide to draw) after the run
+    let named: Vec<&Path> = names.iter().map(PathBuf::as_path).collect();
+    check_oxts_steps(&packets, times, &named)?;
     let mut acc: Vec<f64> = packets.iter().map(|p| p.values[OXTS_POS_ACCURACY]).collect();
     acc.sort_by(|a, b| a.total_cmp(b));
     let median = acc[acc.len() / 2];
@@ -372,8 +370,7 @@ fn open_raw(dir: &Path) -> Result<StereoSequence, DatasetError> {
     } else {
         ("image_02", "image_03", "P_rect_02", "P_rect_03")
     };
-    let (intrinsics, baseline) =
-        pair_from(Layout::Raw, dir, &calib.matrix3x4(pl)?, &calib.matrix3x4(pr)?, &calib_path)?;
+    let (intrinsics, baseline) = pair_from((&calib.matrix3x4(pl)?, &calib.matrix3x4(pr)?), (pl, pr), &calib_path)?;
     let pairs = pair_frames(&dir.join(l).join("data"), &dir.join(r).join("data"))?;
     let mut warnings = pairs.warnings;
     let ts = dir.join(l).join("timestamps.txt");
@@ -427,7 +424,7 @@ fn open_tracking(training: &Path, seq: &str) -> Result<StereoSequence, DatasetEr
     let calib_path = training.join("calib").join(format!("{seq}.txt"));
     let calib = Calib::read(&calib_path)?;
     let (intrinsics, baseline) =
-        pair_from(Layout::Tracking, training, &calib.matrix3x4("P2")?, &calib.matrix3x4("P3")?, &calib_path)?;
+        pair_from((&calib.matrix3x4("P2")?, &calib.matrix3x4("P3")?), ("P2", "P3"), &calib_path)?;
     let dir = training.join("image_02").join(seq);
     let pairs = pair_frames(&dir, &training.join("image_03").join(seq))?;
     let label_path = training.join("label_02").join(format!("{seq}.txt"));
