@@ -55,6 +55,20 @@ pub fn score_run_folder(dir: &Path, labels: &Path, config: &ScoreConfig) -> Resu
     let geometry = LabelGeometry::read(&dir.join("camera.json"))?;
     let objects = read_object_map(&dir.join("objects.json"))?;
     let ids = played_frame_ids(&dir.join("tracking.csv"), poses.len())?;
+    // an object seen in a frame the run did not play is not of this run
+    let played: std::collections::BTreeSet<usize> = ids.iter().copied().collect();
+    for o in &objects {
+        if let Some(f) = o.frames.iter().find(|f| !played.contains(f)) {
+            return Err(EvalError::Invalid(format!(
+                "{}: object {} is seen in frame {f}, which the run did not play ({} frames, ids {}..={}): not the objects of this run",
+                dir.join("objects.json").display(),
+                o.id,
+                ids.len(),
+                ids.first().copied().unwrap_or(0),
+                ids.last().copied().unwrap_or(0)
+            )));
+        }
+    }
     Ok(score_run(&labels, &poses, &ids, &geometry, &objects, config))
 }
 
