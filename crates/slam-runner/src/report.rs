@@ -202,8 +202,16 @@ impl Outcome {
     /// written, for the summary line.
     pub fn pictures(&self, dir: &Path, overlays: Option<&OverlayChoice>) -> Result<String> {
         let out = &self.out;
-        slam_viz::map_picture(&out.map, &out.poses, self.seq.truth_from_first().as_deref(), dir)?;
-        let mut written = "map.svg, map.png".to_string();
+        // a map that cannot be drawn is said so; the run's trajectory and maps are written all the same
+        let mut written = match slam_viz::map_picture(&out.map, &out.poses, self.seq.truth_from_first().as_deref(), dir)
+        {
+            Ok(_) => "map.svg, map.png".to_string(),
+            Err(slam_viz::VizError::NotDrawable { message }) => {
+                tracing::warn!("no map picture: {message}");
+                format!("no map picture ({message})")
+            }
+            Err(e) => return Err(e.into()),
+        };
         let Some(o) = overlays else { return Ok(written) };
         let opts = slam_viz::OverlayOptions {
             left: &self.seq.left,

@@ -31,6 +31,13 @@ pub enum VizError {
         /// The backend's report.
         message: String,
     },
+    /// What was asked cannot be drawn (a non-finite position, positions spread wider than a continent);
+    /// nothing was written.
+    #[error("not drawn: {message}")]
+    NotDrawable {
+        /// Why.
+        message: String,
+    },
     /// A folder could not be created.
     #[error("cannot create {}: {source}", path.display())]
     CreateDir {

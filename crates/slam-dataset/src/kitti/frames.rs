@@ -183,6 +183,18 @@ pub fn values_of_ids<T: Clone>(all: &[T], ids: &[usize], path: &Path, what: &str
     }
 }
 
+/// Shortest time between two frames of a time file's consecutive lines, seconds: no stereo camera on a
+/// vehicle records a thousand frames a second (KITTI's record ten); closer times are not times (other
+/// units, a corrupt line), and a tracker whose motion limits scale with them would accept no motion.
+pub const MIN_FRAME_INTERVAL_S: f64 = 1e-3;
+
+/// The message of two frame times closer than [`MIN_FRAME_INTERVAL_S`].
+pub(crate) fn too_close(dt: f64) -> String {
+    format!(
+        "{dt:.3e} s after the line before: frames of a camera are at least {MIN_FRAME_INTERVAL_S} s apart (a thousand a second; KITTI records ten)"
+    )
+}
+
 /// Frame times of a sequence without a time file: KITTI's nominal 10 Hz, by frame id.
 pub(crate) fn nominal_times(ids: &[usize]) -> Vec<f64> {
     ids.iter().map(|&i| 0.1 * i as f64).collect()

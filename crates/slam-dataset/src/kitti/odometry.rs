@@ -8,7 +8,10 @@ use nalgebra::{Isometry3, Matrix3x4};
 use crate::{
     kitti::{
         calib::Calib,
-        frames::{no_truth, nominal_times, nominal_times_note, pair_frames, values_of_ids, IdRuns},
+        frames::{
+            no_truth, nominal_times, nominal_times_note, pair_frames, too_close, values_of_ids, IdRuns,
+            MIN_FRAME_INTERVAL_S,
+        },
         poses::read_kitti_poses,
     },
     read_text, DatasetError,
@@ -74,6 +77,13 @@ impl OdometrySequence {
                             message: format!(
                                 "time {now} s is not after the line before ({before} s): frames are in time order"
                             ),
+                        });
+                    }
+                    if now - before < MIN_FRAME_INTERVAL_S {
+                        return Err(DatasetError::Parse {
+                            path: times_path.clone(),
+                            line: n,
+                            message: too_close(now - before),
                         });
                     }
                 }
