@@ -180,6 +180,19 @@ impl DetectionFile {
 
     /// Parse the contents of such a file; `path` only names it in error messages.
     pub fn parse(path: &Path, text: &str) -> Result<Self, DatasetError> {
+        // serde would read an array as the object's fields in order ("invalid type: map, expected u32"):
+        // say what the file is instead
+        if let Some((k, c)) = text.char_indices().find(|(_, c)| !c.is_whitespace()).filter(|&(_, c)| c != '{') {
+            let line = 1 + text[..k].matches('\n').count();
+            let what = if c == '[' { "an array" } else { "not a JSON object" };
+            return Err(DatasetError::Parse {
+                path: path.to_path_buf(),
+                line,
+                message: format!(
+                    "the file is {what}: a detection file is one object, {{\"version\": {SCHEMA_VERSION}, \"frames\": [...]}} (docs/detections.md)"
+                ),
+            });
+        }
         let parsed: FileJson = serde_json::from_str(text).map_err(|e| DatasetError::Parse {
             path: path.to_path_buf(),
             line: e.line(),
