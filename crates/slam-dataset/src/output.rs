@@ -426,6 +426,9 @@ pub fn refuse_overwriting_inputs(inputs: &[(&str, &Path)], outputs: &[Written<'_
                 }
                 files.push((option, path, r));
             }
+            // a path without a name of its own (`.`, `/`) is refused by the folder's own checks
+            Written::Folder(_, dir)
+                if !matches!(dir.components().next_back(), Some(std::path::Component::Normal(_))) => {}
             Written::Folder(option, dir) => {
                 let r = resolve(dir);
                 if let Some((what, p, _)) =

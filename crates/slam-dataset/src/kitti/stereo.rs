@@ -467,10 +467,11 @@ pub fn open_stereo(path: impl AsRef<Path>) -> Result<StereoSequence, DatasetErro
     if !p.is_dir() {
         return Err(DatasetError::Invalid { path: p.to_path_buf(), message: "not a folder".into() });
     }
-    if p.join("calib.txt").is_file() && p.join("image_0").is_dir() {
+    // a calibration that exists but is no file (a pipe, a folder) is the reader's to name
+    if p.join("calib.txt").exists() && p.join("image_0").is_dir() {
         return open_odometry(p);
     }
-    if let Some(seq) = first_subdir(&p.join("sequences"), |s| s.join("calib.txt").is_file()) {
+    if let Some(seq) = first_subdir(&p.join("sequences"), |s| s.join("calib.txt").exists()) {
         return open_odometry(&seq);
     }
     let is_drive = |d: &Path| d.join("image_02/data").is_dir() || d.join("image_00/data").is_dir();
