@@ -354,10 +354,7 @@ fn resolve_within(path: &Path, depth: usize) -> PathBuf {
     }
     let mut rest = Vec::new();
     let mut at = path.to_path_buf();
-    loop {
-        let Some(name) = at.file_name().map(|n| n.to_os_string()) else {
-            break;
-        };
+    while let Some(name) = at.file_name().map(|n| n.to_os_string()) {
         rest.push(name);
         at.pop();
         if at.as_os_str().is_empty() {

@@ -213,6 +213,6 @@ mod tests {
         let e = played_frame_ids(&bad, 2).expect_err("bad id").to_string();
         assert!(e.contains("bad.csv:3: no frame id"), "{e}");
         let e = played_frame_ids(Path::new("/no/such/tracking.csv"), 1).expect_err("missing").to_string();
-        assert!(e.starts_with("reading /no/such/tracking.csv: "), "{e}");
+        assert!(e.starts_with("cannot read /no/such/tracking.csv: "), "{e}");
     }
 }

@@ -119,13 +119,14 @@ pub fn check_oxts_steps(packets: &[OxtsPacket], times: &[f64], names: &[&Path]) 
         let accuracy = packets[k - 1].values[OXTS_POS_ACCURACY].abs() + packets[k].values[OXTS_POS_ACCURACY].abs();
         let reach = MAX_VEHICLE_SPEED_MPS * dt + POSITION_ACCURACY_SIGMAS * accuracy;
         let turn = a.rotation.angle_to(&b.rotation);
-        let impossible = if !(step <= reach) {
+        // a non-finite step or turn is no vehicle's either
+        let impossible = if step.is_nan() || step > reach {
             Some(format!(
                 "the IMU moved {} m from the packet before ({}) in {dt:.3} s: more than a vehicle travels (at most {MAX_VEHICLE_SPEED_MPS} m/s) plus {POSITION_ACCURACY_SIGMAS} × the two fixes' position accuracy ({accuracy:.2} m)",
                 if step < 1e6 { format!("{step:.1}") } else { format!("{step:.3e}") },
                 names[k - 1].display()
             ))
-        } else if !(turn <= MAX_VEHICLE_TURN_RADPS * dt) {
+        } else if turn.is_nan() || turn > MAX_VEHICLE_TURN_RADPS * dt {
             Some(format!(
                 "the IMU turned {:.1}° from the packet before ({}) in {dt:.3} s: faster than a vehicle turns (at most {:.0}°/s)",
                 turn.to_degrees(),
