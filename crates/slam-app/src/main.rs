@@ -47,16 +47,20 @@ enum Command {
     /// Speed of the whole system on the shipped sequence: frames/s and per-stage medians without
     /// objects, with detections from a file, and with the shipped detector.
     RunBench(run_cmd::RunBenchArgs),
-    /// Tracking accuracy on every dev case in one table (odometry 06 at strides 1-4, raw drive 0005
-    /// against OXTS at strides 1, 4 and 8, and any --case PATH[:STRIDE]), without objects (with
-    /// --objects: the full system):
-    /// ATE, drift, largest step error of tracked frames, frames per tracking state, median frames/s.
+    /// Tracking accuracy on every dev case in one table (odometry 06 at strides 1-4, odometry 01 (the
+    /// highway on-ramp), raw drive 0005 against OXTS at strides 1, 4 and 8, and any --case
+    /// PATH[:STRIDE]), without objects (with --objects: the full system): aligned ATE, path error,
+    /// drift, largest step error of tracked frames, frames per tracking state, raw ATE, median frames/s.
     TrackBench(run_cmd::TrackBenchArgs),
     /// ATE, drift and RPE of a trajectory file (KITTI or TUM) against ground truth.
     TrajectoryEval(run_cmd::TrajEvalArgs),
     /// Estimate the stereo rig's disparity offset (a rectification error that scales depth) from the
     /// sequence itself: tracks the frames, then scans offsets for the least two-view adjustment cost.
     StereoCheck(run_cmd::StereoCheckArgs),
+    /// Compare the tracker's stereo depth with the Velodyne scans of a KITTI raw drive (default: the
+    /// shipped drive 0005, scans of frames 0-4): our disparity minus the lidar's by depth and ORB pyramid
+    /// level, at keypoints where the scan shows a plane.
+    DepthCheck(run_cmd::DepthCheckArgs),
     /// Inspect a saved map (counts, objects) and export it (PLY points, a 3-D scene, trajectory, top-down picture).
     Map(run_cmd::MapArgs),
     /// Compare object associators (ODA vs IoU-only): ID switches on simulated crossings and on real
@@ -82,6 +86,12 @@ enum Command {
 
 /// The shipped stereo sequence (odometry 06, frames 0–50), under `fixtures/`.
 pub(crate) const SHIPPED: &str = "kitti_odom_06/sequences/06";
+
+/// The shipped raw drive 0005 (frames 0–90, OXTS, Velodyne scans of frames 0–4), under `fixtures/`.
+pub(crate) const RAW_0005: &str = "kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync";
+
+/// The shipped highway excerpt (odometry 01, frames 0–50), under `fixtures/`.
+pub(crate) const HIGHWAY: &str = "kitti_odom_01/sequences/01";
 
 /// A path inside the repository's `fixtures/`: relative to the working directory if it exists there,
 /// else relative to this source tree.
@@ -121,6 +131,7 @@ fn run() -> anyhow::Result<()> {
         Command::Run(a) => run_cmd::run(&a),
         Command::Map(a) => run_cmd::map(&a),
         Command::StereoCheck(a) => run_cmd::stereo_check(&a),
+        Command::DepthCheck(a) => run_cmd::depth_check(&a),
         Command::TrajectoryEval(a) => run_cmd::trajectory_eval(&a),
         Command::RunBench(a) => run_cmd::run_bench(&a),
         Command::TrackBench(a) => run_cmd::track_bench(&a),

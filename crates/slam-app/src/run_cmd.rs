@@ -139,8 +139,9 @@ pub struct TrackBenchArgs {
 /// `--detector none`, or with `--objects` the full system with the shipped detector. Accuracy figures
 /// are deterministic; frames/s depends on the machine's load.
 pub fn track_bench(b: &TrackBenchArgs) -> anyhow::Result<()> {
-    let raw = crate::fixture("kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync");
-    let dev = (!b.only_cases).then(|| bench::TrackCase::dev_cases(crate::fixture(crate::SHIPPED), raw));
+    let (odometry, highway, raw) =
+        (crate::fixture(crate::SHIPPED), crate::fixture(crate::HIGHWAY), crate::fixture(crate::RAW_0005));
+    let dev = (!b.only_cases).then(|| bench::TrackCase::dev_cases(odometry, highway, raw));
     let mut cases = dev.unwrap_or_default();
     cases.extend(b.cases.iter().map(|c| bench::TrackCase::parse(c)).collect::<Result<Vec<_>, _>>()?);
     let mut base =
@@ -227,6 +228,30 @@ pub fn stereo_check(a: &StereoCheckArgs) -> anyhow::Result<()> {
         println!("{}", round.row(number));
     })?;
     println!("{}", report.conclusion(a.curve));
+    Ok(())
+}
+
+/// Arguments of `slam-app depth-check`.
+#[derive(clap::Args, Debug)]
+pub struct DepthCheckArgs {
+    /// KITTI raw drive folder (…/YYYY_MM_DD_drive_NNNN_sync) with velodyne_points/; default: the shipped
+    /// drive 0005
+    pub path: Option<PathBuf>,
+    /// Settings file (its `[tracking]` table sets the stereo matching, e.g. `disparity_offset`)
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+}
+
+/// `slam-app depth-check`: our stereo disparities against the Velodyne's (`slam_runner::depth`).
+pub fn depth_check(a: &DepthCheckArgs) -> anyhow::Result<()> {
+    let cfg = RunConfig::load(a.config.as_deref())?;
+    let path = a.path.clone().unwrap_or_else(|| crate::fixture(crate::RAW_0005));
+    let report = slam_runner::depth::depth_check(&path, &cfg.tracking)?;
+    println!("{}", report.header);
+    for (id, keypoints, compared) in &report.frames {
+        println!("frame {id}: {keypoints} stereo keypoints, {compared} on a lidar plane");
+    }
+    println!("{}", report.tables());
     Ok(())
 }
 

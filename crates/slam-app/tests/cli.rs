@@ -1126,7 +1126,7 @@ fn vehicle_motion_prior_tracks_the_fixture_when_enabled() {
     let number = |i: usize| -> f64 {
         row[i].split_whitespace().next().and_then(|v| v.parse().ok()).unwrap_or_else(|| panic!("cell {i}\n{text}"))
     };
-    // frames, ATE, aligned ATE, drift, largest step error, initialised, tracked
+    // frames, aligned ATE, path error, drift, largest step error, initialised, tracked
     assert_eq!((number(1), number(6), number(7)), (51.0, 1.0, 50.0), "{text}");
     assert!(number(5) < 0.1 && number(3) < 0.3 && number(4) < 2.0, "{text}");
     let _ = std::fs::remove_dir_all(&dir);

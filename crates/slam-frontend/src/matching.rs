@@ -13,6 +13,36 @@ pub(crate) fn hamming(a: &[u8; 32], b: &[u8; 32]) -> u32 {
     sum
 }
 
+/// The two smallest Hamming distances among the candidates offered, and the best candidate.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct BestTwo {
+    pub(crate) best: u32,
+    second: u32,
+    arg: usize,
+}
+
+impl BestTwo {
+    pub(crate) fn new() -> Self {
+        Self { best: u32::MAX, second: u32::MAX, arg: usize::MAX }
+    }
+
+    pub(crate) fn offer(&mut self, h: u32, j: usize) {
+        if h < self.best {
+            (self.second, self.best, self.arg) = (self.best, h, j);
+        } else if h < self.second {
+            self.second = h;
+        }
+    }
+
+    /// The best candidate when its distance is at most `max_hamming` and below 0.9 × the second best
+    /// (at or below with `tie_ok`); a lone candidate passes the ratio test.
+    pub(crate) fn winner(&self, max_hamming: u32, tie_ok: bool) -> Option<usize> {
+        let limit = 0.9 * self.second as f64;
+        let ratio = self.second == u32::MAX || (self.best as f64) < limit || (tie_ok && self.best as f64 == limit);
+        (self.arg != usize::MAX && self.best <= max_hamming && ratio).then_some(self.arg)
+    }
+}
+
 /// Keypoints bucketed in square cells (compressed rows: the keypoints of cell `c` are
 /// `items[start[c]..start[c + 1]]`, in ascending index), built once per frame and queried by every
 /// projection search of that frame.

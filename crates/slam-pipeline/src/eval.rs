@@ -11,6 +11,8 @@ pub struct TrajectoryErrors {
     pub frames: usize,
     /// Ground-truth path length, metres.
     pub path_m: f64,
+    /// Estimated path length over the same frames, metres (sum of the frame-to-frame steps).
+    pub est_path_m: f64,
     /// RMS position error with both trajectories starting at the identity (no alignment), metres.
     pub ate_m: f64,
     /// RMS position error after the best rigid alignment (Horn / Umeyama without scale), metres.
@@ -22,6 +24,14 @@ pub struct TrajectoryErrors {
     pub scale: f64,
     /// `(segment length m, translation %, rotation deg/100 m, segments)` for each length with segments.
     pub rpe: Vec<(f64, f64, f64, usize)>,
+}
+
+impl TrajectoryErrors {
+    /// How much longer the estimated path is than the true one, % (negative: shorter): a scale error
+    /// shows here whatever the path's shape (the peer comparison's "path error").
+    pub fn path_error_pct(&self) -> f64 {
+        100.0 * (self.est_path_m / self.path_m - 1.0)
+    }
 }
 
 /// Rigid transform `T` minimising `Σ |T·a_i − b_i|²` (Horn / Umeyama, no scale); `None` for fewer than
@@ -98,10 +108,12 @@ pub fn trajectory_errors(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], lengths:
         None => ate_m,
     };
     let path_m: f64 = pg.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
+    let est_path_m: f64 = pe.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
     let end = (pe[n - 1] - pg[n - 1]).norm();
     Some(TrajectoryErrors {
         frames: n,
         path_m,
+        est_path_m,
         ate_m,
         ate_aligned_m,
         end_drift_pct: if path_m > 0.0 { 100.0 * end / path_m } else { f64::NAN },

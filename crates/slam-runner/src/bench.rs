@@ -154,10 +154,11 @@ impl TrackCase {
         Ok(TrackCase { name: format!("{path}, stride {stride}"), path: PathBuf::from(path), stride })
     }
 
-    /// The shipped dev cases: odometry 06 (folder `odometry`) at strides 1-4, and raw drive 0005
-    /// (`raw`) at strides 1, 4 and 8: that drive moves 0.39 m per frame, so every 4th frame is 1.6 m
-    /// and every 8th 3.1 m per frame, fast motion on a second drive (odometry 06 at strides 1 and 3).
-    pub fn dev_cases(odometry: PathBuf, raw: PathBuf) -> Vec<Self> {
+    /// The shipped dev cases: odometry 06 (folder `odometry`) at strides 1-4, odometry 01 (`highway`,
+    /// a curved on-ramp at 36-46 km/h with most texture far away), and raw drive 0005 (`raw`) at strides
+    /// 1, 4 and 8: that drive moves 0.39 m per frame, so every 4th frame is 1.6 m and every 8th 3.1 m
+    /// per frame, fast motion on a second drive (odometry 06 at strides 1 and 3).
+    pub fn dev_cases(odometry: PathBuf, highway: PathBuf, raw: PathBuf) -> Vec<Self> {
         let mut cases: Vec<Self> = (1..=4)
             .map(|stride| TrackCase {
                 name: format!("odometry 06, frames 0-50, stride {stride}"),
@@ -165,6 +166,7 @@ impl TrackCase {
                 stride,
             })
             .collect();
+        cases.push(TrackCase { name: "odometry 01, frames 0-50 (highway)".into(), path: highway, stride: 1 });
         cases.push(TrackCase { name: "raw drive 0005, frames 0-90 (vs OXTS)".into(), path: raw.clone(), stride: 1 });
         for stride in [4, 8] {
             cases.push(TrackCase {
@@ -209,7 +211,7 @@ pub fn track_bench(
 /// The `track-bench` table's header (markdown), with one column per tracking state.
 pub fn track_bench_header() -> String {
     format!(
-        "| case | frames | ATE m | ATE aligned m | end drift % | largest step error m (frame), tracked frames | {} | median frames/s |\n|---|---:|---:|---:|---:|---:|{}---:|",
+        "| case | frames | ATE aligned m | path error % | end drift % | largest step error m (frame), tracked frames | {} | ATE m | median frames/s |\n|---|---:|---:|---:|---:|---:|{}---:|---:|",
         STATE_NAMES.join(" | "),
         "---:|".repeat(STATE_NAMES.len())
     )
@@ -242,14 +244,15 @@ pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<
     let cell = |v: Option<f64>, digits: usize| v.map_or("–".to_string(), |v| format!("{v:.digits$}"));
     let states: Vec<String> = state_counts(&out.frames).iter().map(|n| n.to_string()).collect();
     let line = format!(
-        "| {} | {} | {} | {} | {} | {} | {} | {:.1} |",
+        "| {} | {} | {} | {} | {} | {} | {} | {} | {:.1} |",
         case.name,
         out.frames.len(),
-        cell(errors.as_ref().map(|e| e.ate_m), 3),
         cell(errors.as_ref().map(|e| e.ate_aligned_m), 3),
+        errors.as_ref().map_or("–".to_string(), |e| format!("{:+.2}", e.path_error_pct())),
         cell(errors.as_ref().map(|e| e.end_drift_pct), 2),
         step.map_or("–".to_string(), |(e, id)| format!("{e:.3} ({id})")),
         states.join(" | "),
+        cell(errors.as_ref().map(|e| e.ate_m), 3),
         median_fps(out)
     );
     let mut notes = Vec::new();
@@ -277,7 +280,7 @@ pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<
 }
 
 /// The explanation under the `track-bench` table.
-pub const TRACK_BENCH_FOOTER: &str = "\nATE: RMS position error, both trajectories starting at the identity (\"aligned\": after the best rigid alignment). Step error: |t(est step) - t(true step)| over steps ending at a frame marked tracked; the frame id in brackets. State columns: frames per state as tracking.csv names them (each frame in exactly one). Frames/s: 1000 / median interval between frames (machine load matters; accuracy figures are deterministic).";
+pub const TRACK_BENCH_FOOTER: &str = "\nATE aligned: RMS position error after the best rigid alignment (no scale); ATE: the same with both trajectories starting at the identity. Path error: estimated path length over the true one, minus 1 (a scale error shows here whatever the path's shape). Step error: |t(est step) - t(true step)| over steps ending at a frame marked tracked; the frame id in brackets. State columns: frames per state as tracking.csv names them (each frame in exactly one). Frames/s: 1000 / median interval between frames (machine load matters; accuracy figures are deterministic).";
 
 #[cfg(test)]
 mod tests {
@@ -291,8 +294,9 @@ mod tests {
         assert_eq!((plain.path, plain.stride), (PathBuf::from("C:dir"), 1));
         assert!(TrackCase::parse("seq:0").expect_err("zero").to_string().contains("at least 1"));
         assert!(TrackCase::parse("seq:99999999999999999999999").is_err(), "overflow");
-        let dev = TrackCase::dev_cases("o".into(), "r".into());
-        assert_eq!(dev.iter().map(|c| c.stride).collect::<Vec<_>>(), [1, 2, 3, 4, 1, 4, 8]);
+        let dev = TrackCase::dev_cases("o".into(), "h".into(), "r".into());
+        assert_eq!(dev.iter().map(|c| c.stride).collect::<Vec<_>>(), [1, 2, 3, 4, 1, 1, 4, 8]);
+        assert_eq!(dev[4].path, PathBuf::from("h"), "the highway case");
     }
 
     #[test]
@@ -301,7 +305,7 @@ mod tests {
         let mut lines = header.lines();
         let cols = lines.next().expect("head").matches('|').count();
         assert_eq!(lines.next().expect("rule").matches('|').count(), cols);
-        assert_eq!(cols, 8 + STATE_NAMES.len());
+        assert_eq!(cols, 10 + STATE_NAMES.len());
         let row =
             BenchRow { name: "x".into(), fps_median: 30.04, fps_overall: 20.0, stages: vec![1.0; 8], ate: 0.1234 };
         assert_eq!(

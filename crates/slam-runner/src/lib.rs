@@ -7,6 +7,7 @@
 //! - [`report`]: the run's output files, summary, object score and pictures;
 //! - [`bench`]: the `run-bench` and `track-bench` runs and table rows;
 //! - [`stereo`]: `stereo-check`, the rig's disparity offset in rounds;
+//! - [`depth`]: `depth-check`, the stereo depth against a raw drive's Velodyne scans;
 //! - [`inspect`]: `map` (a saved map's summary and exports) and `trajectory-eval`;
 //! - [`detect`]: `detect` (a detector over a folder into a detection file) and `detect-recall`;
 //! - [`settings`]: the run's settings from TOML over the libraries' defaults ([`RunConfig`]);
@@ -18,6 +19,7 @@
 pub mod bench;
 #[cfg(feature = "console")]
 pub mod console;
+pub mod depth;
 pub mod detect;
 pub mod detector;
 pub mod error;

@@ -8,3 +8,4 @@ pub mod raw;
 pub mod stereo;
 pub mod tracking;
 pub mod tracklets;
+pub mod velodyne;

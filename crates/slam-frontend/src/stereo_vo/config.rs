@@ -1,0 +1,157 @@
+//! The rig and the tracker's settings (the `[tracking]` table of `slam-app run --config`; their valid
+//! ranges are in `crate::settings`).
+
+use slam_quadric::Intrinsics;
+
+/// A rectified stereo rig.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StereoRig {
+    /// Intrinsics of both (rectified) cameras.
+    pub k: Intrinsics,
+    /// Baseline, metres (right camera at +x of the left).
+    pub baseline: f64,
+}
+
+/// Settings of [`StereoVo`](super::StereoVo) (the `[tracking]` table of `slam-app run --config`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, documented::DocumentedFieldsOpt)]
+#[serde(default, deny_unknown_fields)]
+pub struct VoConfig {
+    /// ORB features per image.
+    pub features: i32,
+    /// Largest Hamming distance of a stereo match.
+    pub stereo_hamming: u32,
+    /// Row tolerance of stereo matching, pixels.
+    pub row_tolerance: f64,
+    /// Depth range kept, metres (nearest, farthest).
+    pub depth_range: (f64, f64),
+    /// Largest Hamming distance of a map-point match.
+    pub track_hamming: u32,
+    /// Largest search window around a predicted position, pixels (the window of each point is sized by
+    /// the prediction's uncertainty, [`VoConfig::max_acceleration`] and below, up to this).
+    pub search_radius: f64,
+    /// PnP RANSAC reprojection threshold, pixels.
+    pub ransac_px: f32,
+    /// Fewest inliers of a tracked frame.
+    pub min_inliers: usize,
+    /// Fewest inliers of an accepted pose: between this and `min_inliers` the frame is weak.
+    pub weak_inliers: usize,
+    /// Fewest cells of a 4 × 4 grid over the image holding inliers for a tracked frame (fewer but at
+    /// least 3: weak; fewer than 3: the pose is rejected).
+    pub min_spread_cells: usize,
+    /// Largest RMS reprojection error of the inliers of an accepted pose, pixels.
+    pub max_rms_px: f64,
+    /// Time between input frames, seconds; 0: 0.1 s, KITTI's rate (`slam-app run` sets it from the
+    /// sequence's time stamps when the settings leave it at 0).
+    pub frame_period_s: f64,
+    /// Largest acceleration of the vehicle, m/s² (tyre grip: about 1 g).
+    pub max_acceleration: f64,
+    /// Largest angular acceleration of the vehicle, rad/s².
+    pub max_angular_acceleration: f64,
+    /// Largest speed, m/s (used while the velocity is unknown: the first step of a map segment).
+    pub max_speed: f64,
+    /// Allowed error of the velocity estimate, metres per frame (two per-step error budgets).
+    pub step_tolerance_m: f64,
+    /// Allowed error of the angular-velocity estimate, radians per frame.
+    pub rotation_tolerance_rad: f64,
+    /// Points farther than this many baselines have their disparity (right-image) residual
+    /// down-weighted in proportion to depth.
+    pub far_baselines: f64,
+    /// Lost for longer than this (seconds): a new map segment starts.
+    pub max_lost_s: f64,
+    /// A new keyframe is taken when the tracked map points fall below this fraction of those tracked
+    /// in the first frame after the current keyframe.
+    pub keyframe_inlier_ratio: f64,
+    /// ... or when this many frames have been tracked against it.
+    pub keyframe_max_gap: usize,
+    /// ... or when fewer than this share of the reference keyframe's points are tracked (its overlap
+    /// with the frame; in fast motion it falls by half or more per frame).
+    pub keyframe_overlap: f64,
+    /// Most keypoints followed by optical flow per detection box (association cue).
+    pub flow_points_per_region: usize,
+    /// Keyframes before the reference whose map points form the local map (those sharing at least
+    /// 10 map points with the reference: its covisible keyframes).
+    pub local_keyframes: usize,
+    /// Search radius of the second search at the found pose, pixels at pyramid level 0.
+    pub local_radius: f64,
+    /// Keyframes kept for relocalisation (newest first).
+    pub relocalisation_keyframes: usize,
+    /// Added to every measured disparity, pixels: a correction of the rig's rectification (see
+    /// [`crate::disparity`]; `slam-app stereo-check` estimates it from a sequence's images). Default 0.
+    pub disparity_offset: f64,
+    /// At a new keyframe, triangulate its keypoints without a stereo match against the previous
+    /// keyframe's (epipolar search, ≥ `triangulate_parallax_deg` of parallax, ≤ 2 px reprojection error
+    /// in both): new map points observed in the left images only. Default off: on the shipped sequence
+    /// it did not pay (docs/system.md).
+    pub triangulate: bool,
+    /// Least angle between the two rays of a triangulated point, degrees.
+    pub triangulate_parallax_deg: f64,
+    /// σ of the slip angle at the rear axle, radians, of the vehicle-motion prior (0: no prior). A road
+    /// vehicle's rear axle does not slide sideways: without tyre slip its velocity points along the
+    /// car, so a step's sideways part at the camera is the yaw times the camera's lever arm (and the
+    /// roll times its height); the pose refinement holds the rest near zero with this σ times the step
+    /// length. Slip angles of a car in normal driving (lateral acceleration below 0.4 g) stay below
+    /// about 1–2° (0.02–0.035 rad): 0.03 is a car's value. Default 0 (off): on the dev drives it moved
+    /// two objects' box misfit over the dynamic limit (docs/system.md, "The vehicle-motion prior").
+    pub vehicle_slip_rad: f64,
+    /// Camera ahead of the rear axle, metres, and its σ: 1.35 ± 0.78 m is a camera anywhere between the
+    /// axles of a car of 2.7 m wheelbase (KITTI's VW Passat B6: 2.71 m; uniform over it: σ = 2.71/√12).
+    pub vehicle_lever_m: (f64, f64),
+    /// Camera above the rear axle, metres: KITTI's cameras are 1.65 m above the road, the axle one wheel
+    /// radius (about 0.32 m) above it.
+    pub vehicle_height_m: f64,
+    /// Frame pairs kept for [`StereoVo::disparity_pairs`](super::StereoVo::disparity_pairs) (offset self-calibration); 0 keeps none.
+    /// Not a settings-file key: `slam-app stereo-check` sets it.
+    #[serde(skip)]
+    pub keep_disparity_pairs: usize,
+}
+
+impl VoConfig {
+    /// The time between frames, seconds ([`VoConfig::frame_period_s`], or 0.1 s when that is 0).
+    pub fn period(&self) -> f64 {
+        if self.frame_period_s > 0.0 {
+            self.frame_period_s
+        } else {
+            0.1
+        }
+    }
+}
+
+impl Default for VoConfig {
+    fn default() -> Self {
+        Self {
+            features: 2000,
+            stereo_hamming: 60,
+            row_tolerance: 2.0,
+            depth_range: (1.0, 80.0),
+            track_hamming: 60,
+            search_radius: 160.0,
+            ransac_px: 2.0,
+            min_inliers: 30,
+            weak_inliers: 15,
+            min_spread_cells: 5,
+            max_rms_px: 2.0,
+            frame_period_s: 0.0,
+            max_acceleration: 10.0,
+            max_angular_acceleration: 2.0,
+            max_speed: 50.0,
+            step_tolerance_m: 0.3,
+            rotation_tolerance_rad: 0.02,
+            far_baselines: 40.0,
+            max_lost_s: 0.5,
+            keyframe_inlier_ratio: 0.5,
+            keyframe_max_gap: 4,
+            keyframe_overlap: 0.3,
+            flow_points_per_region: 40,
+            local_keyframes: 4,
+            local_radius: 4.0,
+            relocalisation_keyframes: 8,
+            disparity_offset: 0.0,
+            triangulate: false,
+            triangulate_parallax_deg: 3.0,
+            vehicle_slip_rad: 0.0,
+            vehicle_lever_m: (1.35, 0.78),
+            vehicle_height_m: 1.33,
+            keep_disparity_pairs: 0,
+        }
+    }
+}

@@ -1,0 +1,370 @@
+//! The stereo frame: ORB features of both images, stereo matching along rectified rows (mutual best,
+//! sub-pixel by block matching), and the frame the tracker works on (its keypoints, their stereo
+//! points and observations, map-point ids once it is a keyframe).
+
+use nalgebra::Vector3;
+use opencv::{core, features2d, prelude::*};
+use slam_core::{FramePoint, PointId};
+
+use super::config::{StereoRig, VoConfig};
+use crate::image_io::FrontendError;
+use crate::matching::{hamming, BestTwo, KeypointGrid};
+
+/// A stereo frame: its left keypoints, the stereo points matched among them, and (once it is a
+/// keyframe) their map-point ids.
+#[derive(Clone)]
+pub(crate) struct Frame {
+    pub(crate) points: Vec<Vector3<f64>>,
+    pub(crate) desc: Vec<[u8; 32]>,
+    /// Stereo observation `[u_l, v, u_r]` of each point.
+    pub(crate) obs: Vec<[f64; 3]>,
+    /// For each left keypoint, its stereo point (if any).
+    pub(crate) of_keypoint: Vec<Option<usize>>,
+    /// Map-point id of each point (set when the frame becomes a keyframe).
+    pub(crate) ids: Vec<PointId>,
+    /// Points still usable (the mapper may cull some).
+    pub(crate) valid: Vec<bool>,
+    /// All left keypoints and their descriptors (triangulation of keypoints without a stereo match).
+    pub(crate) keypoints: Vec<(f64, f64)>,
+    pub(crate) keypoint_desc: Vec<[u8; 32]>,
+    /// Pyramid level and orientation (degrees) of each left keypoint.
+    pub(crate) octave: Vec<i32>,
+    pub(crate) angle: Vec<f32>,
+    /// The left keypoints in cells (projection searches).
+    pub(crate) grid: KeypointGrid,
+}
+
+impl Frame {
+    /// The stereo points as the pipeline sees them.
+    pub(crate) fn stereo_points(&self) -> Vec<FramePoint> {
+        self.points.iter().zip(&self.obs).map(|(p, o)| FramePoint { camera_point: *p, observation: *o }).collect()
+    }
+
+    /// The frame without the keypoints `keep` marks false, nor their stereo points (order kept).
+    pub(crate) fn retain_keypoints(&self, keep: &[bool]) -> Frame {
+        let mut new_point = vec![None; self.points.len()];
+        let (mut points, mut desc, mut obs, mut ids, mut valid) = (vec![], vec![], vec![], vec![], vec![]);
+        for (q, &kp) in self.point_keypoints().iter().enumerate() {
+            if keep.get(kp).copied().unwrap_or(false) {
+                new_point[q] = Some(points.len());
+                points.push(self.points[q]);
+                desc.push(self.desc[q]);
+                obs.push(self.obs[q]);
+                ids.push(self.ids[q]);
+                valid.push(self.valid[q]);
+            }
+        }
+        let kept: Vec<usize> = (0..self.keypoints.len()).filter(|&i| keep.get(i).copied().unwrap_or(false)).collect();
+        let keypoints: Vec<(f64, f64)> = kept.iter().map(|&i| self.keypoints[i]).collect();
+        Frame {
+            points,
+            desc,
+            obs,
+            of_keypoint: kept.iter().map(|&i| self.of_keypoint[i].and_then(|q| new_point[q])).collect(),
+            ids,
+            valid,
+            keypoint_desc: kept.iter().map(|&i| self.keypoint_desc[i]).collect(),
+            octave: kept.iter().map(|&i| self.octave[i]).collect(),
+            angle: kept.iter().map(|&i| self.angle[i]).collect(),
+            grid: KeypointGrid::new(&keypoints),
+            keypoints,
+        }
+    }
+
+    /// The keypoint of each point.
+    pub(crate) fn point_keypoints(&self) -> Vec<usize> {
+        let mut of = vec![usize::MAX; self.points.len()];
+        for (kp, q) in self.of_keypoint.iter().enumerate() {
+            if let Some(q) = q {
+                of[*q] = kp;
+            }
+        }
+        of
+    }
+}
+
+/// A borrowed 8-bit grey image.
+pub(crate) struct GreyView<'a> {
+    data: &'a [u8],
+    width: usize,
+    height: usize,
+}
+
+impl<'a> GreyView<'a> {
+    pub(crate) fn of(m: &'a Mat) -> Result<Self, FrontendError> {
+        Ok(Self { data: m.data_bytes()?, width: m.cols() as usize, height: m.rows() as usize })
+    }
+
+    fn at(&self, x: i64, y: i64) -> Option<i32> {
+        (x >= 0 && y >= 0 && (x as usize) < self.width && (y as usize) < self.height)
+            .then(|| self.data[y as usize * self.width + x as usize] as i32)
+    }
+}
+
+/// Sub-pixel disparity by block matching along the row: SAD of an 11×11 patch at integer shifts
+/// around the descriptor match, then a parabola through the best cost and its neighbours (as ORB-SLAM
+/// does); `None` at image borders or when the minimum is at the search edge.
+fn refine_disparity(left: &GreyView<'_>, right: &GreyView<'_>, ul: f64, v: f64, ur: f64) -> Option<f64> {
+    const W: i64 = 5;
+    const L: i64 = 3;
+    let (xl, y, xr0) = (ul.round() as i64, v.round() as i64, ur.round() as i64);
+    let mut costs = [0i64; (2 * L + 1) as usize];
+    for (k, cost) in costs.iter_mut().enumerate() {
+        let xr = xr0 + k as i64 - L;
+        let mut sad = 0i64;
+        for dy in -W..=W {
+            for dx in -W..=W {
+                let a = left.at(xl + dx, y + dy)?;
+                let b = right.at(xr + dx, y + dy)?;
+                sad += (a - b).abs() as i64;
+            }
+        }
+        *cost = sad;
+    }
+    let (best, _) = costs.iter().enumerate().min_by_key(|(_, c)| **c)?;
+    if best == 0 || best == costs.len() - 1 {
+        return None;
+    }
+    let (c0, c1, c2) = (costs[best - 1] as f64, costs[best] as f64, costs[best + 1] as f64);
+    let denom = c0 - 2.0 * c1 + c2;
+    let delta = if denom > 0.0 { 0.5 * (c0 - c2) / denom } else { 0.0 };
+    if delta.abs() > 1.0 {
+        return None;
+    }
+    let xr = (xr0 + best as i64 - L) as f64 + delta;
+    let d = xl as f64 - xr;
+    (d > 0.0).then_some(d)
+}
+
+/// Keypoints: positions, 256-bit ORB descriptors, pyramid levels, orientations (degrees).
+pub(crate) struct Features {
+    pub(crate) points: Vec<(f64, f64)>,
+    pub(crate) desc: Vec<[u8; 32]>,
+    pub(crate) octave: Vec<i32>,
+    pub(crate) angle: Vec<f32>,
+}
+
+pub(crate) fn extract(orb: &mut core::Ptr<features2d::ORB>, img: &Mat) -> Result<Features, FrontendError> {
+    let mut kps = core::Vector::<core::KeyPoint>::new();
+    let mut desc = Mat::default();
+    orb.detect_and_compute(img, &core::no_array(), &mut kps, &mut desc, false)?;
+    let mut f = Features {
+        points: Vec::with_capacity(kps.len()),
+        desc: Vec::with_capacity(kps.len()),
+        octave: Vec::with_capacity(kps.len()),
+        angle: Vec::with_capacity(kps.len()),
+    };
+    for (i, kp) in kps.iter().enumerate() {
+        let row = desc.at_row::<u8>(i as i32)?;
+        if row.len() != 32 {
+            continue;
+        }
+        let mut d = [0u8; 32];
+        d.copy_from_slice(row);
+        f.points.push((kp.pt().x as f64, kp.pt().y as f64));
+        f.desc.push(d);
+        f.octave.push(kp.octave());
+        f.angle.push(kp.angle());
+    }
+    Ok(f)
+}
+
+/// A left keypoint with a stereo match, as the tracker measures it (see [`super::stereo_keypoints`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StereoKeypoint {
+    /// Column and row of the left keypoint, pixels (level-0 coordinates).
+    pub u: f64,
+    /// Row.
+    pub v: f64,
+    /// Disparity, pixels: `u − u_right` after the sub-pixel refinement and the rig's
+    /// `disparity_offset`.
+    pub disparity: f64,
+    /// ORB pyramid level the keypoint was detected at (0: full resolution; level `l` is scaled by
+    /// `1.2^-l`).
+    pub level: i32,
+}
+
+impl Frame {
+    /// The frame's stereo keypoints (left keypoints with a stereo point).
+    pub(crate) fn stereo_keypoints(&self) -> Vec<StereoKeypoint> {
+        self.of_keypoint
+            .iter()
+            .enumerate()
+            .filter_map(|(i, q)| {
+                let o = self.obs[(*q)?];
+                Some(StereoKeypoint {
+                    u: self.keypoints[i].0,
+                    v: self.keypoints[i].1,
+                    disparity: o[0] - o[2],
+                    level: self.octave[i],
+                })
+            })
+            .collect()
+    }
+}
+
+/// Stereo matching of a rectified rig: the settings of [`StereoMatcher::frame`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct StereoMatcher {
+    pub(crate) rig: StereoRig,
+    /// Row tolerance, pixels; largest Hamming distance; depth range kept, metres; disparity offset, pixels.
+    pub(crate) row_tolerance: f64,
+    pub(crate) stereo_hamming: u32,
+    pub(crate) depth_range: (f64, f64),
+    pub(crate) disparity_offset: f64,
+}
+
+impl StereoMatcher {
+    /// The stereo matching `config` sets for `rig`.
+    pub(crate) fn new(rig: StereoRig, config: &VoConfig) -> Self {
+        Self {
+            rig,
+            row_tolerance: config.row_tolerance,
+            stereo_hamming: config.stereo_hamming,
+            depth_range: config.depth_range,
+            disparity_offset: config.disparity_offset,
+        }
+    }
+
+    /// Stereo points of the left keypoints: each left keypoint is matched along its row, kept when the
+    /// right keypoint's best left match along the row is that keypoint too (left-right consistency),
+    /// and its disparity is refined to sub-pixel by block matching.
+    pub(crate) fn frame(&self, left: &Features, right: &Features, grey: (&GreyView<'_>, &GreyView<'_>)) -> Frame {
+        let k = &self.rig.k;
+        let rows = right.points.iter().map(|p| p.1.max(0.0) as usize).max().unwrap_or(0) + 1;
+        let mut by_row: Vec<Vec<usize>> = vec![Vec::new(); rows + 3];
+        for (i, p) in right.points.iter().enumerate() {
+            by_row[p.1.max(0.0) as usize].push(i);
+        }
+        let tol = self.row_tolerance;
+        // best left keypoint of each right keypoint: (distance, left index)
+        let mut right_best = vec![(u32::MAX, usize::MAX); right.points.len()];
+        let mut winners = Vec::new();
+        for (i, &(u, v)) in left.points.iter().enumerate() {
+            let last = by_row.len() - 1;
+            let (lo, hi) =
+                ((((v - tol).floor().max(0.0)) as usize).min(last), ((v + tol).ceil().max(0.0) as usize).min(last));
+            let mut two = BestTwo::new();
+            for row in &by_row[lo..=hi] {
+                for &j in row {
+                    let (ur, vr) = right.points[j];
+                    let d = u - ur;
+                    if (vr - v).abs() > tol || d <= 0.0 || d > 300.0 {
+                        continue;
+                    }
+                    let h = hamming(&left.desc[i], &right.desc[j]);
+                    two.offer(h, j);
+                    if h < right_best[j].0 {
+                        right_best[j] = (h, i);
+                    }
+                }
+            }
+            if let Some(arg) = two.winner(self.stereo_hamming, true) {
+                winners.push((i, arg));
+            }
+        }
+        let mut points = Vec::new();
+        let mut desc = Vec::new();
+        let mut obs = Vec::new();
+        let mut of_keypoint = vec![None; left.points.len()];
+        for (i, arg) in winners {
+            if right_best[arg].1 != i {
+                continue;
+            }
+            let (u, v) = left.points[i];
+            let disparity = refine_disparity(grey.0, grey.1, u, v, right.points[arg].0)
+                .unwrap_or(u - right.points[arg].0)
+                + self.disparity_offset;
+            let z = k.fx * self.rig.baseline / disparity;
+            if z < self.depth_range.0 || z > self.depth_range.1 {
+                continue;
+            }
+            of_keypoint[i] = Some(points.len());
+            points.push(Vector3::new((u - k.cx) * z / k.fx, (v - k.cy) * z / k.fy, z));
+            desc.push(left.desc[i]);
+            obs.push([u, v, u - disparity]);
+        }
+        let n = points.len();
+        Frame {
+            points,
+            desc,
+            obs,
+            of_keypoint,
+            ids: vec![0; n],
+            valid: vec![true; n],
+            keypoints: left.points.clone(),
+            keypoint_desc: left.desc.clone(),
+            octave: left.octave.clone(),
+            angle: left.angle.clone(),
+            grid: KeypointGrid::new(&left.points),
+        }
+    }
+}
+
+#[cfg(test)]
+impl Frame {
+    /// A frame of keypoints alone (no stereo points), level 0, orientation 0.
+    pub(crate) fn of_keypoints(keypoints: Vec<(f64, f64)>, desc: Vec<[u8; 32]>) -> Frame {
+        let n = keypoints.len();
+        Frame {
+            points: Vec::new(),
+            desc: Vec::new(),
+            obs: Vec::new(),
+            of_keypoint: vec![None; n],
+            ids: Vec::new(),
+            valid: Vec::new(),
+            octave: vec![0; n],
+            angle: vec![0.0; n],
+            grid: KeypointGrid::new(&keypoints),
+            keypoints,
+            keypoint_desc: desc,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Dropping keypoints keeps every kept keypoint with its own stereo point, descriptor, level and
+    /// angle (indices rebuilt), and drops the stereo points of the dropped ones.
+    #[test]
+    fn retaining_keypoints_keeps_each_with_its_own_stereo_point() {
+        let n = 6;
+        let keypoints: Vec<(f64, f64)> = (0..n).map(|i| (10.0 * i as f64, 5.0 * i as f64)).collect();
+        let desc: Vec<[u8; 32]> = (0..n).map(|i| [i as u8; 32]).collect();
+        let mut f = Frame::of_keypoints(keypoints.clone(), desc);
+        f.octave = (0..n as i32).collect();
+        f.angle = (0..n).map(|i| i as f32).collect();
+        // keypoints 1, 2, 4 and 5 have stereo points (in that order), their depth 10 + keypoint index
+        for i in [1usize, 2, 4, 5] {
+            f.of_keypoint[i] = Some(f.points.len());
+            f.points.push(Vector3::new(0.0, 0.0, 10.0 + i as f64));
+            f.desc.push([i as u8; 32]);
+            f.obs.push([keypoints[i].0, keypoints[i].1, keypoints[i].0 - 3.0]);
+            f.ids.push(100 + i as u64);
+            f.valid.push(true);
+        }
+        let keep = [true, false, true, true, false, true];
+        let r = f.retain_keypoints(&keep);
+        let kept: Vec<usize> = (0..n).filter(|&i| keep[i]).collect();
+        assert_eq!(r.keypoints.len(), kept.len());
+        assert_eq!(r.points.len(), 2, "the stereo points of keypoints 2 and 5");
+        for (new, &old) in kept.iter().enumerate() {
+            assert_eq!(r.keypoints[new], keypoints[old]);
+            assert_eq!(r.keypoint_desc[new], [old as u8; 32]);
+            assert_eq!((r.octave[new], r.angle[new]), (old as i32, old as f32));
+            match r.of_keypoint[new] {
+                Some(q) => {
+                    assert_eq!(r.points[q].z, 10.0 + old as f64);
+                    assert_eq!(
+                        (r.ids[q], r.desc[q], r.obs[q][0]),
+                        (100 + old as u64, [old as u8; 32], keypoints[old].0)
+                    );
+                }
+                None => assert!(f.of_keypoint[old].is_none(), "keypoint {old} lost its stereo point"),
+            }
+        }
+        assert_eq!(r.point_keypoints(), vec![1, 3], "each point knows its keypoint");
+    }
+}

@@ -1,0 +1,320 @@
+//! `depth-check`: the tracker's stereo depth against the Velodyne scans of a KITTI raw drive, a depth
+//! reference that is not a trajectory. Each stereo keypoint whose neighbourhood the scan covers with a
+//! plane is compared with that plane: a plane's disparity is affine in the image coordinates
+//! (`d = f b (n·K⁻¹ [u v 1]ᵀ) / c` for the plane `n·X = c`), so an affine fit of the lidar points'
+//! disparities around the keypoint gives the lidar's disparity at the keypoint, and the fit's residual
+//! tells a plane from a depth edge (keypoints are corners, many of them on object outlines, where the
+//! two sensors see different surfaces).
+
+use std::path::{Path, PathBuf};
+
+use slam_dataset::kitti::{
+    raw::RawCalib,
+    stereo::{open_stereo, Layout},
+    velodyne::{project_into_left, read_scan, scan_path, ProjectedPoint},
+};
+use slam_frontend::{read_image, stereo_vo::stereo_keypoints, StereoRig, VoConfig};
+use slam_quadric::Intrinsics;
+
+use crate::error::{Result, RunnerError};
+
+/// Half-width and half-height of the neighbourhood fitted around a keypoint, pixels: the HDL-64E's
+/// rows are 0.33–0.5° apart (4–6 px at KITTI's 721 px focal length), its columns 0.09° (about 1 px),
+/// so ±4 × ±7 px holds two or three scan rows of a few points each.
+const WINDOW_PX: (f64, f64) = (4.0, 7.0);
+
+/// Fewest lidar points of a fit, and fewest distinct scan rows among them (an affine model in two
+/// image directions needs points off one line).
+const MIN_POINTS: usize = 6;
+
+/// Largest RMS of the affine fit, pixels of disparity, at zero depth noise: a tenth of a pixel, the
+/// sub-pixel precision stereo matching aims at; the lidar's own range noise (σ ≈ 2 cm for the HDL-64E)
+/// is added in disparity (`d² σ_z / (f b)`, three σ).
+const PLANE_RMS_PX: f64 = 0.1;
+const LIDAR_SIGMA_M: f64 = 0.02;
+
+/// Which pyramid levels a table column takes.
+type LevelFilter = fn(i32) -> bool;
+
+/// Depth bins of the table, metres (lower edges; the last bin is open).
+pub const DEPTH_BINS: [f64; 7] = [0.0, 5.0, 10.0, 15.0, 20.0, 30.0, 45.0];
+
+/// One keypoint compared: its pyramid level, depth (lidar), our disparity minus the lidar's, and which
+/// half of the image it lies in (`true`: left of the principal point).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DepthSample {
+    /// ORB pyramid level.
+    pub level: i32,
+    /// Depth from the lidar plane, metres.
+    pub depth_m: f64,
+    /// Our disparity minus the lidar's, pixels.
+    pub diff_px: f64,
+    /// Left half of the image.
+    pub left_half: bool,
+}
+
+/// The comparison over every frame with a scan.
+#[derive(Debug, Clone)]
+pub struct DepthReport {
+    /// The drive folder and its rig.
+    pub header: String,
+    /// Frames compared (ids) with their stereo keypoints and the keypoints compared.
+    pub frames: Vec<(usize, usize, usize)>,
+    /// Every comparison.
+    pub samples: Vec<DepthSample>,
+    /// Focal length times baseline, px·m (disparity = `fx_b` / depth).
+    pub fx_b: f64,
+}
+
+/// Median and robust σ (1.4826 × the median absolute deviation) of `values`; `None` when empty.
+pub fn median_sigma(values: &[f64]) -> Option<(f64, f64)> {
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        }
+    };
+    if values.is_empty() {
+        return None;
+    }
+    let mut v = values.to_vec();
+    let m = median(&mut v);
+    let mut dev: Vec<f64> = values.iter().map(|x| (x - m).abs()).collect();
+    Some((m, 1.4826 * median(&mut dev)))
+}
+
+/// The lidar's disparity at `(u, v)` from an affine fit of the projected points around it (their
+/// disparities `fx_b / z`), when the neighbourhood is a plane (see the module text); `None` otherwise.
+pub fn lidar_disparity(near: &[ProjectedPoint], (u, v): (f64, f64), fx_b: f64) -> Option<f64> {
+    if near.len() < MIN_POINTS {
+        return None;
+    }
+    let mut rows: Vec<i64> = near.iter().map(|p| (p.v / 3.0).round() as i64).collect();
+    rows.sort_unstable();
+    rows.dedup();
+    if rows.len() < 2 {
+        return None;
+    }
+    // least squares d = a + b (u_i − u) + c (v_i − v) via the normal equations
+    let mut ata = nalgebra::Matrix3::<f64>::zeros();
+    let mut atb = nalgebra::Vector3::<f64>::zeros();
+    for p in near {
+        let row = nalgebra::Vector3::new(1.0, p.u - u, p.v - v);
+        ata += row * row.transpose();
+        atb += row * (fx_b / p.z);
+    }
+    let x = ata.try_inverse()? * atb;
+    let rms = (near
+        .iter()
+        .map(|p| {
+            let r = fx_b / p.z - (x[0] + x[1] * (p.u - u) + x[2] * (p.v - v));
+            r * r
+        })
+        .sum::<f64>()
+        / near.len() as f64)
+        .sqrt();
+    let d = x[0];
+    let tolerance = PLANE_RMS_PX + 3.0 * d * d * LIDAR_SIGMA_M / fx_b;
+    (d > 0.0 && rms <= tolerance).then_some(d)
+}
+
+/// Compare the stereo keypoints of every frame of the raw drive at `path` that has a Velodyne scan,
+/// with `tracking`'s stereo settings.
+pub fn depth_check(path: &Path, tracking: &VoConfig) -> Result<DepthReport> {
+    let seq = open_stereo(path)?;
+    if seq.layout != Layout::Raw {
+        return Err(RunnerError::Invalid(format!(
+            "{}: depth-check needs a KITTI raw drive (…/YYYY_MM_DD_drive_NNNN_sync with velodyne_points/)",
+            path.display()
+        )));
+    }
+    let date: PathBuf = seq.dir.parent().map(Path::to_path_buf).unwrap_or_default();
+    let calib = RawCalib::read(&date)?;
+    let [fx, fy, cx, cy] = seq.intrinsics;
+    let rig = StereoRig { k: Intrinsics::new(fx, fy, cx, cy), baseline: seq.baseline };
+    let fx_b = fx * seq.baseline;
+    let header = format!("{}: fx {fx:.1} px, baseline {:.4} m", seq.dir.display(), seq.baseline);
+    let (mut frames, mut samples) = (Vec::new(), Vec::new());
+    for (i, &id) in seq.ids.iter().enumerate() {
+        let Some(scan) = scan_path(&seq.dir, id) else { continue };
+        let left = read_image(&seq.left[i], false).map_err(RunnerError::other)?;
+        let right = read_image(&seq.right[i], false).map_err(RunnerError::other)?;
+        let size = (left.width as f64, left.height as f64);
+        let keypoints = stereo_keypoints(rig, tracking, &left, &right).map_err(RunnerError::other)?;
+        let lidar = project_into_left(&read_scan(&scan)?, &calib, size, 1.0);
+        // bucket the lidar points by pixel column for the window queries
+        let mut by_col: Vec<Vec<ProjectedPoint>> = vec![Vec::new(); size.0 as usize + 1];
+        for p in &lidar {
+            by_col[p.u as usize].push(*p);
+        }
+        let before = samples.len();
+        for k in &keypoints {
+            let (lo, hi) =
+                ((k.u - WINDOW_PX.0).max(0.0) as usize, ((k.u + WINDOW_PX.0) as usize).min(by_col.len() - 1));
+            let near: Vec<ProjectedPoint> = by_col[lo..=hi]
+                .iter()
+                .flatten()
+                .filter(|p| (p.u - k.u).abs() <= WINDOW_PX.0 && (p.v - k.v).abs() <= WINDOW_PX.1)
+                .copied()
+                .collect();
+            if let Some(d) = lidar_disparity(&near, (k.u, k.v), fx_b) {
+                samples.push(DepthSample {
+                    level: k.level,
+                    depth_m: fx_b / d,
+                    diff_px: k.disparity - d,
+                    left_half: k.u < cx,
+                });
+            }
+        }
+        frames.push((id, keypoints.len(), samples.len() - before));
+    }
+    if frames.is_empty() {
+        return Err(RunnerError::Invalid(format!(
+            "{}: no frame has a Velodyne scan (velodyne_points/data/NNNNNNNNNN.bin)",
+            seq.dir.display()
+        )));
+    }
+    Ok(DepthReport { header, frames, samples, fx_b })
+}
+
+impl DepthReport {
+    /// A cell: median difference and count of the samples `keep` selects.
+    fn cell(&self, keep: &dyn Fn(&DepthSample) -> bool) -> String {
+        let v: Vec<f64> = self.samples.iter().filter(|s| keep(s)).map(|s| s.diff_px).collect();
+        match median_sigma(&v) {
+            Some((m, _)) if v.len() >= 5 => format!("{m:+.3} ({})", v.len()),
+            _ => format!("– ({})", v.len()),
+        }
+    }
+
+    /// The tables: by depth bin and pyramid level (median of our disparity − the lidar's, px, and the
+    /// count), then by depth bin with the robust σ, each image half, and the relative depth error.
+    pub fn tables(&self) -> String {
+        let levels: [(&str, LevelFilter); 6] = [
+            ("0", |l| l == 0),
+            ("1", |l| l == 1),
+            ("2", |l| l == 2),
+            ("3", |l| l == 3),
+            ("4-7", |l| l >= 4),
+            ("all", |_| true),
+        ];
+        let bin = |b: usize| (DEPTH_BINS[b], DEPTH_BINS.get(b + 1).copied().unwrap_or(f64::INFINITY));
+        let in_bin = |s: &DepthSample, b: usize| s.depth_m >= bin(b).0 && s.depth_m < bin(b).1;
+        let name = |b: usize| match bin(b).1 {
+            e if e.is_finite() => format!("{:.0}-{e:.0} m", bin(b).0),
+            _ => format!(">= {:.0} m", bin(b).0),
+        };
+        let mut out = vec![
+            "our disparity − lidar disparity, px: median (count), by depth and ORB pyramid level".to_string(),
+            format!(
+                "| depth | {} |\n|---|{}",
+                levels.iter().map(|l| format!("level {}", l.0)).collect::<Vec<_>>().join(" | "),
+                "---:|".repeat(levels.len())
+            ),
+        ];
+        for b in 0..DEPTH_BINS.len() {
+            let cells: Vec<String> = levels.iter().map(|(_, lv)| self.cell(&|s| in_bin(s, b) && lv(s.level))).collect();
+            out.push(format!("| {} | {} |", name(b), cells.join(" | ")));
+        }
+        let all: Vec<String> = levels.iter().map(|(_, lv)| self.cell(&|s| lv(s.level))).collect();
+        out.push(format!("| all | {} |", all.join(" | ")));
+        out.push(String::new());
+        out.push(
+            "by depth: median and robust σ of the difference, px; each image half; depth error of the median, %".into(),
+        );
+        out.push("| depth | count | median px | σ px | left half | right half | depth error % |\n|---|---:|---:|---:|---:|---:|---:|".into());
+        for b in 0..DEPTH_BINS.len() {
+            let v: Vec<&DepthSample> = self.samples.iter().filter(|s| in_bin(s, b)).collect();
+            let diffs: Vec<f64> = v.iter().map(|s| s.diff_px).collect();
+            let Some((m, sigma)) = median_sigma(&diffs) else { continue };
+            let mid: Vec<f64> = v.iter().map(|s| s.depth_m).collect();
+            let z = median_sigma(&mid).map_or(f64::NAN, |x| x.0);
+            // depth ∝ 1/disparity: a disparity error e at disparity d = f b / z is a depth error −e/d
+            out.push(format!(
+                "| {} | {} | {m:+.3} | {sigma:.3} | {} | {} | {:+.2} |",
+                name(b),
+                v.len(),
+                self.cell(&|s| in_bin(s, b) && s.left_half),
+                self.cell(&|s| in_bin(s, b) && !s.left_half),
+                -100.0 * m * z / self.fx_b
+            ));
+        }
+        out.join("\n")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Lidar points of the plane `n·X = c` seen through `k`, on three scan rows around `(u0, v0)`.
+    fn plane_points(n: [f64; 3], c: f64, (u0, v0): (f64, f64), k: &Intrinsics) -> Vec<ProjectedPoint> {
+        let mut out = Vec::new();
+        for dv in [-5.0, 0.5, 5.5] {
+            for du in [-3.5, -2.0, -0.5, 1.0, 2.5, 3.5] {
+                let (u, v) = (u0 + du, v0 + dv);
+                let ray = [(u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0];
+                let z = c / (n[0] * ray[0] + n[1] * ray[1] + n[2] * ray[2]);
+                out.push(ProjectedPoint { u, v, z });
+            }
+        }
+        out
+    }
+
+    /// A plane's disparity is affine in the image: the fit returns it at the keypoint exactly, for a
+    /// wall seen obliquely and for the road; a depth edge (two planes) is refused.
+    #[test]
+    fn the_affine_fit_gives_a_planes_disparity_and_refuses_an_edge() {
+        let k = Intrinsics::new(721.5, 721.5, 609.6, 172.9);
+        let fx_b = 721.5 * 0.537;
+        for (n, c, at) in [([0.6, 0.0, 0.8], 12.0, (800.0, 150.0)), ([0.0, 1.0, 0.0], 1.65, (500.0, 300.0))] {
+            let pts = plane_points(n, c, at, &k);
+            let ray = [(at.0 - k.cx) / k.fx, (at.1 - k.cy) / k.fy, 1.0];
+            let z = c / (n[0] * ray[0] + n[1] * ray[1] + n[2] * ray[2]);
+            let d = lidar_disparity(&pts, at, fx_b).expect("a plane");
+            assert!((d - fx_b / z).abs() < 1e-9, "{d} vs {}", fx_b / z);
+        }
+        // the left half at 10 m, the right half at 25 m
+        let mut edge = plane_points([0.0, 0.0, 1.0], 10.0, (600.0, 150.0), &k);
+        for p in edge.iter_mut().filter(|p| p.u > 600.0) {
+            p.z = 25.0;
+        }
+        assert!(lidar_disparity(&edge, (600.0, 150.0), fx_b).is_none());
+        // one scan row is not enough to fit a plane
+        let row: Vec<ProjectedPoint> =
+            (0..8).map(|i| ProjectedPoint { u: 600.0 + i as f64, v: 150.0, z: 10.0 }).collect();
+        assert!(lidar_disparity(&row, (603.0, 150.0), fx_b).is_none());
+    }
+
+    #[test]
+    fn median_and_robust_sigma() {
+        assert_eq!(median_sigma(&[]), None);
+        let (m, s) = median_sigma(&[1.0, 2.0, 3.0, 4.0, 100.0]).expect("values");
+        assert_eq!(m, 3.0);
+        assert!((s - 1.4826).abs() < 1e-12, "{s}");
+        assert_eq!(median_sigma(&[1.0, 3.0]).map(|x| x.0), Some(2.0));
+    }
+
+    /// The shipped drive: every scan frame compared, hundreds of keypoints on lidar planes, and our
+    /// disparities within a pixel of the lidar's in the median of every populated depth bin.
+    #[test]
+    fn the_shipped_drive_is_compared_frame_by_frame() {
+        let drive = PathBuf::from(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../fixtures/kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync"
+        ));
+        let r = depth_check(&drive, &VoConfig::default()).expect("compared");
+        assert_eq!(r.frames.iter().map(|f| f.0).collect::<Vec<_>>(), [0, 1, 2, 3, 4]);
+        assert!(r.samples.len() > 300, "{}", r.samples.len());
+        let (m, _) = median_sigma(&r.samples.iter().map(|s| s.diff_px).collect::<Vec<_>>()).expect("samples");
+        assert!(m.abs() < 0.5, "median {m}");
+        let t = r.tables();
+        assert!(t.contains("| 10-15 m |") && t.contains("level 4-7"), "{t}");
+        let odometry = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06/sequences/06"));
+        let e = depth_check(&odometry, &VoConfig::default()).expect_err("no lidar there");
+        assert!(e.to_string().contains("raw drive"), "{e}");
+    }
+}
