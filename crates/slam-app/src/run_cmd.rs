@@ -240,16 +240,36 @@ pub struct DepthCheckArgs {
     /// Settings file (its `[tracking]` table sets the stereo matching, e.g. `disparity_offset`)
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Reference: depths triangulated from the left images of frame pairs 5 m apart with the
+    /// ground-truth poses, instead of the Velodyne (any sequence with measured ground truth)
+    #[arg(long)]
+    pub motion: bool,
+    /// With --motion: the first frame id used (e.g. 12 on odometry 06, whose first 12 poses are
+    /// interpolated)
+    #[arg(long, default_value_t = 0, requires = "motion")]
+    pub from: usize,
+    /// With --motion: every N-th frame is paired
+    #[arg(long, default_value_t = 1, requires = "motion", value_parser = clap::value_parser!(u64).range(1..))]
+    pub every: u64,
+    /// With --motion: check another front end's stereo keypoints instead of ours, read from this
+    /// folder (NNNNNN.csv per frame id; columns u, v, octave, ur, desc as 64 hex digits)
+    #[arg(long, requires = "motion")]
+    pub keypoints: Option<PathBuf>,
 }
 
 /// `slam-app depth-check`: our stereo disparities against the Velodyne's (`slam_runner::depth`).
 pub fn depth_check(a: &DepthCheckArgs) -> anyhow::Result<()> {
     let cfg = RunConfig::load(a.config.as_deref())?;
     let path = a.path.clone().unwrap_or_else(|| crate::fixture(crate::RAW_0005));
-    let report = slam_runner::depth::depth_check(&path, &cfg.tracking)?;
+    let report = if a.motion {
+        slam_runner::depth::motion_check(&path, &cfg.tracking, (a.from, a.every as usize), a.keypoints.as_deref())?
+    } else {
+        slam_runner::depth::depth_check(&path, &cfg.tracking)?
+    };
     println!("{}", report.header);
+    let what = if a.motion { "with a motion-triangulated depth" } else { "on a lidar plane" };
     for (id, keypoints, compared) in &report.frames {
-        println!("frame {id}: {keypoints} stereo keypoints, {compared} on a lidar plane");
+        println!("frame {id}: {keypoints} stereo keypoints, {compared} {what}");
     }
     println!("{}", report.tables());
     Ok(())

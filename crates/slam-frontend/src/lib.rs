@@ -11,6 +11,7 @@ pub mod detector;
 pub mod detectors;
 pub mod disparity;
 pub use detector::nms;
+pub use matching::hamming;
 pub mod image_io;
 pub mod image_size;
 mod keyframe_index;

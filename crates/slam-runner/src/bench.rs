@@ -305,7 +305,7 @@ mod tests {
         let mut lines = header.lines();
         let cols = lines.next().expect("head").matches('|').count();
         assert_eq!(lines.next().expect("rule").matches('|').count(), cols);
-        assert_eq!(cols, 10 + STATE_NAMES.len());
+        assert_eq!(cols, 9 + STATE_NAMES.len());
         let row =
             BenchRow { name: "x".into(), fps_median: 30.04, fps_overall: 20.0, stages: vec![1.0; 8], ate: 0.1234 };
         assert_eq!(

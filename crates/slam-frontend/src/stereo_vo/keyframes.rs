@@ -10,7 +10,7 @@ use slam_core::{KeyframeCorrection, KeyframeData, KeyframeId, KeyframePoint, Poi
 use super::config::VoConfig;
 use super::frame::Frame;
 use super::local_map::LocalMap;
-use super::refine::Refined;
+use super::refine::{left_only_beyond, Refined};
 
 /// A keyframe.
 #[derive(Clone)]
@@ -56,7 +56,9 @@ impl Keyframes {
     /// Make `frame` the reference keyframe at `world_from_kf` with `parent` (none: a new map segment,
     /// which forgets the older keyframes); ids of points matched to the old reference (`carried`:
     /// map-point id, keypoint) carry over, the others get new ids; `earlier` are the observations of
-    /// its new triangulated points in an earlier keyframe. At most `keep` older keyframes stay.
+    /// its new triangulated points in an earlier keyframe. At most `keep` older keyframes stay. The
+    /// observations handed over have no right-image column where the disparity is below
+    /// `far_disparity` (the mapper's bundle adjustment uses them as the tracker does).
     pub(crate) fn insert(
         &mut self,
         mut frame: Frame,
@@ -64,7 +66,7 @@ impl Keyframes {
         (world_from_kf, parent): (Isometry3<f64>, Option<(KeyframeId, Isometry3<f64>)>),
         carried: &[(PointId, usize)],
         earlier: &[(KeyframeId, usize, [f64; 3], Vector3<f64>)],
-        keep: usize,
+        (keep, far_disparity): (usize, f64),
     ) -> KeyframeData {
         // keypoint → the map point it was matched to
         let from_keypoint: HashMap<usize, PointId> = carried.iter().map(|&(id, c)| (c, id)).collect();
@@ -90,7 +92,11 @@ impl Keyframes {
                 .iter()
                 .zip(&frame.obs)
                 .zip(&frame.ids)
-                .map(|((x, o), &pid)| KeyframePoint { id: pid, camera_point: *x, observation: *o })
+                .map(|((x, o), &pid)| KeyframePoint {
+                    id: pid,
+                    camera_point: *x,
+                    observation: left_only_beyond(*o, far_disparity),
+                })
                 .collect(),
             earlier: earlier
                 .iter()
