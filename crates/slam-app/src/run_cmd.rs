@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use slam_dataset::output::{refuse_overwriting_inputs, Written};
 use slam_pipeline::{map::Map, system::FrameRecord};
 use slam_runner::{
     bench,
@@ -67,6 +68,14 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     // the output folder is written beside the old one and swapped in at the end; checked writable now
     catch_interrupt();
     let out = &a.output.out;
+    // nothing a run reads may lie in the folder it replaces
+    let seq = a.seq.path();
+    let mut inputs = vec![("the sequence", seq.as_path())];
+    inputs.extend(a.settings.config.as_deref().map(|p| ("--config", p)));
+    inputs.extend(a.detector.detections.as_deref().map(|p| ("--detections", p)));
+    inputs.extend(a.detector.labels.as_deref().map(|p| ("--labels", p)));
+    inputs.extend(a.detector.model.files());
+    refuse_overwriting_inputs(&inputs, &[Written::Folder("--out", out)])?;
     let dir = slam_dataset::output::OutputDir::create(out, "--out", "run", run_output_name)?;
     let s = a.seq.run_settings(&cfg, &a.wiring, a.detector.choice()?, a.detector.labels.clone());
     let outcome = run_with_progress(&s);
@@ -231,16 +240,36 @@ pub struct DepthCheckArgs {
     /// Settings file (its `[tracking]` table sets the stereo matching, e.g. `disparity_offset`)
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Reference: depths triangulated from the left images of frame pairs 5 m apart with the
+    /// ground-truth poses, instead of the Velodyne (any sequence with measured ground truth)
+    #[arg(long)]
+    pub motion: bool,
+    /// With --motion: the first frame id used (e.g. 12 on odometry 06, whose first 12 poses are
+    /// interpolated)
+    #[arg(long, default_value_t = 0, requires = "motion")]
+    pub from: usize,
+    /// With --motion: every N-th frame is paired
+    #[arg(long, default_value_t = 1, requires = "motion", value_parser = clap::value_parser!(u64).range(1..))]
+    pub every: u64,
+    /// With --motion: check another front end's stereo keypoints instead of ours, read from this
+    /// folder (NNNNNN.csv per frame id; columns u, v, octave, ur, desc as 64 hex digits)
+    #[arg(long, requires = "motion")]
+    pub keypoints: Option<PathBuf>,
 }
 
 /// `slam-app depth-check`: our stereo disparities against the Velodyne's (`slam_runner::depth`).
 pub fn depth_check(a: &DepthCheckArgs) -> anyhow::Result<()> {
     let cfg = RunConfig::load(a.config.as_deref())?;
     let path = a.path.clone().unwrap_or_else(|| crate::fixture(crate::RAW_0005));
-    let report = slam_runner::depth::depth_check(&path, &cfg.tracking)?;
+    let report = if a.motion {
+        slam_runner::depth::motion_check(&path, &cfg.tracking, (a.from, a.every as usize), a.keypoints.as_deref())?
+    } else {
+        slam_runner::depth::depth_check(&path, &cfg.tracking)?
+    };
     println!("{}", report.header);
+    let what = if a.motion { "with a motion-triangulated depth" } else { "on a lidar plane" };
     for (id, keypoints, compared) in &report.frames {
-        println!("frame {id}: {keypoints} stereo keypoints, {compared} on a lidar plane");
+        println!("frame {id}: {keypoints} stereo keypoints, {compared} {what}");
     }
     println!("{}", report.tables());
     Ok(())
@@ -267,6 +296,14 @@ pub struct MapArgs {
 
 /// `slam-app map`: a saved map's counts and objects, and its exports.
 pub fn map(a: &MapArgs) -> anyhow::Result<()> {
+    let pictures: Vec<PathBuf> =
+        a.picture.iter().flat_map(|d| slam_viz::MAP_PICTURE_FILES.map(|n| d.join(n))).collect();
+    let mut outputs: Vec<Written> = [("--ply", &a.ply), ("--scene", &a.scene), ("--trajectory", &a.trajectory)]
+        .into_iter()
+        .filter_map(|(option, p)| p.as_deref().map(|p| Written::File(option, p)))
+        .collect();
+    outputs.extend(pictures.iter().map(|p| Written::File("--picture", p)));
+    refuse_overwriting_inputs(&[("the map", &a.map)], &outputs)?;
     let map = Map::load(&a.map)?;
     println!("{}", inspect::map_summary(&map, &a.map));
     let exports = inspect::MapExports {

@@ -3,7 +3,7 @@
 /// Hamming distance of two 256-bit ORB descriptors, on 64-bit words (four population counts instead
 /// of 32).
 #[inline]
-pub(crate) fn hamming(a: &[u8; 32], b: &[u8; 32]) -> u32 {
+pub fn hamming(a: &[u8; 32], b: &[u8; 32]) -> u32 {
     let mut sum = 0;
     for w in 0..4 {
         let x = u64::from_ne_bytes(a[8 * w..8 * w + 8].try_into().unwrap_or([0; 8]));

@@ -1,8 +1,8 @@
 //! Stereo visual odometry against a local map, in parts a reader finds by name:
 //!
 //! - [`config`]: the rig and the settings;
-//! - `frame`: the stereo frame: ORB features on both images, stereo matching along rectified rows
-//!   (mutual best, sub-pixel);
+//! - `features`: ORB features of each image, spread over it; `frame`: the stereo frame: stereo matching
+//!   along rectified rows (mutual best, sub-pixel);
 //! - `local_map`: the map points of the reference keyframe and its covisible keyframes;
 //! - `tracker`: the local map's points projected from a guess into windows sized by its uncertainty,
 //!   PnP RANSAC, a second search at the found pose; `refine`: the robust pose refinement with staged
@@ -19,7 +19,7 @@
 use std::time::Instant;
 
 use nalgebra::Isometry3;
-use opencv::{core, features2d, prelude::*};
+use opencv::prelude::*;
 use slam_core::{
     geometry::BBox, FramePoint, Image, KeyframeCorrection, KeyframeData, KeyframeId, MovingRegion, PointId, PointPair,
     StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
@@ -31,6 +31,7 @@ use crate::image_io::{image_to_mat, FrontendError};
 
 mod checks;
 pub mod config;
+mod features;
 mod flow;
 mod frame;
 mod keyframes;
@@ -38,6 +39,8 @@ mod local_map;
 mod motion;
 mod refine;
 mod relocaliser;
+#[cfg(test)]
+mod synthetic;
 mod tracker;
 mod triangulate;
 
@@ -46,8 +49,9 @@ pub use config::{StereoRig, VoConfig};
 pub use frame::StereoKeypoint;
 
 use checks::judge;
+use features::Extractor;
 use flow::FlowHistory;
-use frame::{extract, Frame, GreyView, StereoMatcher};
+use frame::{Frame, GreyView, StereoMatcher};
 use keyframes::{KeyframePolicy, Keyframes};
 use local_map::LocalMap;
 use motion::MotionModel;
@@ -57,7 +61,8 @@ use tracker::{Route, Tracker};
 
 /// Stereo visual odometry against a local map, with keyframe corrections from a mapper.
 pub struct StereoVo {
-    orb: core::Ptr<features2d::ORB>,
+    /// ORB features of each image.
+    features: Extractor,
     /// Stereo matching of each frame.
     stereo: StereoMatcher,
     /// Pose search and refinement (holds the rig, the settings, the optimiser, the image size).
@@ -80,25 +85,6 @@ pub struct StereoVo {
 /// on the moving regions (kept out of the frame), and the extraction and stereo times, ms.
 type Prepared = (Frame, Vec<FramePoint>, Vec<FramePoint>, (f64, f64));
 
-/// Pyramid levels of the ORB extractor (1.2 apart).
-const ORB_LEVELS: usize = 8;
-
-/// The ORB extractor of the tracker: `config.features` per image, [`ORB_LEVELS`] levels 1.2 apart,
-/// Harris score, FAST threshold 20, 31-pixel patches.
-fn orb_of(config: &VoConfig) -> Result<core::Ptr<features2d::ORB>, FrontendError> {
-    Ok(features2d::ORB::create(
-        config.features,
-        1.2,
-        ORB_LEVELS as i32,
-        31,
-        0,
-        2,
-        features2d::ORB_ScoreType::HARRIS_SCORE,
-        31,
-        20,
-    )?)
-}
-
 /// The stereo keypoints of one rectified pair exactly as the tracker measures them (features, stereo
 /// matching, sub-pixel disparity, `config`'s depth range and disparity offset): for checks of the
 /// stereo depth against another reference (`slam-app depth-check`).
@@ -108,9 +94,9 @@ pub fn stereo_keypoints(
     left: &Image,
     right: &Image,
 ) -> Result<Vec<StereoKeypoint>, FrontendError> {
-    let mut orb = orb_of(config)?;
+    let mut features = Extractor::new(config.features, config.spread_features)?;
     let (lm, rm) = (StereoVo::grey_of(left)?, StereoVo::grey_of(right)?);
-    let (lf, rf) = (extract(&mut orb, &lm)?, extract(&mut orb, &rm)?);
+    let (lf, rf) = (features.extract(&lm)?, features.extract(&rm)?);
     let frame = StereoMatcher::new(rig, config).frame(&lf, &rf, (&GreyView::of(&lm)?, &GreyView::of(&rm)?));
     Ok(frame.stereo_keypoints())
 }
@@ -119,7 +105,7 @@ impl StereoVo {
     /// Odometry for a rig; its two-frame bundle adjustments use `optimizer`.
     pub fn new(rig: StereoRig, config: VoConfig, optimizer: SharedOptimizer) -> Result<Self, FrontendError> {
         Ok(Self {
-            orb: orb_of(&config)?,
+            features: Extractor::new(config.features, config.spread_features)?,
             stereo: StereoMatcher::new(rig, &config),
             tracker: Tracker { rig, config, optimizer, image_size: (1.0, 1.0) },
             motion: MotionModel::default(),
@@ -207,12 +193,15 @@ impl StereoVo {
         let tracked_map_points = refined.as_ref().map_or(0, |r| r.inliers.len());
         let rms = refined.as_ref().map_or(f64::NAN, |r| r.rms);
         let world_from_curr = world_from_ref * kf_from_curr;
+        if measured && matches!(route, Some(Route::Retrieved(_))) {
+            self.motion.forget_velocity();
+        }
         let since_measured = self.motion.since_measured;
         let wants = self.policy.wants(
             &self.tracker.config,
             state,
             refined.as_ref(),
-            (&map, reference_points),
+            (&map, reference_points, &frame.keypoints),
             since_measured,
             stereo_points,
         );
@@ -272,8 +261,8 @@ impl StereoVo {
         let t0 = Instant::now();
         let (lm, rm) = (Self::grey_of(left)?, Self::grey_of(right)?);
         self.tracker.image_size = (lm.cols().max(1) as f64, lm.rows().max(1) as f64);
-        let lf = extract(&mut self.orb, &lm)?;
-        let rf = extract(&mut self.orb, &rm)?;
+        let lf = self.features.extract(&lm)?;
+        let rf = self.features.extract(&rm)?;
         let t1 = Instant::now();
         let (lg, rg) = (GreyView::of(&lm)?, GreyView::of(&rm)?);
         let all = self.stereo.frame(&lf, &rf, (&lg, &rg));
@@ -465,7 +454,8 @@ impl StereoVo {
         earlier: &[(KeyframeId, usize, [f64; 3], nalgebra::Vector3<f64>)],
     ) -> KeyframeData {
         let keep = self.config().local_keyframes.max(self.config().relocalisation_keyframes);
-        let data = self.keyframes.insert(frame, frame_index, placed, carried, earlier, keep);
+        let far = self.config().far_disparity_px(self.tracker.rig.k.fx);
+        let data = self.keyframes.insert(frame, frame_index, placed, carried, earlier, (keep, far));
         if let Some(kf) = &self.keyframes.reference {
             self.relocaliser.archive(kf);
         }
@@ -680,7 +670,7 @@ mod tests {
         assert_eq!(vo.relocaliser.index.len(), keyframe_at.len(), "every keyframe indexed");
         for i in (1..frames).step_by(3) {
             let grey = StereoVo::grey_of(&read("image_0", i)).expect("grey");
-            let f = extract(&mut vo.orb, &grey).expect("ORB");
+            let f = vo.features.extract(&grey).expect("ORB");
             let best = vo.relocaliser.index.query(&f.desc, 3);
             let at = keyframe_at[&best[0].0];
             assert!(at.abs_diff(i) <= 4, "frame {i}: best keyframe at frame {at}: {best:?}");

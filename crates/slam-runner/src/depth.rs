@@ -36,6 +36,19 @@ const LIDAR_SIGMA_M: f64 = 0.02;
 /// Which pyramid levels a table column takes.
 type LevelFilter = fn(i32) -> bool;
 
+/// Ground-truth baseline of the motion reference's frame pairs, metres: ten stereo baselines, so that
+/// a point's depth from the two left images is about ten times better determined than from the stereo
+/// pair at the same parallax.
+pub const MOTION_BASELINE_M: f64 = 5.0;
+
+/// A motion-reference match lies within this of its epipolar line and reprojects within it in both
+/// frames, pixels: a few times the keypoint position noise (half a pixel at level 0).
+const EPIPOLAR_PX: f64 = 1.5;
+
+/// Least parallax of a motion-reference point, as a multiple of its stereo parallax (baseline over
+/// depth): the reference must be better determined than what it checks.
+const PARALLAX_RATIO: f64 = 3.0;
+
 /// Depth bins of the table, metres (lower edges; the last bin is open).
 pub const DEPTH_BINS: [f64; 7] = [0.0, 5.0, 10.0, 15.0, 20.0, 30.0, 45.0];
 
@@ -119,6 +132,187 @@ pub fn lidar_disparity(near: &[ProjectedPoint], (u, v): (f64, f64), fx_b: f64) -
     let d = x[0];
     let tolerance = PLANE_RMS_PX + 3.0 * d * d * LIDAR_SIGMA_M / fx_b;
     (d > 0.0 && rms <= tolerance).then_some(d)
+}
+
+/// Compare the stereo keypoints of frames of the sequence at `path` (ids `>= first`, every `stride`-th
+/// of those with ground truth) with depths triangulated from the left images alone: each frame is paired
+/// with the first later frame [`MOTION_BASELINE_M`] away by the ground truth, its stereo keypoints are
+/// matched to that frame's along the epipolar line of the ground-truth motion (Hamming ≤ 50, best
+/// below 0.8 × second), and each match with enough parallax ([`PARALLAX_RATIO`]) is triangulated with
+/// the ground-truth poses. The reference is as good as the ground truth's relative poses: it needs
+/// measured, not interpolated, ground truth.
+/// With `external`, the stereo keypoints are read from that folder instead (`NNNNNN.csv` per frame id,
+/// [`read_keypoints`]): another front end's keypoints checked against the same reference.
+pub fn motion_check(
+    path: &Path,
+    tracking: &VoConfig,
+    (first, stride): (usize, usize),
+    external: Option<&Path>,
+) -> Result<DepthReport> {
+    let seq = open_stereo(path)?;
+    let truth = seq.truth_from_first().ok_or_else(|| {
+        RunnerError::Invalid(format!("{}: depth-check --motion needs ground-truth poses", path.display()))
+    })?;
+    let [fx, fy, cx, cy] = seq.intrinsics;
+    let k = Intrinsics::new(fx, fy, cx, cy);
+    let rig = StereoRig { k, baseline: seq.baseline };
+    let fx_b = fx * seq.baseline;
+    let header = format!(
+        "{}: fx {fx:.1} px, baseline {:.4} m; reference: the left images of frame pairs {MOTION_BASELINE_M} m apart by the ground truth",
+        seq.dir.display(),
+        seq.baseline
+    );
+    let mut cache: std::collections::HashMap<usize, Vec<slam_frontend::stereo_vo::StereoKeypoint>> = Default::default();
+    let mut keypoints_of = |i: usize| -> Result<Vec<slam_frontend::stereo_vo::StereoKeypoint>> {
+        if let Some(k) = cache.get(&i) {
+            return Ok(k.clone());
+        }
+        let kp = match external {
+            Some(dir) => read_keypoints(&dir.join(format!("{:06}.csv", seq.ids[i])))?,
+            None => {
+                let left = read_image(&seq.left[i], false).map_err(RunnerError::other)?;
+                let right = read_image(&seq.right[i], false).map_err(RunnerError::other)?;
+                stereo_keypoints(rig, tracking, &left, &right).map_err(RunnerError::other)?
+            }
+        };
+        cache.insert(i, kp.clone());
+        Ok(kp)
+    };
+    let (mut frames, mut samples) = (Vec::new(), Vec::new());
+    let n = seq.ids.len().min(truth.len());
+    for i in (0..n).filter(|&i| seq.ids[i] >= first).step_by(stride.max(1)) {
+        let Some(j) = (i + 1..n)
+            .find(|&j| (truth[j].translation.vector - truth[i].translation.vector).norm() >= MOTION_BASELINE_M)
+        else {
+            break;
+        };
+        let (a, b) = (keypoints_of(i)?, keypoints_of(j)?);
+        let j_from_i = truth[j].inverse() * truth[i];
+        let before = samples.len();
+        for p in &a {
+            let Some((z, _)) = motion_depth(p, &b, &j_from_i, &k, seq.baseline) else { continue };
+            samples.push(DepthSample {
+                level: p.level,
+                depth_m: z,
+                diff_px: p.disparity - fx_b / z,
+                left_half: p.u < cx,
+            });
+        }
+        frames.push((seq.ids[i], a.len(), samples.len() - before));
+    }
+    if frames.is_empty() {
+        return Err(RunnerError::Invalid(format!(
+            "{}: no frame pair {MOTION_BASELINE_M} m apart with ground truth",
+            seq.dir.display()
+        )));
+    }
+    Ok(DepthReport { header, frames, samples, fx_b })
+}
+
+/// Stereo keypoints of one frame from a CSV file with a header naming at least the columns `u`, `v`,
+/// `octave`, `ur` (right-image column; negative: no stereo match, skipped) and `desc` (the 256-bit
+/// descriptor as 64 hex digits); errors name the file and line.
+pub fn read_keypoints(path: &Path) -> Result<Vec<slam_frontend::stereo_vo::StereoKeypoint>> {
+    let bad = |line: usize, what: String| RunnerError::Invalid(format!("{}:{line}: {what}", path.display()));
+    let text = slam_core::files::read_text(path, &slam_core::files::TABLE).map_err(RunnerError::other)?;
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').map(str::trim).collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).ok_or_else(|| bad(1, format!("no column {name}")));
+    let (cu, cv, co, cr, cd) = (col("u")?, col("v")?, col("octave")?, col("ur")?, col("desc")?);
+    let mut out = Vec::new();
+    for (n, line) in lines.enumerate() {
+        let f: Vec<&str> = line.split(',').map(str::trim).collect();
+        let get = |c: usize| f.get(c).copied().ok_or_else(|| bad(n + 2, format!("only {} fields", f.len())));
+        let num = |c: usize| -> Result<f64> {
+            get(c)?
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| bad(n + 2, format!("field {} is not a number", c + 1)))
+        };
+        let (u, v, level, ur) = (num(cu)?, num(cv)?, num(co)? as i32, num(cr)?);
+        if ur < 0.0 {
+            continue;
+        }
+        let hex = get(cd)?;
+        let mut descriptor = [0u8; 32];
+        if hex.len() != 64 {
+            return Err(bad(n + 2, "the descriptor is not 64 hex digits".into()));
+        }
+        for (k, byte) in descriptor.iter_mut().enumerate() {
+            *byte = u8::from_str_radix(&hex[2 * k..2 * k + 2], 16)
+                .map_err(|_| bad(n + 2, "the descriptor is not hex".into()))?;
+        }
+        out.push(slam_frontend::stereo_vo::StereoKeypoint { u, v, disparity: u - ur, level, descriptor });
+    }
+    Ok(out)
+}
+
+/// The depth in frame `a` of keypoint `p` of frame `a` from its match among frame `b`'s keypoints
+/// along the epipolar line of `b_from_a`, and the match's index; `None` without a clear match, with
+/// too little parallax or a reprojection error above [`EPIPOLAR_PX`].
+fn motion_depth(
+    p: &slam_frontend::stereo_vo::StereoKeypoint,
+    b: &[slam_frontend::stereo_vo::StereoKeypoint],
+    b_from_a: &nalgebra::Isometry3<f64>,
+    k: &Intrinsics,
+    baseline: f64,
+) -> Option<(f64, usize)> {
+    use nalgebra::{Point3, Vector3};
+    let ray = |u: f64, v: f64| Vector3::new((u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0);
+    let (r, t) = (b_from_a.rotation.to_rotation_matrix().into_inner(), b_from_a.translation.vector);
+    // x_bᵀ [t]× R x_a = 0 in normalised coordinates: the line in b of a's ray
+    let line_n = t.cross(&(r * ray(p.u, p.v)));
+    let line =
+        Vector3::new(line_n.x / k.fx, line_n.y / k.fy, line_n.z - line_n.x * k.cx / k.fx - line_n.y * k.cy / k.fy);
+    let norm = line.x.hypot(line.y);
+    if norm < 1e-12 {
+        return None;
+    }
+    let (mut best, mut second, mut arg) = (u32::MAX, u32::MAX, usize::MAX);
+    for (j, q) in b.iter().enumerate() {
+        if (line.x * q.u + line.y * q.v + line.z).abs() / norm > EPIPOLAR_PX {
+            continue;
+        }
+        let h = slam_frontend::hamming(&p.descriptor, &q.descriptor);
+        if h < best {
+            (second, best, arg) = (best, h, j);
+        } else if h < second {
+            second = h;
+        }
+    }
+    if arg == usize::MAX || best > 50 || (second != u32::MAX && best as f64 >= 0.8 * second as f64) {
+        return None;
+    }
+    let q = &b[arg];
+    // midpoint of the two rays in a's frame: a's ray from the origin, b's from its centre
+    let da = ray(p.u, p.v).normalize();
+    let a_from_b = b_from_a.inverse();
+    let centre_b = a_from_b.translation.vector;
+    let db = (a_from_b.rotation * ray(q.u, q.v)).normalize();
+    let cos = da.dot(&db);
+    let den = 1.0 - cos * cos;
+    if den < 1e-12 {
+        return None;
+    }
+    let (w_a, w_b) = (da.dot(&centre_b), db.dot(&centre_b));
+    let s = (w_a - cos * w_b) / den;
+    let u = (cos * w_a - w_b) / den;
+    if s <= 0.0 || u <= 0.0 {
+        return None;
+    }
+    let x = 0.5 * (s * da + centre_b + u * db);
+    let parallax = cos.clamp(-1.0, 1.0).acos();
+    let z = x.z;
+    if z <= 1.0 || parallax < PARALLAX_RATIO * baseline / z {
+        return None;
+    }
+    let project = |c: &Point3<f64>| (k.fx * c.x / c.z + k.cx, k.fy * c.y / c.z + k.cy);
+    let (pa, pb) = (project(&Point3::from(x)), project(&(b_from_a * Point3::from(x))));
+    if (pa.0 - p.u).hypot(pa.1 - p.v) > EPIPOLAR_PX || (pb.0 - q.u).hypot(pb.1 - q.v) > EPIPOLAR_PX {
+        return None;
+    }
+    Some((z, arg))
 }
 
 /// Compare the stereo keypoints of every frame of the raw drive at `path` that has a Velodyne scan,
@@ -208,7 +402,7 @@ impl DepthReport {
             _ => format!(">= {:.0} m", bin(b).0),
         };
         let mut out = vec![
-            "our disparity − lidar disparity, px: median (count), by depth and ORB pyramid level".to_string(),
+            "our disparity − the reference's, px: median (count), by depth and ORB pyramid level".to_string(),
             format!(
                 "| depth | {} |\n|---|{}",
                 levels.iter().map(|l| format!("level {}", l.0)).collect::<Vec<_>>().join(" | "),
@@ -229,7 +423,8 @@ impl DepthReport {
         for b in 0..DEPTH_BINS.len() {
             let v: Vec<&DepthSample> = self.samples.iter().filter(|s| in_bin(s, b)).collect();
             let diffs: Vec<f64> = v.iter().map(|s| s.diff_px).collect();
-            let Some((m, sigma)) = median_sigma(&diffs) else { continue };
+            // as in the first table: fewer than five samples say nothing about a bias
+            let Some((m, sigma)) = median_sigma(&diffs).filter(|_| diffs.len() >= 5) else { continue };
             let mid: Vec<f64> = v.iter().map(|s| s.depth_m).collect();
             let z = median_sigma(&mid).map_or(f64::NAN, |x| x.0);
             // depth ∝ 1/disparity: a disparity error e at disparity d = f b / z is a depth error −e/d

@@ -163,7 +163,7 @@ impl Prepared {
         if !(seq.gaps.is_empty() && seq.one_camera.is_empty()) {
             text.push_str(&format!(
                 "\ninput: {} frame(s) missing in both cameras (skipped, ids kept), {} with one image missing (played as unreadable); see the warnings",
-                seq.gaps.len(),
+                seq.gaps.count(),
                 seq.one_camera.len()
             ));
         }

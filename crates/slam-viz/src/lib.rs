@@ -16,7 +16,7 @@ pub mod plot;
 
 use std::path::PathBuf;
 
-pub use map::{footprint, map_picture};
+pub use map::{footprint, map_picture, MAP_PICTURE_FILES};
 pub use overlay::{frame_overlay, write_overlays, OverlayOptions};
 pub use plot::{simulation_figure, topdown_figure, MapShape, ObjectState, TopDown};
 
@@ -29,6 +29,13 @@ pub enum VizError {
         /// The figure's file.
         path: PathBuf,
         /// The backend's report.
+        message: String,
+    },
+    /// What was asked cannot be drawn (a non-finite position, positions spread wider than a continent);
+    /// nothing was written.
+    #[error("not drawn: {message}")]
+    NotDrawable {
+        /// Why.
         message: String,
     },
     /// A folder could not be created.

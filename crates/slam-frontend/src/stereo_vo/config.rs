@@ -18,6 +18,10 @@ pub struct StereoRig {
 pub struct VoConfig {
     /// ORB features per image.
     pub features: i32,
+    /// Spread the features over the image: each pyramid level's share taken from a grid of cells of
+    /// about one feature each, the best of every cell first (`stereo_vo/features.rs`). Off: OpenCV's
+    /// choice, the highest corner scores wherever they are.
+    pub spread_features: bool,
     /// Largest Hamming distance of a stereo match.
     pub stereo_hamming: u32,
     /// Row tolerance of stereo matching, pixels.
@@ -53,8 +57,16 @@ pub struct VoConfig {
     pub step_tolerance_m: f64,
     /// Allowed error of the angular-velocity estimate, radians per frame.
     pub rotation_tolerance_rad: f64,
-    /// Points farther than this many baselines have their disparity (right-image) residual
-    /// down-weighted in proportion to depth.
+    /// Beyond this many baselines (disparity below `fx / far_baselines` pixels: 17.7 px at KITTI's
+    /// 707 px focal length, 21.5 m), a stereo observation is used as a left-image observation only, in
+    /// the pose refinement and in the keyframes handed to local bundle adjustment: the point still
+    /// constrains the rotation and, through motion parallax, the translation, but its disparity does
+    /// not set the scale. A point there moves its disparity by a pixel for every 6 % of depth, and the
+    /// disparities of distant texture carry systematic errors of a tenth of a pixel to more than one
+    /// (measured against the ground-truth motion with `slam-app depth-check --motion`, in both our
+    /// stereo matching and ORB-SLAM2's; docs/system.md) that would otherwise lengthen the path. 40 is
+    /// also where ORB-SLAM2 stops making map points from stereo depth (35–40 baselines). ∞: every
+    /// disparity used.
     pub far_baselines: f64,
     /// Lost for longer than this (seconds): a new map segment starts.
     pub max_lost_s: f64,
@@ -106,6 +118,13 @@ pub struct VoConfig {
 }
 
 impl VoConfig {
+    /// The disparity below which a stereo observation is used as a left-image observation only
+    /// ([`VoConfig::far_baselines`]), pixels, for focal length `fx`: `fx / far_baselines` (0 when
+    /// `far_baselines` is infinite).
+    pub fn far_disparity_px(&self, fx: f64) -> f64 {
+        fx / self.far_baselines
+    }
+
     /// The time between frames, seconds ([`VoConfig::frame_period_s`], or 0.1 s when that is 0).
     pub fn period(&self) -> f64 {
         if self.frame_period_s > 0.0 {
@@ -120,6 +139,7 @@ impl Default for VoConfig {
     fn default() -> Self {
         Self {
             features: 2000,
+            spread_features: true,
             stereo_hamming: 60,
             row_tolerance: 2.0,
             depth_range: (1.0, 80.0),

@@ -1,12 +1,13 @@
-//! The stereo frame: ORB features of both images, stereo matching along rectified rows (mutual best,
+//! The stereo frame: stereo matching of the two images' ORB features along rectified rows (mutual best,
 //! sub-pixel by block matching), and the frame the tracker works on (its keypoints, their stereo
 //! points and observations, map-point ids once it is a keyframe).
 
 use nalgebra::Vector3;
-use opencv::{core, features2d, prelude::*};
+use opencv::prelude::*;
 use slam_core::{FramePoint, PointId};
 
 use super::config::{StereoRig, VoConfig};
+use super::features::Features;
 use crate::image_io::FrontendError;
 use crate::matching::{hamming, BestTwo, KeypointGrid};
 
@@ -136,39 +137,6 @@ fn refine_disparity(left: &GreyView<'_>, right: &GreyView<'_>, ul: f64, v: f64, 
     (d > 0.0).then_some(d)
 }
 
-/// Keypoints: positions, 256-bit ORB descriptors, pyramid levels, orientations (degrees).
-pub(crate) struct Features {
-    pub(crate) points: Vec<(f64, f64)>,
-    pub(crate) desc: Vec<[u8; 32]>,
-    pub(crate) octave: Vec<i32>,
-    pub(crate) angle: Vec<f32>,
-}
-
-pub(crate) fn extract(orb: &mut core::Ptr<features2d::ORB>, img: &Mat) -> Result<Features, FrontendError> {
-    let mut kps = core::Vector::<core::KeyPoint>::new();
-    let mut desc = Mat::default();
-    orb.detect_and_compute(img, &core::no_array(), &mut kps, &mut desc, false)?;
-    let mut f = Features {
-        points: Vec::with_capacity(kps.len()),
-        desc: Vec::with_capacity(kps.len()),
-        octave: Vec::with_capacity(kps.len()),
-        angle: Vec::with_capacity(kps.len()),
-    };
-    for (i, kp) in kps.iter().enumerate() {
-        let row = desc.at_row::<u8>(i as i32)?;
-        if row.len() != 32 {
-            continue;
-        }
-        let mut d = [0u8; 32];
-        d.copy_from_slice(row);
-        f.points.push((kp.pt().x as f64, kp.pt().y as f64));
-        f.desc.push(d);
-        f.octave.push(kp.octave());
-        f.angle.push(kp.angle());
-    }
-    Ok(f)
-}
-
 /// A left keypoint with a stereo match, as the tracker measures it (see [`super::stereo_keypoints`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StereoKeypoint {
@@ -182,6 +150,8 @@ pub struct StereoKeypoint {
     /// ORB pyramid level the keypoint was detected at (0: full resolution; level `l` is scaled by
     /// `1.2^-l`).
     pub level: i32,
+    /// The keypoint's 256-bit ORB descriptor.
+    pub descriptor: [u8; 32],
 }
 
 impl Frame {
@@ -197,6 +167,7 @@ impl Frame {
                     v: self.keypoints[i].1,
                     disparity: o[0] - o[2],
                     level: self.octave[i],
+                    descriptor: self.keypoint_desc[i],
                 })
             })
             .collect()

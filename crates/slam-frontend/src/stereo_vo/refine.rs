@@ -20,6 +20,17 @@ use crate::pose_only;
 /// suspension within one frame (body roll of a car: a few degrees at most, about a centimetre at roof
 /// height over 0.1 s of normal driving).
 const VEHICLE_SWAY_M: f64 = 0.01;
+/// `o` without its right-image column when its disparity is below `min_disparity` pixels (a point
+/// farther than the stereo depth is trusted for; see [`VoConfig::far_baselines`](super::config::VoConfig::far_baselines)); other observations
+/// unchanged.
+pub(crate) fn left_only_beyond(o: [f64; 3], min_disparity: f64) -> [f64; 3] {
+    if o[2].is_finite() && o[0] - o[2] < min_disparity {
+        [o[0], o[1], f64::NAN]
+    } else {
+        o
+    }
+}
+
 /// 95 % bounds of χ² with 3 (stereo) and 2 (left image only) degrees of freedom, σ = 1 px.
 pub(crate) const CHI2_STEREO: f64 = 7.815;
 const CHI2_MONO: f64 = 5.991;
@@ -41,35 +52,19 @@ pub(crate) struct Refined {
 }
 
 impl Tracker {
-    /// Noise of an observation `[u_l, v, u_r]`: 1 px, and for a stereo observation of a point farther
-    /// than `far_baselines` baselines, a right-image σ growing in proportion to its depth (its
-    /// disparity, a few pixels, says little about depth and is the most exposed to rectification error).
-    pub(crate) fn noise(&self, o: &[f64; 3]) -> NoiseModel {
-        let sigma = self.sigma(o);
-        if sigma[2] != 1.0 {
-            NoiseModel::Diagonal(sigma.to_vec())
-        } else {
-            NoiseModel::Isotropic(1.0)
-        }
+    /// An observation as the estimation uses it: a stereo observation of a point beyond
+    /// `far_baselines` baselines (disparity below [`VoConfig::far_disparity_px`](super::config::VoConfig::far_disparity_px)) without its
+    /// right-image column ([`left_only_beyond`]).
+    pub(crate) fn usable(&self, o: [f64; 3]) -> [f64; 3] {
+        left_only_beyond(o, self.config.far_disparity_px(self.rig.k.fx))
     }
 
-    /// The σ of each component of an observation ([`Tracker::noise`]).
-    pub(crate) fn sigma(&self, o: &[f64; 3]) -> [f64; 3] {
-        let d = o[0] - o[2];
-        let far = self.config.far_baselines * self.rig.baseline;
-        let z = self.rig.k.fx * self.rig.baseline / d.max(1e-6);
-        if o[2].is_finite() && z > far {
-            [1.0, 1.0, z / far]
-        } else {
-            [1.0; 3]
-        }
-    }
-
-    /// The current frame's observation of keypoint `c`: stereo `[u_l, v, u_r]` where it has a stereo
-    /// point, else `[u, v, NaN]`.
-    pub(crate) fn observation(frame: &Frame, c: usize) -> [f64; 3] {
+    /// The current frame's observation of keypoint `c` as the estimation uses it: stereo
+    /// `[u_l, v, u_r]` where it has a stereo point that is not far ([`Tracker::usable`]), else
+    /// `[u, v, NaN]`.
+    pub(crate) fn observation(&self, frame: &Frame, c: usize) -> [f64; 3] {
         match frame.of_keypoint.get(c).copied().flatten() {
-            Some(q) => frame.obs[q],
+            Some(q) => self.usable(frame.obs[q]),
             None => [frame.keypoints[c].0, frame.keypoints[c].1, f64::NAN],
         }
     }
@@ -92,7 +87,7 @@ impl Tracker {
         let kernel: Box<dyn slam_optim::RobustKernel> =
             if robust { Box::new(Huber(CHI2_STEREO.sqrt())) } else { Box::new(slam_optim::L2) };
         graph
-            .add_boxed(f, self.noise(&o), kernel)
+            .add_boxed(f, NoiseModel::Isotropic(1.0), kernel)
             .map_err(|e| tracing::warn!("pose refinement: observation left out: {e}"))
             .ok()
     }
@@ -119,10 +114,10 @@ impl Tracker {
             for &(slot, o) in &map.views[i] {
                 let ks = *slots.entry(slot).or_insert_with(|| values.add(Var::Pose(map.poses[slot])));
                 graph.fix(ks);
-                self.add_observation(&mut graph, (ks, kx), o, true);
+                self.add_observation(&mut graph, (ks, kx), self.usable(o), true);
             }
             let f = if active[m] {
-                self.add_observation(&mut graph, (pose_key, kx), Self::observation(frame, c), false)
+                self.add_observation(&mut graph, (pose_key, kx), self.observation(frame, c), false)
             } else {
                 None
             };
@@ -166,7 +161,7 @@ impl Tracker {
         let probe_pose = probe_values.add(Var::Pose(pose.inverse()));
         let (mut active, mut sq_sum, mut sq_n) = (Vec::with_capacity(matches.len()), 0.0, 0usize);
         for (&(_, c), &(kx, f)) in matches.iter().zip(&p.per_match) {
-            let o = Self::observation(frame, c);
+            let o = self.observation(frame, c);
             let chi2 = if f != usize::MAX {
                 p.graph.whitened_residual(f, &p.values).and_then(|r| r.ok()).map(|r| r.norm_squared())
             } else {
@@ -219,8 +214,8 @@ impl Tracker {
         let fixed: Vec<pose_only::PoseObservation> = matches
             .iter()
             .map(|&(i, c)| {
-                let observed = Self::observation(frame, c);
-                pose_only::PoseObservation { point: map.points[i], observed, sigma: self.sigma(&observed) }
+                let observed = self.observation(frame, c);
+                pose_only::PoseObservation { point: map.points[i], observed, sigma: [1.0; 3] }
             })
             .collect();
         for round in 0..4 {
@@ -278,5 +273,25 @@ impl Tracker {
         };
         let step = last_measured.inverse() * guess.inverse();
         Some(pose_only::MotionPrior::new(*last_measured, &step, &model))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A stereo observation below the far disparity loses its right-image column; a nearer one, a
+    /// left-only one, and every observation when nothing is far (disparity 0) stay as they are.
+    #[test]
+    fn far_observations_become_left_only() {
+        let near = [600.0, 180.0, 570.0]; // disparity 30 px
+        let far = [600.0, 180.0, 590.0]; // 10 px
+        assert_eq!(left_only_beyond(near, 17.7), near);
+        let l = left_only_beyond(far, 17.7);
+        assert_eq!((l[0], l[1]), (600.0, 180.0));
+        assert!(l[2].is_nan());
+        let mono = [1.0, 2.0, f64::NAN];
+        assert!(left_only_beyond(mono, 17.7)[2].is_nan());
+        assert_eq!(left_only_beyond(far, 0.0), far, "infinitely many baselines: every disparity used");
     }
 }

@@ -34,4 +34,4 @@ pub use fitting::{FitJob, FitMethod, FitResult};
 pub use mapper::ObjectMapper;
 pub use motion::{scene_flow, FlowedPoint, RaySplit, SceneFlow, FLOW_POSE_SIGMA_M, MIN_FLOW_POINTS, MOTION_WINDOW};
 pub use object::{MappedObject, Observation, PointsCentroid};
-pub use output::{write_object_map, write_object_map_in, OBJECT_MAP_VERSION};
+pub use output::{object_map_text, write_object_map, write_object_map_in, INPUT_POSES_WORLD, OBJECT_MAP_VERSION};
