@@ -50,12 +50,15 @@ fn sim(a: &SimArgs) -> anyhow::Result<()> {
 }
 
 fn kitti(a: &KittiArgs) -> anyhow::Result<()> {
+    let dir = a.dir.clone().unwrap_or_else(|| crate::fixture("kitti_tracking"));
+    let seqs = slam_dataset::folders::tracking_sequences(&dir)?;
     if let Some(p) = &a.csv {
+        let labels: Vec<PathBuf> = seqs.iter().map(|s| s.join("label_02.txt")).collect();
+        let inputs: Vec<(&str, &std::path::Path)> = labels.iter().map(|l| ("the labels", l.as_path())).collect();
+        slam_dataset::output::refuse_overwriting_inputs(&inputs, &[slam_dataset::output::Written::File("--csv", p)])?;
         // checked writable before the study runs
         drop(slam_dataset::output::AtomicFile::new(p)?);
     }
-    let dir = a.dir.clone().unwrap_or_else(|| crate::fixture("kitti_tracking"));
-    let seqs = slam_dataset::folders::tracking_sequences(&dir)?;
     println!("{}", slam_eval::assoc::kitti_table_header(seqs.len(), &dir, a.seed));
     let csv = slam_eval::assoc::kitti_assoc_study(&seqs, a.seed, &mut |row| println!("{row}"))?;
     if let Some(path) = &a.csv {

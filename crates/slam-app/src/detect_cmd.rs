@@ -42,6 +42,14 @@ impl ModelArgs {
         self.spec().check().map_err(model_error)
     }
 
+    /// The model files given, as inputs of a command.
+    pub(crate) fn files(&self) -> Vec<(&'static str, &std::path::Path)> {
+        [("--cfg", &self.cfg), ("--weights", &self.weights), ("--onnx", &self.onnx)]
+            .into_iter()
+            .filter_map(|(option, p)| p.as_deref().map(|p| (option, p)))
+            .collect()
+    }
+
     /// The first of these options given on the command line (they only make sense with the network).
     pub(crate) fn given(&self) -> Option<&'static str> {
         [

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use clap::Args;
 use slam_core::check::InvalidValue;
+use slam_dataset::output::Written;
 use slam_eval::{
     labelled::{study_title, table_header, LabelNoise, VehicleCriteria},
     study::{eval_study, map_to_file},
@@ -111,6 +112,10 @@ pub fn objects(a: &ObjectsArgs) -> anyhow::Result<()> {
     let file = |given: &Option<PathBuf>, name: &str| given.clone().unwrap_or_else(|| a.dir.join(name));
     let (labels, poses, calib) =
         (file(&a.labels, "label_02.txt"), file(&a.poses, "poses_orbslam3.txt"), file(&a.calib, "calib.txt"));
+    slam_dataset::output::refuse_overwriting_inputs(
+        &[("the labels", &labels), ("the poses", &poses), ("the calibration", &calib)],
+        &[slam_dataset::output::Written::File("--out", &a.out)],
+    )?;
     let files = (labels.as_path(), poses.as_path(), calib.as_path());
     println!("{}", map_to_file(files, &a.input.noise(), mapper(&a.input), &a.out)?);
     Ok(())
@@ -144,6 +149,14 @@ pub struct EvalArgs {
 /// `slam-app eval <run folder> --labels <label_02.txt>`: score a finished run's object map.
 fn eval_run_folder(dir: &std::path::Path, a: &EvalArgs) -> anyhow::Result<()> {
     let labels = a.labels.as_ref().context("scoring a run folder needs --labels <label_02.txt>")?;
+    let score = dir.join("objects_score.json");
+    let read: Vec<PathBuf> = slam_eval::study::RUN_FOLDER_FILES.iter().map(|f| dir.join(f)).collect();
+    let mut inputs: Vec<(&str, &std::path::Path)> = read.iter().map(|f| ("the run's", f.as_path())).collect();
+    inputs.push(("--labels", labels));
+    if a.csv.is_some() {
+        bail!("--csv writes the table of a study over sequence folders; scoring a run folder writes objects_score.json into it");
+    }
+    slam_dataset::output::refuse_overwriting_inputs(&inputs, &[Written::File("the score", &score)])?;
     let config = slam_eval::ScoreConfig {
         min_frames: a.min_frames,
         static_m: a.static_m,
@@ -166,7 +179,6 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         ),
         r => r.map_err(InvalidValue::as_flag)?,
     }
-    let csv_out = a.csv.as_deref().map(slam_dataset::output::AtomicFile::new).transpose()?;
     let dir = a.dir.clone().unwrap_or_else(|| crate::fixture("kitti_tracking"));
     if dir.join("objects.json").is_file() && dir.join("trajectory.kitti.txt").is_file() {
         return eval_run_folder(&dir, a);
@@ -184,6 +196,12 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         );
     }
     let seqs = slam_dataset::folders::tracking_sequences(&dir)?;
+    let files: Vec<PathBuf> =
+        seqs.iter().flat_map(|s| slam_eval::labelled::SEQUENCE_FILES.map(|f| s.join(f))).collect();
+    let inputs: Vec<(&str, &std::path::Path)> = files.iter().map(|f| ("the sequence file", f.as_path())).collect();
+    let csv: Vec<Written> = a.csv.iter().map(|p| Written::File("--csv", p)).collect();
+    slam_dataset::output::refuse_overwriting_inputs(&inputs, &csv)?;
+    let csv_out = a.csv.as_deref().map(slam_dataset::output::AtomicFile::new).transpose()?;
     let (associator, method) = (a.input.associator.name(), a.input.method.fit());
     println!("{}", study_title(&a.input.noise(), associator, method.name(), &criteria));
     println!("{}", table_header());

@@ -21,7 +21,7 @@ pub fn check(path: Option<&Path>, out: Option<&Path>) -> anyhow::Result<()> {
         anyhow::bail!("--rerun {}: {BUILD_WITH_RERUN}", path.display());
     }
     if let Some(out) = out {
-        let (file, dir) = (std::path::absolute(path)?, std::path::absolute(out)?);
+        let (file, dir) = (slam_dataset::output::resolve(path), slam_dataset::output::resolve(out));
         if file.starts_with(&dir) {
             anyhow::bail!(
                 "--rerun {} lies inside --out {}, which the run replaces as a whole when it ends: give a path outside it",

@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args;
+use slam_dataset::output::{refuse_overwriting_inputs, Written};
 use slam_pipeline::{map::Map, system::FrameView};
 use slam_runner::{
     bench,
@@ -81,6 +82,16 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     crate::recording::check(a.rerun.as_deref(), Some(out))?;
     // the output folder is written beside the old one and swapped in at the end; checked writable now
     catch_interrupt();
+    // nothing a run reads may lie in the folder it replaces, nor be its recording
+    let seq = a.seq.path();
+    let mut inputs = vec![("the sequence", seq.as_path())];
+    inputs.extend(a.settings.config.as_deref().map(|p| ("--config", p)));
+    inputs.extend(a.detector.detections.as_deref().map(|p| ("--detections", p)));
+    inputs.extend(a.detector.labels.as_deref().map(|p| ("--labels", p)));
+    inputs.extend(a.detector.model.files());
+    let mut outputs = vec![Written::Folder("--out", out)];
+    outputs.extend(a.rerun.as_deref().map(|p| Written::File("--rerun", p)));
+    refuse_overwriting_inputs(&inputs, &outputs)?;
     let dir = slam_dataset::output::OutputDir::create(out, "--out", "run", run_output_name)?;
     let s = a.seq.run_settings(&cfg, &a.wiring, a.detector.choice()?, a.detector.labels.clone());
     let played = run_with_progress(&s, a.rerun.as_deref());
@@ -322,6 +333,15 @@ pub struct MapArgs {
 /// `slam-app map`: a saved map's counts and objects, and its exports.
 pub fn map(a: &MapArgs) -> anyhow::Result<()> {
     crate::recording::check(a.rerun.as_deref(), None)?;
+    let pictures: Vec<PathBuf> =
+        a.picture.iter().flat_map(|d| slam_viz::MAP_PICTURE_FILES.map(|n| d.join(n))).collect();
+    let mut outputs: Vec<Written> = [("--ply", &a.ply), ("--scene", &a.scene), ("--trajectory", &a.trajectory)]
+        .into_iter()
+        .filter_map(|(option, p)| p.as_deref().map(|p| Written::File(option, p)))
+        .collect();
+    outputs.extend(pictures.iter().map(|p| Written::File("--picture", p)));
+    outputs.extend(a.rerun.as_deref().map(|p| Written::File("--rerun", p)));
+    refuse_overwriting_inputs(&[("the map", &a.map)], &outputs)?;
     let map = Map::load(&a.map)?;
     println!("{}", inspect::map_summary(&map, &a.map));
     let exports = inspect::MapExports {

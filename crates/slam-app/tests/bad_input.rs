@@ -19,6 +19,9 @@ fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures")
 }
 
+/// The smallest valid map: one keyframe, one frame.
+const MAP_OK: &str = r#"{"format":"quadric-slam-map","version":2,"keyframes":{"0":{"frame":0,"pose":[0,0,0,1,0,0,0],"parent":null,"observations":[]}},"points":{},"objects":[],"trajectory":[{"frame":0,"keyframe":0,"relative":[0,0,0,1,0,0,0],"state":"initialised"}]}"#;
+
 /// One bad input: the arguments, the exit status and pieces of text stderr must hold.
 struct Case {
     name: String,
@@ -36,12 +39,36 @@ fn case(name: &str, args: &[&dyn AsRef<std::ffi::OsStr>], code: i32, want: &[&st
     }
 }
 
-/// Run every case; report all failures at once.
+/// Run `cmd` to its end, or kill it after `secs` seconds (a command that waits on a pipe must not hang
+/// the suite): its output, and whether it had to be killed.
+fn output_within(mut cmd: Command, secs: u64) -> (std::process::Output, bool) {
+    use std::process::Stdio;
+    let mut child = cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("starts");
+    let start = std::time::Instant::now();
+    let mut killed = false;
+    while child.try_wait().expect("waits").is_none() {
+        if start.elapsed().as_secs() >= secs {
+            let _ = child.kill();
+            killed = true;
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    (child.wait_with_output().expect("output"), killed)
+}
+
+/// Run every case (each within a minute); report all failures at once.
 fn check(cases: Vec<Case>) -> usize {
     let mut failures = Vec::new();
     let n = cases.len();
     for c in cases {
-        let o = app().args(&c.args).output().expect("runs");
+        let mut cmd = app();
+        cmd.args(&c.args);
+        let (o, killed) = output_within(cmd, 60);
+        if killed {
+            failures.push(format!("{}: still running after 60 s (waiting on input?), killed", c.name));
+            continue;
+        }
         let err = String::from_utf8_lossy(&o.stderr);
         let code = o.status.code().unwrap_or(-1);
         let missing: Vec<&String> = c.want.iter().filter(|w| !err.contains(w.as_str())).collect();
@@ -333,9 +360,26 @@ fn sequences_calibration_and_image_sizes() {
     let empty = d.join("empty");
     std::fs::create_dir_all(&empty).expect("dir");
     let fx = sequence(&d, "fx", 2, Some(&calib_with("P0", 0, "0.001").replace("7.070912000000e+02 0.0", "0.001 0.0")));
-    let cx = sequence(&d, "cx", 2, Some(&calib_with("P0", 2, "5000")));
-    let cy = sequence(&d, "cy", 2, Some(&calib_with("P0", 6, "-20")));
-    let fy = sequence(&d, "fy", 2, Some(&calib_with("P0", 5, "70")));
+    // the same intrinsics in both cameras (a rectified pair shares them), outside what the images allow
+    let both = |index: usize, value: &str| {
+        let one = calib_with("P0", index, value);
+        let text: Vec<String> = one
+            .lines()
+            .map(|l| {
+                if l.starts_with("P1:") {
+                    let mut f: Vec<&str> = l.split_whitespace().collect();
+                    f[1 + index] = value;
+                    f.join(" ")
+                } else {
+                    l.to_string()
+                }
+            })
+            .collect();
+        text.join("\n")
+    };
+    let cx = sequence(&d, "cx", 2, Some(&both(2, "5000")));
+    let cy = sequence(&d, "cy", 2, Some(&both(6, "-20")));
+    let fy = sequence(&d, "fy", 2, Some(&both(5, "70")));
     let base = sequence(&d, "baseline", 2, Some(&calib_with("P1", 3, "0")));
     let nan = sequence(&d, "nan", 2, Some(&calib_with("P0", 0, "nan")));
     let short = sequence(
@@ -480,7 +524,7 @@ fn output_paths_are_checked_before_any_work() {
 fn files_of_every_command() {
     let d = scratch("files");
     let pose = "1 0 0 0 0 1 0 0 0 0 1 0";
-    let map_ok = r#"{"format":"quadric-slam-map","version":2,"keyframes":{"0":{"frame":0,"pose":[0,0,0,1,0,0,0],"parent":null,"observations":[]}},"points":{},"objects":[],"trajectory":[{"frame":0,"keyframe":0,"relative":[0,0,0,1,0,0,0],"state":"initialised"}]}"#;
+    let map_ok = MAP_OK;
     let zero_q = write(&d.join("zero.json"), &map_ok.replacen("[0,0,0,1,0,0,0]", "[0,0,0,0,0,0,0]", 1));
     let bad_kf = write(&d.join("badkf.json"), &map_ok.replace(r#""keyframe":0"#, r#""keyframe":5"#));
     let other = write(&d.join("other.json"), r#"{"format":"something","version":2}"#);
@@ -784,5 +828,689 @@ fn counted_warnings_leave_the_result_unchanged() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("000002.png is 600×200, the sequence's first frame 1226×370"), "{err}");
     assert_eq!(traj("sized").lines().count(), 4, "every frame has a pose");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+// ---- Issue 33: bad input, round two ----
+
+/// The app under `sh`, with `setup` run first (limits: `ulimit -v`, `ulimit -f`); SIGXFSZ ignored, so a
+/// write past the file-size limit fails as on a full disk instead of killing the process.
+fn app_under(setup: &str) -> Command {
+    let mut c = Command::new("sh");
+    c.current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
+    c.arg("-c").arg(format!("trap '' XFSZ; {setup}; exec \"$0\" \"$@\"")).arg(env!("CARGO_BIN_EXE_slam-app"));
+    c
+}
+
+/// Run `cmd`; its exit status, stdout and stderr.
+fn run_cmd(cmd: Command) -> (i32, String, String) {
+    let (o, killed) = output_within(cmd, 120);
+    assert!(!killed, "still running after 120 s: killed");
+    let text = |b: &[u8]| String::from_utf8_lossy(b).to_string();
+    (o.status.code().unwrap_or(-1), text(&o.stdout), text(&o.stderr))
+}
+
+/// The names in a folder, sorted.
+fn names_in(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .map(|rd| rd.flatten().map(|e| e.file_name().to_string_lossy().into_owned()).collect())
+        .unwrap_or_default();
+    v.sort();
+    v
+}
+
+/// Every file under `dir` with its bytes (inputs compared before and after the cases).
+fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).expect("list").flatten() {
+            let p = e.path();
+            let t = std::fs::symlink_metadata(&p).expect("meta").file_type();
+            if t.is_dir() {
+                stack.push(p);
+            } else if t.is_file() {
+                out.push((p.clone(), std::fs::read(&p).expect("read")));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// A column of a run's tracking.csv.
+fn csv_column(dir: &Path, column: &str) -> Vec<String> {
+    let text = std::fs::read_to_string(dir.join("tracking.csv")).expect("tracking.csv");
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let head: Vec<&str> = lines.next().expect("header").split(',').collect();
+    let k = head.iter().position(|h| *h == column).expect("column");
+    lines.map(|l| l.split(',').nth(k).unwrap_or_default().to_string()).collect()
+}
+
+/// Class 1: one image pair named 4294967296.png among frames 0-3 took 8.5 GB (the gap list held every
+/// missing id); with 2 GB of address space the run now plays all five frames, with --frames too, and the
+/// largest frame id in a range does not overflow.
+#[test]
+fn frame_ids_far_apart_cost_no_memory() {
+    let d = scratch("far-ids");
+    let seq = sequence(&d, "seq", 4, None);
+    for cam in ["image_0", "image_1"] {
+        std::fs::copy(seq.join(cam).join("000003.png"), seq.join(cam).join("4294967296.png")).expect("copy");
+    }
+    let limited = |extra: &[&str], out: &str| {
+        let mut c = app_under("ulimit -v 2000000");
+        c.args(["run", "--detector", "none"]).arg(&seq).args(extra).arg("--out").arg(d.join(out));
+        run_cmd(c)
+    };
+    let (code, text, err) = limited(&[], "all");
+    assert_eq!(code, 0, "{err}");
+    assert!(text.contains("4294967292 frame(s) missing in both cameras"), "{text}");
+    assert_eq!(csv_column(&d.join("all"), "frame"), ["0", "1", "2", "3", "4294967296"]);
+    let (code, _, err) = limited(&["--frames", "0..3"], "three");
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(csv_column(&d.join("three"), "frame"), ["0", "1", "2"]);
+    let (code, _, err) = limited(&["--frames", &format!("2..={}", usize::MAX)], "to-the-end");
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(csv_column(&d.join("to-the-end"), "frame"), ["2", "3", "4294967296"]);
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Class 2: an output that is, or resolves to, an input of the same command is refused before anything
+/// is read, for every command that writes files; the inputs are byte for byte what they were.
+#[test]
+fn no_output_is_an_input() {
+    let d = scratch("overwrite");
+    let run = d.join("run");
+    let map = write(&run.join("map.json"), MAP_OK);
+    write(&run.join("notes.txt"), "mine");
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink(&map, d.join("link.json")).expect("symlink");
+        std::fs::hard_link(&map, d.join("hard.json")).expect("hard link");
+    }
+    let tracking = d.join("tracking/0003");
+    for f in ["label_02.txt", "poses_orbslam3.txt", "calib.txt"] {
+        let text = std::fs::read_to_string(fixtures().join("kitti_tracking/0003").join(f)).expect("fixture");
+        write(&tracking.join(f), &text);
+    }
+    let images = d.join("images");
+    std::fs::create_dir_all(&images).expect("dir");
+    let raw = fixtures().join("kitti_raw_0052/2011_09_26/2011_09_26_drive_0052_sync/image_02/data");
+    for f in ["0000000007.png", "0000000014.png"] {
+        std::fs::copy(raw.join(f), images.join(f)).expect("copy");
+    }
+    let seq = sequence(&d, "seq", 2, None);
+    let config = write(&d.join("out/run.toml"), "[tracking]\nfeatures = 1000\n");
+    let picture_map = write(&d.join("pic/map.svg"), MAP_OK);
+    let before = snapshot(&d);
+    let input = "an input of this command";
+    let dotted = run.join("..").join("run").join(".").join("map.json");
+    let cases = vec![
+        case("map --ply onto the map", &[&"map", &map, &"--ply", &map], 1, &["--ply", "is the map", input]),
+        case("map --trajectory onto the map", &[&"map", &map, &"--trajectory", &map], 1, &["--trajectory", input]),
+        case("map --scene onto the map", &[&"map", &map, &"--scene", &map], 1, &["--scene", input]),
+        case("map --ply through ../ and ./", &[&"map", &map, &"--ply", &dotted], 1, &["which is", input]),
+        case("map --ply through a symbolic link", &[&"map", &map, &"--ply", &d.join("link.json")], 1, &[input]),
+        case("map --ply through a hard link", &[&"map", &map, &"--ply", &d.join("hard.json")], 1, &[input]),
+        case(
+            "map --ply and --scene in one file",
+            &[&"map", &map, &"--ply", &d.join("x.ply"), &"--scene", &d.join("./x.ply")],
+            1,
+            &["--scene", "also the file of --ply"],
+        ),
+        case(
+            "map --picture onto the map's own name",
+            &[&"map", &picture_map, &"--picture", &d.join("pic")],
+            1,
+            &["--picture", input],
+        ),
+        case(
+            "objects --out onto the labels",
+            &[&"objects", &tracking, &"--out", &tracking.join("label_02.txt")],
+            1,
+            &["is the labels", input],
+        ),
+        case(
+            "objects --out onto the poses",
+            &[&"objects", &tracking, &"--out", &tracking.join("poses_orbslam3.txt")],
+            1,
+            &["is the poses", input],
+        ),
+        case(
+            "objects --out onto the calibration",
+            &[&"objects", &tracking, &"--out", &tracking.join("calib.txt")],
+            1,
+            &["is the calibration", input],
+        ),
+        case(
+            "eval --csv onto a sequence's labels",
+            &[&"eval", &d.join("tracking"), &"--csv", &tracking.join("label_02.txt")],
+            1,
+            &["--csv", input],
+        ),
+        case(
+            "assoc kitti --csv onto the labels",
+            &[&"assoc", &"kitti", &d.join("tracking"), &"--csv", &tracking.join("label_02.txt")],
+            1,
+            &["--csv", input],
+        ),
+        case(
+            "detect --out onto an image",
+            &[&"detect", &images, &"--out", &images.join("0000000014.png")],
+            1,
+            &["is an input image", input],
+        ),
+        case(
+            "detect --overlays onto the image folder",
+            &[&"detect", &images, &"--out", &d.join("d.json"), &"--overlays", &images],
+            1,
+            &["--overlays", "holds the input folder"],
+        ),
+        case(
+            "run --out holding the sequence",
+            &[&"run", &seq, &"--detector", &"none", &"--out", &d.join("seq")],
+            1,
+            &["--out", "holds the sequence"],
+        ),
+        case(
+            "run --out holding its --config",
+            &[&"run", &seq, &"--detector", &"none", &"--config", &config, &"--out", &d.join("out")],
+            1,
+            &["holds --config"],
+        ),
+        case(
+            "run --out holding its --labels",
+            &[&"run", &seq, &"--labels", &tracking.join("label_02.txt"), &"--out", &d.join("tracking")],
+            1,
+            &["holds --labels"],
+        ),
+    ];
+    let n = check(cases);
+    assert_eq!(n, 18);
+    let after = snapshot(&d);
+    let names = |v: &[(PathBuf, Vec<u8>)]| v.iter().map(|f| f.0.clone()).collect::<Vec<_>>();
+    assert_eq!(names(&before), names(&after), "files made or lost");
+    let changed: Vec<&PathBuf> = before.iter().zip(&after).filter(|(a, b)| a != b).map(|(a, _)| &a.0).collect();
+    assert!(changed.is_empty(), "inputs changed: {changed:?}");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Class 3: every reader takes only regular files and at most its limit: /dev/zero, a named pipe, a
+/// folder, a link that loops and files past their limit are refused at once, naming what they are (or
+/// the limit), and an image that is no file is an unreadable frame with that reason.
+#[test]
+fn readers_take_regular_files_within_a_limit() {
+    let d = scratch("readers");
+    let zero = Path::new("/dev/zero");
+    let pipe = d.join("pipe");
+    assert!(Command::new("mkfifo").arg(&pipe).status().expect("mkfifo").success());
+    let big_map = d.join("big.json");
+    std::fs::File::create(&big_map).expect("file").set_len(2 << 30).expect("sparse 2 GiB");
+    let big_config = write(&d.join("big.toml"), &format!("# {}\n", "x".repeat(2 << 20)));
+    let tracking = fixtures().join("kitti_tracking/0003");
+    let gt = fixtures().join("kitti_odom_06/poses/06.txt");
+    let out = d.join("o");
+    let device = "it is a character device, not a regular file";
+    let named = "it is a named pipe, not a regular file";
+    let mut cases = vec![
+        case("run --config /dev/zero", &[&"run", &"--config", &zero, &"--out", &out], 1, &[device]),
+        case("run --config a pipe", &[&"run", &"--config", &pipe, &"--out", &out], 1, &[named]),
+        case("run --config 2 MiB", &[&"run", &"--config", &big_config, &"--out", &out], 1, &["more than the 1 MiB"]),
+        case("run --config a folder", &[&"run", &"--config", &d, &"--out", &out], 1, &["it is a folder"]),
+        case(
+            "run --detections /dev/zero",
+            &[&"run", &"--detections", &zero, &"--max-frames", &"2", &"--out", &out],
+            1,
+            &[device],
+        ),
+        case(
+            "run --detections a pipe",
+            &[&"run", &"--detections", &pipe, &"--max-frames", &"2", &"--out", &out],
+            1,
+            &[named],
+        ),
+        case(
+            "run --labels /dev/zero",
+            &[&"run", &"--detector", &"none", &"--labels", &zero, &"--max-frames", &"2", &"--out", &out],
+            1,
+            &[device],
+        ),
+        case(
+            "run --cfg /dev/zero",
+            &[&"run", &"--cfg", &zero, &"--out", &out],
+            1,
+            &["cannot load detector model", "character device"],
+        ),
+        case(
+            "run --onnx a pipe",
+            &[&"run", &"--onnx", &pipe, &"--out", &out],
+            1,
+            &["cannot load detector model", "named pipe"],
+        ),
+        case("trajectory-eval /dev/zero", &[&"trajectory-eval", &zero, &gt], 1, &[device]),
+        case("trajectory-eval against a pipe", &[&"trajectory-eval", &gt, &pipe], 1, &[named]),
+        case("map /dev/zero", &[&"map", &zero], 1, &[device]),
+        case("map a pipe", &[&"map", &pipe], 1, &[named]),
+        case("map of 2 GiB", &[&"map", &big_map], 1, &["holds 2147483648 bytes", "more than the 1 GiB"]),
+        case(
+            "objects --poses /dev/zero",
+            &[&"objects", &tracking, &"--poses", &zero, &"--out", &d.join("x.json")],
+            1,
+            &[device],
+        ),
+        case(
+            "objects --calib a pipe",
+            &[&"objects", &tracking, &"--calib", &pipe, &"--out", &d.join("x.json")],
+            1,
+            &[named],
+        ),
+        case(
+            "objects --labels /dev/zero",
+            &[&"objects", &tracking, &"--labels", &zero, &"--out", &d.join("x.json")],
+            1,
+            &[device],
+        ),
+        case("stereo-check --config a pipe", &[&"stereo-check", &"--config", &pipe], 1, &[named]),
+    ];
+    // a calibration that is a pipe, in an otherwise whole sequence
+    let seq = sequence(&d, "pipecalib", 2, None);
+    std::fs::remove_file(seq.join("calib.txt")).expect("rm");
+    assert!(Command::new("mkfifo").arg(seq.join("calib.txt")).status().expect("mkfifo").success());
+    cases.push(case("a sequence whose calib.txt is a pipe", &[&"run", &seq, &"--out", &out], 1, &[named]));
+    check(cases);
+    // images that are no files: frame 1 a folder, frame 2 a link to itself, frame 3 a pipe; the run goes on
+    let seq = sequence(&d, "images", 5, None);
+    let left = seq.join("image_0");
+    std::fs::remove_file(left.join("000001.png")).expect("rm");
+    std::fs::create_dir(left.join("000001.png")).expect("folder");
+    std::fs::remove_file(left.join("000002.png")).expect("rm");
+    #[cfg(unix)]
+    std::os::unix::fs::symlink("000002.png", left.join("000002.png")).expect("self-link");
+    std::fs::remove_file(left.join("000003.png")).expect("rm");
+    assert!(Command::new("mkfifo").arg(left.join("000003.png")).status().expect("mkfifo").success());
+    let mut c = app();
+    c.args(["run", "--detector", "none"]).arg(&seq).arg("--out").arg(d.join("images-out"));
+    let (code, text, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(number_after(&text, "unreadable "), 3.0, "{text}");
+    for why in ["000001.png: it is a folder", "000002.png: it is a symbolic link", "000003.png: it is a named pipe"] {
+        assert!(err.contains(why), "{why}: {err}");
+    }
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Class 4: a keyframe needs new information. Twelve copies of one stereo pair (a car standing still)
+/// make one keyframe, not one every four frames; a drive forward, back and forward again over frames
+/// 0-10 is tracked in both directions, relocalised only where it turns.
+#[test]
+fn keyframes_need_new_information_and_reversing_is_tracked() {
+    let d = scratch("long");
+    let src = fixtures().join("kitti_odom_06/sequences/06");
+    let copy = |name: &str, frames: &[usize]| -> PathBuf {
+        let dst = d.join(name).join("sequences/06");
+        for cam in ["image_0", "image_1"] {
+            std::fs::create_dir_all(dst.join(cam)).expect("dir");
+            for (i, f) in frames.iter().enumerate() {
+                std::fs::copy(src.join(cam).join(format!("{f:06}.png")), dst.join(cam).join(format!("{i:06}.png")))
+                    .expect("copy");
+            }
+        }
+        std::fs::copy(src.join("calib.txt"), dst.join("calib.txt")).expect("calib");
+        dst
+    };
+    let run = |seq: &Path, out: &str| {
+        let mut c = app();
+        c.args(["run", "--detector", "none"]).arg(seq).arg("--out").arg(d.join(out));
+        let (code, text, err) = run_cmd(c);
+        assert_eq!(code, 0, "{err}");
+        text
+    };
+    let still = copy("still", &[10; 12]);
+    let text = run(&still, "still-out");
+    assert_eq!(number_after(&text, "keyframes "), 1.0, "{text}");
+    assert_eq!(csv_column(&d.join("still-out"), "state").iter().filter(|s| *s == "tracked").count(), 11);
+    // 0..=10, 9..=0, 1..=10: two turns
+    let frames: Vec<usize> = (0..=10).chain((0..10).rev()).chain(1..=10).collect();
+    let back = copy("back", &frames);
+    run(&back, "back-out");
+    let states = csv_column(&d.join("back-out"), "state");
+    let relocalised: Vec<usize> = (0..states.len()).filter(|&k| states[k] == "relocalised").collect();
+    assert!(relocalised.len() <= 4, "relocalised at {relocalised:?} of {states:?}");
+    assert!(relocalised.iter().all(|&k| (10..=13).contains(&k) || (20..=23).contains(&k)), "{relocalised:?}");
+    assert!(states.iter().filter(|s| *s == "tracked").count() >= 25, "{states:?}");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Class 5, trajectories: a TUM estimate is taken in time order whatever its line order, a time given
+/// twice is an error, a trajectory that does not move prints no NaN; a run whose first image cannot be
+/// read is scored from where tracking started (the figures of a run from that frame), and unreadable
+/// frames are left out, each said.
+#[test]
+fn trajectory_figures_follow_time_and_what_was_tracked() {
+    let d = scratch("figures");
+    let times: Vec<f64> = (0..20).map(|i| 0.1 * i as f64).collect();
+    let tum = |name: &str, order: &[usize], step: f64| {
+        let text: String = order
+            .iter()
+            .map(|&i| format!("{:.1} {} 0 {} 0 0 0 1\n", times[i], 0.02 * step * i as f64, step * i as f64))
+            .collect();
+        write(&d.join(name), &text)
+    };
+    let order: Vec<usize> = (0..20).collect();
+    let shuffled: Vec<usize> = (0..20).map(|i| (i * 7) % 20).collect();
+    let (est, shuf, gt) = (tum("est.tum", &order, 1.0), tum("shuf.tum", &shuffled, 1.0), tum("gt.tum", &order, 1.02));
+    let eval = |e: &Path, g: &Path| {
+        let mut c = app();
+        c.arg("trajectory-eval").arg(e).arg(g);
+        run_cmd(c)
+    };
+    let (code, sorted, err) = eval(&est, &gt);
+    assert_eq!(code, 0, "{err}");
+    let (code, text, err) = eval(&shuf, &gt);
+    assert_eq!(code, 0, "{err}");
+    assert!(text.contains("not in time order"), "{text}");
+    let table = |t: &str| t.lines().filter(|l| l.starts_with('|')).collect::<Vec<_>>().join("\n");
+    assert_eq!(table(&text), table(&sorted), "the shuffled estimate scores as the sorted one");
+    let mut dup = std::fs::read_to_string(&est).expect("read");
+    dup.push_str("0.5 9 9 9 0 0 0 1\n");
+    let dup = write(&d.join("dup.tum"), &dup);
+    let still = tum("still.tum", &order, 0.0);
+    let cases = vec![case(
+        "TUM time twice",
+        &[&"trajectory-eval", &dup, &gt],
+        1,
+        &["dup.tum:21: time 0.5 s again (first on line 6)"],
+    )];
+    check(cases);
+    for (e, g) in [(&still, &gt), (&gt, &still), (&still, &still)] {
+        let (code, text, err) = eval(e, g);
+        assert_eq!(code, 0, "{err}");
+        assert!(!text.contains("NaN") && text.contains("does not move"), "{text}");
+    }
+    // an unreadable first image (its left file missing): scored as the run from frame 1 is
+    let seq = sequence(&d, "first", 8, None);
+    let poses = std::fs::read_to_string(fixtures().join("kitti_odom_06/poses/06.txt")).expect("poses");
+    write(&d.join("first/poses/06.txt"), &poses);
+    let run = |extra: &[&str], out: &str| {
+        let mut c = app();
+        c.args(["run", "--detector", "none"]).arg(&seq).args(extra).arg("--out").arg(d.join(out));
+        let (code, text, err) = run_cmd(c);
+        assert_eq!(code, 0, "{err}");
+        text
+    };
+    let from_one = run(&["--frames", "1.."], "from-one");
+    std::fs::remove_file(seq.join("image_0/000000.png")).expect("rm");
+    let text = run(&[], "first-unreadable");
+    assert!(text.contains("left out: the 1 frame before frame 1, where tracking started"), "{text}");
+    assert_eq!(number_after(&text, "; ATE "), number_after(&from_one, "; ATE "), "{text}\n{from_one}");
+    // an unreadable frame in the middle: left out, and said
+    std::fs::copy(fixtures().join("kitti_odom_06/sequences/06/image_0/000000.png"), seq.join("image_0/000000.png"))
+        .expect("restore");
+    std::fs::remove_file(seq.join("image_1/000004.png")).expect("rm");
+    let text = run(&[], "middle-unreadable");
+    assert!(text.contains("scored over the 7 frames") && text.contains("1 unreadable frame (a held pose"), "{text}");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Class 5, values no sensor, label or run produces: labels, a run folder that is not a run's,
+/// detection options of another source, calibrations that are no rectified rig, OXTS packets and
+/// frame times no vehicle or camera makes, a stereo-check without evidence, a map point beyond a
+/// 32-bit float.
+#[test]
+fn values_that_cannot_be_right_are_errors() {
+    let d = scratch("values");
+    let src = fixtures().join("kitti_tracking/0003");
+    let labels = std::fs::read_to_string(src.join("label_02.txt")).expect("labels");
+    let car = labels.lines().find(|l| l.contains(" Car ")).expect("a car").to_string();
+    let f: Vec<&str> = car.split_whitespace().collect();
+    let with = |name: &str, line: String| -> PathBuf {
+        let dir = d.join(name);
+        for file in ["poses_orbslam3.txt", "calib.txt"] {
+            std::fs::create_dir_all(&dir).expect("dir");
+            std::fs::copy(src.join(file), dir.join(file)).expect("copy");
+        }
+        write(&dir.join("label_02.txt"), &format!("{labels}{line}\n"));
+        dir
+    };
+    let field = |k: usize, v: &str| {
+        let mut g = f.clone();
+        g[k] = v;
+        g.join(" ")
+    };
+    let objects =
+        |dir: &Path| -> Vec<OsString> { vec!["objects".into(), dir.into(), "--out".into(), d.join("o.json").into()] };
+    let mk = |name: &str, args: Vec<OsString>, want: &[&str]| Case {
+        name: name.into(),
+        args,
+        code: 1,
+        want: want.iter().map(|s| s.to_string()).collect(),
+    };
+    let mut cases = vec![
+        mk("label track id -2", objects(&with("below", field(1, "-2"))), &["label_02.txt:", "track id -2 for a Car"]),
+        mk("label at z = 1e12", objects(&with("far", field(15, "1e12"))), &["location coordinate 1.000e12 m"]),
+        mk(
+            "label track twice in a frame",
+            objects(&with("twice", car.clone())),
+            &["again in frame", "labelled once per frame"],
+        ),
+    ];
+    // a run folder (hand-written, two frames) that is not a run's: camera.json with fx 0 or width -5,
+    // an object seen in frame 7
+    let camera = r#"{"fx":721.5,"fy":721.5,"cx":609.6,"cy":172.9,"width":1242,"height":375,"label_offset":[0,0,0],"colour":false}"#;
+    let object = r#"{"version":1,"frame":"world","objects":[{"id":1,"class":2,"center":[0,0,10],"semi_axes":[2,1,1],"rotation":[1,0,0,0,1,0,0,0,1],"frames":[0,1],"dynamic":false}]}"#;
+    let run_folder = |name: &str, camera: &str, objects: &str| -> PathBuf {
+        let dir = d.join(name);
+        write(&dir.join("camera.json"), camera);
+        write(&dir.join("objects.json"), objects);
+        write(&dir.join("trajectory.kitti.txt"), "1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 0 0 0 1 1\n");
+        write(&dir.join("tracking.csv"), "frame,state\n0,initialised\n1,tracked\n");
+        dir
+    };
+    let label_file = src.join("label_02.txt");
+    let eval = |dir: PathBuf| -> Vec<OsString> {
+        vec!["eval".into(), dir.into(), "--labels".into(), label_file.clone().into()]
+    };
+    cases.extend([
+        mk(
+            "camera.json fx 0",
+            eval(run_folder("fx0", &camera.replace("721.5,\"fy\"", "0,\"fy\""), object)),
+            &["camera.json", "fx 0"],
+        ),
+        mk(
+            "camera.json width -5",
+            eval(run_folder("w-5", &camera.replace("1242", "-5"), object)),
+            &["camera.json", "width -5"],
+        ),
+        mk(
+            "an object in a frame the run did not play",
+            eval(run_folder("frame7", camera, &object.replace("[0,1]", "[0,7]"))),
+            &["object 1 is seen in frame 7, which the run did not play"],
+        ),
+    ]);
+    // options of the network detector with a detection file
+    let dets = fixtures().join("kitti_odom_06/detections/yolo_fastest_tiles3.json");
+    for (flag, value) in [("--score", "0.5"), ("--mode", "squash"), ("--tiles", "2"), ("--input-size", "416")] {
+        cases.push(case(
+            &format!("--detections with {flag}"),
+            &[&"run", &"--detections", &dets, &flag, &value, &"--max-frames", &"2", &"--out", &d.join("o")],
+            1,
+            &["--detections (detector file)", &format!("{flag} (detector dnn)"), "conflict"],
+        ));
+    }
+    // calibrations that are no rectified rig (odometry 06's P0 and P1 with one number changed)
+    let rig = [
+        ("skew", "P0", 1, "1e308", "skew"),
+        ("third row", "P0", 10, "2", "third row"),
+        ("P1 fx halved", "P1", 0, "353.5456", "shares its intrinsics"),
+        ("P1 cy moved", "P1", 6, "283.1104", "cy 183.1104 and P1 283.1104"),
+        ("P1 ty", "P1", 7, "50", "differ along x only"),
+        ("P1 tz", "P1", 11, "0.2", "along the optical axis"),
+        ("negative focal", "P0", 0, "-707.0912", "a camera's focal lengths are positive"),
+    ];
+    for (name, key, k, value, want) in rig {
+        let seq = sequence(&d, &format!("rig-{k}-{key}"), 2, Some(&calib_with(key, k, value)));
+        cases.push(case(
+            &format!("calibration: {name}"),
+            &[&"run", &seq, &"--out", &d.join("o")],
+            1,
+            &["calib.txt", want],
+        ));
+    }
+    let text = std::fs::read_to_string(fixtures().join("kitti_odom_06/sequences/06/calib.txt")).expect("calib");
+    let swapped: String = text
+        .lines()
+        .map(|l| l.replacen("P0:", "Px:", 1).replacen("P1:", "P0:", 1).replacen("Px:", "P1:", 1) + "\n")
+        .collect();
+    let seq = sequence(&d, "swapped", 2, Some(&swapped));
+    cases.push(case(
+        "calibration: P0 and P1 swapped",
+        &[&"run", &seq, &"--out", &d.join("o")],
+        1,
+        &["-0.5372 m", "swapped"],
+    ));
+    // frame times no camera records (times.txt 0.1 ms and 1e-300 s apart)
+    for (name, times) in [("0.1 ms", "0\n0.0001\n0.2\n"), ("1e-300 s", "0\n1e-300\n2e-300\n")] {
+        let seq = sequence(&d, &format!("times-{}", name.len()), 3, None);
+        write(&seq.join("times.txt"), times);
+        cases.push(case(
+            &format!("frame times {name} apart"),
+            &[&"run", &seq, &"--out", &d.join("o")],
+            1,
+            &["times.txt:2", "at least 0.001 s apart"],
+        ));
+    }
+    // a raw drive whose third packet jumps 1.1 km, and one whose packet turns 90° in a frame
+    let raw = fixtures().join("kitti_raw_0005/2011_09_26");
+    for (name, k, change) in [("jump", 0usize, 0.01), ("turn", 5, std::f64::consts::FRAC_PI_2)] {
+        let date = d.join(format!("raw-{name}/2011_09_26"));
+        let drive = date.join("2011_09_26_drive_0005_sync");
+        for f in ["calib_cam_to_cam.txt", "calib_imu_to_velo.txt", "calib_velo_to_cam.txt"] {
+            write(&date.join(f), &std::fs::read_to_string(raw.join(f)).expect("calib"));
+        }
+        for i in 0..4 {
+            for cam in ["image_00", "image_01"] {
+                let f = format!("{cam}/data/{i:010}.png");
+                std::fs::create_dir_all(drive.join(cam).join("data")).expect("dir");
+                std::fs::copy(raw.join("2011_09_26_drive_0005_sync").join(&f), drive.join(&f)).expect("copy");
+            }
+            let p = format!("oxts/data/{i:010}.txt");
+            let packet = std::fs::read_to_string(raw.join("2011_09_26_drive_0005_sync").join(&p)).expect("packet");
+            let mut v: Vec<String> = packet.split_whitespace().map(str::to_string).collect();
+            if i == 2 {
+                v[k] = (v[k].parse::<f64>().expect("number") + change).to_string();
+            }
+            write(&drive.join(&p), &(v.join(" ") + "\n"));
+        }
+        let ts = std::fs::read_to_string(raw.join("2011_09_26_drive_0005_sync/image_00/timestamps.txt")).expect("ts");
+        write(&drive.join("image_00/timestamps.txt"), &ts);
+        let want = if name == "jump" { "the IMU moved 111" } else { "the IMU turned" };
+        cases.push(case(
+            &format!("OXTS {name}"),
+            &[&"run", &drive, &"--out", &d.join("o")],
+            1,
+            &["0000000002.txt", want],
+        ));
+    }
+    // stereo-check with too few frame pairs, and a map point beyond a 32-bit float (and the Earth)
+    cases.push(case(
+        "stereo-check on 3 frames",
+        &[&"stereo-check", &"--max-frames", &"3"],
+        1,
+        &["frame pairs", "at least 10"],
+    ));
+    let far = MAP_OK.replace(r#""points":{}"#, r#""points":{"1":{"position":[0,1e300,0],"observed_by":[0]}}"#);
+    let far = write(&d.join("far.json"), &far);
+    cases.push(case(
+        "map point at 1e300",
+        &[&"map", &far, &"--ply", &d.join("p.ply")],
+        1,
+        &["points.1.position", "Earth's diameter"],
+    ));
+    let n = check(cases);
+    assert_eq!(n, 24);
+    assert!(!d.join("o").exists() && !d.join("p.ply").exists() && !d.join("o.json").exists(), "nothing written");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Classes 6 and 7: errors that say what is wrong (a byte-order mark is no error; a detection file
+/// that is an array says so), a run folder scored by `eval` stays the run's to replace, and a full disk
+/// (a file-size limit of 0: every byte written fails) leaves no temporary file or folder behind.
+#[test]
+fn clear_errors_and_nothing_left_on_a_full_disk() {
+    let d = scratch("clear");
+    // a UTF-8 byte-order mark in a calibration and in a detection file
+    let bom = format!(
+        "\u{feff}{}",
+        std::fs::read_to_string(fixtures().join("kitti_odom_06/sequences/06/calib.txt")).expect("calib")
+    );
+    let seq = sequence(&d, "bom", 3, Some(&bom));
+    let dets = write(&d.join("bom.json"), "\u{feff}{\"version\":1,\"frames\":[]}");
+    let mut c = app();
+    c.args(["run", "--detections"]).arg(&dets).arg(&seq).arg("--out").arg(d.join("bom-out"));
+    let (code, _, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    let array = write(&d.join("array.json"), "[{\"frame\":0,\"detections\":[]}]");
+    check(vec![case(
+        "detections: a top-level array",
+        &[&"run", &"--detections", &array, &seq, &"--out", &d.join("o")],
+        1,
+        &["array.json:1: the file is an array: a detection file is one object"],
+    )]);
+    // eval writes objects_score.json into a run's folder; the next run may still replace the folder
+    let out = d.join("scored");
+    let run = |extra: &[&str]| {
+        let mut c = app();
+        c.args(["run", "--detector", "none"]).args(extra).arg(&seq).arg("--out").arg(&out);
+        run_cmd(c)
+    };
+    assert_eq!(run(&[]).0, 0);
+    let mut c = app();
+    c.arg("eval").arg(&out).arg("--labels").arg(fixtures().join("kitti_tracking/0003/label_02.txt"));
+    let (code, _, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.join("objects_score.json").is_file());
+    let (code, _, err) = run(&["--max-frames", "2"]);
+    assert_eq!(code, 0, "run --out replaces the scored folder: {err}");
+    // a full disk: each command fails, naming what it could not write, and leaves only what was there
+    let full = d.join("full");
+    std::fs::create_dir_all(&full).expect("dir");
+    let map = write(&full.join("map.json"), MAP_OK);
+    let tracking = fixtures().join("kitti_tracking/0003");
+    let attempts: Vec<(&str, Vec<OsString>)> = vec![
+        (
+            "run --out",
+            vec![
+                "run".into(),
+                "--detector".into(),
+                "none".into(),
+                seq.clone().into(),
+                "--out".into(),
+                full.join("run").into(),
+            ],
+        ),
+        ("map --ply", vec!["map".into(), map.clone().into(), "--ply".into(), full.join("points.ply").into()]),
+        ("map --scene", vec!["map".into(), map.clone().into(), "--scene".into(), full.join("scene.ply").into()]),
+        ("objects --out", vec!["objects".into(), tracking.into(), "--out".into(), full.join("x.obj.json").into()]),
+        (
+            "sim --out",
+            vec![
+                "sim".into(),
+                "--objects".into(),
+                "1".into(),
+                "--noise-seeds".into(),
+                "1".into(),
+                "--out".into(),
+                full.join("sim").into(),
+            ],
+        ),
+    ];
+    for (name, args) in attempts {
+        let mut c = app_under("ulimit -f 0");
+        c.args(&args);
+        let (code, _, err) = run_cmd(c);
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(err.contains("cannot write") || err.contains("File too large"), "{name}: {err}");
+        assert_eq!(names_in(&full), ["map.json"], "{name} left files behind");
+    }
     std::fs::remove_dir_all(&d).ok();
 }

@@ -56,7 +56,8 @@ fn object_centres(path: &std::path::Path) -> Vec<(u64, [f64; 3])> {
         .expect("objects")
         .iter()
         .map(|o| {
-            let c: Vec<f64> = o["center"].as_array().expect("center").iter().map(|x| x.as_f64().expect("number")).collect();
+            let c: Vec<f64> =
+                o["center"].as_array().expect("center").iter().map(|x| x.as_f64().expect("number")).collect();
             (o["id"].as_u64().expect("id"), [c[0], c[1], c[2]])
         })
         .collect()
@@ -97,6 +98,12 @@ fn a_run_and_its_map_are_recorded_and_read_back() {
     let text = String::from_utf8_lossy(&o.stdout);
     let wrote = text.lines().find(|l| l.starts_with(&format!("wrote {}", rrd.display()))).expect("recording line");
     assert!(wrote.contains(&format!("{FRAMES} frames, {FRAMES} images")), "{wrote}");
+    // written beside its place and renamed when whole: no temporary file stays behind
+    let names: Vec<String> = std::fs::read_dir(&dir)
+        .expect("dir")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(names.iter().all(|n| !n.contains(".tmp-")), "{names:?}");
 
     let s = slam_rerun::read::summarise(&rrd).expect("rerun's decoder reads the recording");
     assert_eq!(s.frames, (0..FRAMES as i64).collect(), "one frame per played frame id");

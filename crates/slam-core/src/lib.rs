@@ -4,13 +4,15 @@
 //! [`assoc::Associator`], `slam-frontend` implements [`tracking::StereoTracker`] and
 //! [`source::DetectionSource`], and the pipeline holds `Box<dyn …>` values chosen from configuration.
 //! The crate is deliberately small: typed ids, object classes, detections with optional instance masks,
-//! images, and the association, detection and tracking contracts. Geometry comes from `slam-quadric`, re-exported as [`geometry`].
+//! images, the association, detection and tracking contracts, and the rules every file reader and writer
+//! follows ([`files`]: regular files only, a size cap, atomic writes). Geometry comes from `slam-quadric`, re-exported as [`geometry`].
 
 #![warn(missing_docs)]
 
 pub mod assoc;
 pub mod check;
 pub mod detection;
+pub mod files;
 pub mod rng;
 pub mod source;
 pub mod tracking;

@@ -174,12 +174,25 @@ impl DetectionFile {
     /// Read and validate a detection file.
     pub fn read(path: impl AsRef<Path>) -> Result<Self, DatasetError> {
         let path = path.as_ref();
-        let text = read_text(path)?;
+        let text = read_text(path, &slam_core::files::DOCUMENT)?;
         Self::parse(path, &text)
     }
 
     /// Parse the contents of such a file; `path` only names it in error messages.
     pub fn parse(path: &Path, text: &str) -> Result<Self, DatasetError> {
+        // serde would read an array as the object's fields in order ("invalid type: map, expected u32"):
+        // say what the file is instead
+        if let Some((k, c)) = text.char_indices().find(|(_, c)| !c.is_whitespace()).filter(|&(_, c)| c != '{') {
+            let line = 1 + text[..k].matches('\n').count();
+            let what = if c == '[' { "an array" } else { "not a JSON object" };
+            return Err(DatasetError::Parse {
+                path: path.to_path_buf(),
+                line,
+                message: format!(
+                    "the file is {what}: a detection file is one object, {{\"version\": {SCHEMA_VERSION}, \"frames\": [...]}} (docs/detections.md)"
+                ),
+            });
+        }
         let parsed: FileJson = serde_json::from_str(text).map_err(|e| DatasetError::Parse {
             path: path.to_path_buf(),
             line: e.line(),
@@ -236,6 +249,11 @@ impl DetectionFile {
     /// with a warning.
     pub fn write(&self, path: impl AsRef<Path>) -> Result<(), DatasetError> {
         let path = path.as_ref();
+        Ok(slam_core::files::write_atomic(path, self.to_json(path)?.as_bytes())?)
+    }
+
+    /// The file's JSON text ([`DetectionFile::write`]); `path` names the file in messages.
+    pub fn to_json(&self, path: &Path) -> Result<String, DatasetError> {
         let mut dropped = 0usize;
         let frames = self
             .frames
@@ -264,11 +282,8 @@ impl DetectionFile {
             tracing::warn!(dropped, path = %path.display(), "masks not written: image size unknown");
         }
         let json = FileJson { version: SCHEMA_VERSION, image_size: self.image_size, frames };
-        let text = serde_json::to_string(&json)
-            .map_err(|e| DatasetError::Invalid { path: path.to_path_buf(), message: e.to_string() })?;
-        let tmp = path.with_extension("json.tmp");
-        std::fs::write(&tmp, text).map_err(|source| DatasetError::Io { path: tmp.clone(), source })?;
-        std::fs::rename(&tmp, path).map_err(|source| DatasetError::Io { path: path.to_path_buf(), source })
+        serde_json::to_string(&json)
+            .map_err(|e| DatasetError::Invalid { path: path.to_path_buf(), message: e.to_string() })
     }
 }
 

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::{kitti::odometry::frame_id, DatasetError};
+use crate::{kitti::frames::frame_id, DatasetError};
 
 /// The images to run a detector over: the left images of a KITTI stereo sequence in any layout
 /// [`open_stereo`](crate::kitti::stereo::open_stereo) accepts, else the PNG / JPG files of `input` or of

@@ -35,6 +35,12 @@ pub enum DatasetError {
         /// What is wrong.
         message: String,
     },
+    /// The file is not a regular file or larger than its reader takes ([`slam_core::files`]).
+    #[error(transparent)]
+    Read(#[from] slam_core::files::ReadError),
+    /// A file could not be written (written atomically: [`slam_core::files`]).
+    #[error(transparent)]
+    Write(#[from] slam_core::files::WriteError),
     /// The file parsed but lacks something required.
     #[error("{path}: {message}")]
     Invalid {
@@ -45,13 +51,14 @@ pub enum DatasetError {
     },
 }
 
-/// Read a whole file as UTF-8 text, with the path in the error.
-pub(crate) fn read_text(path: &Path) -> Result<String, DatasetError> {
-    let bytes = std::fs::read(path).map_err(|source| DatasetError::Io { path: path.to_path_buf(), source })?;
-    String::from_utf8(bytes).map_err(|e| DatasetError::Parse {
-        path: path.to_path_buf(),
-        line: 1 + e.as_bytes()[..e.utf8_error().valid_up_to()].iter().filter(|&&b| b == b'\n').count(),
-        message: "not valid UTF-8".into(),
+/// Read a whole regular file of at most `limit` bytes as UTF-8 text ([`slam_core::files::read_text`]:
+/// a folder, pipe or device is refused, the limit is in the error, a byte-order mark is dropped).
+pub(crate) fn read_text(path: &Path, limit: &slam_core::files::Limit) -> Result<String, DatasetError> {
+    use slam_core::files::ReadError;
+    slam_core::files::read_text(path, limit).map_err(|e| match e {
+        ReadError::Io { path, source } => DatasetError::Io { path, source },
+        ReadError::NotUtf8 { path, line } => DatasetError::Parse { path, line, message: "not valid UTF-8".into() },
+        other => DatasetError::Read(other),
     })
 }
 

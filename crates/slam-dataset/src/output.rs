@@ -154,7 +154,7 @@ impl OutputDir {
             if !meta.is_dir() {
                 bail!("{option} {}: is a file, not a folder", dir.display());
             }
-            let listed: Vec<String> = std::fs::read_to_string(dir.join(MARKER))
+            let listed: Vec<String> = slam_core::files::read_text(&dir.join(MARKER), &slam_core::files::SMALL)
                 .map(|t| t.lines().skip(1).map(str::to_string).collect())
                 .unwrap_or_default();
             let marked = dir.join(MARKER).is_file();
@@ -183,11 +183,14 @@ impl OutputDir {
         std::fs::create_dir(&tmp).with_context(|| {
             format!("{option} {}: cannot write in {} (checked before starting)", dir.display(), parent.display())
         })?;
-        let probe = tmp.join(MARKER);
+        // from here on the temporary folder is this value's: dropped on an error, it is removed (a
+        // full disk fails the probe below, and must not keep the folder)
+        let out = Self { target: dir.to_path_buf(), tmp, parent, name, done: false };
+        let probe = out.tmp.join(MARKER);
         std::fs::write(&probe, format!("slam-app {command}\n")).with_context(|| {
-            format!("{option} {}: cannot write in {} (checked before starting)", dir.display(), parent.display())
+            format!("{option} {}: cannot write in {} (checked before starting)", dir.display(), out.parent.display())
         })?;
-        Ok(Self { target: dir.to_path_buf(), tmp, parent, name, done: false })
+        Ok(out)
     }
 
     /// Where to write (the temporary folder).
@@ -211,7 +214,7 @@ impl OutputDir {
             .filter(|n| n != MARKER)
             .collect();
         names.sort();
-        let first = std::fs::read_to_string(self.tmp.join(MARKER)).unwrap_or_default();
+        let first = slam_core::files::read_text(&self.tmp.join(MARKER), &slam_core::files::SMALL).unwrap_or_default();
         let first = first.lines().next().unwrap_or("slam-app");
         write_file(&self.tmp.join(MARKER), format!("{first}\n{}\n", names.join("\n")).as_bytes())?;
         sync_dir(&self.tmp);
@@ -283,12 +286,6 @@ fn sync_dir(dir: &Path) {
     }
 }
 
-/// The temporary sibling of `path` a new version is written to before the rename.
-fn temp_of(path: &Path) -> PathBuf {
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
-}
-
 /// Refuse a destination that is a folder or has no file name; create its parent folder.
 fn prepare_file(path: &Path) -> Result<()> {
     if path.file_name().is_none() || path.is_dir() {
@@ -300,26 +297,22 @@ fn prepare_file(path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Write a whole file atomically: a temporary file beside it, synced, then renamed over it.
+/// Write a whole file atomically ([`slam_core::files::write_atomic`]: a temporary file beside it, synced,
+/// renamed over it; removed on failure), creating its folder.
 pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
     AtomicFile::new(path)?.write_with(|tmp| std::fs::write(tmp, bytes))
 }
 
 /// A file written by someone else's writer (a library function taking a path) and put in place
-/// atomically.
-pub struct AtomicFile {
-    path: PathBuf,
-    tmp: PathBuf,
-}
+/// atomically ([`slam_core::files::AtomicWrite`]); dropped unfinished, its temporary file is removed.
+pub struct AtomicFile(slam_core::files::AtomicWrite);
 
 impl AtomicFile {
     /// Check `path` can be written (its folder exists or is created, and a file can be made in it) before
     /// any work starts.
     pub fn new(path: &Path) -> Result<Self> {
         prepare_file(path)?;
-        let tmp = temp_of(path);
-        std::fs::write(&tmp, b"").with_context(|| format!("cannot write {}", path.display()))?;
-        Ok(Self { path: path.to_path_buf(), tmp })
+        slam_core::files::AtomicWrite::create(path).map(Self).map_err(|e| OutputError::Refused(e.to_string()))
     }
 
     /// Let `write` write the temporary file, then rename it over the destination.
@@ -327,23 +320,143 @@ impl AtomicFile {
         self,
         write: impl FnOnce(&Path) -> std::result::Result<(), E>,
     ) -> Result<()> {
-        write(&self.tmp).map_err(|e| OutputError::Writer {
-            context: format!("cannot write {}", self.path.display()),
-            source: e.into(),
-        })?;
-        if let Ok(f) = std::fs::File::open(&self.tmp) {
-            let _ = f.sync_all();
-        }
-        std::fs::rename(&self.tmp, &self.path).with_context(|| format!("cannot write {}", self.path.display()))?;
-        Ok(())
+        let context = || format!("cannot write {}", self.0.destination().display());
+        write(self.0.temporary()).map_err(|e| OutputError::Writer { context: context(), source: e.into() })?;
+        self.0.commit().map_err(|e| OutputError::Refused(e.to_string()))
     }
 }
 
-impl Drop for AtomicFile {
-    fn drop(&mut self) {
-        // after a successful rename the temporary name no longer exists
-        let _ = std::fs::remove_file(&self.tmp);
+/// A path a command writes.
+#[derive(Debug, Clone, Copy)]
+pub enum Written<'a> {
+    /// A file, replaced whole; named by its option (`--ply`) or in words.
+    File(&'a str, &'a Path),
+    /// A folder, replaced as a whole ([`OutputDir`]).
+    Folder(&'a str, &'a Path),
+}
+
+/// Where a path leads: its canonical form when it exists (symbolic links, `.` and `..` resolved);
+/// otherwise the canonical form of its deepest existing ancestor with the rest of the path appended
+/// (`..` taken off there: those folders do not exist yet, so they are no links); a dangling symbolic
+/// link leads where it points.
+pub fn resolve(path: &Path) -> PathBuf {
+    resolve_within(path, 0)
+}
+
+fn resolve_within(path: &Path, depth: usize) -> PathBuf {
+    if let Ok(p) = std::fs::canonicalize(path) {
+        return p;
     }
+    // a link to a path that does not exist yet: writing it creates the target
+    if let (true, Ok(to)) = (depth < 40, std::fs::read_link(path)) {
+        let base = path.parent().unwrap_or(Path::new("."));
+        return resolve_within(&base.join(to), depth + 1);
+    }
+    let mut rest = Vec::new();
+    let mut at = path.to_path_buf();
+    while let Some(name) = at.file_name().map(|n| n.to_os_string()) {
+        rest.push(name);
+        at.pop();
+        if at.as_os_str().is_empty() {
+            at = PathBuf::from(".");
+        }
+        if let Ok(base) = std::fs::canonicalize(&at) {
+            let mut out = base;
+            for n in rest.iter().rev() {
+                match n.to_str() {
+                    Some(".") => {}
+                    Some("..") => {
+                        out.pop();
+                    }
+                    _ => out.push(n),
+                }
+            }
+            return out;
+        }
+    }
+    path.to_path_buf()
+}
+
+/// Whether two existing paths are one file (hard links included).
+fn same_file(a: &Path, b: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+            return x.dev() == y.dev() && x.ino() == y.ino();
+        }
+    }
+    resolve(a) == resolve(b)
+}
+
+/// Refuse, before anything is read, an output that is (or resolves to, through symbolic links, `.`,
+/// `..` or a hard link) one of the command's inputs, an output folder that holds an input (it is
+/// replaced as a whole), and two outputs that are one file. `inputs` are `(what, path)` pairs, files or
+/// folders.
+pub fn refuse_overwriting_inputs(inputs: &[(&str, &Path)], outputs: &[Written<'_>]) -> Result<()> {
+    let resolved: Vec<(&str, &Path, PathBuf)> = inputs.iter().map(|&(w, p)| (w, p, resolve(p))).collect();
+    let same = |a: &Path, ra: &Path, b: &Path, rb: &Path| ra == rb || same_file(a, b);
+    let shown = |p: &Path, r: &Path| {
+        if p == r {
+            p.display().to_string()
+        } else {
+            format!("{} (which is {})", p.display(), r.display())
+        }
+    };
+    let mut files: Vec<(&str, &Path, PathBuf)> = Vec::new();
+    for o in outputs {
+        match *o {
+            Written::File(option, path) => {
+                let r = resolve(path);
+                if let Some((what, p, _)) = resolved.iter().find(|(_, p, rp)| same(path, &r, p, rp)) {
+                    bail!(
+                        "{option} {}: is {what} {}, an input of this command: writing it would replace what is being read; choose another file",
+                        shown(path, &r),
+                        p.display()
+                    );
+                }
+                if let Some((other, _, _)) = files.iter().find(|(_, p, rp)| same(path, &r, p, rp)) {
+                    bail!(
+                        "{option} {}: is also the file of {other}: each output needs a file of its own",
+                        shown(path, &r)
+                    );
+                }
+                files.push((option, path, r));
+            }
+            // a path without a name of its own (`.`, `/`) is refused by the folder's own checks
+            Written::Folder(_, dir)
+                if !matches!(dir.components().next_back(), Some(std::path::Component::Normal(_))) => {}
+            Written::Folder(option, dir) => {
+                let r = resolve(dir);
+                if let Some((what, p, _)) =
+                    resolved.iter().find(|(_, p, rp)| rp.starts_with(&r) || same(dir, &r, p, rp))
+                {
+                    bail!(
+                        "{option} {}: holds {what} {}, an input of this command: the folder is replaced as a whole; choose another folder",
+                        shown(dir, &r),
+                        p.display()
+                    );
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Add `name` (a file written into `dir` after the fact, e.g. `eval`'s `objects_score.json` in a run's
+/// folder) to the folder's marker, so that the command that owns the folder may replace it later; a
+/// folder without a marker is left as it is.
+pub fn record_in_marker(dir: &Path, name: &str) -> Result<()> {
+    let marker = dir.join(MARKER);
+    let Ok(text) = slam_core::files::read_text(&marker, &slam_core::files::SMALL) else { return Ok(()) };
+    let mut lines: Vec<&str> = text.lines().collect();
+    if lines.iter().skip(1).any(|l| *l == name) {
+        return Ok(());
+    }
+    let first = lines.first().copied().unwrap_or("slam-app").to_string();
+    let mut names: Vec<&str> = lines.drain(..).skip(1).chain([name]).collect();
+    names.sort();
+    write_file(&marker, format!("{first}\n{}\n", names.join("\n")).as_bytes())
 }
 
 /// Write files into `dir` (which may hold other files, e.g. `map --picture` into a run folder): `write`
@@ -491,6 +604,67 @@ mod tests {
         assert_eq!(std::fs::read_to_string(dir.join("a.txt")).expect("restored"), "old");
         drop(o);
         assert_eq!(listing(&root), ["out"]);
+        std::fs::remove_dir_all(&root).ok();
+    }
+
+    #[test]
+    fn an_output_that_is_an_input_is_refused_however_it_is_spelled() {
+        let root = scratch("inputs");
+        let run = root.join("run");
+        std::fs::create_dir_all(&run).expect("dir");
+        let map = run.join("map.json");
+        std::fs::write(&map, "{}").expect("write");
+        let inputs = [("the map", map.as_path())];
+        let refused = |out: &Path| {
+            refuse_overwriting_inputs(&inputs, &[Written::File("--ply", out)]).err().map(|e| e.to_string())
+        };
+        // the same file, through ./ and ../, through a symbolic link, through a hard link
+        let dotted = run.join(".").join("..").join("run").join("map.json");
+        #[cfg(unix)]
+        {
+            std::os::unix::fs::symlink(&map, root.join("link.json")).expect("symlink");
+            std::fs::hard_link(&map, root.join("hard.json")).expect("hard link");
+        }
+        for out in [map.clone(), dotted, root.join("link.json"), root.join("hard.json")] {
+            let e = refused(&out).unwrap_or_else(|| panic!("{} accepted", out.display()));
+            assert!(e.contains("is the map") && e.contains("an input of this command"), "{e}");
+        }
+        // a link to a file not yet written that is an input? no: a new file beside the input is fine
+        assert_eq!(refused(&run.join("points.ply")), None);
+        assert_eq!(refused(&run.join("new/../points.ply")), None);
+        // a folder replaced as a whole must not hold an input, nor be one
+        let e = refuse_overwriting_inputs(&inputs, &[Written::Folder("--out", &run)]).expect_err("holds").to_string();
+        assert!(e.contains("--out") && e.contains("holds the map"), "{e}");
+        let e = refuse_overwriting_inputs(&[("the sequence", root.as_path())], &[Written::Folder("--out", &root)])
+            .expect_err("is")
+            .to_string();
+        assert!(e.contains("holds the sequence"), "{e}");
+        refuse_overwriting_inputs(&[("the sequence", run.as_path())], &[Written::Folder("--out", &run.join("out"))])
+            .expect("an output folder inside an input folder replaces nothing of it");
+        // two outputs into one file
+        let (a, b) = (run.join("x.ply"), run.join("./x.ply"));
+        let e = refuse_overwriting_inputs(&inputs, &[Written::File("--ply", &a), Written::File("--scene", &b)])
+            .expect_err("twice")
+            .to_string();
+        assert!(e.contains("--scene") && e.contains("also the file of --ply"), "{e}");
+        std::fs::remove_dir_all(&root).ok();
+    }
+
+    #[test]
+    fn a_file_written_later_into_a_marked_folder_joins_its_marker() {
+        let root = scratch("marker");
+        let dir = root.join("out");
+        let o = OutputDir::create(&dir, "--out", "test", ours).expect("new");
+        std::fs::write(o.path().join("a.txt"), "1").expect("write");
+        o.commit().expect("commit");
+        std::fs::write(dir.join("b.txt"), "added later").expect("write");
+        // b.txt is not in the marker: the folder is not ours to replace
+        assert!(OutputDir::create(&dir, "--out", "test", ours).is_err());
+        record_in_marker(&dir, "b.txt").expect("record");
+        record_in_marker(&dir, "b.txt").expect("twice is once");
+        let marker = std::fs::read_to_string(dir.join(MARKER)).expect("marker");
+        assert_eq!(marker, "slam-app test\na.txt\nb.txt\n");
+        drop(OutputDir::create(&dir, "--out", "test", ours).expect("ours again"));
         std::fs::remove_dir_all(&root).ok();
     }
 

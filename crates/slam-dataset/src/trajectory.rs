@@ -25,21 +25,20 @@ pub fn write_tum(path: impl AsRef<Path>, timestamps: &[f64], poses: &[Isometry3<
         let v = p.translation.vector;
         out.push_str(&format!("{t:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9}\n", v.x, v.y, v.z, q.i, q.j, q.k, q.w));
     }
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, out).map_err(|source| DatasetError::Io { path: tmp.clone(), source })?;
-    std::fs::rename(&tmp, path).map_err(|source| DatasetError::Io { path: path.to_path_buf(), source })
+    Ok(slam_core::files::write_atomic(path, out.as_bytes())?)
 }
 
 /// Read a TUM trajectory; lines starting with `#` are comments.
 pub fn read_tum(path: impl AsRef<Path>) -> Result<(Vec<f64>, Vec<Isometry3<f64>>), DatasetError> {
     let path = path.as_ref();
-    let text = read_text(path)?;
+    let text = read_text(path, &slam_core::files::TABLE)?;
     parse_tum(path, &text)
 }
 
-/// Parse the contents of such a file; `path` only names it in error messages.
+/// Parse the contents of such a file, in the file's order; `path` only names it in error messages. A
+/// time given twice is an error naming both lines (one time has one pose).
 pub fn parse_tum(path: &Path, text: &str) -> Result<(Vec<f64>, Vec<Isometry3<f64>>), DatasetError> {
-    let (mut ts, mut poses) = (Vec::new(), Vec::new());
+    let (mut ts, mut poses, mut lines) = (Vec::new(), Vec::new(), Vec::new());
     for (i, line) in text.lines().enumerate() {
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
@@ -58,7 +57,17 @@ pub fn parse_tum(path: &Path, text: &str) -> Result<(Vec<f64>, Vec<Isometry3<f64
         let t = Translation3::new(v[1], v[2], v[3]);
         crate::kitti::poses::check_position(path, i + 1, &t.vector)?;
         ts.push(v[0]);
+        lines.push(i + 1);
         poses.push(Isometry3::from_parts(t, UnitQuaternion::from_quaternion(q)));
+    }
+    let mut order: Vec<usize> = (0..ts.len()).collect();
+    order.sort_by(|&a, &b| ts[a].total_cmp(&ts[b]).then(a.cmp(&b)));
+    if let Some(w) = order.windows(2).find(|w| ts[w[0]] == ts[w[1]]) {
+        return Err(DatasetError::Parse {
+            path: path.to_path_buf(),
+            line: lines[w[1]],
+            message: format!("time {} s again (first on line {}): one time has one pose", ts[w[1]], lines[w[0]]),
+        });
     }
     Ok((ts, poses))
 }

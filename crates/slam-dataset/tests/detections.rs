@@ -64,6 +64,14 @@ fn malformed_files_are_errors() {
     }
     std::fs::write(tmp("empty"), "").expect("write");
     assert!(DetectionFile::read(tmp("empty")).is_err());
+    // a top-level array (the frames without their object) is named as such, with the line
+    std::fs::write(tmp("array"), "\n [{\"frame\": 0, \"detections\": []}]").expect("write");
+    let e = DetectionFile::read(tmp("array")).expect_err("array").to_string();
+    assert!(e.contains("array:2: the file is an array: a detection file is one object"), "{e}");
+    // a UTF-8 byte-order mark, as some editors write it, is no error
+    std::fs::write(tmp("bom"), "\u{feff}{\"version\": 1, \"frames\": [{\"frame\": 3, \"detections\": []}]}")
+        .expect("write");
+    assert_eq!(DetectionFile::read(tmp("bom")).expect("a BOM").frames.len(), 1);
 }
 
 #[test]

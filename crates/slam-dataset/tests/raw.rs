@@ -5,7 +5,10 @@ use std::path::PathBuf;
 use slam_dataset::{
     kitti::{
         poses::read_kitti_poses,
-        raw::{camera_poses_from_oxts, oxts_poses, read_oxts_packet, read_timestamps, OxtsPacket, RawCalib},
+        raw::{
+            camera_poses_from_oxts, check_oxts_steps, oxts_poses, parse_oxts_packet, read_oxts_packet, read_timestamps,
+            OxtsPacket, RawCalib,
+        },
         stereo::{open_stereo, FrameSelection, Layout, TruthSource},
         tracklets::read_tracklets,
     },
@@ -280,4 +283,36 @@ fn drive_0005_dead_reckoning_traces_the_velocities_path() {
     let full = s.dead_reckoned.as_ref().expect("dead reckoning");
     let step = full[30].inverse() * full[33];
     assert!((r[1].translation.vector - step.translation.vector).norm() < 1e-9);
+}
+
+/// Packets a vehicle cannot have produced: a 1.1 km jump between two frames, a turn of 90° in 0.1 s,
+/// each named by its packet; the shipped drive's packets pass.
+#[test]
+fn impossible_oxts_steps_name_the_packet() {
+    // lat, lon, alt, roll, pitch, yaw, … pos_accuracy (value 23) 0.5 m
+    let packet = |lat: f64, yaw: f64| {
+        let mut v = vec![0.0; 30];
+        (v[0], v[1], v[2], v[5], v[23]) = (49.0 + lat, 8.4, 110.0, yaw, 0.5);
+        let line: Vec<String> = v.iter().map(|x| x.to_string()).collect();
+        parse_oxts_packet(std::path::Path::new("p.txt"), &line.join(" ")).expect("packet")
+    };
+    let names: Vec<PathBuf> = (0..4).map(|i| PathBuf::from(format!("oxts/{i:010}.txt"))).collect();
+    let named: Vec<&std::path::Path> = names.iter().map(PathBuf::as_path).collect();
+    let times = [0.0, 0.1, 0.2, 0.3];
+    // 1e-5° of latitude is 1.1 m a step: a car at 40 km/h
+    let driving: Vec<OxtsPacket> = (0..4).map(|i| packet(1e-5 * i as f64, 0.01 * i as f64)).collect();
+    check_oxts_steps(&driving, &times, &named).expect("a drive");
+    let mut jump = driving.clone();
+    jump[2] = packet(0.01 + 2e-5, 0.02);
+    let e = check_oxts_steps(&jump, &times, &named).expect_err("jump").to_string();
+    assert!(e.starts_with("oxts/0000000002.txt: the IMU moved 111") && e.contains("0000000001.txt"), "{e}");
+    let mut spin = driving.clone();
+    spin[3] = packet(3e-5, std::f64::consts::FRAC_PI_2);
+    let e = check_oxts_steps(&spin, &times, &named).expect_err("spin").to_string();
+    assert!(e.starts_with("oxts/0000000003.txt: the IMU turned 88.9°"), "{e}");
+    // the shipped drive 0005, its packets checked as it opens
+    let d5 = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures/kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync");
+    let seq = open_stereo(d5).expect("drive 0005");
+    assert!(seq.ground_truth.is_some());
 }

@@ -53,7 +53,13 @@ fn malformed_labels_name_the_line() {
     let good = "0 0 Car 0 0 -1.5 10 20 50 60 1.5 1.6 3.9 1.0 1.7 20.0 0.1\n";
     let cases: [(&str, String); 5] = [
         ("truncated", format!("{good}0 1 Car 0 0 -1.5 10 20\n")),
-        ("nan", format!("{good}{good}0 1 Car 0 0 -1.5 10 20 nan 60 1.5 1.6 3.9 1.0 1.7 20.0 0.1\n")),
+        (
+            "nan",
+            format!(
+                "{good}{}0 1 Car 0 0 -1.5 10 20 nan 60 1.5 1.6 3.9 1.0 1.7 20.0 0.1\n",
+                good.replacen("0 0 Car", "0 2 Car", 1)
+            ),
+        ),
         ("word", "x 1 Car 0 0 -1.5 10 20 50 60 1.5 1.6 3.9 1.0 1.7 20.0 0.1\n".to_string()),
         ("emptybox", format!("{good}0 1 Car 0 0 -1.5 50 20 50 60 1.5 1.6 3.9 1.0 1.7 20.0 0.1\n")),
         ("inf", format!("{good}0 1 Car 0 0 -1.5 10 20 inf 60 1.5 1.6 3.9 1.0 1.7 20.0 0.1\n")),
@@ -65,6 +71,26 @@ fn malformed_labels_name_the_line() {
         assert!(e.to_string().contains(&p.display().to_string()), "{e}");
         assert_eq!(parse_line(e), line, "{name}");
     }
+    // a track id below -1, a DontCare with a track, one track twice in a frame, a box 10^12 m away
+    let bad: [(&str, String, &str); 4] = [
+        ("below", good.replacen("0 0 Car", "0 -2 Car", 1), "track id -2 for a Car"),
+        ("dontcare", good.replacen("0 0 Car", "0 3 DontCare", 1), "-1 marks a DontCare region"),
+        ("twice", format!("{good}{good}"), "track 0 again in frame 0 (first on line 1)"),
+        ("far", good.replacen(" 20.0 0.1", " 1e12 0.1", 1), "location coordinate 1.000e12 m"),
+    ];
+    for (name, text, want) in bad {
+        let p = write_tmp(&format!("{name}.txt"), text.as_bytes());
+        let e = read_tracking_labels(&p).expect_err(name).to_string();
+        assert!(e.contains(want), "{name}: {e}");
+    }
+    // the same track in two frames, and DontCare regions (-1) any number of times, are fine
+    let two = format!(
+        "{good}{}{}{}",
+        good.replacen("0 0 Car", "1 0 Car", 1),
+        "0 -1 DontCare -1 -1 -10 1 2 3 4 -1 -1 -1 -1000 -1000 -1000 -10\n",
+        "0 -1 DontCare -1 -1 -10 5 6 7 8 -1 -1 -1 -1000 -1000 -1000 -10\n"
+    );
+    assert_eq!(read_tracking_labels(write_tmp("two.txt", two.as_bytes())).expect("fine").len(), 4);
     // non-UTF-8
     let p = write_tmp("bin.txt", b"0 0 Car\n\xff\xfe\n");
     assert_eq!(parse_line(read_tracking_labels(&p).expect_err("binary")), 2);

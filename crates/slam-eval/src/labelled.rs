@@ -36,6 +36,9 @@ pub struct LabelledSequence {
     pub t2: Vector3<f64>,
 }
 
+/// The files of an image-free sequence folder: labels, poses, calibration.
+pub const SEQUENCE_FILES: [&str; 3] = ["label_02.txt", "poses_orbslam3.txt", "calib.txt"];
+
 impl LabelledSequence {
     /// Read the labels (`label_02.txt` format), the poses (KITTI format) and the calibration (with P2);
     /// refuses fewer poses than labelled frames.
@@ -74,7 +77,8 @@ impl LabelledSequence {
     /// [`LabelledSequence::load`] of a sequence folder's `label_02.txt`, `poses_orbslam3.txt` and
     /// `calib.txt`.
     pub fn load_dir(dir: &Path) -> Result<Self, EvalError> {
-        Self::load(&dir.join("label_02.txt"), &dir.join("poses_orbslam3.txt"), &dir.join("calib.txt"))
+        let [labels, poses, calib] = SEQUENCE_FILES.map(|f| dir.join(f));
+        Self::load(&labels, &poses, &calib)
     }
 }
 

@@ -100,16 +100,38 @@ impl LabelGeometry {
         })
     }
 
-    /// Read `camera.json`.
+    /// Read `camera.json`; a camera that cannot be one is an error naming the field
+    /// ([`LabelGeometry::check`]).
     pub fn read(path: &Path) -> Result<Self, EvalError> {
-        let text = std::fs::read_to_string(path).map_err(|e| EvalError::Io(path.display().to_string(), e))?;
-        serde_json::from_str(&text).map_err(|e| EvalError::Invalid(format!("{}: {e}", path.display())))
+        let text = slam_core::files::read_text(path, &slam_core::files::SMALL)?;
+        let g: Self =
+            serde_json::from_str(&text).map_err(|e| EvalError::Invalid(format!("{}: {e}", path.display())))?;
+        g.check().map_err(|m| EvalError::Invalid(format!("{}: {m}", path.display())))?;
+        Ok(g)
+    }
+
+    /// A camera that can be one: an image of at least one pixel each way (at most 100 000, no camera's
+    /// sensor is wider), positive finite focal lengths, the principal point inside the image, a finite
+    /// offset of at most 10 m (a stereo rig's cameras sit within its width).
+    pub fn check(&self) -> Result<(), String> {
+        use slam_core::check::{number, Range};
+        let e = |v: slam_core::check::InvalidValue| v.to_string();
+        number("width", self.width, Range::closed(1.0, 1e5), "px").map_err(e)?;
+        number("height", self.height, Range::closed(1.0, 1e5), "px").map_err(e)?;
+        number("fx", self.fx, Range::above(0.0, 1e7), "px").map_err(e)?;
+        number("fy", self.fy, Range::above(0.0, 1e7), "px").map_err(e)?;
+        number("cx", self.cx, Range::closed(0.0, self.width), "px (inside the image)").map_err(e)?;
+        number("cy", self.cy, Range::closed(0.0, self.height), "px (inside the image)").map_err(e)?;
+        for (k, v) in self.label_offset.iter().enumerate() {
+            number(&format!("label_offset[{k}]"), *v, Range::closed(-10.0, 10.0), "m").map_err(e)?;
+        }
+        Ok(())
     }
 
     /// Write `camera.json`.
     pub fn write(&self, path: &Path) -> Result<(), EvalError> {
         let text = serde_json::to_string_pretty(self).map_err(|e| EvalError::Invalid(e.to_string()))?;
-        std::fs::write(path, text).map_err(|e| EvalError::Io(path.display().to_string(), e))
+        Ok(slam_core::files::write_atomic(path, text.as_bytes())?)
     }
 
     /// A label's 3-D box centre in the run's camera.

@@ -31,6 +31,12 @@ pub enum EvalError {
     /// A file could not be read or written.
     #[error("{0}: {1}")]
     Io(String, std::io::Error),
+    /// Not a regular file, or larger than its reader takes ([`slam_core::files`]).
+    #[error(transparent)]
+    Read(#[from] slam_core::files::ReadError),
+    /// A file could not be written (atomically, [`slam_core::files`]).
+    #[error(transparent)]
+    Write(#[from] slam_core::files::WriteError),
     /// A dataset file is malformed.
     #[error(transparent)]
     Dataset(#[from] slam_dataset::DatasetError),
@@ -63,7 +69,7 @@ struct ObjectMapJson {
 /// as objects to score. Errors name the file; an object whose rotation is not a rotation or whose
 /// semi-axes are not positive is an error naming its id.
 pub fn read_object_map(path: &Path) -> Result<Vec<ScoredInput>, EvalError> {
-    let text = std::fs::read_to_string(path).map_err(|e| EvalError::Io(path.display().to_string(), e))?;
+    let text = slam_core::files::read_text(path, &slam_core::files::DOCUMENT)?;
     let map: ObjectMapJson =
         serde_json::from_str(&text).map_err(|e| EvalError::Invalid(format!("{}: {e}", path.display())))?;
     if map.version != 1 {

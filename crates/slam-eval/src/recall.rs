@@ -27,8 +27,7 @@ impl RecallSet {
     /// (`object/training/label_2/<id>.txt`). Errors name the file and line.
     pub fn load(data: &Path) -> Result<Self, EvalError> {
         let map_path = data.join("object/drive_0052_frame_to_object_id.txt");
-        let map = std::fs::read_to_string(&map_path)
-            .map_err(|e| EvalError::Io(format!("cannot read the frame map in {}", data.display()), e))?;
+        let map = slam_core::files::read_text(&map_path, &slam_core::files::TABLE)?;
         let mut set = RecallSet { images: Vec::new(), labels: BTreeMap::new() };
         for line in map.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()) {
             let f: Vec<&str> = line.split_whitespace().collect();
@@ -66,8 +65,7 @@ pub fn is_vehicle(class: ClassId) -> bool {
 
 /// The Car and Van boxes of a KITTI object label file.
 fn vehicle_labels(label: &Path) -> Result<Vec<BBox>, EvalError> {
-    let text =
-        std::fs::read_to_string(label).map_err(|e| EvalError::Io(format!("cannot read {}", label.display()), e))?;
+    let text = slam_core::files::read_text(label, &slam_core::files::TABLE)?;
     let mut boxes = Vec::new();
     for (ln, line) in text.lines().enumerate() {
         let f: Vec<&str> = line.split_whitespace().collect();

@@ -620,7 +620,7 @@ impl RunScore {
     /// Write as JSON.
     pub fn write_json(&self, path: &std::path::Path) -> Result<(), crate::EvalError> {
         let text = serde_json::to_string_pretty(self).map_err(|e| crate::EvalError::Invalid(e.to_string()))?;
-        std::fs::write(path, text).map_err(|e| crate::EvalError::Io(path.display().to_string(), e))
+        Ok(slam_core::files::write_atomic(path, text.as_bytes())?)
     }
 }
 

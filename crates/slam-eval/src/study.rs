@@ -22,7 +22,7 @@ use crate::{
 /// starts at id 20, so the line number is not the id. Errors name the file and line; a row count that
 /// differs from `poses` is an error (the files are not of the same run).
 pub fn played_frame_ids(path: &Path, poses: usize) -> Result<Vec<usize>, EvalError> {
-    let text = std::fs::read_to_string(path).map_err(|e| EvalError::Io(format!("reading {}", path.display()), e))?;
+    let text = slam_core::files::read_text(path, &slam_core::files::TABLE)?;
     let ids = text
         .lines()
         .enumerate()
@@ -44,6 +44,9 @@ pub fn played_frame_ids(path: &Path, poses: usize) -> Result<Vec<usize>, EvalErr
     Ok(ids)
 }
 
+/// The files of a run's output folder that scoring reads.
+pub const RUN_FOLDER_FILES: [&str; 4] = ["trajectory.kitti.txt", "camera.json", "objects.json", "tracking.csv"];
+
 /// Score the output folder of a run (`trajectory.kitti.txt`, `camera.json`, `objects.json`,
 /// `tracking.csv`) against the tracking labels at `labels`.
 pub fn score_run_folder(dir: &Path, labels: &Path, config: &ScoreConfig) -> Result<RunScore, EvalError> {
@@ -52,6 +55,20 @@ pub fn score_run_folder(dir: &Path, labels: &Path, config: &ScoreConfig) -> Resu
     let geometry = LabelGeometry::read(&dir.join("camera.json"))?;
     let objects = read_object_map(&dir.join("objects.json"))?;
     let ids = played_frame_ids(&dir.join("tracking.csv"), poses.len())?;
+    // an object seen in a frame the run did not play is not of this run
+    let played: std::collections::BTreeSet<usize> = ids.iter().copied().collect();
+    for o in &objects {
+        if let Some(f) = o.frames.iter().find(|f| !played.contains(f)) {
+            return Err(EvalError::Invalid(format!(
+                "{}: object {} is seen in frame {f}, which the run did not play ({} frames, ids {}..={}): not the objects of this run",
+                dir.join("objects.json").display(),
+                o.id,
+                ids.len(),
+                ids.first().copied().unwrap_or(0),
+                ids.last().copied().unwrap_or(0)
+            )));
+        }
+    }
     Ok(score_run(&labels, &poses, &ids, &geometry, &objects, config))
 }
 
@@ -61,6 +78,8 @@ pub fn score_run_folder_to_file(dir: &Path, labels: &Path, config: &ScoreConfig)
     let score = score_run_folder(dir, labels, config)?;
     let out = dir.join("objects_score.json");
     score.write_json(&out)?;
+    // a run writes this file too: listed in the folder's marker, the folder stays the run's to replace
+    slam_dataset::output::record_in_marker(dir, "objects_score.json")?;
     Ok(format!("{}wrote {}", score.report(), out.display()))
 }
 
@@ -93,7 +112,10 @@ pub fn map_to_file(
     let seq = LabelledSequence::load(labels, poses, calib)?;
     let (mapper, _) = run_mapper(&seq, noise, mapper);
     let objs: Vec<_> = mapper.objects().collect();
-    file.write_with(|tmp| slam_pipeline::objects::write_object_map(tmp, &objs))?;
+    // the file was made writable before the work: its temporary gets the text, then takes its place
+    let text = slam_pipeline::objects::object_map_text(&objs, slam_pipeline::objects::INPUT_POSES_WORLD)
+        .map_err(|e| EvalError::Io(format!("cannot write {}", out.display()), e))?;
+    file.write_with(|tmp| std::fs::write(tmp, text))?;
     let with = objs.iter().filter(|o| o.ellipsoid.is_some()).count();
     let dynamic = objs.iter().filter(|o| o.ellipsoid.is_some() && o.dynamic).count();
     Ok(format!(
@@ -191,6 +213,6 @@ mod tests {
         let e = played_frame_ids(&bad, 2).expect_err("bad id").to_string();
         assert!(e.contains("bad.csv:3: no frame id"), "{e}");
         let e = played_frame_ids(Path::new("/no/such/tracking.csv"), 1).expect_err("missing").to_string();
-        assert!(e.starts_with("reading /no/such/tracking.csv: "), "{e}");
+        assert!(e.starts_with("cannot read /no/such/tracking.csv: "), "{e}");
     }
 }

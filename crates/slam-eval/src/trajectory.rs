@@ -13,22 +13,44 @@ use crate::EvalError;
 pub enum PoseFile {
     /// KITTI: 12 numbers per line (3×4 row-major, camera to world), no times.
     Kitti(Vec<Isometry3<f64>>),
-    /// TUM: `time tx ty tz qx qy qz qw` per line.
+    /// TUM: `time tx ty tz qx qy qz qw` per line, in time order (a file whose lines are not is sorted:
+    /// a path, a drift and an RPE follow the poses in time, not in the file's line order).
     Tum(Vec<f64>, Vec<Isometry3<f64>>),
+}
+
+/// TUM times and poses in time order; whether the file's lines were not.
+fn in_time_order(t: Vec<f64>, p: Vec<Isometry3<f64>>) -> (Vec<f64>, Vec<Isometry3<f64>>, bool) {
+    if t.windows(2).all(|w| w[0] < w[1]) {
+        return (t, p, false);
+    }
+    let mut order: Vec<usize> = (0..t.len()).collect();
+    order.sort_by(|&a, &b| t[a].total_cmp(&t[b]));
+    (order.iter().map(|&k| t[k]).collect(), order.iter().map(|&k| p[k]).collect(), true)
 }
 
 impl PoseFile {
     /// Read a KITTI or TUM file, told apart by the number of fields of the first data line.
     pub fn read(path: &Path) -> Result<Self, EvalError> {
-        let text =
-            std::fs::read_to_string(path).map_err(|e| EvalError::Io(format!("cannot read {}", path.display()), e))?;
+        Self::read_noting(path).map(|(f, _)| f)
+    }
+
+    /// [`PoseFile::read`], and a note when a TUM file's lines were not in time order (they are sorted).
+    pub fn read_noting(path: &Path) -> Result<(Self, Option<String>), EvalError> {
+        let text = slam_core::files::read_text(path, &slam_core::files::TABLE)?;
         let first = text.lines().enumerate().find(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'));
         let fields = first.map_or(0, |(_, l)| l.split_whitespace().count());
         Ok(match fields {
-            12 => PoseFile::Kitti(slam_dataset::kitti::poses::parse_kitti_poses(path, &text)?),
+            12 => (PoseFile::Kitti(slam_dataset::kitti::poses::parse_kitti_poses(path, &text)?), None),
             8 => {
                 let (t, p) = slam_dataset::trajectory::parse_tum(path, &text)?;
-                PoseFile::Tum(t, p)
+                let (t, p, sorted) = in_time_order(t, p);
+                let note = sorted.then(|| {
+                    format!(
+                        "note: the lines of {} are not in time order: its poses are taken in time order",
+                        path.display()
+                    )
+                });
+                (PoseFile::Tum(t, p), note)
             }
             n => {
                 // a comma-separated first line is a table (e.g. a run's tracking.csv), not a trajectory

@@ -52,6 +52,20 @@ pub struct DnnDetector {
     pub config: DetectorConfig,
 }
 
+/// A model file OpenCV may open: a regular file (a pipe would block the loader, a device never end)
+/// of at most the model limit ([`slam_core::files::MODEL`]).
+fn model_file(p: &Path) -> Result<(), FrontendError> {
+    slam_core::files::check_readable(p, &slam_core::files::MODEL).map_err(|e| FrontendError::Model {
+        path: p.to_path_buf(),
+        message: match &e {
+            slam_core::files::ReadError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
+                "no such file".into()
+            }
+            other => other.reason(),
+        },
+    })
+}
+
 impl DnnDetector {
     /// Load a Darknet model (`.cfg` + `.weights`).
     pub fn from_darknet(
@@ -61,9 +75,7 @@ impl DnnDetector {
     ) -> Result<Self, FrontendError> {
         let (cfg, weights) = (cfg.as_ref(), weights.as_ref());
         for p in [cfg, weights] {
-            if !p.is_file() {
-                return Err(FrontendError::Model { path: p.to_path_buf(), message: "no such file".into() });
-            }
+            model_file(p)?;
         }
         let utf8 = |p: &Path| {
             p.to_str()
@@ -81,9 +93,7 @@ impl DnnDetector {
     /// Load an ONNX model.
     pub fn from_onnx(model: impl AsRef<Path>, config: DetectorConfig) -> Result<Self, FrontendError> {
         let model = model.as_ref();
-        if !model.is_file() {
-            return Err(FrontendError::Model { path: model.to_path_buf(), message: "no such file".into() });
-        }
+        model_file(model)?;
         let s = model
             .to_str()
             .ok_or(FrontendError::Model { path: model.to_path_buf(), message: "path is not UTF-8".into() })?;

@@ -39,6 +39,32 @@ pub struct OffsetEstimate {
     pub curve: Vec<(f64, f64)>,
     /// Whether the least cost lay inside the scanned range (not at an end).
     pub interior: bool,
+    /// Standard error of `offset`, pixels: the jackknife over the frame pairs (each left out once, the
+    /// offset found again from the others), so it measures how much the answer depends on which frames
+    /// were seen. NaN with fewer than two pairs.
+    pub standard_error: f64,
+}
+
+/// Fewest frame pairs an offset is estimated from: a spread estimated from `n` pairs is itself
+/// uncertain by about 1/√(2(n − 1)) of its value, a quarter at ten pairs; fewer leave the offset's own
+/// confidence unknown.
+pub const MIN_OFFSET_PAIRS: usize = 10;
+
+/// The least point of a cost curve sampled every `step`: the best sample refined by a parabola through it
+/// and its neighbours; and whether it lay inside the curve (not at an end).
+fn least(curve: &[(f64, f64)], step: f64) -> Option<(f64, bool)> {
+    let n = curve.len();
+    let best = (0..n).min_by(|&a, &b| curve[a].1.total_cmp(&curve[b].1))?;
+    let interior = best > 0 && best + 1 < n;
+    let mut offset = curve[best].0;
+    if interior {
+        let (c0, c1, c2) = (curve[best - 1].1, curve[best].1, curve[best + 1].1);
+        let den = c0 - 2.0 * c1 + c2;
+        if den > 0.0 {
+            offset += 0.5 * step * (c0 - c2) / den;
+        }
+    }
+    Some((offset, interior))
 }
 
 /// Robust cost of one pair's two-view adjustment with `offset` added to every disparity; an error when
@@ -116,22 +142,30 @@ pub fn estimate_disparity_offset(
         .enumerate()
         .map(|(j, &e)| (e, used.iter().map(|&i| costs[i][j].as_ref().map_or(0.0, |c| *c)).sum()))
         .collect();
-    let best = (0..n).min_by(|&a, &b| curve[a].1.total_cmp(&curve[b].1))?;
-    let interior = best > 0 && best + 1 < n;
-    let mut offset = curve[best].0;
-    if interior {
-        let (c0, c1, c2) = (curve[best - 1].1, curve[best].1, curve[best + 1].1);
-        let den = c0 - 2.0 * c1 + c2;
-        if den > 0.0 {
-            offset += 0.5 * step * (c0 - c2) / den;
-        }
-    }
+    let (offset, interior) = least(&curve, step)?;
+    // jackknife: the offset of the curve without each pair in turn
+    let cost = |i: usize, j: usize| costs[i][j].as_ref().map_or(0.0, |c| *c);
+    let leave_out: Vec<f64> = used
+        .iter()
+        .filter_map(|&i| {
+            let without: Vec<(f64, f64)> = curve.iter().enumerate().map(|(j, &(e, c))| (e, c - cost(i, j))).collect();
+            least(&without, step).map(|l| l.0)
+        })
+        .collect();
+    let m = leave_out.len() as f64;
+    let standard_error = if leave_out.len() < 2 {
+        f64::NAN
+    } else {
+        let mean = leave_out.iter().sum::<f64>() / m;
+        ((m - 1.0) / m * leave_out.iter().map(|x| (x - mean).powi(2)).sum::<f64>()).sqrt()
+    };
     Some(OffsetEstimate {
         offset,
         pairs: used.len(),
         points: used.iter().map(|&i| pairs[i].keyframe.len()).sum(),
         curve,
         interior,
+        standard_error,
     })
 }
 
@@ -193,6 +227,27 @@ mod tests {
             assert!((e.offset - bias).abs() < 0.05, "bias {bias}: estimated {}", e.offset);
             assert_eq!((e.pairs, e.points), (6, 1500));
         }
+    }
+
+    /// The jackknife's standard error is near the spread of offsets over independent draws of the same
+    /// rig (6 pairs each), and shrinks with less disparity noise.
+    #[test]
+    fn the_standard_error_measures_the_spread_over_frames() {
+        let (range, step) = ((-0.6, 1.0), 0.1);
+        let noisy: Vec<OffsetEstimate> = (10..15)
+            .map(|seed| {
+                estimate_disparity_offset(&rig(), &pairs(0.2, 0.5, seed), range, step, &lm()).expect("estimate")
+            })
+            .collect();
+        let offsets: Vec<f64> = noisy.iter().map(|e| e.offset).collect();
+        let mean = offsets.iter().sum::<f64>() / offsets.len() as f64;
+        let spread = (offsets.iter().map(|o| (o - mean).powi(2)).sum::<f64>() / (offsets.len() - 1) as f64).sqrt();
+        let se = noisy.iter().map(|e| e.standard_error).sum::<f64>() / noisy.len() as f64;
+        assert!(se > 0.3 * spread && se < 3.0 * spread, "standard error {se:.4} vs spread over draws {spread:.4}");
+        let quiet = estimate_disparity_offset(&rig(), &pairs(0.2, 0.05, 10), range, step, &lm()).expect("estimate");
+        assert!(quiet.standard_error < 0.5 * se, "{} vs {se}", quiet.standard_error);
+        let one = estimate_disparity_offset(&rig(), &pairs(0.2, 0.1, 10)[..1], range, step, &lm()).expect("estimate");
+        assert!(one.standard_error.is_nan(), "one pair: no spread");
     }
 
     #[test]

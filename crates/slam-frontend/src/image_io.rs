@@ -47,16 +47,26 @@ impl From<opencv::Error> for FrontendError {
 pub fn read_image(path: impl AsRef<Path>, colour: bool) -> Result<Image, FrontendError> {
     let path = path.as_ref();
     let err = |m: String| FrontendError::ImageRead { path: path.to_path_buf(), message: m };
-    let s = path.to_str().ok_or_else(|| err("path is not UTF-8".into()))?;
-    if !path.is_file() {
-        return Err(err("no such file".into()));
-    }
+    // a regular file of at most the image limit, read here and decoded from memory: a folder, a pipe, a
+    // link that loops or a device is named as what it is, and nothing is read without end
+    let bytes = slam_core::files::read_bytes(path, &slam_core::files::IMAGE).map_err(|e| err(image_reason(&e)))?;
     let flag = if colour { imgcodecs::IMREAD_COLOR } else { imgcodecs::IMREAD_GRAYSCALE };
-    let m = imgcodecs::imread(s, flag).map_err(|e| err(e.to_string()))?;
+    let m = imgcodecs::imdecode(&core::Vector::<u8>::from_slice(&bytes), flag).map_err(|e| err(e.to_string()))?;
     if m.empty() {
         return Err(err("could not decode (corrupt or unsupported file)".into()));
     }
     mat_to_image(&m).map_err(|e| err(e.to_string()))
+}
+
+/// Why an image file could not be read, in the words of [`FrontendError::ImageRead`]: `no such file` for
+/// a missing one.
+fn image_reason(e: &slam_core::files::ReadError) -> String {
+    match e {
+        slam_core::files::ReadError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
+            "no such file".into()
+        }
+        other => other.reason(),
+    }
 }
 
 /// Write an image (format from the extension).

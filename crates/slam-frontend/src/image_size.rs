@@ -46,6 +46,9 @@ pub enum ImageSizeError {
 pub fn image_size(path: &Path) -> Result<(u32, u32), ImageSizeError> {
     let mut head = [0u8; 24];
     use std::io::Read;
+    // a pipe would block the open, a device never end: regular files only
+    slam_core::files::check_readable(path, &slam_core::files::IMAGE)
+        .map_err(|e| ImageSizeError::Io { path: path.to_path_buf(), source: std::io::Error::other(e.reason()) })?;
     let n = std::fs::File::open(path)
         .and_then(|mut f| f.read(&mut head))
         .map_err(|source| ImageSizeError::Io { path: path.to_path_buf(), source })?;

@@ -42,6 +42,15 @@ pub(crate) struct KeyframeIndex {
 /// The end of a chain.
 const NONE: u32 = u32::MAX;
 
+/// Most entries of one chain a query follows (from the newest). A 16-bit substring value is shared by
+/// chance by one in 65 536 unrelated descriptors, so a keyframe of 2000 descriptors lengthens a chain
+/// by 0.03 on average, while a feature seen again from every keyframe of a place (a car standing
+/// still, a road driven again) lengthens the chains of its substrings by one per keyframe. Following at
+/// most 64 entries reaches the 64 newest keyframes that saw such a feature, and by chance alone some
+/// 2000 keyframes back; a query costs at most descriptors × 16 × 64 distance checks however long the
+/// run, instead of growing with it.
+const CHAIN_LIMIT: usize = 64;
+
 fn chunk(d: &Descriptor, c: usize) -> u16 {
     u16::from_le_bytes([d[2 * c], d[2 * c + 1]])
 }
@@ -78,33 +87,45 @@ impl KeyframeIndex {
     /// over √(query descriptors × keyframe descriptors), so a keyframe with more keypoints is not
     /// favoured for its size. Ties go to the lower key.
     pub(crate) fn query(&self, descriptors: &[Descriptor], n: usize) -> Vec<(u64, f64)> {
-        let mut votes = vec![0u32; self.entries.len()];
+        self.query_counted(descriptors, n).0
+    }
+
+    /// [`KeyframeIndex::query`] and the number of chain entries it visited (at most descriptors × 16 ×
+    /// [`CHAIN_LIMIT`]).
+    fn query_counted(&self, descriptors: &[Descriptor], n: usize) -> (Vec<(u64, f64)>, usize) {
+        // votes of the keyframes met only: nothing here grows with the keyframes never met
+        let mut votes: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
         let mut voted: Vec<u32> = Vec::new();
+        let mut visited = 0;
         for q in descriptors {
             voted.clear();
             for (c, head) in self.heads.iter().enumerate() {
                 let mut id = head[chunk(q, c) as usize];
-                while id != NONE {
+                let mut walked = 0;
+                while id != NONE && walked < CHAIN_LIMIT {
                     let (d, slot) = &self.descriptors[id as usize];
                     if !voted.contains(slot) && hamming(q, d) <= MAX_HAMMING {
                         voted.push(*slot);
                     }
                     id = self.next[id as usize][c];
+                    walked += 1;
                 }
+                visited += walked;
             }
             for &slot in &voted {
-                votes[slot as usize] += 1;
+                *votes.entry(slot).or_default() += 1;
             }
         }
         let mut scored: Vec<(u64, f64)> = votes
-            .iter()
-            .zip(&self.entries)
-            .filter(|(v, _)| **v > 0)
-            .map(|(&v, &(key, size))| (key, v as f64 / ((descriptors.len() * size).max(1) as f64).sqrt()))
+            .into_iter()
+            .map(|(slot, v)| {
+                let (key, size) = self.entries[slot as usize];
+                (key, v as f64 / ((descriptors.len() * size).max(1) as f64).sqrt())
+            })
             .collect();
         scored.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
         scored.truncate(n);
-        scored
+        (scored, visited)
     }
 }
 
@@ -152,6 +173,27 @@ mod tests {
             assert!(best[0].1 > 0.3, "{best:?}");
             assert!(best.get(1).map_or(0.0, |b| b.1) < 0.02, "{best:?}");
         }
+    }
+
+    #[test]
+    fn a_query_visits_a_bounded_number_of_entries_however_long_the_run() {
+        let mut rng = SimRng::new(11);
+        let place = random(&mut rng, 200);
+        let mut index = KeyframeIndex::default();
+        // the same place indexed again and again (a car standing still): every chain of its substrings
+        // grows by one per keyframe
+        let mut visited = Vec::new();
+        for k in 0..300u64 {
+            index.insert(k, &place);
+            if k == 99 || k == 299 {
+                let (best, n) = index.query_counted(&place, 3);
+                assert_eq!(best.len(), 3, "the newest keyframes of the place are found: {best:?}");
+                assert!(best.iter().all(|b| b.0 >= k + 1 - CHAIN_LIMIT as u64), "{best:?}");
+                visited.push(n);
+            }
+        }
+        assert_eq!(visited[0], 200 * CHUNKS * CHAIN_LIMIT, "at the limit after 100 keyframes");
+        assert_eq!(visited[1], visited[0], "and no more after 300");
     }
 
     #[test]

@@ -15,6 +15,7 @@ pub use matching::hamming;
 pub mod image_io;
 pub mod image_size;
 mod keyframe_index;
+mod keyframe_motion;
 mod matching;
 pub mod model;
 mod pose_only;

@@ -193,12 +193,15 @@ impl StereoVo {
         let tracked_map_points = refined.as_ref().map_or(0, |r| r.inliers.len());
         let rms = refined.as_ref().map_or(f64::NAN, |r| r.rms);
         let world_from_curr = world_from_ref * kf_from_curr;
+        if measured && matches!(route, Some(Route::Retrieved(_))) {
+            self.motion.forget_velocity();
+        }
         let since_measured = self.motion.since_measured;
         let wants = self.policy.wants(
             &self.tracker.config,
             state,
             refined.as_ref(),
-            (&map, reference_points),
+            (&map, reference_points, &frame.keypoints),
             since_measured,
             stereo_points,
         );

@@ -24,6 +24,9 @@ pub enum ProblemError {
         /// Cause.
         source: std::io::Error,
     },
+    /// Not a regular file, larger than a problem file may be, or not UTF-8 ([`slam_core::files`]).
+    #[error(transparent)]
+    Read(#[from] slam_core::files::ReadError),
     /// Malformed content.
     #[error("{path}:{line}: {message}")]
     Parse {
@@ -81,7 +84,10 @@ impl<'a> Tokens<'a> {
 }
 
 fn read(path: &Path) -> Result<String, ProblemError> {
-    std::fs::read_to_string(path).map_err(|source| ProblemError::Io { path: path.to_path_buf(), source })
+    slam_core::files::read_text(path, &slam_core::files::PROBLEM).map_err(|e| match e {
+        slam_core::files::ReadError::Io { path, source } => ProblemError::Io { path, source },
+        other => ProblemError::Read(other),
+    })
 }
 
 /// Read a BAL problem; `huber` gives the Huber threshold in pixels (σ = 1 px), `None` for plain L2.

@@ -176,6 +176,12 @@ pub enum MapError {
         /// The cause.
         source: std::io::Error,
     },
+    /// Not a regular file, or larger than a map file may be ([`slam_core::files`]).
+    #[error(transparent)]
+    Read(#[from] slam_core::files::ReadError),
+    /// The file could not be written (atomically, [`slam_core::files`]).
+    #[error(transparent)]
+    Write(#[from] slam_core::files::WriteError),
     /// Not a map file, or malformed.
     #[error("{path}: not a readable map file: {message}")]
     Format {
@@ -263,19 +269,17 @@ impl Map {
 
     /// Write the map as JSON, atomically (a temporary file beside it, then a rename).
     pub fn save(&self, path: &Path) -> Result<(), MapError> {
-        let io = |source| MapError::Io { path: path.to_path_buf(), source };
         let text = serde_json::to_string(self)
             .map_err(|e| MapError::Format { path: path.to_path_buf(), message: e.to_string() })?;
-        let mut tmp = path.as_os_str().to_owned();
-        tmp.push(".tmp");
-        let tmp = PathBuf::from(tmp);
-        std::fs::write(&tmp, text).map_err(io)?;
-        std::fs::rename(&tmp, path).map_err(io)
+        Ok(slam_core::files::write_atomic(path, text.as_bytes())?)
     }
 
     /// Read a map file, checking its format name and version.
     pub fn load(path: &Path) -> Result<Self, MapError> {
-        let text = std::fs::read_to_string(path).map_err(|source| MapError::Io { path: path.to_path_buf(), source })?;
+        let text = slam_core::files::read_text(path, &slam_core::files::DOCUMENT).map_err(|e| match e {
+            slam_core::files::ReadError::Io { path, source } => MapError::Io { path, source },
+            other => MapError::Read(other),
+        })?;
         #[derive(Deserialize)]
         struct Header {
             format: String,
@@ -313,10 +317,25 @@ impl Map {
     /// length, rotations orthonormal, semi-axes positive, every id referring to something, frames in
     /// increasing order. Returns the first offending field and what is wrong with it.
     pub fn check(&self) -> Result<(), (String, String)> {
+        fn position(field: String, p: &[f64]) -> Result<(), (String, String)> {
+            if !p.iter().all(|v| v.is_finite()) {
+                return Err((field, format!("not finite: {p:?}")));
+            }
+            if let Some(v) = p.iter().find(|v| v.abs() > MAX_COORDINATE_M) {
+                return Err((
+                    field,
+                    format!(
+                        "coordinate {v:.3e} m: a map stays within {MAX_COORDINATE_M:.1e} m of its origin (the Earth's diameter)"
+                    ),
+                ));
+            }
+            Ok(())
+        }
         fn pose(field: String, p: &PoseArray) -> Result<(), (String, String)> {
             if !p.iter().all(|v| v.is_finite()) {
                 return Err((field, format!("not finite: {p:?}")));
             }
+            position(field.clone(), &p[4..])?;
             let n = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]).sqrt();
             // written maps hold unit quaternions to 1e-15; 1e-3 allows values rounded by hand
             if (n - 1.0).abs() > 1e-3 {
@@ -355,9 +374,7 @@ impl Map {
             }
         }
         for (id, p) in &self.points {
-            if !p.position.iter().all(|v| v.is_finite()) {
-                return Err((format!("points.{id}.position"), format!("not finite: {:?}", p.position)));
-            }
+            position(format!("points.{id}.position"), &p.position)?;
             if let Some(k) = p.observed_by.iter().find(|k| !self.keyframes.contains_key(k)) {
                 return Err((format!("points.{id}.observed_by"), format!("keyframe {k} does not exist")));
             }
@@ -371,6 +388,7 @@ impl Map {
             if !o.center.iter().chain(&o.rotation).all(|v| v.is_finite()) {
                 return Err((at("center/rotation"), "not finite".into()));
             }
+            position(at("center"), &o.center)?;
             // no object a map holds is a kilometre long: larger is a corrupt number or other units
             if !o.semi_axes.iter().all(|a| a.is_finite() && *a > 0.0 && *a <= 1e3) {
                 return Err((
@@ -429,15 +447,29 @@ impl Map {
             "ply\nformat ascii 1.0\ncomment quadric-slam map points\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
             self.points.len()
         );
-        for p in self.points.values() {
+        for (id, p) in &self.points {
+            ply_float(path, &format!("points.{id}.position"), &p.position)?;
             let _ = writeln!(s, "{} {} {}", p.position[0], p.position[1], p.position[2]);
         }
-        let io = |source| MapError::Io { path: path.to_path_buf(), source };
-        let mut tmp = path.as_os_str().to_owned();
-        tmp.push(".tmp");
-        std::fs::write(&tmp, s).map_err(io)?;
-        std::fs::rename(&tmp, path).map_err(io)
+        Ok(slam_core::files::write_atomic(path, s.as_bytes())?)
     }
+}
+
+/// Largest coordinate a map may hold, metres: the Earth's diameter (1.3e7 m), the bound the dataset
+/// readers put on poses (a larger number is a corrupt value or other units).
+pub const MAX_COORDINATE_M: f64 = 1.3e7;
+
+/// A PLY vertex's coordinates must fit the file's 32-bit floats (a larger value would be written as
+/// a number the reader turns into infinity).
+fn ply_float(path: &Path, what: &str, v: &[f64; 3]) -> Result<(), MapError> {
+    if v.iter().all(|x| x.is_finite() && x.abs() <= f64::from(f32::MAX)) {
+        return Ok(());
+    }
+    Err(MapError::Invalid {
+        path: path.to_path_buf(),
+        field: what.to_string(),
+        message: format!("{v:?} does not fit the PLY file's 32-bit floats (at most {:.3e})", f32::MAX),
+    })
 }
 
 /// What [`Map::export_scene_ply`] wrote.
@@ -497,11 +529,10 @@ impl Map {
         }
         counts.points = self.points.len();
         (counts.vertices, counts.faces, counts.edges) = (mesh.vertices.len(), mesh.faces.len(), mesh.edges.len());
-        let io = |source| MapError::Io { path: path.to_path_buf(), source };
-        let mut tmp = path.as_os_str().to_owned();
-        tmp.push(".tmp");
-        std::fs::write(&tmp, mesh.to_ply()).map_err(io)?;
-        std::fs::rename(&tmp, path).map_err(io)?;
+        for (i, (v, _)) in mesh.vertices.iter().enumerate() {
+            ply_float(path, &format!("vertex {i}"), v)?;
+        }
+        slam_core::files::write_atomic(path, mesh.to_ply().as_bytes())?;
         Ok(counts)
     }
 }
@@ -629,6 +660,33 @@ mod tests {
     }
 
     #[test]
+    fn coordinates_beyond_the_earth_or_a_float32_are_refused() {
+        let dir = std::env::temp_dir().join(format!("map-far-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("tmp dir");
+        let mut m = sample();
+        m.points.insert(9, MapPoint { position: [0.0, 1e300, 0.0], observed_by: vec![0] });
+        // the PLY writer refuses what its 32-bit floats cannot hold, and writes nothing
+        let e = m.export_ply(&dir.join("p.ply")).expect_err("1e300").to_string();
+        assert!(e.contains("points.9.position") && e.contains("32-bit floats"), "{e}");
+        let e = m.export_scene_ply(&dir.join("s.ply")).expect_err("1e300").to_string();
+        assert!(e.contains("32-bit floats"), "{e}");
+        // a map file holding it is refused when loaded (a map stays within the Earth's diameter)
+        m.save(&dir.join("far.json")).expect("saves");
+        let e = Map::load(&dir.join("far.json")).expect_err("far").to_string();
+        assert!(e.contains("points.9.position") && e.contains("Earth's diameter"), "{e}");
+        m.points.get_mut(&9).expect("point").position = [0.0, 1.2e7, 0.0];
+        m.export_ply(&dir.join("p.ply")).expect("within both bounds");
+        let names: Vec<String> = std::fs::read_dir(&dir)
+            .expect("list")
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(names.len(), 2, "far.json and p.ply, no temporary: {names:?}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
     fn pose_arrays_round_trip() {
         let p =
             Isometry3::from_parts(Translation3::new(-1.0, 0.5, 2.0), UnitQuaternion::from_euler_angles(0.4, 0.2, -1.0));
@@ -643,7 +701,12 @@ mod tests {
         let path = dir.join("map.json");
         let m = sample();
         m.save(&path).expect("saves");
-        assert!(!dir.join("map.json.tmp").exists(), "temporary file renamed away");
+        let names: Vec<String> = std::fs::read_dir(&dir)
+            .expect("list")
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(names, ["map.json"], "temporary file renamed away");
         let back = Map::load(&path).expect("loads");
         assert_eq!(back, m);
         let poses = back.frame_poses();

@@ -45,6 +45,14 @@ impl Default for MappingConfig {
     }
 }
 
+/// Most keyframes held fixed in a local adjustment, per keyframe of the window. While a car drives,
+/// the keyframes that see the window's points are those the points stayed in view for: at most 15 on
+/// the dev drives (odometry 06, raw 0005; 6 free). Standing still or driving over the same road again,
+/// every keyframe of the place sees them, and without a bound the adjustment would grow with the run
+/// (500 fixed keyframes after 2000 frames standing still, 0.6 s per keyframe). Four times the window
+/// keeps an adjustment within a constant factor of the window's own size, as the tracker's local map is.
+pub const FIXED_PER_WINDOW: usize = 4;
+
 /// Result of inserting a keyframe.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MappingReport {
@@ -199,7 +207,8 @@ impl LocalMapper {
 
     /// The window's points seen at least twice (a point seen by one keyframe only says nothing about
     /// the poses: its stereo observation alone fixes it), and the keyframes held fixed: those outside
-    /// the window that see them, or, at a segment's start, the window's oldest (the gauge).
+    /// the window that see them, at most [`FIXED_PER_WINDOW`] times the window (the ones sharing the
+    /// most points with it, then the newest), or, at a segment's start, the window's oldest (the gauge).
     fn local_points_and_gauge(&self, window: &[KeyframeId]) -> (BTreeSet<PointId>, BTreeSet<KeyframeId>) {
         let local_points: BTreeSet<PointId> = window
             .iter()
@@ -207,12 +216,16 @@ impl LocalMapper {
             .flat_map(|k| k.observations.iter().map(|o| o.0))
             .filter(|p| self.map.points.get(p).is_some_and(|x| x.observed_by.len() >= 2))
             .collect();
-        let mut fixed: BTreeSet<KeyframeId> = local_points
-            .iter()
-            .filter_map(|p| self.map.points.get(p))
-            .flat_map(|p| p.observed_by.iter().copied())
-            .filter(|k| !window.contains(k))
-            .collect();
+        let mut shared: BTreeMap<KeyframeId, usize> = BTreeMap::new();
+        for k in local_points.iter().filter_map(|p| self.map.points.get(p)).flat_map(|p| p.observed_by.iter()) {
+            if !window.contains(k) {
+                *shared.entry(*k).or_default() += 1;
+            }
+        }
+        let mut ranked: Vec<(KeyframeId, usize)> = shared.into_iter().collect();
+        ranked.sort_by(|a, b| b.1.cmp(&a.1).then(b.0.cmp(&a.0)));
+        ranked.truncate(FIXED_PER_WINDOW * window.len().max(1));
+        let mut fixed: BTreeSet<KeyframeId> = ranked.into_iter().map(|(k, _)| k).collect();
         if fixed.is_empty() {
             if let Some(&oldest) = window.last() {
                 fixed.insert(oldest);
@@ -410,6 +423,46 @@ mod tests {
             })
             .sum();
         assert!(err_after < 0.2 * err_before, "BA error {err_after:.3} vs tracker error {err_before:.3}");
+    }
+
+    /// Forty keyframes at one place, all seeing the same points (a car standing still, or a road driven
+    /// again): the keyframes held fixed stop at four times the window, the ones sharing the most points
+    /// and then the newest, so an adjustment costs the same at the fortieth keyframe as at the
+    /// thirtieth.
+    #[test]
+    fn the_fixed_keyframes_of_an_adjustment_are_bounded() {
+        let k = Intrinsics::new(700.0, 700.0, 600.0, 180.0);
+        let b = 0.54;
+        let mut mapper = LocalMapper::new(
+            k,
+            b,
+            MappingConfig { iterations: 2, ..MappingConfig::default() },
+            std::sync::Arc::new(slam_lm::LevenbergMarquardt::default()),
+        );
+        let points: Vec<KeyframePoint> = (0..60)
+            .map(|i| {
+                let c = Vector3::new(-6.0 + 0.2 * i as f64, -1.0 + 0.03 * i as f64, 10.0 + 0.4 * i as f64);
+                let u = k.fx * c.x / c.z + k.cx;
+                KeyframePoint { id: i, camera_point: c, observation: [u, k.fy * c.y / c.z + k.cy, u - k.fx * b / c.z] }
+            })
+            .collect();
+        let mut fixed = Vec::new();
+        for i in 0..40u64 {
+            let parent = (i > 0).then(|| (i - 1, Isometry3::identity()));
+            let data = KeyframeData {
+                id: i,
+                frame: i as usize,
+                world_from_camera: Isometry3::identity(),
+                parent,
+                points: points.clone(),
+                earlier: vec![],
+            };
+            fixed.push(mapper.insert_keyframe(&data).window.1);
+        }
+        let cap = FIXED_PER_WINDOW * MappingConfig::default().window;
+        assert_eq!(fixed[12], 7, "below the cap every keyframe seeing the points is held: {fixed:?}");
+        assert_eq!((fixed[30], fixed[39]), (cap, cap), "{fixed:?}");
+        assert!(fixed.iter().all(|&f| f <= cap), "{fixed:?}");
     }
 
     /// Points triangulated between two keyframes arrive with left-only observations in both (the

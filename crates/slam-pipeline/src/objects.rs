@@ -1533,8 +1533,11 @@ impl MappedObject {
 /// Write the object map (objects with an ellipsoid) as JSON, atomically, naming the world frame of the
 /// poses the objects were mapped with "world of the input poses" ([`write_object_map_in`]).
 pub fn write_object_map(path: &Path, objects: &[&MappedObject]) -> std::io::Result<()> {
-    write_object_map_in(path, objects, "world of the input poses (camera to world of the left camera)")
+    write_object_map_in(path, objects, INPUT_POSES_WORLD)
 }
+
+/// The world frame of an object map made from given poses ([`write_object_map`]), in words.
+pub const INPUT_POSES_WORLD: &str = "world of the input poses (camera to world of the left camera)";
 
 /// Write the object map (objects with an ellipsoid) as JSON, atomically. Schema (version 1): `frame`
 /// (the world frame, in words), `objects` with `id`, `class` (COCO index), `class_name`, `center`
@@ -1542,6 +1545,11 @@ pub fn write_object_map(path: &Path, objects: &[&MappedObject]) -> std::io::Resu
 /// along the object's x (length), y (height), z (width), `frames` (frames of its detections), `dynamic`
 /// (flagged dynamic by any test) and `moving` (its map points moved: not a mapped object).
 pub fn write_object_map_in(path: &Path, objects: &[&MappedObject], frame: &str) -> std::io::Result<()> {
+    slam_core::files::write_atomic(path, object_map_text(objects, frame)?.as_bytes()).map_err(std::io::Error::other)
+}
+
+/// The object map's JSON text ([`write_object_map_in`]), for writers that put it in place themselves.
+pub fn object_map_text(objects: &[&MappedObject], frame: &str) -> std::io::Result<String> {
     let objects = objects
         .iter()
         .filter_map(|o| o.to_map_object())
@@ -1557,11 +1565,8 @@ pub fn write_object_map_in(path: &Path, objects: &[&MappedObject], frame: &str) 
             moving: m.moving,
         })
         .collect();
-    let text = serde_json::to_string_pretty(&MapJson { version: OBJECT_MAP_VERSION, frame, objects })
-        .map_err(std::io::Error::other)?;
-    let tmp = path.with_extension("json.tmp");
-    std::fs::write(&tmp, text)?;
-    std::fs::rename(&tmp, path)
+    serde_json::to_string_pretty(&MapJson { version: OBJECT_MAP_VERSION, frame, objects })
+        .map_err(std::io::Error::other)
 }
 
 #[cfg(test)]

@@ -16,6 +16,8 @@ use re_sdk_types::{
     components::{Position3D, Text, Translation3D},
 };
 
+use slam_core::files::{check_readable, Limit};
+
 use crate::scene::{path, FRAME_TIMELINE};
 
 /// What a recording holds.
@@ -44,11 +46,22 @@ pub struct ReadError {
     pub message: String,
 }
 
-/// Decode the recording at `path` and summarise it.
+/// What the reader takes: it streams the file (messages are decoded one by one), so the limit only keeps
+/// out what no run writes.
+const RECORDING: Limit = Limit {
+    bytes: 64 << 30,
+    what: "a rerun recording",
+    why: "a recording takes about 0.1 MB per frame of odometry 06 (JPEG images), so this holds runs of over 500 000 frames",
+};
+
+/// Decode the recording at `path` and summarise it. Only a regular file is read
+/// ([`slam_core::files::check_readable`]).
 pub fn summarise(path: &Path) -> Result<RecordingSummary, ReadError> {
     let err = |m: String| ReadError { path: path.to_path_buf(), message: m };
+    check_readable(path, &RECORDING).map_err(|e| err(e.reason()))?;
     let file = std::fs::File::open(path).map_err(|e| err(e.to_string()))?;
-    let messages = re_log_encoding::DecoderApp::decode_eager(std::io::BufReader::new(file)).map_err(|e| err(e.to_string()))?;
+    let messages =
+        re_log_encoding::DecoderApp::decode_eager(std::io::BufReader::new(file)).map_err(|e| err(e.to_string()))?;
     let mut s = RecordingSummary::default();
     let frame = TimelineName::from_static_str(FRAME_TIMELINE);
     let mut latest: Option<i64> = None;
@@ -67,7 +80,8 @@ pub fn summarise(path: &Path) -> Result<RecordingSummary, ReadError> {
             s.points += chunk.iter_component::<Position3D>(positions).map(|row| row.as_slice().len()).sum::<usize>();
         }
         if entity == path::OBJECTS {
-            let (centres, labels) = (Ellipsoids3D::descriptor_centers().component, Ellipsoids3D::descriptor_labels().component);
+            let (centres, labels) =
+                (Ellipsoids3D::descriptor_centers().component, Ellipsoids3D::descriptor_labels().component);
             let rows = chunk
                 .iter_component_indices(frame, centres)
                 .zip(chunk.iter_component::<Translation3D>(centres))
@@ -76,7 +90,8 @@ pub fn summarise(path: &Path) -> Result<RecordingSummary, ReadError> {
                 let t = t.as_i64();
                 if latest.is_none_or(|x| t >= x) {
                     latest = Some(t);
-                    s.objects = c.as_slice().iter().zip(l.as_slice()).map(|(c, l)| (c.0 .0, l.as_str().to_string())).collect();
+                    s.objects =
+                        c.as_slice().iter().zip(l.as_slice()).map(|(c, l)| (c.0 .0, l.as_str().to_string())).collect();
                 }
             }
         }

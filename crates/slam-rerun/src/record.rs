@@ -1,6 +1,8 @@
 //! Writing a recording with rerun's logging SDK: a [`Recorder`] fed frame by frame while a run goes
 //! (its own thread encodes the images and logs; rerun's file sink streams to disk), and
-//! [`record_map`] for a saved map.
+//! [`record_map`] for a saved map. Both write to a temporary sibling of the file
+//! ([`slam_core::files::AtomicWrite`]) and put it in place only when the recording is whole: a failed or
+//! interrupted run leaves the previous recording as it was.
 
 use std::{
     path::{Path, PathBuf},
@@ -12,12 +14,13 @@ use nalgebra::Isometry3;
 use re_sdk::{RecordingStream, RecordingStreamBuilder};
 use re_sdk_types::{
     archetypes::{
-        Boxes2D, Clear, EncodedImage, Ellipsoids3D, LineStrips2D, LineStrips3D, Pinhole, Points3D, Scalars, TextDocument,
-        TextLog, Transform3D, ViewCoordinates,
+        Boxes2D, Clear, Ellipsoids3D, EncodedImage, LineStrips2D, LineStrips3D, Pinhole, Points3D, Scalars,
+        TextDocument, TextLog, Transform3D, ViewCoordinates,
     },
     components::{Color, MediaType, Radius, TextLogLevel},
     datatypes::Quaternion,
 };
+use slam_core::files::AtomicWrite;
 use slam_pipeline::{map::Map, objects::MappedObject, system::FrameView};
 
 use crate::scene::{
@@ -87,7 +90,12 @@ enum Message {
     Frame(Box<FrameScene>),
     /// The run's final state, logged at its last frame: the trajectory after local mapping's
     /// corrections and the objects.
-    End { frame: usize, time_s: Option<f64>, trajectory: Vec<[f32; 3]>, objects: Vec<ObjectShape> },
+    End {
+        frame: usize,
+        time_s: Option<f64>,
+        trajectory: Vec<[f32; 3]>,
+        objects: Vec<ObjectShape>,
+    },
 }
 
 /// A recording made while a run goes: [`Recorder::create`] before the first frame, [`Recorder::frame`]
@@ -95,10 +103,11 @@ enum Message {
 ///
 /// The observer's thread (the tracking thread) only copies the frame's content ([`FrameScene`], the
 /// left image included); a thread of the recorder's own encodes the image as JPEG and logs, and rerun's
-/// file sink writes as the run goes (no whole-run buffer: a run stopped early leaves a recording up to
-/// its last frame).
+/// file sink writes as the run goes (no whole-run buffer), into the temporary sibling of the file, which
+/// [`Recorder::finish`] puts in place; a recorder dropped unfinished (a run stopped early) removes it.
 pub struct Recorder {
     path: PathBuf,
+    file: Option<AtomicWrite>,
     setup: SceneSetup,
     recorded: NewPoints,
     last: Option<(usize, Option<f64>)>,
@@ -110,7 +119,8 @@ impl Recorder {
     /// Create the recording at `path` (replacing a file there) and log what does not change: the world
     /// frame's axes, the camera's pinhole, the ground truth and the legend.
     pub fn create(path: &Path, setup: SceneSetup) -> Result<Self, RecordError> {
-        let rec = open(path)?;
+        let file = start(path)?;
+        let rec = open(&file)?;
         let mut writer = Writer::new(rec, path);
         writer.setup(&setup)?;
         let (tx, rx) = bounded(QUEUE);
@@ -120,6 +130,7 @@ impl Recorder {
             .map_err(|e| RecordError::Create { path: path.to_path_buf(), message: e.to_string() })?;
         Ok(Self {
             path: path.to_path_buf(),
+            file: Some(file),
             setup,
             recorded: NewPoints::default(),
             last: None,
@@ -158,14 +169,16 @@ impl Recorder {
         let worker = self.worker.take().ok_or_else(|| RecordError::Thread { path: self.path.clone() })?;
         let mut stats = worker.join().map_err(|_| RecordError::Thread { path: self.path.clone() })??;
         stats.points = self.recorded.count();
-        stats.bytes = file_size(&self.path)?;
+        let file = self.file.take().ok_or_else(|| RecordError::Thread { path: self.path.clone() })?;
+        stats.bytes = file_size(file.temporary())?;
+        file.commit().map_err(|e| RecordError::Write { path: self.path.clone(), message: e.to_string() })?;
         Ok(stats)
     }
 }
 
 impl Drop for Recorder {
-    /// A recorder dropped unfinished (a run stopped early) still closes its file: the frames sent so
-    /// far are written.
+    /// A recorder dropped unfinished (a run stopped early, an error) stops its thread and removes its
+    /// temporary file: a file of the same name from before stays as it was.
     fn drop(&mut self) {
         self.tx = None;
         if let Some(worker) = self.worker.take() {
@@ -180,7 +193,8 @@ impl Drop for Recorder {
 /// frame, each object's final ellipsoid from the frame it was first seen in. No images or frustum
 /// (a map file keeps no camera intrinsics).
 pub fn record_map(map: &Map, path: &Path) -> Result<RecordingStats, RecordError> {
-    let mut writer = Writer::new(open(path)?, path);
+    let file = start(path)?;
+    let mut writer = Writer::new(open(&file)?, path);
     writer.log_static(path::WORLD, &ViewCoordinates::RDF())?;
     writer.legend()?;
     let mut points = 0;
@@ -190,14 +204,21 @@ pub fn record_map(map: &Map, path: &Path) -> Result<RecordingStats, RecordError>
     }
     let mut stats = writer.close()?;
     stats.points = points;
-    stats.bytes = file_size(path)?;
+    stats.bytes = file_size(file.temporary())?;
+    file.commit().map_err(|e| RecordError::Write { path: path.to_path_buf(), message: e.to_string() })?;
     Ok(stats)
 }
 
-fn open(path: &Path) -> Result<RecordingStream, RecordError> {
+/// The temporary sibling the recording at `path` is written to (which proves the folder writable).
+fn start(path: &Path) -> Result<AtomicWrite, RecordError> {
+    AtomicWrite::create(path).map_err(|e| RecordError::Create { path: path.to_path_buf(), message: e.to_string() })
+}
+
+/// A recording stream whose file sink writes into `file`'s temporary file.
+fn open(file: &AtomicWrite) -> Result<RecordingStream, RecordError> {
     RecordingStreamBuilder::new(APPLICATION_ID)
-        .save(path)
-        .map_err(|e| RecordError::Create { path: path.to_path_buf(), message: e.to_string() })
+        .save(file.temporary())
+        .map_err(|e| RecordError::Create { path: file.destination().to_path_buf(), message: e.to_string() })
 }
 
 fn file_size(path: &Path) -> Result<u64, RecordError> {
@@ -227,7 +248,13 @@ fn rgb(c: [u8; 3]) -> Color {
 
 impl Writer {
     fn new(rec: RecordingStream, path: &Path) -> Self {
-        Self { rec, path: path.to_path_buf(), blocks: PathBlocks::default(), objects: None, stats: RecordingStats::default() }
+        Self {
+            rec,
+            path: path.to_path_buf(),
+            blocks: PathBlocks::default(),
+            objects: None,
+            stats: RecordingStats::default(),
+        }
     }
 
     fn failed(&self, e: impl std::fmt::Display) -> RecordError {

@@ -141,7 +141,15 @@ pub struct ObjectShape {
 }
 
 impl ObjectShape {
-    fn new(id: u64, class: u16, class_name: &str, centre: [f64; 3], half_sizes: [f64; 3], rotation: Matrix3<f64>, state: ObjectState) -> Self {
+    fn new(
+        id: u64,
+        class: u16,
+        class_name: &str,
+        centre: [f64; 3],
+        half_sizes: [f64; 3],
+        rotation: Matrix3<f64>,
+        state: ObjectState,
+    ) -> Self {
         let tail = match state {
             ObjectState::Static => "",
             ObjectState::Dynamic => " dynamic",
@@ -261,8 +269,10 @@ impl NewPoints {
     /// The points of `points` not recorded before, at most [`MAX_POINTS_PER_KEYFRAME`] of them spread
     /// evenly over the new ones (every k-th, in the given order), as `f32`; marks them recorded.
     pub fn take(&mut self, points: impl IntoIterator<Item = (PointId, Vector3<f64>)>) -> Vec<[f32; 3]> {
-        let fresh: Vec<(PointId, Vector3<f64>)> =
-            points.into_iter().filter(|(id, x)| !self.recorded.contains(id) && x.iter().all(|v| v.is_finite())).collect();
+        let fresh: Vec<(PointId, Vector3<f64>)> = points
+            .into_iter()
+            .filter(|(id, x)| !self.recorded.contains(id) && x.iter().all(|v| v.is_finite()))
+            .collect();
         let step = fresh.len().div_ceil(MAX_POINTS_PER_KEYFRAME).max(1);
         fresh
             .iter()
@@ -421,11 +431,8 @@ impl FrameScene {
     pub fn of_map(map: &Map) -> impl Iterator<Item = FrameScene> + '_ {
         let poses = map.frame_poses();
         let mut recorded = NewPoints::default();
-        let objects: Vec<(usize, ObjectShape)> = map
-            .objects
-            .iter()
-            .map(|o| (o.frames.iter().copied().min().unwrap_or(0), ObjectShape::of_map(o)))
-            .collect();
+        let objects: Vec<(usize, ObjectShape)> =
+            map.objects.iter().map(|o| (o.frames.iter().copied().min().unwrap_or(0), ObjectShape::of_map(o))).collect();
         map.trajectory.iter().zip(poses).map(move |(f, pose)| {
             let points = map
                 .keyframes
@@ -460,7 +467,10 @@ impl FrameScene {
 }
 
 /// The new map points of each correction, bounded per keyframe (corrections without new points left out).
-fn corrections_points(corrections: &[KeyframeCorrection], recorded: &mut NewPoints) -> Vec<(KeyframeId, Vec<[f32; 3]>)> {
+fn corrections_points(
+    corrections: &[KeyframeCorrection],
+    recorded: &mut NewPoints,
+) -> Vec<(KeyframeId, Vec<[f32; 3]>)> {
     corrections
         .iter()
         .map(|c| (c.id, recorded.take(c.points.iter().copied())))

@@ -101,7 +101,8 @@ pub fn bench_row(
             }
             stages[k].push(ms);
         }
-        if let Some(e) = o.seq.truth_from_first().and_then(|g| trajectory_errors(&o.out.poses, &g, &[])) {
+        let scored = o.seq.truth_from_first().map(|g| crate::report::Scored::of(&o.out, &g, &o.seq.ids));
+        if let Some(e) = scored.and_then(|s| trajectory_errors(&s.est, &s.truth, &[])) {
             ate.push(e.ate_m);
         }
         progress(format!("{name}: run {} of {repeat}: {:.1} frames/s", r + 1, fps[fps.len() - 1]));
@@ -287,9 +288,10 @@ pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<
     let o = run_quiet(&s, None).context_with(|| format!("case {}", case.name))?;
     let (out, seq) = (&o.out, &o.seq);
     let truth = seq.truth_from_first();
-    let errors = truth.as_ref().and_then(|g| trajectory_errors(&out.poses, g, &[]));
+    let scored = truth.as_ref().map(|g| crate::report::Scored::of(out, g, &seq.ids));
+    let errors = scored.as_ref().and_then(|s| trajectory_errors(&s.est, &s.truth, &[]));
     // only frames the tracker marked "tracked" (not initialised, lost, relocalised or any weaker state)
-    let step = truth.as_ref().and_then(|g| crate::report::largest_tracked_step_error(out, g));
+    let step = scored.as_ref().and_then(|s| s.largest_tracked_step_error());
     let cell = |v: Option<f64>, digits: usize| v.map_or("–".to_string(), |v| format!("{v:.digits$}"));
     let states: Vec<String> = state_counts(&out.frames).iter().map(|n| n.to_string()).collect();
     let line = format!(
@@ -299,7 +301,7 @@ pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<
         cell(errors.as_ref().map(|e| e.ate_aligned_m), 3),
         errors.as_ref().map_or("–".to_string(), |e| format!("{:+.2}", e.path_error_pct())),
         cell(errors.as_ref().map(|e| e.end_drift_pct), 2),
-        step.map_or("–".to_string(), |(e, k)| format!("{e:.3} ({})", seq.ids[k])),
+        step.map_or("–".to_string(), |(e, id)| format!("{e:.3} ({id})")),
         states.join(" | "),
         cell(errors.as_ref().map(|e| e.ate_m), 3),
         median_fps(out)
@@ -314,8 +316,9 @@ pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<
             notes.push(format!("{}: {}.", case.name, crate::report::oxts_path_line(&p)));
         }
     }
-    if let Some(g) = &truth {
-        let check = crate::report::interpolation_lines(&out.poses, g, &seq.ids);
+    if let Some(s) = &scored {
+        notes.extend(s.note.iter().map(|l| format!("{}: {l}.", case.name)));
+        let check = crate::report::interpolation_lines(&s.est, &s.truth, crate::report::PoseNames::Frames(&s.ids));
         notes.extend(check.into_iter().map(|l| format!("{}: {l}.", case.name)));
     }
     if let Some(errors) = crate::report::dead_reckoning_errors(out, seq) {
@@ -353,7 +356,7 @@ mod tests {
         let mut lines = header.lines();
         let cols = lines.next().expect("head").matches('|').count();
         assert_eq!(lines.next().expect("rule").matches('|').count(), cols);
-        assert_eq!(cols, 10 + STATE_NAMES.len());
+        assert_eq!(cols, 9 + STATE_NAMES.len());
         let row =
             BenchRow { name: "x".into(), fps_median: 30.04, fps_overall: 20.0, stages: vec![1.0; 8], ate: 0.1234 };
         assert_eq!(

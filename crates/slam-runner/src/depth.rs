@@ -214,7 +214,7 @@ pub fn motion_check(
 /// descriptor as 64 hex digits); errors name the file and line.
 pub fn read_keypoints(path: &Path) -> Result<Vec<slam_frontend::stereo_vo::StereoKeypoint>> {
     let bad = |line: usize, what: String| RunnerError::Invalid(format!("{}:{line}: {what}", path.display()));
-    let text = std::fs::read_to_string(path).map_err(|e| RunnerError::Invalid(format!("{}: {e}", path.display())))?;
+    let text = slam_core::files::read_text(path, &slam_core::files::TABLE).map_err(RunnerError::other)?;
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap_or_default().split(',').map(str::trim).collect();
     let col = |name: &str| header.iter().position(|h| *h == name).ok_or_else(|| bad(1, format!("no column {name}")));

@@ -10,7 +10,7 @@ use std::{
 use slam_core::DetectionSource;
 use slam_dataset::{
     detections::DetectionFile,
-    output::{AtomicFile, OutputDir},
+    output::{refuse_overwriting_inputs, AtomicFile, OutputDir, Written},
 };
 use slam_eval::recall::RecallSet;
 use slam_frontend::{batch::detect_images, read_image, ModeName, ModelSpec};
@@ -45,6 +45,12 @@ impl DetectPlan {
                 ),
             ),
         };
+        // nothing it reads may be written over: an image, the input folder (inside an overlay folder)
+        let mut inputs: Vec<(&str, &Path)> = vec![("the input folder", input)];
+        inputs.extend(images.iter().map(|p| ("an input image", p.as_path())));
+        let mut outputs = vec![Written::File("--out", out)];
+        outputs.extend(overlays.map(|o| Written::Folder("--overlays", o)));
+        refuse_overwriting_inputs(&inputs, &outputs)?;
         let json = AtomicFile::new(out)?;
         let overlays = overlays
             .map(|o| OutputDir::create(o, "--overlays", "detect", |name| name.ends_with(".png")))
@@ -57,7 +63,8 @@ impl DetectPlan {
         let dir = self.overlays.as_ref().map(|o| o.path());
         let out = detect_images(detector, &self.frames, dir, tick).map_err(RunnerError::other)?;
         let file = DetectionFile { image_size: out.image_size, frames: out.frames };
-        self.json.write_with(|tmp| file.write(tmp))?;
+        let text = file.to_json(&self.shown)?;
+        self.json.write_with(|tmp| std::fs::write(tmp, text))?;
         if let Some(o) = self.overlays {
             o.commit()?;
         }

@@ -82,14 +82,24 @@ impl DetectorOptions {
             let share = slam_core::check::Range::closed(0.0, 1.0);
             slam_core::check::number("--label-noise", noise, share, "(σ as a share of the box size)")?;
         }
-        let implied = match (&self.detections, self.label_noise) {
-            (Some(_), Some(_)) => {
-                return invalid("--detections (detector file) and --label-noise (detector labels) conflict".into())
-            }
-            (Some(_), None) => Some((DetectorKind::File, "--detections")),
-            (None, Some(_)) => Some((DetectorKind::Labels, "--label-noise")),
-            (None, None) => self.model_option.map(|flag| (DetectorKind::Dnn, flag)),
-        };
+        // each source-specific option implies its source: two of different sources conflict (an option
+        // of a source not run would be silently ignored)
+        let implied: Vec<(DetectorKind, &str)> = [
+            self.detections.as_ref().map(|_| (DetectorKind::File, "--detections")),
+            self.label_noise.map(|_| (DetectorKind::Labels, "--label-noise")),
+            self.model_option.map(|flag| (DetectorKind::Dnn, flag)),
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
+        if let [(a, fa), (b, fb), ..] = implied[..] {
+            return invalid(format!(
+                "{fa} (detector {}) and {fb} (detector {}) conflict: each is an option of its own detection source",
+                a.name(),
+                b.name()
+            ));
+        }
+        let implied = implied.first().copied();
         match (self.kind, implied) {
             (None, None) => Ok(DetectorKind::Dnn),
             (None, Some((kind, _))) | (Some(kind), None) => Ok(kind),
@@ -201,6 +211,12 @@ mod tests {
         let e = o(Some(DetectorKind::None), None, None, Some("--score")).kind().expect_err("conflict");
         assert!(e.to_string().contains("--score is an option of --detector dnn, but --detector none"), "{e}");
         assert!(o(None, Some("d.json"), Some(0.1), None).kind().is_err());
+        // a network option with a detection file: the file would be read and the option ignored
+        for flag in ["--score", "--mode", "--tiles"] {
+            let e = o(None, Some("d.json"), None, Some(flag)).kind().expect_err(flag).to_string();
+            assert!(e.contains("--detections (detector file)") && e.contains(&format!("{flag} (detector dnn)")), "{e}");
+            assert!(o(Some(DetectorKind::File), Some("d.json"), None, Some(flag)).kind().is_err(), "{flag}");
+        }
         let e = o(None, None, Some(f64::NAN), None).kind().expect_err("NaN noise");
         assert!(e.to_string().contains("--label-noise NaN: must be a finite number in [0, 1]"), "{e}");
         let network: NetworkLoader = Arc::new(|| Err("not loaded in this test".into()));

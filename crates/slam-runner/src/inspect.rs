@@ -20,8 +20,8 @@ pub fn trajectory_eval(
     max_diff: f64,
     selection: &slam_dataset::kitti::stereo::FrameSelection,
 ) -> Result<String> {
-    let est = PoseFile::read(estimate)?;
-    let all = PoseFile::read(truth)?;
+    let (est, est_note) = PoseFile::read_noting(estimate)?;
+    let (all, truth_note) = PoseFile::read_noting(truth)?;
     // the ground truth's line k is frame id k: a run of a subset (`run --frames --stride`) is compared
     // with the same subset
     let whole = *selection == slam_dataset::kitti::stereo::FrameSelection::default();
@@ -32,11 +32,14 @@ pub fn trajectory_eval(
                 .into(),
         ));
     }
+    // the frame id of each ground-truth line kept (line k is frame k)
+    let mut frame_ids: Vec<usize> = (0..all.poses().len()).collect();
     let gt = if whole {
         all
     } else {
         let ids: Vec<usize> = (0..all.poses().len()).collect();
         let keep = selection.kept(&ids);
+        frame_ids = keep.clone();
         if keep.len() < 2 {
             return Err(RunnerError::Invalid(format!(
                 "{} holds {} poses: {} keeps {} of them",
@@ -48,7 +51,7 @@ pub fn trajectory_eval(
         }
         all.subset(&keep)
     };
-    let mut lines = Vec::new();
+    let mut lines: Vec<String> = est_note.into_iter().chain(truth_note).collect();
     if !whole {
         lines.push(format!(
             "ground truth {}: {} only (its line k is frame id k)",
@@ -81,15 +84,32 @@ pub fn trajectory_eval(
         "| ATE (first poses aligned) | {:.3} m |\n| ATE (rigid alignment) | {:.3} m |",
         e.ate_m, e.ate_aligned_m
     ));
-    lines.push(format!("| end-point drift | {:.2} % |\n| scale (similarity fit) | {:.4} |", e.end_drift_pct, e.scale));
+    // a ground truth that does not move has no path to divide by; without motion in both, no scale
+    let scale = if e.scale.is_finite() { format!("{:.4}", e.scale) } else { "– (a trajectory does not move)".into() };
+    lines.push(format!(
+        "| end-point drift | {} |\n| scale (similarity fit) | {scale} |",
+        crate::report::drift_text(e.end_drift_pct)
+    ));
     for (len, t, r, count) in e.rpe {
         lines.push(format!("| RPE {len:.0} m ({count} segments) | {t:.2} % / {r:.2} deg/100 m |"));
     }
     let matched = |v: &[nalgebra::Isometry3<f64>], first: bool| -> Vec<nalgebra::Isometry3<f64>> {
         c.pairs.iter().map(|&(i, j)| v[if first { i } else { j }]).collect()
     };
-    let ids: Vec<usize> = c.pairs.iter().map(|&(_, j)| j).collect();
-    lines.extend(crate::report::interpolation_lines(&matched(est.poses(), true), &matched(gt.poses(), false), &ids));
+    // the poses compared, named by frame id (a KITTI ground truth's line k is frame k) or by time (TUM)
+    let (ids, times): (Vec<usize>, Vec<f64>) = c
+        .pairs
+        .iter()
+        .map(|&(_, j)| {
+            let time = if let PoseFile::Tum(t, _) = &gt { t.get(j).copied().unwrap_or(f64::NAN) } else { f64::NAN };
+            (frame_ids.get(j).copied().unwrap_or(j), time)
+        })
+        .unzip();
+    let names = match &gt {
+        PoseFile::Tum(..) => crate::report::PoseNames::Times(&times),
+        PoseFile::Kitti(_) => crate::report::PoseNames::Frames(&ids),
+    };
+    lines.extend(crate::report::interpolation_lines(&matched(est.poses(), true), &matched(gt.poses(), false), names));
     Ok(lines.join("\n"))
 }
 

@@ -125,7 +125,8 @@ impl Outcome {
             );
             return lines;
         };
-        let Some(e) = trajectory_errors(&self.out.poses, &gt, &[10.0, 20.0, 40.0]) else { return lines };
+        let s = Scored::of(&self.out, &gt, &self.seq.ids);
+        let Some(e) = trajectory_errors(&s.est, &s.truth, &[10.0, 20.0, 40.0]) else { return lines };
         if let Some(TruthSource::Oxts { median_pos_accuracy_m, path }) = self.seq.truth_source {
             lines.push(format!(
                 "\nground truth from the drive's OXTS packets (differential GPS + IMU; median position accuracy {median_pos_accuracy_m:.2} m from the packets' pos_accuracy): position errors below that are not meaningful"
@@ -142,16 +143,14 @@ impl Outcome {
             "\nground truth: path {:.1} m over {} frames; ATE {:.3} m (aligned {:.3} m); end-point drift {drift}; scale {scale}",
             e.path_m, e.frames, e.ate_m, e.ate_aligned_m
         ));
+        lines.extend(s.note.clone());
         for (len, t, r, count) in e.rpe {
             lines.push(format!("RPE over {len:.0} m segments ({count}): {t:.2} % translation, {r:.2} deg/100 m"));
         }
-        if let Some((err, k)) = largest_tracked_step_error(&self.out, &gt) {
-            lines.push(format!(
-                "largest step error of a frame marked tracked: {err:.3} m (frame {})",
-                self.seq.ids.get(k).copied().unwrap_or(k)
-            ));
+        if let Some((err, id)) = s.largest_tracked_step_error() {
+            lines.push(format!("largest step error of a frame marked tracked: {err:.3} m (frame {id})"));
         }
-        lines.extend(interpolation_lines(&self.out.poses, &gt, &self.seq.ids));
+        lines.extend(interpolation_lines(&s.est, &s.truth, PoseNames::Frames(&s.ids)));
         lines.extend(self.dead_reckoning_line());
         lines
     }
@@ -203,8 +202,16 @@ impl Outcome {
     /// written, for the summary line.
     pub fn pictures(&self, dir: &Path, overlays: Option<&OverlayChoice>) -> Result<String> {
         let out = &self.out;
-        slam_viz::map_picture(&out.map, &out.poses, self.seq.truth_from_first().as_deref(), dir)?;
-        let mut written = "map.svg, map.png".to_string();
+        // a map that cannot be drawn is said so; the run's trajectory and maps are written all the same
+        let mut written = match slam_viz::map_picture(&out.map, &out.poses, self.seq.truth_from_first().as_deref(), dir)
+        {
+            Ok(_) => "map.svg, map.png".to_string(),
+            Err(slam_viz::VizError::NotDrawable { message }) => {
+                tracing::warn!("no map picture: {message}");
+                format!("no map picture ({message})")
+            }
+            Err(e) => return Err(e.into()),
+        };
         let Some(o) = overlays else { return Ok(written) };
         let opts = slam_viz::OverlayOptions {
             left: &self.seq.left,
@@ -259,14 +266,11 @@ pub(crate) const DEAD_RECKONING: &str = "against the INS's dead reckoning (its v
 /// end-point drift and the largest step error of a frame marked tracked, as one phrase.
 pub(crate) fn dead_reckoning_errors(out: &RunOutput, seq: &StereoSequence) -> Option<String> {
     let dr = seq.dead_reckoned_from_first()?;
-    let e = trajectory_errors(&out.poses, &dr, &[])?;
-    let step = largest_tracked_step_error(out, &dr)
-        .map(|(err, k)| {
-            format!(
-                "; largest step error of a frame marked tracked {err:.3} m (frame {})",
-                seq.ids.get(k).copied().unwrap_or(k)
-            )
-        })
+    let s = Scored::of(out, &dr, &seq.ids);
+    let e = trajectory_errors(&s.est, &s.truth, &[])?;
+    let step = s
+        .largest_tracked_step_error()
+        .map(|(err, id)| format!("; largest step error of a frame marked tracked {err:.3} m (frame {id})"))
         .unwrap_or_default();
     // how far the two references disagree on the same steps: a step error below that cannot be told
     // from the references' own
@@ -287,26 +291,58 @@ pub(crate) fn dead_reckoning_errors(out: &RunOutput, seq: &StereoSequence) -> Op
     ))
 }
 
+/// What names the poses compared in the ground-truth check's lines: their frame ids, or (TUM files,
+/// which carry no frame ids) their times.
+#[derive(Debug, Clone, Copy)]
+pub enum PoseNames<'a> {
+    /// Frame id of each pose.
+    Frames(&'a [usize]),
+    /// Time of each pose, seconds.
+    Times(&'a [f64]),
+}
+
+impl PoseNames<'_> {
+    /// Poses `a` to `b`: `frames 3-11`, `the poses at 0.300-1.100 s`.
+    fn span(&self, a: usize, b: usize) -> String {
+        match self {
+            PoseNames::Frames(ids) => {
+                let id = |k: usize| ids.get(k).copied().unwrap_or(k);
+                format!("frames {}-{}", id(a), id(b))
+            }
+            PoseNames::Times(t) => {
+                let at = |k: usize| t.get(k).copied().unwrap_or(f64::NAN);
+                format!("the poses at {:.3}-{:.3} s", at(a), at(b))
+            }
+        }
+    }
+
+    /// Pose `k`: `frame 11`, `the pose at 1.100 s`.
+    fn one(&self, k: usize) -> String {
+        match self {
+            PoseNames::Frames(ids) => format!("frame {}", ids.get(k).copied().unwrap_or(k)),
+            PoseNames::Times(t) => format!("the pose at {:.3} s", t.get(k).copied().unwrap_or(f64::NAN)),
+        }
+    }
+}
+
 /// What the ground-truth check says ([`interpolated_stretches`]): one line per stretch of ground truth
 /// that turns by the same rotation every step, and the errors from the end of the last one on.
-pub fn interpolation_lines(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], ids: &[usize]) -> Vec<String> {
+pub fn interpolation_lines(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], names: PoseNames<'_>) -> Vec<String> {
     let stretches = interpolated_stretches(gt);
-    let id = |k: usize| ids.get(k).copied().unwrap_or(k);
     let mut lines: Vec<String> = stretches
         .iter()
         .map(|&(a, b)| {
             format!(
-                "ground-truth check: frames {}-{} turn by the same rotation every step (successive steps differ by less than the test's bound of {INTERPOLATED_TURN_DEG}°; measured driving changes by 0.015° or more from step to step): an interpolated stretch, not a measurement",
-                id(a),
-                id(b)
+                "ground-truth check: {} turn by the same rotation every step (successive steps differ by less than the test's bound of {INTERPOLATED_TURN_DEG}°; measured driving changes by 0.015° or more from step to step): an interpolated stretch, not a measurement",
+                names.span(a, b)
             )
         })
         .collect();
     if let Some(e) = stretches.last().and_then(|&(_, b)| errors_from(est, gt, b, &[]).map(|e| (b, e))) {
         let drift = drift_text(e.1.end_drift_pct);
         lines.push(format!(
-            "from frame {} on (both re-anchored there): path {:.1} m; ATE {:.3} m (aligned {:.3} m); end-point drift {drift}",
-            id(e.0),
+            "from {} on (both re-anchored there): path {:.1} m; ATE {:.3} m (aligned {:.3} m); end-point drift {drift}",
+            names.one(e.0),
             e.1.path_m,
             e.1.ate_m,
             e.1.ate_aligned_m,
@@ -316,7 +352,7 @@ pub fn interpolation_lines(est: &[Isometry3<f64>], gt: &[Isometry3<f64>], ids: &
 }
 
 /// An end-point drift as printed: a percentage, or a dash when the ground truth has no path to divide by.
-fn drift_text(pct: f64) -> String {
+pub(crate) fn drift_text(pct: f64) -> String {
     if pct.is_finite() {
         format!("{pct:.2} %")
     } else {
@@ -324,11 +360,76 @@ fn drift_text(pct: f64) -> String {
     }
 }
 
-/// The largest translation error of one frame-to-frame step ending at a frame marked tracked, and that
-/// frame's index in the run (`None` without such a step).
-pub fn largest_tracked_step_error(out: &RunOutput, truth: &[Isometry3<f64>]) -> Option<(f64, usize)> {
-    let tracked: Vec<bool> = out.frames.iter().map(|f| matches!(f.state, Some(TrackState::Tracked { .. }))).collect();
-    largest_step_error(&out.poses, truth, &tracked)
+/// A run's poses as they are scored against a reference (ground truth, dead reckoning): from the
+/// first frame tracking started at (initialised) on, without the unreadable frames (their pose is the
+/// frame before's, held, not a measurement), the estimate and the reference both re-anchored at that
+/// first frame when it is not the sequence's first. Lost and predicted frames stay: their pose is the
+/// run's estimate.
+#[derive(Debug, Clone)]
+pub struct Scored {
+    /// Frame id of each scored pose.
+    pub ids: Vec<usize>,
+    /// The run's poses scored.
+    pub est: Vec<Isometry3<f64>>,
+    /// The reference's poses of the same frames.
+    pub truth: Vec<Isometry3<f64>>,
+    /// Whether each scored frame was marked tracked (the step-error figure).
+    pub tracked: Vec<bool>,
+    /// What was left out and where both start, when anything was.
+    pub note: Option<String>,
+}
+
+impl Scored {
+    /// The scored poses of `out` against `truth` (one per played frame, from the sequence's first), the
+    /// frames named by `ids`.
+    pub fn of(out: &RunOutput, truth: &[Isometry3<f64>], ids: &[usize]) -> Self {
+        let n = out.poses.len().min(truth.len()).min(out.frames.len());
+        let state = |k: usize| out.frames[k].state;
+        let first = (0..n).find(|&k| state(k) == Some(TrackState::Initialised)).unwrap_or(0);
+        let keep: Vec<usize> = (first..n).filter(|&k| state(k).is_some()).collect();
+        let id = |k: usize| ids.get(k).copied().unwrap_or(k);
+        let tracked = keep.iter().map(|&k| matches!(state(k), Some(TrackState::Tracked { .. }))).collect();
+        let ids_kept: Vec<usize> = keep.iter().map(|&k| id(k)).collect();
+        if keep.len() == n {
+            // nothing left out: the poses as they are
+            return Self {
+                ids: ids_kept,
+                est: out.poses[..n].to_vec(),
+                truth: truth[..n].to_vec(),
+                tracked,
+                note: None,
+            };
+        }
+        let anchored = |v: &[Isometry3<f64>]| -> Vec<Isometry3<f64>> {
+            let origin = v[first].inverse();
+            keep.iter().map(|&k| origin * v[k]).collect()
+        };
+        let unreadable = (first..n).filter(|&k| state(k).is_none()).count();
+        let mut left_out = Vec::new();
+        if first > 0 {
+            left_out.push(format!(
+                "the {first} frame{} before frame {}, where tracking started (both trajectories start there)",
+                if first == 1 { "" } else { "s" },
+                id(first)
+            ));
+        }
+        if unreadable > 0 {
+            left_out.push(format!(
+                "{unreadable} unreadable frame{}{} (a held pose, not a measurement)",
+                if unreadable == 1 { "" } else { "s" },
+                if first > 0 { " after it" } else { "" }
+            ));
+        }
+        let note =
+            format!("scored over the {} frames tracking estimated; left out: {}", keep.len(), left_out.join(", and "));
+        Self { ids: ids_kept, est: anchored(&out.poses), truth: anchored(truth), tracked, note: Some(note) }
+    }
+
+    /// The largest translation error of one step between scored frames ending at a frame marked
+    /// tracked, and that frame's id (`None` without such a step).
+    pub fn largest_tracked_step_error(&self) -> Option<(f64, usize)> {
+        largest_step_error(&self.est, &self.truth, &self.tracked).map(|(e, k)| (e, self.ids[k]))
+    }
 }
 
 /// What the OXTS path check says ([`slam_dataset::kitti::raw::oxts_path_lengths`]), in one line.

@@ -177,7 +177,7 @@ impl Prepared {
         if !(seq.gaps.is_empty() && seq.one_camera.is_empty()) {
             text.push_str(&format!(
                 "\ninput: {} frame(s) missing in both cameras (skipped, ids kept), {} with one image missing (played as unreadable); see the warnings",
-                seq.gaps.len(),
+                seq.gaps.count(),
                 seq.one_camera.len()
             ));
         }
@@ -187,12 +187,7 @@ impl Prepared {
     /// Run the system over the frames. `on_frame` sees every frame as soon as it is tracked (progress, a
     /// recording); `stop` is polled before each frame is read (Ctrl-C: the input ends, the system
     /// finishes what it has).
-    pub fn run(
-        self,
-        s: &RunSettings,
-        on_frame: &mut dyn FnMut(&FrameView<'_>),
-        stop: fn() -> bool,
-    ) -> Result<Outcome> {
+    pub fn run(self, s: &RunSettings, on_frame: &mut dyn FnMut(&FrameView<'_>), stop: fn() -> bool) -> Result<Outcome> {
         let Prepared { seq, k, colour, selection, .. } = self;
         // the image size comes from the first frame whose left image exists
         let first_left = seq.left.iter().find(|p| p.is_file()).unwrap_or(&seq.left[0]);

@@ -62,7 +62,7 @@ impl RunConfig {
 
     /// Read a settings file; every value is checked ([`RunConfig::validate`]).
     pub fn read(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).context_with(|| format!("cannot read {}", path.display()))?;
+        let text = slam_core::files::read_text(path, &slam_core::files::SMALL).map_err(RunnerError::other)?;
         let c = Self::parse(&text).context_with(|| format!("{}: invalid configuration", path.display()))?;
         c.validate(&path.display().to_string())?;
         Ok(c)

@@ -159,6 +159,14 @@ pub fn stereo_check(
         .ok_or_else(|| {
             RunnerError::Invalid(format!("no tracked frame pairs in {n} frames of {}", seq.dir.display()))
         })?;
+        if e.pairs < slam_frontend::disparity::MIN_OFFSET_PAIRS {
+            return Err(RunnerError::Invalid(format!(
+                "{} frame pairs tracked in {n} frames of {}: an offset needs at least {} to say how sure it is (give more frames: --max-frames)",
+                e.pairs,
+                seq.dir.display(),
+                slam_frontend::disparity::MIN_OFFSET_PAIRS
+            )));
+        }
         let round = Round { applied, pairs: e.pairs, points: e.points, residual: e.offset };
         on_round(&round);
         rounds.push(round);
@@ -199,11 +207,20 @@ impl StereoReport {
         if !self.last.interior {
             lines.push("(the last residual lay at the end of the scanned range: widen --range)".to_string());
         }
+        // 95 %: 1.96 standard errors of the last round's residual (the offsets applied before are exact)
+        let half = 1.96 * self.last.standard_error;
         lines.push(format!(
-            "estimated rig disparity offset: {:+.3} px (tracking.disparity_offset); without it, depths at 20 m err by {:+.2} %",
+            "estimated rig disparity offset: {:+.3} ± {half:.3} px (95 %, from the spread over the last round's {} frame pairs) (tracking.disparity_offset); without it, depths at 20 m err by {:+.2} %",
             self.offset,
+            self.last.pairs,
             100.0 * self.offset / (self.fx_baseline / 20.0)
         ));
+        if self.offset.abs() < half {
+            lines.push(format!(
+                "the offset is within its 95 % interval of zero: these frames do not show one (|{:+.3}| < {half:.3} px)",
+                self.offset
+            ));
+        }
         lines.join("\n")
     }
 }
@@ -222,6 +239,7 @@ mod tests {
             points: 5000,
             interior: false,
             curve: vec![(-0.1, 12.0), (0.0, 10.0), (0.1, 11.5)],
+            standard_error: 0.05,
         };
         // fx·b = 386 px·m: at 20 m a disparity of 19.3 px; an offset of 0.193 px is 1 %
         let rep = StereoReport { header: String::new(), rounds: vec![r], last, offset: 0.193, fx_baseline: 386.0 };
@@ -229,6 +247,14 @@ mod tests {
         assert!(text.contains("| -0.100 | 2.00 |") && text.contains("| +0.000 | 0.00 |"), "{text}");
         assert!(text.contains("widen --range"), "{text}");
         assert!(text.ends_with("err by +1.00 %"), "{text}");
+        assert!(
+            text.contains("+0.193 ± 0.098 px (95 %, from the spread over the last round's 40 frame pairs)"),
+            "{text}"
+        );
+        // an offset inside its interval of zero is said to be no offset these frames show
+        let unsure = StereoReport { offset: 0.05, ..rep.clone() };
+        assert!(unsure.conclusion(false).contains("do not show one"), "{}", unsure.conclusion(false));
+        assert!(!rep.conclusion(false).contains("do not show one"));
         assert!(!rep.conclusion(false).contains("robust cost"));
     }
 }

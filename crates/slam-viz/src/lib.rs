@@ -16,7 +16,7 @@ pub mod plot;
 
 use std::path::PathBuf;
 
-pub use map::{footprint, map_picture};
+pub use map::{footprint, map_picture, MAP_PICTURE_FILES};
 pub use overlay::{
     box_style, frame_overlay, overlay_of, projected_object, write_overlays, FrameState, OverlayOptions, ProjectedObject,
 };
@@ -31,6 +31,13 @@ pub enum VizError {
         /// The figure's file.
         path: PathBuf,
         /// The backend's report.
+        message: String,
+    },
+    /// What was asked cannot be drawn (a non-finite position, positions spread wider than a continent);
+    /// nothing was written.
+    #[error("not drawn: {message}")]
+    NotDrawable {
+        /// Why.
         message: String,
     },
     /// A folder could not be created.

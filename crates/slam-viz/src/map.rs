@@ -22,6 +22,9 @@ pub fn footprint(o: &MapObject) -> Vec<[f64; 2]> {
     ellipse_outline(&Ellipse2 { centre: Vector2::new(o.center[0], o.center[2]), shape }, 48)
 }
 
+/// The files [`map_picture`] writes into its folder.
+pub const MAP_PICTURE_FILES: [&str; 2] = ["map.svg", "map.png"];
+
 /// The top-down picture (`map.svg`, `map.png` in `dir`) of a map, its frame poses and ground truth.
 pub fn map_picture(
     map: &Map,

@@ -53,7 +53,12 @@ pub struct ProjectedObject {
 /// The projected ellipsoid of a static or dynamic object (`None` for others, for an ellipsoid whose
 /// projection is no ellipse, or off the image), drawn when the object is seen in the frame or its
 /// centre lies less than 40 m ahead of the camera.
-pub fn projected_object(obj: &MappedObject, camera: &Camera, frame: usize, image: ImageSize) -> Option<ProjectedObject> {
+pub fn projected_object(
+    obj: &MappedObject,
+    camera: &Camera,
+    frame: usize,
+    image: ImageSize,
+) -> Option<ProjectedObject> {
     let state = ObjectState::of(obj.dynamic, obj.moving);
     let (Some(e), ObjectState::Static | ObjectState::Dynamic) = (&obj.ellipsoid, state) else { return None };
     let ell = project(e, camera).ok().and_then(|conic| conic.ellipse())?;

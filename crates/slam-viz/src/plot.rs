@@ -210,25 +210,11 @@ fn error_colour(f: f64) -> RGBColor {
     }
 }
 
-fn draw_topdown<DB: DrawingBackend>(
-    root: DrawingArea<DB, plotters::coord::Shift>,
-    m: &TopDown<'_>,
-) -> Result<(), String>
-where
-    DB::ErrorType: 'static,
-{
-    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| format!("{e:?}");
-    root.fill(&WHITE).map_err(err)?;
-    // with ground truth, a column on the right holds the error over distance
-    let (root, side) = if m.truth.is_some() {
-        let (l, r) = root.split_horizontally(root.dim_in_pixel().1);
-        (l, Some(r))
-    } else {
-        (root, None)
-    };
+/// The frame of a top-down map (lowest and highest x, z): the estimate, the ground truth and the
+/// outlines of the objects shown, finite points only; an error when a trajectory holds a non-finite
+/// position or the frame spans more than [`MAX_SPAN_M`].
+fn frame_of(m: &TopDown<'_>) -> Result<([f64; 2], [f64; 2]), String> {
     let shown: Vec<&MapShape> = m.objects.iter().filter(|o| o.state != ObjectState::Moving).collect();
-    let moving = m.objects.len() - shown.len();
-    // frame: the trajectories and objects, plus a margin; points only inside it
     let mut lo = [f64::INFINITY; 2];
     let mut hi = [f64::NEG_INFINITY; 2];
     for (what, path) in [("estimate", Some(m.estimate)), ("ground truth", m.truth)] {
@@ -258,6 +244,29 @@ where
             "the trajectories and objects span {span:.3e} m; a top-down map is drawn up to {MAX_SPAN_M:.0e} m (a pose in the wrong units?)"
         ));
     }
+    Ok((lo, hi))
+}
+
+fn draw_topdown<DB: DrawingBackend>(
+    root: DrawingArea<DB, plotters::coord::Shift>,
+    m: &TopDown<'_>,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| format!("{e:?}");
+    root.fill(&WHITE).map_err(err)?;
+    // with ground truth, a column on the right holds the error over distance
+    let (root, side) = if m.truth.is_some() {
+        let (l, r) = root.split_horizontally(root.dim_in_pixel().1);
+        (l, Some(r))
+    } else {
+        (root, None)
+    };
+    let shown: Vec<&MapShape> = m.objects.iter().filter(|o| o.state != ObjectState::Moving).collect();
+    let moving = m.objects.len() - shown.len();
+    // frame: the trajectories and objects, plus a margin; points only inside it
+    let (lo, hi) = frame_of(m)?;
     let margin = 15.0;
     let (mut x0, mut x1, mut z0, mut z1) = (lo[0] - margin, hi[0] + margin, lo[1] - margin, hi[1] + margin);
     // equal scale on both axes
@@ -417,6 +426,8 @@ pub const MAX_SPAN_M: f64 = 1e7;
 pub fn topdown_figure(m: &TopDown<'_>, out: &Path, stem: &str) -> Result<Vec<PathBuf>, VizError> {
     register_font();
     let size = if m.truth.is_some() { (1400, 900) } else { (900, 900) };
+    // refused before a file is made: nothing half-drawn is left
+    frame_of(m).map_err(|message| VizError::NotDrawable { message })?;
     let svg = out.join(format!("{stem}.svg"));
     let png = out.join(format!("{stem}.png"));
     draw_topdown(SVGBackend::new(&svg, size).into_drawing_area(), m)
@@ -441,9 +452,10 @@ mod tests {
             topdown_figure(&TopDown { estimate: &estimate, truth: Some(truth), points: &[], objects: &[] }, &dir, "m")
         };
         let far = draw(&[[0.0, 0.0], [0.0, 1.2], [1e300, 2.4]]).expect_err("1e300 m").to_string();
-        assert!(far.contains("span 1.000e300 m") && far.contains("m.svg"), "{far}");
+        assert!(far.starts_with("not drawn: the trajectories and objects span 1.000e300 m"), "{far}");
         let nan = draw(&[[0.0, 0.0], [f64::NAN, 1.2], [0.0, 2.4]]).expect_err("NaN").to_string();
         assert!(nan.contains("position 1 of the ground truth is not finite"), "{nan}");
+        assert!(!dir.join("m.svg").exists() && !dir.join("m.png").exists(), "refused before a file is made");
         let files = draw(&[[0.0, 0.0], [0.0, 1.2], [0.0, 2.4]]).expect("a drive's map is drawn");
         assert!(files.iter().all(|f| f.is_file()));
         std::fs::remove_dir_all(&dir).ok();

@@ -9,6 +9,84 @@ use nalgebra::{Isometry3, Matrix3, Matrix3x4, Rotation3, Translation3, UnitQuate
 
 use crate::{parse_numbers, read_text, DatasetError};
 
+/// Largest difference, pixels, between the two cameras' focal lengths or principal points, and largest
+/// skew, of a rectified pair. The system uses the left camera's intrinsics for both; a difference in
+/// the principal point's x is a disparity offset, and 0.01 px changes a depth at 20 m on KITTI's rig
+/// (fx·b = 380 px·m) by 0.05 %, a tenth of what `stereo-check` resolves. KITTI prints its matrices to 7
+/// significant digits (0.0001 px).
+pub const RECTIFIED_TOLERANCE_PX: f64 = 0.01;
+
+/// Largest offset of the right camera across the baseline (y) or along the optical axis (z), as a share
+/// of the baseline. A rectified pair's cameras differ by a translation along x only: an offset `ty`
+/// moves a point's row between the two images by `fy·ty/z = d·ty/b` (d its disparity), so 1 % of the
+/// baseline moves rows by 1 % of the disparity. KITTI's colour pair, P_rect_02 and P_rect_03 of its raw
+/// calibration, has 0.5 % (2.7 mm over 0.53 m); its grey pairs have none.
+pub const RECTIFIED_OFFSET_SHARE: f64 = 0.01;
+
+/// The intrinsics `[fx, fy, cx, cy]` and baseline (metres) of a rectified stereo pair from its two
+/// projection matrices (`keys` name them in messages), after checking that they are one: each of the
+/// form `[fx 0 cx tx; 0 fy cy ty; 0 0 1 tz]` with positive focal lengths, equal intrinsics, and the
+/// right camera to the right of the left one along x only (within [`RECTIFIED_TOLERANCE_PX`] and
+/// [`RECTIFIED_OFFSET_SHARE`]). Each error states the rule it found broken.
+pub fn rectified_pair(
+    left: &Matrix3x4<f64>,
+    right: &Matrix3x4<f64>,
+    (lk, rk): (&str, &str),
+) -> Result<([f64; 4], f64), String> {
+    let tol = RECTIFIED_TOLERANCE_PX;
+    for (p, key) in [(left, lk), (right, rk)] {
+        let (fx, fy) = (p[(0, 0)], p[(1, 1)]);
+        if !(fx > 0.0 && fy > 0.0) {
+            return Err(format!(
+                "{key} has focal lengths fx {fx}, fy {fy}: a camera's focal lengths are positive (a negative one mirrors the image)"
+            ));
+        }
+        if p[(0, 1)].abs() > tol || p[(1, 0)].abs() > tol {
+            return Err(format!(
+                "{key} has skew {:e} (row 1, column 2) and {:e} (row 2, column 1): a rectified camera has none (at most {tol} px)",
+                p[(0, 1)],
+                p[(1, 0)]
+            ));
+        }
+        let third = [p[(2, 0)], p[(2, 1)], p[(2, 2)]];
+        if third[0].abs() > 1e-6 || third[1].abs() > 1e-6 || (third[2] - 1.0).abs() > 1e-6 {
+            return Err(format!(
+                "{key}'s third row starts {third:?}: a rectified camera's is [0, 0, 1] (the depth along its optical axis)"
+            ));
+        }
+    }
+    let k = |p: &Matrix3x4<f64>| [p[(0, 0)], p[(1, 1)], p[(0, 2)], p[(1, 2)]];
+    let (kl, kr) = (k(left), k(right));
+    for (i, name) in ["fx", "fy", "cx", "cy"].iter().enumerate() {
+        if (kl[i] - kr[i]).abs() > tol {
+            return Err(format!(
+                "{lk} has {name} {} and {rk} {}: a rectified pair shares its intrinsics (to {tol} px), so these images are not rectified together",
+                kl[i], kr[i]
+            ));
+        }
+    }
+    // the right camera's centre from the left's: K⁻¹ (p_r − p_l) of the fourth columns
+    let [fx, fy, cx, cy] = kl;
+    let d = right.column(3) - left.column(3);
+    let tz = d[2];
+    let (tx, ty) = ((d[0] - cx * tz) / fx, (d[1] - cy * tz) / fy);
+    let baseline = (left[(0, 3)] - right[(0, 3)]) / fx;
+    if !(baseline > 0.0 && baseline.is_finite()) {
+        return Err(format!(
+            "the baseline from {lk} and {rk} is {baseline:.4} m: the right camera lies to the right of the left one, so {rk}'s \
+             fourth column starts with −fx·b for a baseline b > 0 (are the two cameras swapped?)"
+        ));
+    }
+    if ty.abs() > RECTIFIED_OFFSET_SHARE * tx.abs() || tz.abs() > RECTIFIED_OFFSET_SHARE * tx.abs() {
+        return Err(format!(
+            "{rk} lies {ty:.4} m across and {tz:.4} m along the optical axis from {lk}, beside a baseline of {baseline:.4} m: a \
+             rectified pair's cameras differ along x only (at most {} % of the baseline either way)",
+            100.0 * RECTIFIED_OFFSET_SHARE
+        ));
+    }
+    Ok(([fx, fy, cx, cy], baseline))
+}
+
 /// A parsed calibration file.
 #[derive(Debug, Clone)]
 pub struct Calib {
@@ -20,7 +98,7 @@ impl Calib {
     /// Read `KEY: v1 v2 ...` (or `KEY v1 v2 ...`) lines; blank lines are skipped.
     pub fn read(path: impl AsRef<Path>) -> Result<Self, DatasetError> {
         let path = path.as_ref();
-        let text = read_text(path)?;
+        let text = read_text(path, &slam_core::files::SMALL)?;
         Self::parse(path, &text)
     }
 
@@ -126,5 +204,54 @@ impl Calib {
         let t = self.numbers(translation_key, Some(3))?;
         let rot = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&r));
         Ok(Isometry3::from_parts(Translation3::from(Vector3::new(t[0], t[1], t[2])), rot))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn m(row: &str) -> Matrix3x4<f64> {
+        let v: Vec<f64> = row.split_whitespace().map(|x| x.parse().expect("number")).collect();
+        Matrix3x4::from_row_slice(&v)
+    }
+
+    // KITTI odometry 06's grey pair and raw 2011_09_26's colour pair, as printed
+    const P0: &str = "707.0912 0 601.8873 0 0 707.0912 183.1104 0 0 0 1 0";
+    const P1: &str = "707.0912 0 601.8873 -379.8145 0 707.0912 183.1104 0 0 0 1 0";
+    const P2: &str = "721.5377 0 609.5593 44.85728 0 721.5377 172.854 0.2163791 0 0 1 0.002745884";
+    const P3: &str = "721.5377 0 609.5593 -339.5242 0 721.5377 172.854 2.199936 0 0 1 0.002729905";
+
+    #[test]
+    fn kittis_pairs_are_rectified_and_broken_ones_are_named_with_their_rule() {
+        let (k, b) = rectified_pair(&m(P0), &m(P1), ("P0", "P1")).expect("grey pair");
+        assert_eq!(k, [707.0912, 707.0912, 601.8873, 183.1104]);
+        assert!((b - 0.537150).abs() < 1e-6, "{b}");
+        let (_, b) = rectified_pair(&m(P2), &m(P3), ("P_rect_02", "P_rect_03")).expect("colour pair");
+        assert!((b - 0.5327).abs() < 1e-3, "{b}");
+        // one number changed at a time: (matrix, field, value, what the message says)
+        let cases = [
+            ("P0", 1, "1e308", "skew"),
+            ("P0", 10, "2", "third row"),
+            ("P1", 0, "353.5456", "fx 707.0912 and P1 353.5456"),
+            ("P1", 6, "283.1104", "cy 183.1104 and P1 283.1104"),
+            ("P1", 7, "50", "across"),
+            ("P1", 11, "0.2", "along the optical axis"),
+            ("P1", 3, "379.8145", "the right camera lies to the right"),
+            ("P0", 0, "-707.0912", "focal lengths are positive"),
+        ];
+        for (key, field, value, want) in cases {
+            let change = |row: &str| {
+                let mut f: Vec<&str> = row.split_whitespace().collect();
+                f[field] = value;
+                f.join(" ")
+            };
+            let (l, r) = if key == "P0" { (change(P0), P1.to_string()) } else { (P0.to_string(), change(P1)) };
+            let e = rectified_pair(&m(&l), &m(&r), ("P0", "P1")).expect_err(want);
+            assert!(e.contains(want), "{key}[{field}] = {value}: {e}");
+        }
+        // swapped cameras: a negative baseline, and the message says what to check
+        let e = rectified_pair(&m(P1), &m(P0), ("P0", "P1")).expect_err("swapped");
+        assert!(e.contains("-0.5372 m") && e.contains("swapped"), "{e}");
     }
 }

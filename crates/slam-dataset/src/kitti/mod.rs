@@ -1,6 +1,7 @@
 //! KITTI readers.
 
 pub mod calib;
+pub mod frames;
 pub mod odometry;
 pub mod poses;
 pub mod raw;

@@ -29,7 +29,7 @@ pub(crate) fn check_position(path: &Path, line: usize, t: &Vector3<f64>) -> Resu
 /// ORB-SLAM3 write them). Blank lines are an error (they would shift frame indices).
 pub fn read_kitti_poses(path: impl AsRef<Path>) -> Result<Vec<Isometry3<f64>>, DatasetError> {
     let path = path.as_ref();
-    let text = read_text(path)?;
+    let text = read_text(path, &slam_core::files::TABLE)?;
     parse_kitti_poses(path, &text)
 }
 
@@ -69,7 +69,5 @@ pub fn write_kitti_poses(path: impl AsRef<Path>, poses: &[Isometry3<f64>]) -> Re
         let row = |k: usize| format!("{:.9e} {:.9e} {:.9e} {:.9e}", r[(k, 0)], r[(k, 1)], r[(k, 2)], t[k]);
         out.push_str(&format!("{} {} {}\n", row(0), row(1), row(2)));
     }
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, out).map_err(|source| DatasetError::Io { path: tmp.clone(), source })?;
-    std::fs::rename(&tmp, path).map_err(|source| DatasetError::Io { path: path.to_path_buf(), source })
+    Ok(slam_core::files::write_atomic(path, out.as_bytes())?)
 }

@@ -41,7 +41,7 @@ impl OxtsPacket {
 /// Read one packet file (one line of 30 numbers).
 pub fn read_oxts_packet(path: impl AsRef<Path>) -> Result<OxtsPacket, DatasetError> {
     let path = path.as_ref();
-    let text = read_text(path)?;
+    let text = read_text(path, &slam_core::files::SMALL)?;
     parse_oxts_packet(path, &text)
 }
 
@@ -92,6 +92,55 @@ pub fn oxts_poses(packets: &[OxtsPacket]) -> Vec<Isometry3<f64>> {
     };
     let origin_inv = absolute(first).inverse();
     packets.iter().map(|p| origin_inv * absolute(p)).collect()
+}
+
+/// Fastest a vehicle carrying the rig moves, m/s: 100 m/s (360 km/h) is beyond any road vehicle;
+/// KITTI's drives stay under 30 m/s.
+pub const MAX_VEHICLE_SPEED_MPS: f64 = 100.0;
+
+/// Fastest a vehicle turns, rad/s: a full turn a second, beyond a car spinning out (a car's yaw rate
+/// stays under 1 rad/s).
+pub const MAX_VEHICLE_TURN_RADPS: f64 = std::f64::consts::TAU;
+
+/// GPS fixes are trusted to this many times their `pos_accuracy` when two packets' positions are
+/// compared.
+const POSITION_ACCURACY_SIGMAS: f64 = 5.0;
+
+/// Packets whose step from the packet before no vehicle makes: their positions (Mercator, as
+/// [`oxts_poses`]) further apart than [`MAX_VEHICLE_SPEED_MPS`] over the time between their frames
+/// plus [`POSITION_ACCURACY_SIGMAS`] times both fixes' `pos_accuracy`, or their orientations turned
+/// faster than [`MAX_VEHICLE_TURN_RADPS`]. `names` name the packets in the error (their files).
+pub fn check_oxts_steps(packets: &[OxtsPacket], times: &[f64], names: &[&Path]) -> Result<(), DatasetError> {
+    let poses = oxts_poses(packets);
+    for k in 1..packets.len().min(times.len()).min(names.len()) {
+        let dt = times[k] - times[k - 1];
+        let (a, b) = (&poses[k - 1], &poses[k]);
+        let step = (b.translation.vector - a.translation.vector).norm();
+        let accuracy = packets[k - 1].values[OXTS_POS_ACCURACY].abs() + packets[k].values[OXTS_POS_ACCURACY].abs();
+        let reach = MAX_VEHICLE_SPEED_MPS * dt + POSITION_ACCURACY_SIGMAS * accuracy;
+        let turn = a.rotation.angle_to(&b.rotation);
+        // a non-finite step or turn is no vehicle's either
+        let impossible = if step.is_nan() || step > reach {
+            Some(format!(
+                "the IMU moved {} m from the packet before ({}) in {dt:.3} s: more than a vehicle travels (at most {MAX_VEHICLE_SPEED_MPS} m/s) plus {POSITION_ACCURACY_SIGMAS} × the two fixes' position accuracy ({accuracy:.2} m)",
+                if step < 1e6 { format!("{step:.1}") } else { format!("{step:.3e}") },
+                names[k - 1].display()
+            ))
+        } else if turn.is_nan() || turn > MAX_VEHICLE_TURN_RADPS * dt {
+            Some(format!(
+                "the IMU turned {:.1}° from the packet before ({}) in {dt:.3} s: faster than a vehicle turns (at most {:.0}°/s)",
+                turn.to_degrees(),
+                names[k - 1].display(),
+                MAX_VEHICLE_TURN_RADPS.to_degrees()
+            ))
+        } else {
+            None
+        };
+        if let Some(message) = impossible {
+            return Err(DatasetError::Invalid { path: names[k].to_path_buf(), message });
+        }
+    }
+    Ok(())
 }
 
 /// Index of `pos_accuracy` (metres, the receiver's position accuracy) among an OXTS packet's 30 values.
@@ -179,7 +228,7 @@ pub fn camera_poses_from_imu(imu: Vec<Isometry3<f64>>, calib: &RawCalib) -> Vec<
 /// line (midnight crossings are handled; dates are otherwise ignored).
 pub fn read_timestamps(path: impl AsRef<Path>) -> Result<Vec<f64>, DatasetError> {
     let path = path.as_ref();
-    let text = read_text(path)?;
+    let text = read_text(path, &slam_core::files::TABLE)?;
     parse_timestamps(path, &text)
 }
 
@@ -216,6 +265,9 @@ pub fn parse_timestamps(path: &Path, text: &str) -> Result<Vec<f64>, DatasetErro
                 "time {time} is not after the line before ({:.3} s earlier or the same): frames are in time order",
                 last - t
             )));
+        }
+        if t - last < crate::kitti::frames::MIN_FRAME_INTERVAL_S {
+            return Err(err(&crate::kitti::frames::too_close(t - last)));
         }
         last = t;
         out.push(t);

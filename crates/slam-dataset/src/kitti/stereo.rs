@@ -7,16 +7,19 @@ use nalgebra::{Isometry3, Matrix3x4};
 
 use crate::{
     kitti::{
-        calib::Calib,
-        odometry::{nominal_times, nominal_times_note, pair_frames, values_of_ids, OdometrySequence},
+        calib::{rectified_pair, Calib},
+        frames::{no_truth, nominal_times, nominal_times_note, pair_frames, values_of_ids, IdRuns},
+        odometry::OdometrySequence,
         raw::{
-            camera_poses_from_imu, camera_poses_from_oxts, oxts_dead_reckoning, oxts_path_lengths, read_oxts_packet,
-            read_timestamps, OxtsPath, RawCalib, OXTS_POS_ACCURACY,
+            camera_poses_from_imu, camera_poses_from_oxts, check_oxts_steps, oxts_dead_reckoning, oxts_path_lengths,
+            read_oxts_packet, read_timestamps, OxtsPath, RawCalib, OXTS_POS_ACCURACY,
         },
         tracking::{read_tracking_labels, TrackingLabel},
     },
     DatasetError,
 };
+
+pub use super::frames::is_no_truth_warning;
 
 /// Which KITTI layout a sequence came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -89,8 +92,8 @@ pub struct StereoSequence {
     pub dead_reckoned: Option<Vec<Isometry3<f64>>>,
     /// Object labels (tracking layout), when present; `frame` is the frame id.
     pub labels: Option<Vec<TrackingLabel>>,
-    /// Frame ids missing in both cameras between the first and the last frame (skipped, ids kept).
-    pub gaps: Vec<usize>,
+    /// Frame ids missing in both cameras between the first and the last frame (skipped, ids kept), as runs.
+    pub gaps: IdRuns,
     /// Frame ids with one image missing (kept, played as unreadable).
     pub one_camera: Vec<usize>,
     /// What was odd about the input and how it was handled, one sentence each (the caller logs them and
@@ -132,12 +135,13 @@ impl FrameSelection {
         };
         let (first, end) = if let Some((a, b)) = t.split_once("..=") {
             let b = num(b)?.ok_or_else(|| format!("'{text}': ..= needs a last frame id"))?;
-            (num(a)?, Some(b + 1))
+            // the largest id has no id after it: up to it is up to the end
+            (num(a)?, b.checked_add(1))
         } else if let Some((a, b)) = t.split_once("..") {
             (num(a)?, num(b)?)
         } else {
             let a = num(t)?.ok_or_else(|| format!("'{text}': empty frame range"))?;
-            (Some(a), Some(a + 1))
+            (Some(a), a.checked_add(1))
         };
         if let (Some(a), Some(b)) = (first, end) {
             if b <= a {
@@ -206,7 +210,7 @@ impl StereoSequence {
             times: keep.iter().map(|&k| self.times[k]).collect(),
             ground_truth: self.ground_truth.as_ref().map(|g| keep.iter().map(|&k| g[k]).collect()),
             dead_reckoned: self.dead_reckoned.as_ref().map(|g| keep.iter().map(|&k| g[k]).collect()),
-            gaps: within(&self.gaps),
+            gaps: self.gaps.within(first, last),
             one_camera: within(&self.one_camera).into_iter().filter(|id| sel.keeps(first, *id)).collect(),
             // the path check covers the frames it was made from
             truth_source: if keep.len() == self.ids.len() {
@@ -234,7 +238,7 @@ impl StereoSequence {
             g.truncate(n);
         }
         if let Some(&last) = self.ids.last() {
-            self.gaps.retain(|&id| id <= last);
+            self.gaps = self.gaps.within(0, last);
             self.one_camera.retain(|&id| id <= last);
         }
     }
@@ -257,28 +261,20 @@ fn from_first(g: &[Isometry3<f64>]) -> Option<Vec<Isometry3<f64>>> {
     Some(g.iter().map(|p| origin * p).collect())
 }
 
+/// The intrinsics and baseline of a layout's stereo pair, its projection matrices checked to be a
+/// rectified pair ([`crate::kitti::calib::rectified_pair`]); the error names the calibration file.
 fn pair_from(
-    layout: Layout,
-    dir: &Path,
-    pl: &Matrix3x4<f64>,
-    pr: &Matrix3x4<f64>,
+    (pl, pr): (&Matrix3x4<f64>, &Matrix3x4<f64>),
+    keys: (&str, &str),
     calib: &Path,
 ) -> Result<([f64; 4], f64), DatasetError> {
-    let fx = pl[(0, 0)];
-    let baseline = (pl[(0, 3)] - pr[(0, 3)]) / fx;
-    if !(fx > 0.0 && baseline > 0.0 && baseline.is_finite()) {
-        return Err(DatasetError::Invalid {
-            path: calib.to_path_buf(),
-            message: format!("{layout:?} stereo pair of {} has focal {fx} and baseline {baseline}", dir.display()),
-        });
-    }
-    Ok(([fx, pl[(1, 1)], pl[(0, 2)], pl[(1, 2)]], baseline))
+    rectified_pair(pl, pr, keys).map_err(|message| DatasetError::Invalid { path: calib.to_path_buf(), message })
 }
 
 fn open_odometry(dir: &Path) -> Result<StereoSequence, DatasetError> {
     let seq = OdometrySequence::open(dir)?;
     let calib = dir.join("calib.txt");
-    let (intrinsics, baseline) = pair_from(Layout::Odometry, dir, &seq.p0, &seq.p1, &calib)?;
+    let (intrinsics, baseline) = pair_from((&seq.p0, &seq.p1), ("P0", "P1"), &calib)?;
     Ok(StereoSequence {
         layout: Layout::Odometry,
         dir: dir.to_path_buf(),
@@ -325,6 +321,7 @@ fn raw_truth(
     }
     let calib = RawCalib::read(date)?;
     let mut packets = Vec::with_capacity(ids.len());
+    let mut names = Vec::with_capacity(ids.len());
     for (img, &id) in left.iter().zip(ids) {
         // the packet of a frame has the image's file stem (`0000000042.txt`)
         let name = img.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
@@ -334,7 +331,12 @@ fn raw_truth(
             return Ok(None);
         }
         packets.push(read_oxts_packet(&path)?);
+        names.push(path);
     }
+    // a packet no vehicle could have reached from the one before is an error naming it, here rather
+    // than as a ground truth kilometres off (or a map too wide to draw) after the run
+    let named: Vec<&Path> = names.iter().map(PathBuf::as_path).collect();
+    check_oxts_steps(&packets, times, &named)?;
     let mut acc: Vec<f64> = packets.iter().map(|p| p.values[OXTS_POS_ACCURACY]).collect();
     acc.sort_by(|a, b| a.total_cmp(b));
     let median = acc[acc.len() / 2];
@@ -368,8 +370,7 @@ fn open_raw(dir: &Path) -> Result<StereoSequence, DatasetError> {
     } else {
         ("image_02", "image_03", "P_rect_02", "P_rect_03")
     };
-    let (intrinsics, baseline) =
-        pair_from(Layout::Raw, dir, &calib.matrix3x4(pl)?, &calib.matrix3x4(pr)?, &calib_path)?;
+    let (intrinsics, baseline) = pair_from((&calib.matrix3x4(pl)?, &calib.matrix3x4(pr)?), (pl, pr), &calib_path)?;
     let pairs = pair_frames(&dir.join(l).join("data"), &dir.join(r).join("data"))?;
     let mut warnings = pairs.warnings;
     let ts = dir.join(l).join("timestamps.txt");
@@ -423,7 +424,7 @@ fn open_tracking(training: &Path, seq: &str) -> Result<StereoSequence, DatasetEr
     let calib_path = training.join("calib").join(format!("{seq}.txt"));
     let calib = Calib::read(&calib_path)?;
     let (intrinsics, baseline) =
-        pair_from(Layout::Tracking, training, &calib.matrix3x4("P2")?, &calib.matrix3x4("P3")?, &calib_path)?;
+        pair_from((&calib.matrix3x4("P2")?, &calib.matrix3x4("P3")?), ("P2", "P3"), &calib_path)?;
     let dir = training.join("image_02").join(seq);
     let pairs = pair_frames(&dir, &training.join("image_03").join(seq))?;
     let label_path = training.join("label_02").join(format!("{seq}.txt"));
@@ -449,20 +450,6 @@ fn open_tracking(training: &Path, seq: &str) -> Result<StereoSequence, DatasetEr
     })
 }
 
-/// How every warning that a sequence has no ground truth starts ([`no_truth`]).
-const NO_TRUTH: &str = "no ground truth:";
-
-/// The warning that a sequence has no ground truth, and why.
-pub(crate) fn no_truth(why: impl std::fmt::Display) -> String {
-    format!("{NO_TRUTH} {why}")
-}
-
-/// Whether a sequence warning is one that says there is no ground truth ([`no_truth`]): commands that
-/// compute no ATE leave it out.
-pub fn is_no_truth_warning(w: &str) -> bool {
-    w.starts_with(NO_TRUTH)
-}
-
 fn first_subdir(dir: &Path, keep: impl Fn(&Path) -> bool) -> Option<PathBuf> {
     let mut v: Vec<PathBuf> =
         std::fs::read_dir(dir).ok()?.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| keep(p)).collect();
@@ -480,10 +467,11 @@ pub fn open_stereo(path: impl AsRef<Path>) -> Result<StereoSequence, DatasetErro
     if !p.is_dir() {
         return Err(DatasetError::Invalid { path: p.to_path_buf(), message: "not a folder".into() });
     }
-    if p.join("calib.txt").is_file() && p.join("image_0").is_dir() {
+    // a calibration that exists but is no file (a pipe, a folder) is the reader's to name
+    if p.join("calib.txt").exists() && p.join("image_0").is_dir() {
         return open_odometry(p);
     }
-    if let Some(seq) = first_subdir(&p.join("sequences"), |s| s.join("calib.txt").is_file()) {
+    if let Some(seq) = first_subdir(&p.join("sequences"), |s| s.join("calib.txt").exists()) {
         return open_odometry(&seq);
     }
     let is_drive = |d: &Path| d.join("image_02/data").is_dir() || d.join("image_00/data").is_dir();
@@ -543,6 +531,10 @@ mod tests {
         assert_eq!(p("5.."), Ok((Some(5), None)));
         assert_eq!(p("..=7"), Ok((None, Some(8))));
         assert_eq!(p("3"), Ok((Some(3), Some(4))));
+        // the largest id: no overflow, up to the end
+        assert_eq!(p(&format!("..={}", usize::MAX)), Ok((None, None)));
+        assert_eq!(p(&format!("7..={}", usize::MAX)), Ok((Some(7), None)));
+        assert_eq!(p(&usize::MAX.to_string()), Ok((Some(usize::MAX), None)));
         for bad in ["20..10", "5..5", "a..3", "-1..4", "..=", "", "1.5..3"] {
             assert!(p(bad).is_err(), "{bad}");
         }
@@ -567,7 +559,7 @@ mod tests {
         std::fs::write(root.join("poses/00.txt"), poses).expect("poses");
         let s = open_stereo(&seq).expect("opens");
         assert_eq!(s.ids, vec![0, 1, 2, 3, 4, 6, 7, 8, 9, 10, 11]);
-        assert_eq!(s.gaps, vec![5]);
+        assert_eq!(s.gaps.runs(), [(5, 5)]);
         assert!(s.warnings.iter().any(|w| w.contains("frame 5 missing in both cameras")), "{:?}", s.warnings);
         let z = |s: &StereoSequence| -> Vec<f64> {
             s.ground_truth.as_ref().expect("truth").iter().map(|g| g.translation.vector.z).collect()
@@ -583,7 +575,7 @@ mod tests {
         assert_eq!(sub.ids, vec![3, 7, 9]);
         assert_eq!(z(&sub), vec![3.0, 7.0, 9.0]);
         assert_eq!(sub.times, vec![0.75, 1.75, 2.25]);
-        assert_eq!(sub.gaps, vec![5]);
+        assert_eq!(sub.gaps.runs(), [(5, 5)]);
         let rebased: Vec<f64> = sub.truth_from_first().expect("truth").iter().map(|g| g.translation.vector.z).collect();
         assert_eq!(rebased, vec![0.0, 4.0, 6.0]);
         let e = s.select(&FrameSelection { first: Some(40), end: None, stride: 1 }).expect_err("empty").to_string();

@@ -45,13 +45,15 @@ impl TrackingLabel {
 /// Read a tracking label file. Errors name the file and line.
 pub fn read_tracking_labels(path: impl AsRef<Path>) -> Result<Vec<TrackingLabel>, DatasetError> {
     let path = path.as_ref();
-    let text = read_text(path)?;
+    let text = read_text(path, &slam_core::files::TABLE)?;
     parse_tracking_labels(path, &text)
 }
 
 /// Parse the contents of such a file; `path` only names it in error messages.
 pub fn parse_tracking_labels(path: &Path, text: &str) -> Result<Vec<TrackingLabel>, DatasetError> {
     let mut out = Vec::new();
+    // (frame, track) → line: a track is one object, seen once per frame
+    let mut seen: std::collections::HashMap<(usize, i64), usize> = std::collections::HashMap::new();
     for (i, line) in text.lines().enumerate() {
         if line.trim().is_empty() {
             continue;
@@ -83,6 +85,25 @@ pub fn parse_tracking_labels(path: &Path, text: &str) -> Result<Vec<TrackingLabe
                 v[6], v[7], v[8]
             )));
         }
+        // KITTI numbers tracks from 0 and gives DontCare regions -1
+        let valid_id = if kind == "DontCare" { track_id == -1 } else { track_id >= 0 };
+        if !valid_id {
+            return Err(err(format!(
+                "track id {track_id} for a {kind}: tracks are numbered from 0, and -1 marks a DontCare region"
+            )));
+        }
+        if kind != "DontCare" {
+            if let Some(a) = v[9..12].iter().find(|a| a.abs() > MAX_LABEL_DISTANCE_M) {
+                return Err(err(format!(
+                    "location coordinate {a:.3e} m: a labelled object lies within {MAX_LABEL_DISTANCE_M} m of the camera (at 1 km a car is 3 px wide at KITTI's focal length; its labels reach 150 m)"
+                )));
+            }
+            if let Some(first) = seen.insert((frame, track_id), i + 1) {
+                return Err(err(format!(
+                    "track {track_id} again in frame {frame} (first on line {first}): a track is one object, labelled once per frame"
+                )));
+            }
+        }
         out.push(TrackingLabel {
             frame,
             track_id,
@@ -101,6 +122,9 @@ pub fn parse_tracking_labels(path: &Path, text: &str) -> Result<Vec<TrackingLabe
     }
     Ok(out)
 }
+
+/// Farthest a labelled object's 3-D box may lie from the camera, metres, on each axis.
+pub const MAX_LABEL_DISTANCE_M: f64 = 1000.0;
 
 /// The object types of KITTI's label files (object and tracking benchmarks; the tracking labels write
 /// `Person` for a sitting person).
@@ -141,7 +165,7 @@ impl TrackingSequence {
         images.sort();
         let oxts_path = t.join("oxts").join(format!("{seq}.txt"));
         let imu_poses = if oxts_path.exists() {
-            let text = read_text(&oxts_path)?;
+            let text = read_text(&oxts_path, &slam_core::files::TABLE)?;
             let mut packets = Vec::new();
             for (i, line) in text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty()) {
                 let p = crate::kitti::raw::parse_oxts_packet(&oxts_path, line).map_err(|e| match e {

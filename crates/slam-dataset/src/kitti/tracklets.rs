@@ -126,7 +126,7 @@ fn convert(
 /// Read a tracklet file. Checks the declared counts against the items found.
 pub fn read_tracklets(path: impl AsRef<Path>) -> Result<Vec<Tracklet>, DatasetError> {
     let path = path.as_ref();
-    let text = read_text(path)?;
+    let text = read_text(path, &slam_core::files::DOCUMENT)?;
     parse_tracklets(path, &text)
 }
 

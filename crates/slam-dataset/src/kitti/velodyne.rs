@@ -2,7 +2,6 @@
 //! reflectance per point, in the Velodyne frame (x forward, y left, z up, metres), and their projection
 //! into the rectified left camera with a raw drive's calibration ([`super::raw::RawCalib`]).
 
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Point3, Vector3};
@@ -30,17 +29,15 @@ pub struct VeloPoint {
 /// that is not a whole number of points, or a non-finite coordinate (with the point's index).
 pub fn read_scan(path: impl AsRef<Path>) -> Result<Vec<VeloPoint>, DatasetError> {
     let path = path.as_ref();
-    let io = |source| DatasetError::Io { path: path.to_path_buf(), source };
-    let invalid = |message: String| DatasetError::Invalid { path: path.to_path_buf(), message };
-    let meta = std::fs::metadata(path).map_err(io)?;
-    if !meta.is_file() {
-        return Err(invalid("not a regular file".into()));
-    }
-    if meta.len() > MAX_SCAN_BYTES {
-        return Err(invalid(format!("{} bytes, more than the {MAX_SCAN_BYTES} a scan may have", meta.len())));
-    }
-    let mut bytes = Vec::with_capacity(meta.len() as usize);
-    std::fs::File::open(path).map_err(io)?.take(MAX_SCAN_BYTES + 1).read_to_end(&mut bytes).map_err(io)?;
+    let limit = slam_core::files::Limit {
+        bytes: MAX_SCAN_BYTES,
+        what: "a Velodyne scan",
+        why: "an HDL-64E turn holds about 120 000 points, 1.9 MB",
+    };
+    let bytes = slam_core::files::read_bytes(path, &limit).map_err(|e| match e {
+        slam_core::files::ReadError::Io { path, source } => DatasetError::Io { path, source },
+        other => DatasetError::Read(other),
+    })?;
     parse_scan(path, &bytes)
 }
 

@@ -152,19 +152,28 @@ impl KeyframePolicy {
     }
 
     /// Whether the frame becomes a keyframe: a tracked frame when its tracked map points fell below
-    /// `keyframe_inlier_ratio` of the keyframe's first frame's, after `keyframe_max_gap` frames, or
-    /// when it shares less than `keyframe_overlap` of the reference keyframe's points (`reference_points`:
-    /// its valid points; `map`: the local map whose slot 0 it is); every weak or relocalised frame; a
-    /// frame lost for longer than `max_lost_s` (`since_measured` frames) that still has stereo points.
+    /// `keyframe_inlier_ratio` of the keyframe's first frame's, after `keyframe_max_gap` frames if it
+    /// moved, or when it shares less than `keyframe_overlap` of the reference keyframe's points
+    /// (`reference_points`: its valid points; `map`: the local map whose slot 0 it is); a weak frame
+    /// that moved; every relocalised frame; a frame lost for longer than `max_lost_s` (`since_measured`
+    /// frames) that still has stereo points. Moved: the frame's tracked points (`keypoints`: the
+    /// frame's) moved in the image since the reference keyframe saw them ([`crate::keyframe_motion`]),
+    /// so a keyframe brings new information.
     pub(crate) fn wants(
         &mut self,
         config: &VoConfig,
         state: TrackState,
         refined: Option<&Refined>,
-        (map, reference_points): (&LocalMap, usize),
+        (map, reference_points, keypoints): (&LocalMap, usize, &[(f64, f64)]),
         since_measured: usize,
         stereo_points: usize,
     ) -> bool {
+        let moved = refined.is_none_or(|r| {
+            crate::keyframe_motion::moved(r.inliers.iter().filter_map(|&(i, c)| {
+                let (_, o) = map.views[i].iter().find(|v| v.0 == 0)?;
+                Some(((o[0], o[1]), *keypoints.get(c)?))
+            }))
+        });
         let tracked_map_points = refined.map_or(0, |r| r.inliers.len());
         // share of the reference keyframe's points tracked in this frame (its overlap with the keyframe)
         let overlap = refined.map_or(0.0, |r| {
@@ -179,10 +188,11 @@ impl KeyframePolicy {
             TrackState::Tracked { .. } => {
                 let base = *self.kf_inliers.get_or_insert(tracked_map_points);
                 (tracked_map_points as f64) < config.keyframe_inlier_ratio * base as f64
-                    || self.since_kf >= config.keyframe_max_gap
+                    || (self.since_kf >= config.keyframe_max_gap && moved)
                     || overlap < config.keyframe_overlap
             }
-            TrackState::Weak { .. } | TrackState::Relocalised { .. } => true,
+            TrackState::Weak { .. } => moved,
+            TrackState::Relocalised { .. } => true,
             _ => lost_too_long,
         }
     }

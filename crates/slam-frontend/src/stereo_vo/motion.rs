@@ -90,6 +90,13 @@ impl MotionModel {
         (self.measured_index, self.failed) = (frame_index, false);
     }
 
+    /// The pose of the current frame was found without the motion model (keyframe retrieval: a revisit
+    /// or a long gap breaks it legitimately): the velocity is unknown until two measured frames give it
+    /// again, so the next frame is checked against the speed limit only.
+    pub(crate) fn forget_velocity(&mut self) {
+        self.velocity_known = false;
+    }
+
     /// A new map segment starts at `frame_index`: measured there, the velocity no longer known.
     pub(crate) fn restart(&mut self, frame_index: usize) {
         (self.measured_index, self.failed) = (frame_index, false);
@@ -113,7 +120,61 @@ pub(crate) fn scaled(step: &Isometry3<f64>, r: f64) -> Isometry3<f64> {
     repeat(step, whole as usize) * Isometry3::identity().lerp_slerp(step, r.max(0.0) - whole)
 }
 
-/// `step` applied `k` times.
+/// `step` applied `k` times: one product after another up to [`REPEAT_FOLD`] steps, by repeated
+/// squaring beyond (a gap of 10⁸ frame ids costs 27 products, not 10⁸).
 fn repeat(step: &Isometry3<f64>, k: usize) -> Isometry3<f64> {
-    (0..k).fold(Isometry3::identity(), |acc, _| acc * step)
+    if k <= REPEAT_FOLD {
+        return (0..k).fold(Isometry3::identity(), |acc, _| acc * step);
+    }
+    let (mut out, mut base, mut k) = (Isometry3::identity(), *step, k);
+    while k > 0 {
+        if k & 1 == 1 {
+            out *= base;
+        }
+        base *= base;
+        k >>= 1;
+    }
+    out
+}
+
+/// Steps up to which [`repeat`] multiplies one step after another (every gap a drive's recording
+/// drops, so the tracker's predictions stay as they were); longer gaps are squared.
+const REPEAT_FOLD: usize = 64;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Vector3;
+
+    #[test]
+    fn a_step_repeated_over_a_long_gap_is_squared_and_agrees_with_the_product() {
+        let step = Isometry3::new(Vector3::new(0.01, 0.0, 0.9), Vector3::new(0.0, 0.001, 0.0));
+        let fold = |k: usize| (0..k).fold(Isometry3::identity(), |acc, _| acc * step);
+        for k in [0, 1, 2, 16, REPEAT_FOLD] {
+            assert_eq!(repeat(&step, k), fold(k), "k = {k}: the product itself");
+        }
+        for k in [REPEAT_FOLD + 1, 100, 1000] {
+            let d = repeat(&step, k).inverse() * fold(k);
+            assert!(d.translation.vector.norm() < 1e-9 && d.rotation.angle() < 1e-12, "k = {k}: {d:?}");
+        }
+        // 10¹² steps: squared (a fold would not finish); a pure rotation stays one
+        let turn = Isometry3::rotation(Vector3::new(0.0, 1e-6, 0.0));
+        assert!(repeat(&turn, 1_000_000_000_000).translation.vector.norm() < 1e-9);
+    }
+
+    #[test]
+    fn a_pose_found_without_the_motion_model_leaves_the_velocity_unknown() {
+        let mut m = MotionModel::default();
+        m.start(0);
+        m.advance(1);
+        m.measured(1, Isometry3::translation(0.0, 0.0, 1.0), true);
+        assert!(m.velocity_known);
+        m.advance(2);
+        m.measured(2, Isometry3::translation(0.0, 0.0, 0.0), false);
+        m.forget_velocity();
+        assert!(!m.velocity_known, "a retrieved pose says nothing of the velocity");
+        m.advance(3);
+        m.measured(3, Isometry3::translation(0.0, 0.0, -1.0), true);
+        assert!(m.velocity_known, "the next measured step gives it again");
+    }
 }

@@ -1,0 +1,462 @@
+//! Files at the edge of the system: every reader and every writer of the workspace goes through here.
+//!
+//! **Reading** ([`read_bytes`], [`read_text`], [`regular_file`]). Only a regular file is read, after
+//! following symbolic links: a folder, a named pipe, a device (`/dev/zero`), a socket, or a link that
+//! loops or leads nowhere is refused before it is opened, saying what it is, so nothing blocks on a
+//! pipe that no one writes and nothing reads an endless device. At most a [`Limit`]'s bytes are read: a
+//! larger file is an error that names the limit and its reason (the reader holds the whole text and
+//! its parse in memory, so the cap bounds the memory a file can take). Text must be UTF-8 (the error
+//! names the line of the first bad byte); a leading byte-order mark, which some editors write, is
+//! dropped.
+//!
+//! **Writing** ([`write_atomic`], [`AtomicWrite`]). A file is written to a temporary sibling
+//! `.NAME.tmp-PID`, flushed, and renamed over its destination only when whole. On any failure (a full
+//! disk included) the temporary file is removed: a failed write leaves the old file as it was and no
+//! temporary file behind.
+
+use std::{
+    fs::File,
+    io::{Read, Write},
+    path::{Path, PathBuf},
+};
+
+/// How much a reader takes from one file, and why that much.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Limit {
+    /// Most bytes read.
+    pub bytes: u64,
+    /// The kind of file, for the message ("a settings file").
+    pub what: &'static str,
+    /// Why the limit is where it is, for the message.
+    pub why: &'static str,
+}
+
+const MIB: u64 = 1 << 20;
+
+/// Settings, calibration files, single OXTS packets, a run's `camera.json`, a detector's `.cfg`.
+pub const SMALL: Limit = Limit {
+    bytes: MIB,
+    what: "a settings, calibration or packet file",
+    why: "every settings key with its comment is 6 KB, a KITTI calibration file 1-3 KB",
+};
+
+/// Per-frame text tables: poses, times, timestamps, labels, trajectories, a run's `tracking.csv`.
+pub const TABLE: Limit = Limit {
+    bytes: 256 * MIB,
+    what: "a per-frame text file (poses, times, labels, trajectories)",
+    why: "a pose line is about 200 bytes, so this holds over a million frames, more than a day at 10 Hz",
+};
+
+/// JSON documents that grow with a run: maps, detection files, object maps and scores.
+pub const DOCUMENT: Limit = Limit {
+    bytes: 1024 * MIB,
+    what: "a map, detection or object file",
+    why: "a map takes about 40 KB per frame of odometry 06, so this holds runs of over 25 000 frames; the parse takes a few times the text in memory",
+};
+
+/// Encoded images.
+pub const IMAGE: Limit = Limit {
+    bytes: 256 * MIB,
+    what: "an image",
+    why: "an 8-bit colour image of 8192 × 8192 pixels is 192 MiB even uncompressed",
+};
+
+/// Detector models (network weights).
+pub const MODEL: Limit = Limit {
+    bytes: 2048 * MIB,
+    what: "a detector model",
+    why: "a detector small enough to run per frame on a CPU has well under 100 M weights (400 MB)",
+};
+
+/// Optimisation problem files (BAL, g2o).
+pub const PROBLEM: Limit = Limit {
+    bytes: 1024 * MIB,
+    what: "an optimisation problem file",
+    why: "the reader holds the text and the problem in memory; the shipped problems are 2-5 MB",
+};
+
+/// Why a file could not be read; printed as `cannot read PATH: REASON` ([`ReadError::reason`]).
+#[derive(Debug)]
+pub enum ReadError {
+    /// The file system refused (no such file, no permission, …).
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A symbolic link that loops or leads nowhere.
+    BrokenLink {
+        /// The link.
+        path: PathBuf,
+        /// Where it points.
+        to: PathBuf,
+        /// Why it cannot be followed.
+        source: std::io::Error,
+    },
+    /// Not a regular file.
+    NotAFile {
+        /// The path.
+        path: PathBuf,
+        /// What it is ("a folder", "a named pipe", …).
+        kind: &'static str,
+    },
+    /// Larger than the reader takes.
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its size (at least this many bytes: a file may grow while it is read).
+        size: u64,
+        /// The limit.
+        limit: Limit,
+    },
+    /// Not UTF-8 text.
+    NotUtf8 {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line of the first invalid byte.
+        line: usize,
+    },
+}
+
+impl ReadError {
+    /// The file concerned.
+    pub fn path(&self) -> &Path {
+        match self {
+            ReadError::Io { path, .. }
+            | ReadError::BrokenLink { path, .. }
+            | ReadError::NotAFile { path, .. }
+            | ReadError::TooLarge { path, .. }
+            | ReadError::NotUtf8 { path, .. } => path,
+        }
+    }
+
+    /// Why, without the path: the system's reason (`No such file or directory`), `it is a named pipe,
+    /// not a regular file`, …
+    pub fn reason(&self) -> String {
+        match self {
+            ReadError::Io { source, .. } => source.to_string(),
+            ReadError::BrokenLink { to, source, .. } => {
+                format!("it is a symbolic link to {} that cannot be followed ({source})", to.display())
+            }
+            ReadError::NotAFile { kind, .. } => format!("it is {kind}, not a regular file"),
+            ReadError::TooLarge { size, limit, .. } => format!(
+                "it holds {size} bytes, more than the {} read from {} ({})",
+                size_text(limit.bytes),
+                limit.what,
+                limit.why
+            ),
+            ReadError::NotUtf8 { line, .. } => {
+                format!("not UTF-8 text (the first byte that is not is on line {line})")
+            }
+        }
+    }
+}
+
+impl std::fmt::Display for ReadError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "cannot read {}: {}", self.path().display(), self.reason())
+    }
+}
+
+impl std::error::Error for ReadError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            ReadError::Io { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}
+
+/// Check that `path` is a regular file of at most `limit.bytes` ([`regular_file`]), for readers that
+/// hand the path to a library (image codecs, network loaders) rather than read it here.
+pub fn check_readable(path: &Path, limit: &Limit) -> Result<(), ReadError> {
+    let size = regular_file(path)?;
+    if size > limit.bytes {
+        return Err(ReadError::TooLarge { path: path.to_path_buf(), size, limit: *limit });
+    }
+    Ok(())
+}
+
+/// A byte count as a limit reads: `1 MiB`, `256 MiB`, `1 GiB`.
+fn size_text(bytes: u64) -> String {
+    if bytes >= 1 << 30 && bytes % (1 << 30) == 0 {
+        format!("{} GiB", bytes >> 30)
+    } else if bytes >= MIB && bytes % MIB == 0 {
+        format!("{} MiB", bytes >> 20)
+    } else {
+        format!("{bytes} bytes")
+    }
+}
+
+/// What a path that is not a regular file is, in words.
+fn kind_of(meta: &std::fs::Metadata) -> &'static str {
+    let t = meta.file_type();
+    if t.is_dir() {
+        return "a folder";
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return "a named pipe";
+        }
+        if t.is_char_device() {
+            return "a character device";
+        }
+        if t.is_block_device() {
+            return "a block device";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    "not a regular file"
+}
+
+/// Check that `path` is (or links to) a regular file and return its size; the error says what it is
+/// instead. Nothing is opened, so a named pipe does not block.
+pub fn regular_file(path: &Path) -> Result<u64, ReadError> {
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_file() => Ok(m.len()),
+        Ok(m) => Err(ReadError::NotAFile { path: path.to_path_buf(), kind: kind_of(&m) }),
+        Err(source) => match std::fs::symlink_metadata(path) {
+            // the link exists but cannot be followed
+            Ok(l) if l.file_type().is_symlink() => Err(ReadError::BrokenLink {
+                path: path.to_path_buf(),
+                to: std::fs::read_link(path).unwrap_or_default(),
+                source,
+            }),
+            _ => Err(ReadError::Io { path: path.to_path_buf(), source }),
+        },
+    }
+}
+
+/// The whole of a regular file, at most `limit.bytes` of it ([`regular_file`] first).
+pub fn read_bytes(path: &Path, limit: &Limit) -> Result<Vec<u8>, ReadError> {
+    check_readable(path, limit)?;
+    let io = |source| ReadError::Io { path: path.to_path_buf(), source };
+    let file = File::open(path).map_err(io)?;
+    // the file was swapped for something else between the check and the open
+    let meta = file.metadata().map_err(io)?;
+    if !meta.is_file() {
+        return Err(ReadError::NotAFile { path: path.to_path_buf(), kind: kind_of(&meta) });
+    }
+    let mut bytes = Vec::with_capacity(meta.len().min(limit.bytes) as usize);
+    // one byte more than the limit tells a file that grew past it while being read
+    file.take(limit.bytes + 1).read_to_end(&mut bytes).map_err(io)?;
+    if bytes.len() as u64 > limit.bytes {
+        return Err(ReadError::TooLarge { path: path.to_path_buf(), size: bytes.len() as u64, limit: *limit });
+    }
+    Ok(bytes)
+}
+
+/// The UTF-8 byte-order mark.
+const BOM: &str = "\u{feff}";
+
+/// A regular file's text ([`read_bytes`]): UTF-8, a leading byte-order mark dropped.
+pub fn read_text(path: &Path, limit: &Limit) -> Result<String, ReadError> {
+    let bytes = read_bytes(path, limit)?;
+    let mut text = String::from_utf8(bytes).map_err(|e| ReadError::NotUtf8 {
+        path: path.to_path_buf(),
+        line: 1 + e.as_bytes()[..e.utf8_error().valid_up_to()].iter().filter(|&&b| b == b'\n').count(),
+    })?;
+    if text.starts_with(BOM) {
+        text.drain(..BOM.len());
+    }
+    Ok(text)
+}
+
+/// Why a file could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum WriteError {
+    /// The destination is not something a file can be written to.
+    #[error("cannot write {}: {message}", .path.display())]
+    Refused {
+        /// The destination.
+        path: PathBuf,
+        /// Why.
+        message: String,
+    },
+    /// The file system failed (a full disk, no permission, …).
+    #[error("cannot write {}: {source}", .path.display())]
+    Io {
+        /// The destination.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The caller's writer failed.
+    #[error("cannot write {}: {source}", .path.display())]
+    Writer {
+        /// The destination.
+        path: PathBuf,
+        /// The writer's error.
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+}
+
+/// A file being written beside its destination: [`AtomicWrite::commit`] renames it into place;
+/// dropped without a commit (an error on the way, a panic), the temporary file is removed.
+#[derive(Debug)]
+pub struct AtomicWrite {
+    path: PathBuf,
+    tmp: PathBuf,
+    done: bool,
+}
+
+/// The temporary sibling of `path`: `.NAME.tmp-PID` (hidden; one per process, so two runs writing the
+/// same file do not write into each other's temporary).
+pub fn temporary_of(path: &Path) -> PathBuf {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
+}
+
+impl AtomicWrite {
+    /// Start writing `path`: refuses a folder or a path without a file name, creates the temporary file
+    /// (which proves the folder writable: callers make one before the work that fills it).
+    pub fn create(path: &Path) -> Result<Self, WriteError> {
+        if path.file_name().is_none() || path.is_dir() {
+            return Err(WriteError::Refused {
+                path: path.to_path_buf(),
+                message: "it is a folder, expected a file name".into(),
+            });
+        }
+        let tmp = temporary_of(path);
+        File::create(&tmp).map_err(|source| WriteError::Io { path: path.to_path_buf(), source })?;
+        Ok(Self { path: path.to_path_buf(), tmp, done: false })
+    }
+
+    /// The temporary file, for writers that take a path (image encoders, plotting libraries).
+    pub fn temporary(&self) -> &Path {
+        &self.tmp
+    }
+
+    /// The destination.
+    pub fn destination(&self) -> &Path {
+        &self.path
+    }
+
+    /// Write the whole contents through `write` (buffered), then put the file in place.
+    pub fn write_all_with(self, write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -> Result<(), WriteError> {
+        let io = |source| WriteError::Io { path: self.path.clone(), source };
+        let file = File::create(&self.tmp).map_err(io)?;
+        let mut w = std::io::BufWriter::new(file);
+        write(&mut w).map_err(io)?;
+        let file = w.into_inner().map_err(|e| io(e.into_error()))?;
+        file.sync_all().map_err(io)?;
+        self.commit()
+    }
+
+    /// Put the temporary file (written through [`AtomicWrite::temporary`]) in place.
+    pub fn commit(mut self) -> Result<(), WriteError> {
+        if let Ok(f) = File::open(&self.tmp) {
+            // best effort: a crash of the machine, not only of the process
+            let _ = f.sync_all();
+        }
+        std::fs::rename(&self.tmp, &self.path).map_err(|source| WriteError::Io { path: self.path.clone(), source })?;
+        self.done = true;
+        Ok(())
+    }
+}
+
+impl Drop for AtomicWrite {
+    fn drop(&mut self) {
+        if !self.done {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// Write `bytes` to `path` atomically ([`AtomicWrite`]).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
+    AtomicWrite::create(path)?.write_all_with(|w| w.write_all(bytes))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("slam-core-files-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).expect("scratch");
+        d
+    }
+
+    fn listing(d: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(d)
+            .expect("list")
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    const TINY: Limit = Limit { bytes: 16, what: "a test file", why: "a test" };
+
+    #[test]
+    fn only_regular_files_within_the_limit_are_read() {
+        let d = scratch("read");
+        let f = d.join("a.txt");
+        std::fs::write(&f, "\u{feff}x = 1\n").expect("write");
+        assert_eq!(read_text(&f, &TINY).expect("reads"), "x = 1\n", "the byte-order mark is dropped");
+        std::fs::write(&f, "0123456789abcdefg").expect("write");
+        let e = read_text(&f, &TINY).expect_err("17 bytes").to_string();
+        assert!(e.contains("holds 17 bytes") && e.contains("16 bytes read from a test file (a test)"), "{e}");
+        let e = read_text(&d, &TINY).expect_err("folder").to_string();
+        assert!(e.contains("it is a folder, not a regular file"), "{e}");
+        let e = read_bytes(Path::new("/dev/zero"), &TINY).expect_err("device").to_string();
+        assert!(e.contains("/dev/zero: it is a character device"), "{e}");
+        let e = read_text(&d.join("none"), &TINY).expect_err("missing").to_string();
+        assert!(e.starts_with("cannot read") && e.contains("none"), "{e}");
+        std::fs::write(&f, b"ok\n\xe9\n").expect("write");
+        let e = read_text(&f, &TINY).expect_err("latin-1").to_string();
+        assert!(e.contains("not UTF-8 text") && e.contains("line 2"), "{e}");
+        #[cfg(unix)]
+        {
+            let link = d.join("self.png");
+            std::os::unix::fs::symlink(&link, &link).expect("self-link");
+            let e = read_bytes(&link, &TINY).expect_err("loop").to_string();
+            assert!(e.contains("symbolic link") && e.contains("cannot be followed"), "{e}");
+            // a named pipe nobody writes: refused at once, not waited on
+            let fifo = d.join("pipe");
+            let made = std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success());
+            assert!(made, "mkfifo {}", fifo.display());
+            let e = read_text(&fifo, &TINY).expect_err("pipe").to_string();
+            assert!(e.contains("it is a named pipe"), "{e}");
+        }
+        std::fs::remove_dir_all(&d).ok();
+    }
+
+    #[test]
+    fn a_failed_write_leaves_the_old_file_and_no_temporary() {
+        let d = scratch("write");
+        let f = d.join("x.json");
+        write_atomic(&f, b"one").expect("write");
+        write_atomic(&f, b"two").expect("write");
+        assert_eq!(std::fs::read_to_string(&f).expect("read"), "two");
+        let e = AtomicWrite::create(&f)
+            .expect("create")
+            .write_all_with(|w| {
+                w.write_all(b"half")?;
+                Err(std::io::Error::other("no space left on device"))
+            })
+            .expect_err("fails")
+            .to_string();
+        assert!(e.contains("no space left"), "{e}");
+        assert_eq!(std::fs::read_to_string(&f).expect("read"), "two");
+        {
+            let w = AtomicWrite::create(&f).expect("create");
+            std::fs::write(w.temporary(), "three").expect("write");
+            // dropped without a commit
+        }
+        assert_eq!(listing(&d), ["x.json"], "no temporary file left");
+        assert!(AtomicWrite::create(&d).expect_err("folder").to_string().contains("is a folder"));
+        // the temporary of a file with two extensions keeps its whole name (`.obj.json`, not `.obj.json.json`)
+        let t = temporary_of(Path::new("out/x.obj.json"));
+        assert_eq!(t, PathBuf::from(format!("out/.x.obj.json.tmp-{}", std::process::id())));
+        std::fs::remove_dir_all(&d).ok();
+    }
+}
