@@ -11,7 +11,7 @@ use slam_runner::{Prepared, RunObserver};
 
 /// How to get a program that records.
 const BUILD_WITH_RERUN: &str = "this slam-app was built without rerun recordings: build it with the `rerun` feature \
-     (`cargo run --release -p slam-app --features rerun -- …`; rerun's SDK adds several minutes to a first build)";
+     (`cargo run --release -p slam-app --features rerun -- …`; rerun's SDK adds 15-17 minutes to a first build on two cores)";
 
 /// Refuse `--rerun` (given as `option`) when this program cannot record; refuse a recording inside the
 /// output folder `out`, which a run replaces as a whole at its end.

@@ -12,7 +12,7 @@
 //! - `read` (feature `rerun`): a recording decoded back with rerun's own decoder ([`read::summarise`]).
 //!
 //! The `rerun` feature brings rerun's logging SDK (`re_sdk`, `re_sdk_types`, `re_log_encoding`
-//! 0.36.3, the newest that builds with Rust 1.95), several minutes of first build: it is off unless
+//! 0.36.3, the newest that builds with Rust 1.95), 15-17 minutes of first build on two cores: it is off unless
 //! asked for (`slam-app`'s feature `rerun`). Open a recording with the viewer of the same version
 //! (`pip install rerun-sdk==0.36.3`, then `rerun FILE.rrd`).
 //!
