@@ -97,7 +97,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     let played = run_with_progress(&s, a.rerun.as_deref());
     let stop = |done: usize| Interrupted::nothing_written(done, out, dir.target().exists());
     if interrupted() {
-        // a recording stops with the run: it holds the frames played (the recorder closes it when dropped)
+        // a recording stops with the run, unfinished: its temporary file is removed and a previous recording stays
         return Err(stop(played.as_ref().map_or(0, |o| o.0.out.counts.frames)).into());
     }
     let (o, recording) = played?;
