@@ -64,7 +64,7 @@ for crate in slam-assoc slam-dataset slam-frontend slam-lm slam-dogleg; do
 done
 echo "check-deps: implementation crates (slam-assoc, slam-dataset, slam-frontend, slam-lm, slam-dogleg) depend on seams only: ok"
 
-# slam-viz sits near the top, under slam-runner and the app only: no other library crate depends on it.
+# slam-viz sits near the top, under slam-runner, slam-rerun and the app only: no other library crate depends on it.
 for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-eval slam-frontend; do
   if workspace_deps "$crate" | tr ' ' '\n' | grep -qx slam-viz; then
     echo "check-deps: $crate must not depend on slam-viz (pictures are for the app)" >&2
@@ -72,7 +72,7 @@ for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg sl
   fi
 done
 check_only slam-viz slam-quadric slam-core slam-sim slam-pipeline slam-frontend
-echo "check-deps: slam-viz depends on [ $(workspace_deps slam-viz)] and only slam-runner and slam-app depend on it: ok"
+echo "check-deps: slam-viz depends on [ $(workspace_deps slam-viz)] and only slam-runner, slam-rerun and slam-app depend on it: ok"
 
 # slam-runner sits directly under the app: no library crate depends on it.
 for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-eval slam-frontend slam-viz; do
@@ -85,3 +85,31 @@ done
 check_only slam-runner slam-quadric slam-core slam-optim slam-dataset slam-frontend slam-pipeline slam-eval slam-viz \
   slam-assoc slam-lm slam-dogleg
 echo "check-deps: slam-runner depends on [ $(workspace_deps slam-runner)] and only slam-app depends on it: ok"
+
+# slam-rerun (recordings) sits directly under the app, beside slam-runner: no library crate depends on it,
+# and it composes the pipeline, the pictures' rules and the front end's image encoding only. Its rerun
+# crates are optional (feature rerun), so its own checks read its default dependencies: a machine that
+# never built the feature has not downloaded them.
+for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-eval slam-frontend slam-viz slam-runner; do
+  if workspace_deps "$crate" | tr ' ' '\n' | grep -qx slam-rerun; then
+    echo "check-deps: $crate must not depend on slam-rerun (only slam-app may)" >&2
+    exit 1
+  fi
+  # rerun's crates (re_sdk, re_sdk_types, re_log_encoding, ...) enter through slam-rerun's feature alone
+  if cargo tree -q -p "$crate" --all-features -e normal --prefix none | grep -q '^re_'; then
+    echo "check-deps: $crate must not depend on rerun's crates (they belong to slam-rerun's feature rerun)" >&2
+    exit 1
+  fi
+done
+rerun_deps=$(direct -p slam-rerun)
+for dep in $(echo "$rerun_deps" | tr ' ' '\n' | grep '^slam-' || true); do
+  case " slam-quadric slam-core slam-pipeline slam-viz slam-frontend " in
+    *" $dep "*) ;;
+    *) echo "check-deps: slam-rerun must not depend on $dep (allowed: slam-quadric slam-core slam-pipeline slam-viz slam-frontend)" >&2; exit 1 ;;
+  esac
+done
+if echo "$rerun_deps" | tr ' ' '\n' | grep -q '^re_'; then
+  echo "check-deps: slam-rerun must depend on rerun's crates only with its feature rerun; found: $rerun_deps" >&2
+  exit 1
+fi
+echo "check-deps: slam-rerun depends on [ $(echo "$rerun_deps" | tr ' ' '\n' | grep '^slam-' | tr '\n' ' ')] (+ rerun's crates with its feature rerun), and only slam-app depends on it: ok"

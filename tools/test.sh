@@ -1,8 +1,16 @@
 #!/usr/bin/env bash
 # Run every test of the workspace on a fresh machine: installs what is missing, checks the crate
 # layering, then runs the whole test suite in release mode (faer/nalgebra are ~100x slower in debug).
+# The suite is built with slam-app's feature `rerun`, so that the rerun recording test (a recording of
+# the shipped excerpt read back with rerun's own decoder) runs in CI too; rerun's SDK adds about 12-17
+# minutes to a first build on 2 cores (README, "A run in 3-D"). SLAM_TEST_RERUN=0 leaves it out (the
+# tests then check that --rerun is refused without the feature).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/setup.sh
 bash tools/check-deps.sh
-cargo test --release --workspace --features slam-quadric/serde "$@"
+features=slam-quadric/serde
+if [ "${SLAM_TEST_RERUN:-1}" != 0 ]; then
+  features="$features,slam-app/rerun"
+fi
+cargo test --release --workspace --features "$features" "$@"

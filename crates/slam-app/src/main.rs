@@ -23,6 +23,7 @@ mod assoc_cmd;
 mod detect_cmd;
 mod objects_cmd;
 mod optim_cmd;
+mod recording;
 mod run_cmd;
 mod sim_cmd;
 

@@ -1,17 +1,17 @@
 //! `slam-app run` and the run-related commands (run-bench, track-bench, trajectory-eval, stereo-check,
 //! map): arguments, their conversion into `slam_runner` settings, the calls, and printing.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::Args;
 use slam_dataset::output::{refuse_overwriting_inputs, Written};
-use slam_pipeline::{map::Map, system::FrameRecord};
+use slam_pipeline::{map::Map, system::FrameView};
 use slam_runner::{
     bench,
     console::{catch_interrupt, interrupted, Interrupted, Progress},
     inspect,
     report::run_output_name,
-    stereo, RunConfig, RunSettings,
+    stereo, RunConfig, RunObserver, RunSettings,
 };
 
 use crate::args::{DetectorArgs, OutputArgs, SequenceArgs, SettingsArgs, WiringArgs};
@@ -22,6 +22,11 @@ pub struct RunArgs {
     seq: SequenceArgs,
     #[command(flatten)]
     output: OutputArgs,
+    /// Write a rerun recording of the run to this file as it goes (the `frame` timeline: images with
+    /// boxes and projected ellipsoids, camera, trajectories, map points, ellipsoids, tracking state);
+    /// needs slam-app built with the feature `rerun`. Open it with `rerun FILE.rrd`
+    #[arg(long, value_name = "FILE.rrd")]
+    rerun: Option<PathBuf>,
     #[command(flatten)]
     settings: SettingsArgs,
     #[command(flatten)]
@@ -42,21 +47,29 @@ impl RunArgs {
     }
 }
 
-/// Run the system with a progress bar, after printing the run's header.
-fn run_with_progress(s: &RunSettings) -> anyhow::Result<slam_runner::Outcome> {
+/// A finished run and, when one was asked for, its recording (finished with the run).
+type Played = (slam_runner::Outcome, Option<Box<dyn RunObserver>>);
+
+/// Run the system with a progress bar, after printing the run's header; with `rerun`, recorded there.
+fn run_with_progress(s: &RunSettings, rerun: Option<&Path>) -> anyhow::Result<Played> {
     let prepared = slam_runner::prepare(s)?;
     println!("{}", prepared.header(s));
+    let mut recording = rerun.map(|path| crate::recording::recorder(path, &prepared)).transpose()?;
     let mut bar = Progress::new("run", prepared.len() as u64, "frames", false);
     let (mut keyframes, mut lost) = (0usize, 0usize);
-    let mut on_frame = |r: &FrameRecord| {
+    let mut on_frame = |v: &FrameView<'_>| {
+        let r = v.record;
         keyframes += usize::from(r.keyframe);
         lost += usize::from(r.state == Some(slam_core::TrackState::Lost));
         bar.set_message(format!("{keyframes} keyframes, {lost} frames lost"));
         bar.inc();
+        if let Some(rec) = &mut recording {
+            rec.frame(v);
+        }
     };
     let outcome = prepared.run(s, &mut on_frame, interrupted)?;
     bar.finish();
-    Ok(outcome)
+    Ok((outcome, recording))
 }
 
 pub fn run(a: &RunArgs) -> anyhow::Result<()> {
@@ -65,25 +78,30 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
         print!("{}", cfg.to_commented_toml());
         return Ok(());
     }
+    let out = &a.output.out;
+    crate::recording::check(a.rerun.as_deref(), Some(out))?;
     // the output folder is written beside the old one and swapped in at the end; checked writable now
     catch_interrupt();
-    let out = &a.output.out;
-    // nothing a run reads may lie in the folder it replaces
+    // nothing a run reads may lie in the folder it replaces, nor be its recording
     let seq = a.seq.path();
     let mut inputs = vec![("the sequence", seq.as_path())];
     inputs.extend(a.settings.config.as_deref().map(|p| ("--config", p)));
     inputs.extend(a.detector.detections.as_deref().map(|p| ("--detections", p)));
     inputs.extend(a.detector.labels.as_deref().map(|p| ("--labels", p)));
     inputs.extend(a.detector.model.files());
-    refuse_overwriting_inputs(&inputs, &[Written::Folder("--out", out)])?;
+    let mut outputs = vec![Written::Folder("--out", out)];
+    outputs.extend(a.rerun.as_deref().map(|p| Written::File("--rerun", p)));
+    refuse_overwriting_inputs(&inputs, &outputs)?;
     let dir = slam_dataset::output::OutputDir::create(out, "--out", "run", run_output_name)?;
     let s = a.seq.run_settings(&cfg, &a.wiring, a.detector.choice()?, a.detector.labels.clone());
-    let outcome = run_with_progress(&s);
+    let played = run_with_progress(&s, a.rerun.as_deref());
     let stop = |done: usize| Interrupted::nothing_written(done, out, dir.target().exists());
     if interrupted() {
-        return Err(stop(outcome.as_ref().map_or(0, |o| o.out.counts.frames)).into());
+        // a recording stops with the run, unfinished: its temporary file is removed and a previous recording stays
+        return Err(stop(played.as_ref().map_or(0, |o| o.0.out.counts.frames)).into());
     }
-    let o = outcome?;
+    let (o, recording) = played?;
+    let recorded = recording.map(|r| r.finish(&o)).transpose()?;
     let last = o.write_all(dir.path(), out, cfg.system.max_detections, a.output.overlays().as_ref(), &mut |t| {
         println!("{t}")
     })?;
@@ -92,6 +110,9 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     }
     dir.commit()?;
     println!("{last}");
+    if let Some(line) = recorded {
+        println!("{line}");
+    }
     Ok(())
 }
 
@@ -103,6 +124,10 @@ pub struct RunBenchArgs {
     /// Frames per run (default: the whole shipped sequence)
     #[arg(long)]
     max_frames: Option<usize>,
+    /// One more row: the shipped detector's configuration with a rerun recording written to this file
+    /// (rewritten by each run), and what recording costs in median frame time; needs the feature `rerun`
+    #[arg(long, value_name = "FILE.rrd")]
+    rerun: Option<PathBuf>,
 }
 
 /// `slam-app run-bench`: the system on the shipped sequence without objects, with detections from the
@@ -111,10 +136,16 @@ pub fn run_bench(b: &RunBenchArgs) -> anyhow::Result<()> {
     if let Some(n) = b.max_frames {
         slam_core::check::count("--max-frames", n, 1, usize::MAX)?;
     }
+    crate::recording::check(b.rerun.as_deref(), None)?;
     let base = RunSettings::odometry_only(crate::fixture(crate::SHIPPED), &RunConfig::default(), b.max_frames);
     let file = crate::fixture("kitti_odom_06/detections/yolo_fastest_tiles3.json");
     let network = slam_runner::DetectorChoice::Network(crate::detect_cmd::ModelArgs::default().loader());
-    bench::run_bench(&base, file, network, b.repeat, &mut |l| println!("{l}"), &mut |l| eprintln!("{l}"))?;
+    let mut record = |p: &slam_runner::Prepared| match &b.rerun {
+        Some(path) => crate::recording::recorder(path, p),
+        None => Err(slam_runner::RunnerError::Invalid("no --rerun file".into())),
+    };
+    let record = b.rerun.is_some().then_some(&mut record as &mut slam_runner::ObserverFactory<'_>);
+    bench::run_bench(&base, file, network, b.repeat, record, &mut |l| println!("{l}"), &mut |l| eprintln!("{l}"))?;
     Ok(())
 }
 
@@ -292,10 +323,16 @@ pub struct MapArgs {
     /// Draw the top-down map (SVG + PNG) into this folder
     #[arg(long)]
     picture: Option<PathBuf>,
+    /// Write the map as a rerun recording (the `frame` timeline: camera poses and states, each keyframe's
+    /// points, the ellipsoids from the frame they were first seen; no images); needs slam-app built
+    /// with the feature `rerun`
+    #[arg(long, value_name = "FILE.rrd")]
+    rerun: Option<PathBuf>,
 }
 
 /// `slam-app map`: a saved map's counts and objects, and its exports.
 pub fn map(a: &MapArgs) -> anyhow::Result<()> {
+    crate::recording::check(a.rerun.as_deref(), None)?;
     let pictures: Vec<PathBuf> =
         a.picture.iter().flat_map(|d| slam_viz::MAP_PICTURE_FILES.map(|n| d.join(n))).collect();
     let mut outputs: Vec<Written> = [("--ply", &a.ply), ("--scene", &a.scene), ("--trajectory", &a.trajectory)]
@@ -303,6 +340,7 @@ pub fn map(a: &MapArgs) -> anyhow::Result<()> {
         .filter_map(|(option, p)| p.as_deref().map(|p| Written::File(option, p)))
         .collect();
     outputs.extend(pictures.iter().map(|p| Written::File("--picture", p)));
+    outputs.extend(a.rerun.as_deref().map(|p| Written::File("--rerun", p)));
     refuse_overwriting_inputs(&[("the map", &a.map)], &outputs)?;
     let map = Map::load(&a.map)?;
     println!("{}", inspect::map_summary(&map, &a.map));
@@ -313,5 +351,8 @@ pub fn map(a: &MapArgs) -> anyhow::Result<()> {
         picture: a.picture.clone(),
     };
     inspect::export_map(&map, &a.map, &exports, &mut |line| println!("{line}"))?;
+    if let Some(path) = &a.rerun {
+        println!("{}", crate::recording::record_map(&map, path)?);
+    }
     Ok(())
 }

@@ -83,6 +83,18 @@ pub fn write_image(path: impl AsRef<Path>, image: &Image) -> Result<(), Frontend
     }
 }
 
+/// Encode an image as JPEG in memory (quality 0-100; OpenCV's default is 95). Grey images stay grey.
+pub fn encode_jpeg(image: &Image, quality: u8) -> Result<Vec<u8>, FrontendError> {
+    let m = image_to_mat(image)?;
+    let params = core::Vector::<i32>::from_slice(&[imgcodecs::IMWRITE_JPEG_QUALITY, i32::from(quality.min(100))]);
+    let mut bytes = core::Vector::<u8>::new();
+    if imgcodecs::imencode(".jpg", &m, &mut bytes, &params)? {
+        Ok(bytes.to_vec())
+    } else {
+        Err(FrontendError::OpenCv("the JPEG encoder refused the image".into()))
+    }
+}
+
 pub(crate) fn mat_to_image(m: &Mat) -> Result<Image, FrontendError> {
     let channels = m.channels();
     let cont = if m.is_continuous() { m.clone() } else { m.try_clone()? };
@@ -300,5 +312,27 @@ mod tests {
         // the box label sits on a filled tag of the box's colour, just above the box
         let tag = (150..230).filter(|&x| px(x, 50) == [40, 170, 60]).count();
         assert!(tag > 20, "{tag} tag pixels");
+    }
+
+    /// A JPEG of a grey gradient decodes (through OpenCV's reader) to the same size and grey layout,
+    /// within a few grey levels of the original: JPEG is lossy, and at quality 90 a smooth gradient
+    /// keeps its values to within about 2 levels.
+    #[test]
+    fn jpeg_encoding_keeps_size_and_grey_levels() {
+        let (w, h) = (96u32, 40u32);
+        let data: Vec<u8> = (0..h).flat_map(|_| (0..w).map(|x| (x * 2) as u8)).collect();
+        let grey = Image::new(w, h, 1, data.clone()).expect("image");
+        let bytes = encode_jpeg(&grey, 90).expect("encodes");
+        assert_eq!(&bytes[..3], &[0xFF, 0xD8, 0xFF], "a JPEG starts with SOI and a marker");
+        let dir = std::env::temp_dir().join(format!("slam-frontend-jpeg-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        let path = dir.join("g.jpg");
+        std::fs::write(&path, &bytes).expect("writes");
+        let back = read_image(&path, false).expect("decodes");
+        std::fs::remove_dir_all(&dir).ok();
+        assert_eq!((back.width, back.height, back.channels), (w, h, 1));
+        let worst = back.data.iter().zip(&data).map(|(a, b)| a.abs_diff(*b)).max().unwrap_or(255);
+        assert!(worst <= 4, "largest difference {worst} grey levels");
+        assert!(bytes.len() < data.len(), "compressed: {} bytes for {} pixels", bytes.len(), data.len());
     }
 }

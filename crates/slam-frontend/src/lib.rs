@@ -23,6 +23,8 @@ mod settings;
 pub mod stereo_vo;
 
 pub use detector::{DetectorConfig, DnnDetector, InputMode, ModelFamily};
-pub use image_io::{draw_detections, draw_overlay, ellipse_outline, read_image, write_image, FrontendError, Overlay};
+pub use image_io::{
+    draw_detections, draw_overlay, ellipse_outline, encode_jpeg, read_image, write_image, FrontendError, Overlay,
+};
 pub use model::{parse_input_size, FamilyName, ModeName, ModelError, ModelSpec, ShippedModel};
 pub use stereo_vo::{StereoRig, StereoVo, VoConfig};

@@ -12,7 +12,8 @@
 //! - **local mapping**: the only owner of the [`Map`]: keyframe insertion, local bundle adjustment,
 //!   culling, and the object fits (texture planes from the map points). The tracking thread reads the
 //!   map only through the mapper's replies (keyframe corrections, fitted objects); `on_frame` observers
-//!   get per-frame records, and the final map is handed over when the run ends. No locks are shared.
+//!   get per-frame views ([`FrameView`]: the record, the pose, the left image, the corrections just
+//!   applied, the objects), and the final map is handed over when the run ends. No locks are shared.
 //!
 //! Determinism: the tracker applies the mapper's reply for a keyframe made at the `k`-th input frame just
 //! before it tracks the `(k + correction_lag)`-th (waiting for it if need be), never "whenever it
@@ -30,7 +31,8 @@ mod tracking;
 pub use builder::{FrameSource, System, SystemBuilder};
 use nalgebra::Isometry3;
 use slam_core::{
-    geometry::Intrinsics, Detection, DetectionSource, Image, StereoTracker, TrackError, TrackId, TrackState,
+    geometry::Intrinsics, Detection, DetectionSource, Image, KeyframeCorrection, StereoTracker, TrackError, TrackId,
+    TrackState,
 };
 use slam_optim::SharedOptimizer;
 pub use threads::MapperRequest;
@@ -39,7 +41,7 @@ pub use tracking::Tracking;
 use crate::{
     map::Map,
     mapping::MappingConfig,
-    objects::{MappedObject, MapperConfig},
+    objects::{MappedObject, MapperConfig, ObjectMapper},
     texture::TextureConfig,
 };
 
@@ -149,6 +151,24 @@ pub struct FrameRecord {
     pub tracks: Vec<Option<TrackId>>,
     /// Stage times, milliseconds.
     pub times: FrameTimes,
+}
+
+/// What an observer of [`System::run`] sees of one frame as soon as it is tracked (a live view, a
+/// recording): its record and borrowed views of the state behind it, valid during the call. Nothing
+/// is copied for it: the image and the corrections are the ones tracking used.
+pub struct FrameView<'a> {
+    /// The frame's record.
+    pub record: &'a FrameRecord,
+    /// Pose of the left camera at tracking time, world from camera (the final trajectory follows local
+    /// mapping's later corrections of the keyframes); `None` for an unreadable frame.
+    pub world_from_camera: Option<Isometry3<f64>>,
+    /// The left image; `None` for an unreadable frame.
+    pub left: Option<&'a Image>,
+    /// Local mapping's refinements applied just before this frame was tracked, oldest first: each a
+    /// keyframe's refined pose and the refined positions of the map points it observes.
+    pub corrections: &'a [KeyframeCorrection],
+    /// The objects so far (their ellipsoids as last fitted).
+    pub objects: &'a ObjectMapper,
 }
 
 /// Per-frame stage times, milliseconds.
@@ -266,5 +286,5 @@ pub fn run(
         .detector(detector)
         .optimizer(optimizer)
         .build()?
-        .run(on_frame)
+        .run(&mut |view| on_frame(view.record))
 }

@@ -145,6 +145,47 @@ fn stepping_frame_by_frame_gives_what_run_gives() {
     assert!(ellipsoids(&ran).values().any(|e| e.0.is_some()), "the comparison includes a fitted object");
 }
 
+/// What `System::run` shows its observer of each frame: the pose tracking gave it (the tracker's
+/// believed pose), the left image unless the frame is unreadable, each keyframe's refinement once,
+/// `correction_lag` frames after the keyframe, and the objects mapped so far.
+#[test]
+fn each_frame_is_shown_with_its_pose_image_corrections_and_objects() {
+    let system = SystemBuilder::new(K, B)
+        .config(config())
+        .source(frames())
+        .tracker(tracker())
+        .detector(boxes())
+        .optimizer(lm())
+        .build()
+        .expect("builds");
+    let (mut corrected, mut keyframes, mut with_objects) = (Vec::new(), Vec::new(), 0);
+    let out = system
+        .run(&mut |v| {
+            let i = v.record.index;
+            assert_eq!(v.left.is_some(), i != 17, "frame {i}: the left image unless unreadable");
+            match v.world_from_camera {
+                Some(p) => assert!((p.translation.vector - believed(i).translation.vector).norm() < 1e-9, "frame {i}"),
+                None => assert_eq!(i, 17, "only the unreadable frame has no pose"),
+            }
+            if v.record.keyframe {
+                keyframes.push(i);
+            }
+            for c in v.corrections {
+                assert!(!c.points.is_empty(), "a keyframe's refined points come with its correction");
+                corrected.push(i);
+            }
+            with_objects += usize::from(v.objects.objects().any(|o| o.ellipsoid.is_some()));
+        })
+        .expect("runs");
+    // every keyframe but those of the last `correction_lag` frames is shown corrected 2 frames later
+    // (frame 17 is unreadable, so the lag counts played frames: ids and positions agree here)
+    let lag = config().correction_lag;
+    let due: Vec<usize> = keyframes.iter().map(|k| k + lag).filter(|&f| f < FRAMES).collect();
+    assert_eq!(corrected, due);
+    assert_eq!(keyframes.len(), out.counts.keyframes);
+    assert!(with_objects > 0 && with_objects < FRAMES, "objects appear during the run: {with_objects} frames");
+}
+
 #[test]
 fn a_builder_without_a_tracker_or_an_optimiser_is_an_error() {
     let no_tracker = SystemBuilder::new(K, B).optimizer(lm()).build();

@@ -13,12 +13,27 @@ use slam_pipeline::{
 use crate::{
     detector::DetectorChoice,
     error::{Context, Result, RunnerError},
-    run::{prepare, Outcome, RunSettings},
+    run::{prepare, ObserverFactory, Outcome, RunSettings},
 };
 
-/// Run `s` once without printing or progress.
-fn run_quiet(s: &RunSettings) -> Result<Outcome> {
-    prepare(s)?.run(s, &mut |_| {}, || false)
+/// Run `s` once without printing or progress (followed by the observer `observe` makes, finished after
+/// the run).
+fn run_quiet(s: &RunSettings, observe: Option<&mut ObserverFactory<'_>>) -> Result<Outcome> {
+    let prepared = prepare(s)?;
+    let mut observer = observe.map(|make| make(&prepared)).transpose()?;
+    let o = prepared.run(
+        s,
+        &mut |v| {
+            if let Some(obs) = &mut observer {
+                obs.frame(v);
+            }
+        },
+        || false,
+    )?;
+    if let Some(obs) = observer {
+        obs.finish(&o)?;
+    }
+    Ok(o)
 }
 
 /// The three `run-bench` configurations: no objects, detections from `file`, and the network on every
@@ -64,13 +79,20 @@ impl std::fmt::Display for BenchRow {
     }
 }
 
-/// Run `s` `repeat` times (at least once); `progress` gets a line after each run.
-pub fn bench_row(name: &str, s: &RunSettings, repeat: usize, progress: &mut dyn FnMut(String)) -> Result<BenchRow> {
+/// Run `s` `repeat` times (at least once), each run followed by the observer `observe` makes, if any;
+/// `progress` gets a line after each run.
+pub fn bench_row(
+    name: &str,
+    s: &RunSettings,
+    repeat: usize,
+    mut observe: Option<&mut ObserverFactory<'_>>,
+    progress: &mut dyn FnMut(String),
+) -> Result<BenchRow> {
     let repeat = repeat.max(1);
     let (mut fps, mut fps_median, mut ate) = (Vec::new(), Vec::new(), Vec::new());
     let mut stages: Vec<Vec<f64>> = Vec::new();
     for r in 0..repeat {
-        let o = run_quiet(s)?;
+        let o = run_quiet(s, observe.as_deref_mut())?;
         fps.push(o.out.counts.frames as f64 / o.elapsed);
         fps_median.push(median_fps(&o.out));
         for (k, (_, ms, _)) in stage_table(&o.out).into_iter().enumerate() {
@@ -105,26 +127,55 @@ pub fn run_bench_footer(repeat: usize, rows: &[BenchRow]) -> String {
     )
 }
 
-/// The whole `run-bench`: the [`bench_configs`] on `base`, `repeat` runs each; every table line goes to
+/// The name of `run-bench`'s row with a recording.
+pub const RECORDED_ROW: &str = "shipped detector, every frame, recorded (--rerun)";
+
+/// The whole `run-bench`: the [`bench_configs`] on `base`, `repeat` runs each, and with `record` one more
+/// row: the last configuration (the main job's) with the observer it makes following every run (a
+/// recording), and the cost of following in the main job's median frame time; every table line goes to
 /// `print`, progress lines to `progress`.
 pub fn run_bench(
     base: &RunSettings,
     file: PathBuf,
     network: DetectorChoice,
     repeat: usize,
+    record: Option<&mut ObserverFactory<'_>>,
     print: &mut dyn FnMut(String),
     progress: &mut dyn FnMut(String),
 ) -> Result<()> {
     print(RUN_BENCH_HEADER.to_string());
     let mut rows = Vec::new();
-    for (name, detector) in bench_configs(file, network) {
-        let s = RunSettings { detector, ..base.clone() };
-        let row = bench_row(name, &s, repeat, progress)?;
+    let configs = bench_configs(file, network);
+    for (name, detector) in &configs {
+        let s = RunSettings { detector: detector.clone(), ..base.clone() };
+        let row = bench_row(name, &s, repeat, None, progress)?;
         print(row.to_string());
         rows.push(row);
     }
+    let recorded = match (record, configs.last()) {
+        (Some(make), Some((_, detector))) => {
+            let s = RunSettings { detector: detector.clone(), ..base.clone() };
+            let row = bench_row(RECORDED_ROW, &s, repeat, Some(make), progress)?;
+            print(row.to_string());
+            Some(row)
+        }
+        _ => None,
+    };
     print(run_bench_footer(repeat, &rows));
+    if let (Some(with), Some(without)) = (&recorded, rows.last()) {
+        print(recording_cost(without, with));
+    }
     Ok(())
+}
+
+/// What following the runs (a recording) cost: the median frame time with and without, and the
+/// difference as a share of the time without.
+pub fn recording_cost(without: &BenchRow, with: &BenchRow) -> String {
+    let (a, b) = (1000.0 / without.fps_median, 1000.0 / with.fps_median);
+    format!(
+        "recording: median frame time {b:.1} ms against {a:.1} ms without ({:+.1} %; target <= +10 %); runs made one configuration after the other: on a shared machine compare rows made back to back",
+        100.0 * (b - a) / a
+    )
 }
 
 /// One case of `track-bench`: a sequence played at a stride.
@@ -234,7 +285,7 @@ pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<
     if !objects {
         s.detector = DetectorChoice::None;
     }
-    let o = run_quiet(&s).context_with(|| format!("case {}", case.name))?;
+    let o = run_quiet(&s, None).context_with(|| format!("case {}", case.name))?;
     let (out, seq) = (&o.out, &o.seq);
     let truth = seq.truth_from_first();
     let scored = truth.as_ref().map(|g| crate::report::Scored::of(out, g, &seq.ids));

@@ -33,6 +33,8 @@ pub mod wiring;
 pub use detector::{DetectorChoice, DetectorKind, DetectorOptions, NetworkLoader};
 pub use error::{Result, RunnerError};
 pub use report::OverlayChoice;
-pub use run::{prepare, AssociatorFactory, OptimizerFactory, Outcome, Prepared, RunSettings};
+pub use run::{
+    prepare, AssociatorFactory, ObserverFactory, OptimizerFactory, Outcome, Prepared, RunObserver, RunSettings,
+};
 pub use settings::RunConfig;
 pub use wiring::{AssociatorKind, Method, OptimizerKind, Shape, Wiring};

@@ -21,7 +21,7 @@ use slam_optim::SharedOptimizer;
 use slam_pipeline::{
     objects::FitMethod,
     report::frame_period,
-    system::{FrameInput, FrameRecord, RunOutput, SystemBuilder, SystemConfig},
+    system::{FrameInput, FrameView, RunOutput, SystemBuilder, SystemConfig},
 };
 use slam_quadric::{ImageSize, Intrinsics};
 
@@ -72,8 +72,21 @@ pub struct Prepared {
     pub k: Intrinsics,
     /// Whether the images are read in colour (every layout but odometry).
     pub colour: bool,
+    /// Image size of the first frame with both images (every frame's, or it is played as unreadable).
+    pub image: ImageSize,
     selection: FrameSelection,
 }
+
+/// Something that follows a run frame by frame and is finished with the run's outcome: a recording.
+pub trait RunObserver {
+    /// One frame, as soon as it is tracked (on the tracking thread: keep it short).
+    fn frame(&mut self, view: &FrameView<'_>);
+    /// The run ended with `outcome`; returns a line saying what was written.
+    fn finish(self: Box<Self>, outcome: &Outcome) -> Result<String>;
+}
+
+/// Makes the observer of a prepared run (a recording needs the run's camera, frames and ground truth).
+pub type ObserverFactory<'f> = dyn FnMut(&Prepared) -> Result<Box<dyn RunObserver>> + 'f;
 
 /// A finished run and what is needed to report on it.
 pub struct Outcome {
@@ -122,7 +135,8 @@ pub fn prepare(s: &RunSettings) -> Result<Prepared> {
     declared_size(&calibration_file(&seq), l0, size)?;
     let [fx, fy, cx, cy] = seq.intrinsics;
     let colour = seq.layout != Layout::Odometry;
-    Ok(Prepared { seq, k: Intrinsics::new(fx, fy, cx, cy), colour, selection: s.selection })
+    let image = ImageSize::new(f64::from(size.0), f64::from(size.1));
+    Ok(Prepared { seq, k: Intrinsics::new(fx, fy, cx, cy), colour, image, selection: s.selection })
 }
 
 /// Which frames a run played, e.g. `frame ids 0..=50 every 2 ids`.
@@ -170,10 +184,11 @@ impl Prepared {
         text
     }
 
-    /// Run the system over the frames. `on_frame` sees every finished frame (progress); `stop` is polled
-    /// before each frame is read (Ctrl-C: the input ends, the system finishes what it has).
-    pub fn run(self, s: &RunSettings, on_frame: &mut dyn FnMut(&FrameRecord), stop: fn() -> bool) -> Result<Outcome> {
-        let Prepared { seq, k, colour, selection } = self;
+    /// Run the system over the frames. `on_frame` sees every frame as soon as it is tracked (progress, a
+    /// recording); `stop` is polled before each frame is read (Ctrl-C: the input ends, the system
+    /// finishes what it has).
+    pub fn run(self, s: &RunSettings, on_frame: &mut dyn FnMut(&FrameView<'_>), stop: fn() -> bool) -> Result<Outcome> {
+        let Prepared { seq, k, colour, selection, .. } = self;
         // the image size comes from the first frame whose left image exists
         let first_left = seq.left.iter().find(|p| p.is_file()).unwrap_or(&seq.left[0]);
         let first = read_image(first_left, colour).context_with(|| format!("first frame {}", first_left.display()))?;

@@ -35,7 +35,7 @@ fn a_short_run_is_prepared_played_written_and_summarised() {
     assert!(header.contains("4 frames: frame ids 0..=6 every 2 ids"), "{header}");
     assert!(header.contains("detector: none, association: IoU"), "{header}");
     let mut seen = Vec::new();
-    let o = p.run(&s, &mut |r| seen.push(r.index), || false).expect("runs");
+    let o = p.run(&s, &mut |v| seen.push(v.record.index), || false).expect("runs");
     assert_eq!(seen, [0, 2, 4, 6], "every played frame reported, in id order");
     assert_eq!(o.out.counts.frames, 4);
     assert!(o.detections.is_none() && o.labels.is_none());

@@ -17,7 +17,9 @@ pub mod plot;
 use std::path::PathBuf;
 
 pub use map::{footprint, map_picture, MAP_PICTURE_FILES};
-pub use overlay::{frame_overlay, write_overlays, OverlayOptions};
+pub use overlay::{
+    box_style, frame_overlay, overlay_of, projected_object, write_overlays, FrameState, OverlayOptions, ProjectedObject,
+};
 pub use plot::{simulation_figure, topdown_figure, MapShape, ObjectState, TopDown};
 
 /// Errors of drawing and writing pictures.

@@ -1,64 +1,108 @@
 //! The per-frame overlay of a run: what the system saw and built, drawn on the frame's left image.
 
-use std::{
-    collections::BTreeMap,
-    path::{Path, PathBuf},
-};
+use std::path::{Path, PathBuf};
 
-use nalgebra::Point3;
-use slam_core::Image;
+use nalgebra::{Isometry3, Point3};
+use slam_core::{Detection, Image, TrackId};
 use slam_frontend::{draw_overlay, ellipse_outline, read_image, write_image, Overlay};
-use slam_pipeline::system::RunOutput;
+use slam_pipeline::{
+    objects::MappedObject,
+    system::{FrameRecord, RunOutput},
+};
 use slam_quadric::{project, Camera, ImageSize, Intrinsics};
 
 use crate::{plot::ObjectState, VizError};
 
-/// The overlay of frame `i`: each detection box with its object's id, class and score, coloured by the
-/// object's state (grey: no object); each mapped object's projected ellipsoid with `#id class`; moving
-/// objects (not mapped) get no ellipsoid; each object's past map-point centroids as a trail; a legend.
+/// What the overlay of a frame is drawn from: its record, the camera pose it is seen from, and the
+/// objects as they stand (at the end of the run for the overlays of a finished run; as of the frame in
+/// a recording made while the run goes).
+pub struct FrameState<'a> {
+    /// The frame's record (detections and their objects).
+    pub record: &'a FrameRecord,
+    /// Pose of the left camera, world from camera.
+    pub world_from_camera: Isometry3<f64>,
+    /// The objects.
+    pub objects: &'a [&'a MappedObject],
+}
+
+/// How a detection box is shown: its object's state when that object has an ellipsoid or moves (its
+/// colour), else `None` (grey in the overlays); and its label, `#id class score` (` moving` appended for
+/// a moving object), or `class score` for a box given to no object.
+pub fn box_style(d: &Detection, track: Option<TrackId>, objects: &[&MappedObject]) -> (Option<ObjectState>, String) {
+    let Some(id) = track else { return (None, format!("{} {:.2}", d.class.name(), d.score)) };
+    let object = objects.iter().find(|o| o.id == id);
+    let st = object.map_or(ObjectState::Static, |o| ObjectState::of(o.dynamic, o.moving));
+    let shown = object.is_some_and(|x| x.ellipsoid.is_some() || x.moving);
+    let tail = if st == ObjectState::Moving { " moving" } else { "" };
+    (shown.then_some(st), format!("#{} {} {:.2}{tail}", id.0, d.class.name(), d.score))
+}
+
+/// A mapped object's ellipsoid as the camera sees it: outline (64 points along the projected ellipse),
+/// state, `#id class` label (` dynamic` appended) and where the label goes.
+pub struct ProjectedObject {
+    /// Points along the outline, pixels (a closed curve).
+    pub outline: Vec<[f64; 2]>,
+    /// The object's state (static or dynamic: moving objects are not mapped, so not drawn).
+    pub state: ObjectState,
+    /// `#id class`, with ` dynamic` for a dynamic object.
+    pub label: String,
+    /// Where the label is written: 20 px left of and 5 px below the ellipse's centre.
+    pub label_at: [f64; 2],
+}
+
+/// The projected ellipsoid of a static or dynamic object (`None` for others, for an ellipsoid whose
+/// projection is no ellipse, or off the image), drawn when the object is seen in the frame or its
+/// centre lies less than 40 m ahead of the camera.
+pub fn projected_object(
+    obj: &MappedObject,
+    camera: &Camera,
+    frame: usize,
+    image: ImageSize,
+) -> Option<ProjectedObject> {
+    let state = ObjectState::of(obj.dynamic, obj.moving);
+    let (Some(e), ObjectState::Static | ObjectState::Dynamic) = (&obj.ellipsoid, state) else { return None };
+    let ell = project(e, camera).ok().and_then(|conic| conic.ellipse())?;
+    let outline = ellipse_outline(&ell, 64);
+    let on_screen = outline.iter().any(|p| p[0] >= 0.0 && p[0] < image.width && p[1] >= 0.0 && p[1] < image.height);
+    let seen_now = obj.observations.iter().any(|x| x.frame == frame);
+    let ahead = (camera.world_from_camera.inverse() * Point3::from(e.centre())).z;
+    (on_screen && (seen_now || ahead < 40.0)).then(|| {
+        let tail = if state == ObjectState::Dynamic { " dynamic" } else { "" };
+        ProjectedObject {
+            outline,
+            state,
+            label: format!("#{} {}{tail}", obj.id.0, obj.class.name()),
+            label_at: [ell.centre.x - 20.0, ell.centre.y + 5.0],
+        }
+    })
+}
+
+/// The overlay of frame `i` of a finished run ([`overlay_of`] with the run's final objects and poses).
 pub fn frame_overlay(out: &RunOutput, i: usize, k: Intrinsics, image: ImageSize) -> Overlay {
-    let rec = &out.frames[i];
-    let camera = Camera::new(k, out.poses[i]);
+    let objects: Vec<&MappedObject> = out.objects.iter().collect();
+    overlay_of(&FrameState { record: &out.frames[i], world_from_camera: out.poses[i], objects: &objects }, k, image)
+}
+
+/// The overlay of a frame: each detection box with its object's id, class and score, coloured by the
+/// object's state (grey: no object, or none fitted yet; [`box_style`]); each mapped object's projected
+/// ellipsoid with `#id class` ([`projected_object`]); moving objects (not mapped) get no ellipsoid; each
+/// object's past map-point centroids as a trail; a legend.
+pub fn overlay_of(frame: &FrameState<'_>, k: Intrinsics, image: ImageSize) -> Overlay {
+    let rec = frame.record;
+    let camera = Camera::new(k, frame.world_from_camera);
     let grey = [170, 170, 170];
-    let state_of: BTreeMap<u64, ObjectState> =
-        out.objects.iter().map(|o| (o.id.0, ObjectState::of(o.dynamic, o.moving))).collect();
     let mut o = Overlay::default();
     for (d, t) in rec.detections.iter().zip(&rec.tracks) {
-        let (c, label) = match t {
-            Some(id) => {
-                let st = state_of.get(&id.0).copied().unwrap_or(ObjectState::Static);
-                let c = if out.objects.iter().any(|x| x.id == *id && (x.ellipsoid.is_some() || x.moving)) {
-                    st.bgr()
-                } else {
-                    grey
-                };
-                let tail = if st == ObjectState::Moving { " moving" } else { "" };
-                (c, format!("#{} {} {:.2}{tail}", id.0, d.class.name(), d.score))
-            }
-            None => (grey, format!("{} {:.2}", d.class.name(), d.score)),
-        };
-        o.boxes.push((d.bbox, c, label));
+        let (state, label) = box_style(d, *t, frame.objects);
+        o.boxes.push((d.bbox, state.map_or(grey, ObjectState::bgr), label));
     }
     let from_world = camera.world_from_camera.inverse();
-    for obj in &out.objects {
+    for obj in frame.objects {
         let seen_now = obj.observations.iter().any(|x| x.frame == rec.index);
-        let state = ObjectState::of(obj.dynamic, obj.moving);
-        let c = state.bgr();
-        if let (Some(e), ObjectState::Static | ObjectState::Dynamic) = (&obj.ellipsoid, state) {
-            if let Some(ell) = project(e, &camera).ok().and_then(|conic| conic.ellipse()) {
-                let outline = ellipse_outline(&ell, 64);
-                let on_screen =
-                    outline.iter().any(|p| p[0] >= 0.0 && p[0] < image.width && p[1] >= 0.0 && p[1] < image.height);
-                if on_screen && (seen_now || (from_world * Point3::from(e.centre())).z < 40.0) {
-                    o.lines.push((outline, true, c, 2));
-                    let tail = if state == ObjectState::Dynamic { " dynamic" } else { "" };
-                    o.labels.push((
-                        [ell.centre.x - 20.0, ell.centre.y + 5.0],
-                        c,
-                        format!("#{} {}{tail}", obj.id.0, obj.class.name()),
-                    ));
-                }
-            }
+        let c = ObjectState::of(obj.dynamic, obj.moving).bgr();
+        if let Some(p) = projected_object(obj, &camera, rec.index, image) {
+            o.lines.push((p.outline, true, c, 2));
+            o.labels.push((p.label_at, c, p.label));
         }
         // trail: the object's centroids (from map points) up to this frame, projected
         let trail: Vec<[f64; 2]> = obj

@@ -11,7 +11,7 @@ use slam_optim::SharedOptimizer;
 use super::{
     threads::{detection_thread, mapping_thread, Detected},
     tracking::Tracking,
-    FrameInput, FrameRecord, RunOutput, SystemConfig, SystemError,
+    FrameInput, FrameRecord, FrameView, RunOutput, SystemConfig, SystemError,
 };
 use crate::{
     map::Map,
@@ -190,8 +190,8 @@ impl System {
             return Err(SystemError::Thread("detection"));
         };
         frames.send(frame).map_err(|_| SystemError::Thread("detection"))?;
-        let detected = detected.recv().map_err(|_| SystemError::Thread("detection"))?;
-        self.tracking.step(detected)
+        let (input, dets, det_ms) = detected.recv().map_err(|_| SystemError::Thread("detection"))?;
+        self.tracking.step(&input, dets, det_ms)
     }
 
     /// The tracking state so far (records, counts, objects).
@@ -199,9 +199,9 @@ impl System {
         &self.tracking
     }
 
-    /// Play the builder's source to its end and finish; `on_frame` sees each frame's record as soon
-    /// as it is tracked (progress output).
-    pub fn run(mut self, on_frame: &mut dyn FnMut(&FrameRecord)) -> Result<RunOutput, SystemError> {
+    /// Play the builder's source to its end and finish; `on_frame` sees each frame as soon as it is
+    /// tracked ([`FrameView`]: progress output, a recording).
+    pub fn run(mut self, on_frame: &mut dyn FnMut(&FrameView<'_>)) -> Result<RunOutput, SystemError> {
         let source = self.source.take().ok_or(SystemError::Missing("frame source"))?;
         let frames = self.frames.take().ok_or(SystemError::Thread("detection"))?;
         let detected = self.detected.take().ok_or(SystemError::Thread("detection"))?;
@@ -216,8 +216,11 @@ impl System {
                 }
             });
             // on an error the receiver is dropped on return, which stops detection and the reader
-            for d in detected {
-                on_frame(tracking.step(d)?);
+            for (input, dets, det_ms) in detected {
+                tracking.step(&input, dets, det_ms)?;
+                if let Some(view) = tracking.view(&input) {
+                    on_frame(&view);
+                }
             }
             Ok::<(), SystemError>(())
         })?;

@@ -7,13 +7,13 @@ use crossbeam_channel::{Receiver, Sender};
 use nalgebra::{Isometry3, Point3, Vector3};
 use slam_core::{
     geometry::{BBox, Camera, ImageSize, Intrinsics},
-    ClassId, DetectError, Detection, FramePoint, KeyframePoint, MovingRegion, PointPair, StereoTracker, TrackState,
-    TrackedFrame,
+    ClassId, DetectError, Detection, FramePoint, KeyframeCorrection, KeyframePoint, MovingRegion, PointPair,
+    StereoTracker, TrackState, TrackedFrame,
 };
 
 use super::{
-    threads::{Detected, MapperReply, MapperRequest},
-    FrameRecord, FrameTimes, RunCounts, SystemConfig, SystemError,
+    threads::{MapperReply, MapperRequest},
+    FrameInput, FrameRecord, FrameTimes, FrameView, RunCounts, SystemConfig, SystemError,
 };
 use crate::{
     map::{pose_to_array, FramePose},
@@ -47,6 +47,10 @@ pub struct Tracking {
     /// Where the objects found moving are expected in the next frame (kept out of its tracking).
     moving_regions: Vec<MovingRegion>,
     last_done: Instant,
+    /// The last frame's pose at tracking time (`None` when it was unreadable).
+    last_pose: Option<Isometry3<f64>>,
+    /// Local mapping's corrections applied before the last frame was tracked (kept for [`FrameView`]).
+    applied: Vec<KeyframeCorrection>,
 }
 
 impl Tracking {
@@ -78,6 +82,8 @@ impl Tracking {
             prev_flows: (0, Vec::new()),
             moving_regions: Vec::new(),
             last_done: Instant::now(),
+            last_pose: None,
+            applied: Vec::new(),
         }
     }
 
@@ -96,17 +102,41 @@ impl Tracking {
         &self.objects
     }
 
-    /// One frame after detection: apply the mapper's replies that are due, track the pair, associate
-    /// the boxes, hand a keyframe and its fit jobs to local mapping; returns the frame's record.
-    pub(crate) fn step(&mut self, (input, dets, det_ms): Detected) -> Result<&FrameRecord, SystemError> {
+    /// The last frame's pose at tracking time, world from camera (`None` before the first frame and
+    /// after an unreadable one).
+    pub fn last_pose(&self) -> Option<Isometry3<f64>> {
+        self.last_pose
+    }
+
+    /// The last frame as an observer sees it (`input` is that frame's input); `None` before the first.
+    pub(crate) fn view<'a>(&'a self, input: &'a FrameInput) -> Option<FrameView<'a>> {
+        Some(FrameView {
+            record: self.records.last()?,
+            world_from_camera: self.last_pose,
+            left: input.images.as_ref().ok().map(|(left, _)| left),
+            corrections: &self.applied,
+            objects: &self.objects,
+        })
+    }
+
+    /// One frame after detection (its boxes, or why there are none, and the detector's time): apply the
+    /// mapper's replies that are due, track the pair, associate the boxes, hand a keyframe and its fit
+    /// jobs to local mapping; returns the frame's record.
+    pub(crate) fn step(
+        &mut self,
+        input: &FrameInput,
+        dets: Result<Vec<Detection>, DetectError>,
+        det_ms: f64,
+    ) -> Result<&FrameRecord, SystemError> {
         let i = input.index;
+        self.applied.clear();
         self.apply_due_replies()?;
         self.counts.frames += 1;
         let detections = self.accept_detections(i, dets);
         let times = FrameTimes { detection: det_ms, ..FrameTimes::default() };
-        let record = match input.images {
-            Ok((left, right)) => self.track_pair(i, &left, &right, detections, times)?,
-            Err(why) => self.unreadable(i, &why, times),
+        let record = match &input.images {
+            Ok((left, right)) => self.track_pair(i, left, right, detections, times)?,
+            Err(why) => self.unreadable(i, why, times),
         };
         self.records.push(record);
         Ok(&self.records[self.records.len() - 1])
@@ -139,6 +169,8 @@ impl Tracking {
             r.times.bundle_adjustment = reply.ba_ms;
             r.times.objects = reply.fit_ms;
         }
+        // kept (not copied) until the next frame, for the frame's observers
+        self.applied.push(reply.correction);
         Ok(())
     }
 
@@ -176,6 +208,7 @@ impl Tracking {
     /// An unreadable frame: counted and logged, its pose held at the last reference.
     fn unreadable(&mut self, i: usize, why: &str, times: FrameTimes) -> FrameRecord {
         self.counts.unreadable += 1;
+        self.last_pose = None;
         tracing::warn!(frame = i, "unreadable: {why}; pose held");
         let (kf, rel) = self.last_reference.unwrap_or((0, Isometry3::identity()));
         self.trajectory.push(FramePose {
@@ -213,6 +246,7 @@ impl Tracking {
         times.extraction = tf.times.extraction;
         times.stereo = tf.times.stereo;
         times.tracking = tf.times.tracking;
+        self.last_pose = Some(tf.world_from_camera);
         self.count_state(i, &tf);
         let tracks = self.map_boxes(i, &tf, &detections, &mut times);
         self.last_reference = Some(tf.reference);
