@@ -9,9 +9,7 @@ use slam_pipeline::{map::Map, system::FrameRecord};
 use slam_runner::{
     bench,
     console::{catch_interrupt, interrupted, Interrupted, Progress},
-    inspect,
-    report::run_output_name,
-    stereo, RunConfig, RunSettings,
+    inspect, stereo, RunConfig, RunSettings,
 };
 
 use crate::args::{DetectorArgs, OutputArgs, SequenceArgs, SettingsArgs, WiringArgs};
@@ -76,7 +74,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     inputs.extend(a.detector.labels.as_deref().map(|p| ("--labels", p)));
     inputs.extend(a.detector.model.files());
     refuse_overwriting_inputs(&inputs, &[Written::Folder("--out", out)])?;
-    let dir = slam_dataset::output::OutputDir::create(out, "--out", "run", run_output_name)?;
+    let dir = slam_dataset::output::OutputDir::create(out, "--out", "run")?;
     let s = a.seq.run_settings(&cfg, &a.wiring, a.detector.choice()?, a.detector.labels.clone());
     let outcome = run_with_progress(&s);
     let stop = |done: usize| Interrupted::nothing_written(done, out, dir.target().exists());

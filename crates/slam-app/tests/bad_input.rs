@@ -942,7 +942,6 @@ fn no_output_is_an_input() {
     let seq = sequence(&d, "seq", 2, None);
     let config = write(&d.join("out/run.toml"), "[tracking]\nfeatures = 1000\n");
     let picture_map = write(&d.join("pic/map.svg"), MAP_OK);
-    let before = snapshot(&d);
     let input = "an input of this command";
     let dotted = run.join("..").join("run").join(".").join("map.json");
     let cases = vec![
@@ -1025,8 +1024,89 @@ fn no_output_is_an_input() {
             &["holds --labels"],
         ),
     ];
+    let mut cases = cases;
+    // through a folder that does not exist yet: `nx/..` is the input's folder once the program makes `nx`
+    let right = d.join("right");
+    std::fs::create_dir_all(&right).expect("dir");
+    std::fs::copy(raw.join("0000000007.png"), right.join("0000000007.png")).expect("copy");
+    let own_run = d.join("own-run");
+    write(&own_run.join("map.json"), MAP_OK);
+    write(&own_run.join("trajectory.kitti.txt"), "1 0 0 0 0 1 0 0 0 0 1 0\n");
+    let own_sim = d.join("own-sim");
+    write(&own_sim.join("simulation.csv"), "mine\n");
+    let model = write(&d.join("model/my.cfg"), "[net]\n");
+    write(&seq.join("times.txt"), "0.0\n0.1\n");
+    cases.extend([
+        case(
+            "objects --out through a new folder's ..",
+            &[&"objects", &tracking, &"--out", &tracking.join("nx/../poses_orbslam3.txt")],
+            1,
+            &["is the poses", input],
+        ),
+        case(
+            "map --ply through a new folder's ..",
+            &[&"map", &map, &"--ply", &run.join("nx/../map.json")],
+            1,
+            &[input],
+        ),
+        case(
+            "eval --csv through a new folder's ..",
+            &[&"eval", &d.join("tracking"), &"--csv", &tracking.join("nx2/../label_02.txt")],
+            1,
+            &["--csv", input],
+        ),
+        case(
+            "detect --out through a new folder's ..",
+            &[&"detect", &images, &"--out", &images.join("nx3/../0000000007.png")],
+            1,
+            &["is an input image", input],
+        ),
+        case(
+            "detect --overlays through a new folder's ..",
+            &[&"detect", &images, &"--out", &d.join("d.json"), &"--overlays", &d.join("nx/../images")],
+            1,
+            &["--overlays", "holds the input folder"],
+        ),
+        // a folder without the marker is never replaced, even with only names the command writes
+        case(
+            "detect --overlays onto another camera's images",
+            &[&"detect", &images, &"--out", &d.join("d.json"), &"--overlays", &right],
+            1,
+            &["--overlays", "0000000007.png", ".slam-app-output"],
+        ),
+        case(
+            "run --out onto a user's own map.json",
+            &[&"run", &seq, &"--detector", &"none", &"--out", &own_run],
+            1,
+            &["--out", "map.json, trajectory.kitti.txt", ".slam-app-output"],
+        ),
+        case("sim --out onto a user's simulation.csv", &[&"sim", &"--out", &own_sim], 1, &["simulation.csv"]),
+        // model files are inputs; files inside an input folder are the dataset's
+        case(
+            "detect --out onto its --cfg",
+            &[&"detect", &images, &"--cfg", &model, &"--out", &model],
+            1,
+            &["--cfg", input],
+        ),
+        case(
+            "detect --out onto a sequence's times.txt",
+            &[&"detect", &seq, &"--out", &seq.join("times.txt")],
+            1,
+            &["inside the input folder", "choose a file outside it"],
+        ),
+        case(
+            "assoc kitti --csv onto a calibration it does not read",
+            &[&"assoc", &"kitti", &d.join("tracking"), &"--csv", &tracking.join("calib.txt")],
+            1,
+            &["is the sequence file", input],
+        ),
+    ]);
+    let before = snapshot(&d);
     let n = check(cases);
-    assert_eq!(n, 18);
+    assert_eq!(n, 29);
+    for made in [tracking.join("nx"), run.join("nx"), tracking.join("nx2"), images.join("nx3"), d.join("nx")] {
+        assert!(!made.exists(), "{} was created", made.display());
+    }
     let after = snapshot(&d);
     let names = |v: &[(PathBuf, Vec<u8>)]| v.iter().map(|f| f.0.clone()).collect::<Vec<_>>();
     assert_eq!(names(&before), names(&after), "files made or lost");
