@@ -915,6 +915,61 @@ fn frame_ids_far_apart_cost_no_memory() {
     std::fs::remove_dir_all(&d).ok();
 }
 
+/// Class 1, round three: one label at frame 10^8 made `assoc kitti` loop for minutes and one at
+/// 2^64 - 1 made `eval` panic (index out of bounds) and `objects` drop it silently; `--frames ..0`
+/// wrapped to every frame; an image pair named 2^64 - 1 said a pose file "needs at least 0 lines".
+#[test]
+fn one_frame_id_neither_panics_nor_hangs() {
+    let d = scratch("one-id");
+    let mut cases = Vec::new();
+    for (name, frame) in [("huge", "100000000"), ("max", "18446744073709551615")] {
+        let seq = d.join(name).join("0003");
+        for f in ["label_02.txt", "poses_orbslam3.txt", "calib.txt"] {
+            let text = std::fs::read_to_string(fixtures().join("kitti_tracking/0003").join(f)).expect("fixture");
+            write(&seq.join(f), &text);
+        }
+        let labels = std::fs::read_to_string(seq.join("label_02.txt")).expect("labels");
+        let extra = format!("{frame} 99 Car 0 0 -1.57 588.2 177.8 624.0 212.3 1.60 1.66 3.55 -0.22 1.86 35.6 -1.57\n");
+        write(&seq.join("label_02.txt"), &format!("{labels}{extra}"));
+        let want = ["label_02.txt:862:", "is not a frame of the sequence", "144 frame(s)"];
+        cases.push(case(&format!("eval, label at {frame}"), &[&"eval", &seq], 1, &want));
+        cases.push(case(
+            &format!("objects, label at {frame}"),
+            &[&"objects", &seq, &"--out", &d.join("o.json")],
+            1,
+            &want,
+        ));
+        cases.push(case(&format!("assoc kitti, label at {frame}"), &[&"assoc", &"kitti", &seq], 1, &want));
+    }
+    let seq = sequence(&d, "seq", 3, None);
+    let poses: String = (0..3).map(|i| format!("1 0 0 0 0 1 0 0 0 0 1 {i}\n")).collect();
+    let truth = write(&d.join("seq/poses/06.txt"), &poses);
+    let out = d.join("out");
+    cases.push(case(
+        "run --frames ..0",
+        &[&"run", &seq, &"--frames", &"..0", &"--out", &out],
+        2,
+        &["'..0' holds no frame"],
+    ));
+    cases.push(case(
+        "trajectory-eval --frames ..0",
+        &[&"trajectory-eval", &truth, &truth, &"--frames", &"..0"],
+        2,
+        &["'..0' holds no frame"],
+    ));
+    assert_eq!(check(cases), 8);
+    // an image pair named 2^64 - 1 beside frames 0-2: the pose file's shortfall is said without overflow
+    for cam in ["image_0", "image_1"] {
+        std::fs::copy(seq.join(cam).join("000002.png"), seq.join(cam).join("18446744073709551615.png")).expect("copy");
+    }
+    let mut c = app();
+    c.args(["run", "--detector", "none"]).arg(&seq).arg("--out").arg(d.join("max-id"));
+    let (code, _, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("at least 18446744073709551616 lines") && !err.contains("at least 0 lines"), "{err}");
+    std::fs::remove_dir_all(&d).ok();
+}
+
 /// Class 2: an output that is, or resolves to, an input of the same command is refused before anything
 /// is read, for every command that writes files; the inputs are byte for byte what they were.
 #[test]

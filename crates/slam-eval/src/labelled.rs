@@ -61,16 +61,8 @@ impl LabelledSequence {
             EvalError::Invalid(format!("{}: the camera matrix of P2 is singular", calib_path.display()))
         })?;
         let t2 = kinv * p2.column(3).into_owned();
-        let frames = labels.iter().map(|l| l.frame + 1).max().unwrap_or(0);
-        if poses.len() < frames {
-            return Err(EvalError::Invalid(format!(
-                "{}: {} poses, but the labels of {} go up to frame {} (line k of the pose file is frame k)",
-                pose_path.display(),
-                poses.len(),
-                label_path.display(),
-                frames - 1
-            )));
-        }
+        let source = format!("the {} poses of {} (line k is frame k)", poses.len(), pose_path.display());
+        slam_dataset::kitti::tracking::check_label_frames(label_path, &labels, poses.len(), &source)?;
         Ok(Self { labels, poses, k, t2 })
     }
 

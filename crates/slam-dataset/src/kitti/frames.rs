@@ -176,7 +176,8 @@ pub fn values_of_ids<T: Clone>(all: &[T], ids: &[usize], path: &Path, what: &str
                 "{} {what} but the images go up to frame {last}: line k of this file is frame k, so it needs at \
                  least {} lines",
                 all.len(),
-                last + 1
+                // the largest id has no usize after it
+                last as u128 + 1
             ),
         }),
         _ => Ok(ids.iter().map(|&i| all[i].clone()).collect()),
@@ -238,6 +239,13 @@ mod tests {
         for i in ids {
             std::fs::write(dir.join(format!("{i:06}.png")), b"").expect("file");
         }
+    }
+
+    #[test]
+    fn a_per_frame_file_shorter_than_the_largest_id_says_how_many_lines_without_overflow() {
+        let e = values_of_ids(&[1.0, 2.0], &[0, usize::MAX], Path::new("t.txt"), "times").expect_err("short");
+        assert!(e.to_string().contains("at least 18446744073709551616 lines"), "{e}");
+        assert_eq!(values_of_ids(&[1.0, 2.0], &[1], Path::new("t.txt"), "times").expect("fits"), [2.0]);
     }
 
     #[test]

@@ -143,8 +143,9 @@ impl FrameSelection {
             let a = num(t)?.ok_or_else(|| format!("'{text}': empty frame range"))?;
             (Some(a), a.checked_add(1))
         };
-        if let (Some(a), Some(b)) = (first, end) {
-            if b <= a {
+        // without a start the range starts at frame 0: `..0` holds no frame, as `3..3` does not
+        if let Some(b) = end {
+            if b <= first.unwrap_or(0) {
                 return Err(format!("'{text}' holds no frame: the end must be after the start"));
             }
         }
@@ -166,7 +167,7 @@ impl FrameSelection {
     pub fn describe(&self) -> String {
         let range = match (self.first, self.end) {
             (None, None) => "all frames".to_string(),
-            (a, Some(e)) => format!("frames {}..={}", a.unwrap_or(0), e - 1),
+            (a, Some(e)) => format!("frames {}..={}", a.unwrap_or(0), e.saturating_sub(1)),
             (Some(a), None) => format!("frames {a}.."),
         };
         if self.stride > 1 {
@@ -535,7 +536,7 @@ mod tests {
         assert_eq!(p(&format!("..={}", usize::MAX)), Ok((None, None)));
         assert_eq!(p(&format!("7..={}", usize::MAX)), Ok((Some(7), None)));
         assert_eq!(p(&usize::MAX.to_string()), Ok((Some(usize::MAX), None)));
-        for bad in ["20..10", "5..5", "a..3", "-1..4", "..=", "", "1.5..3"] {
+        for bad in ["20..10", "5..5", "..0", "0..0", "a..3", "-1..4", "..=", "", "1.5..3"] {
             assert!(p(bad).is_err(), "{bad}");
         }
     }
