@@ -157,7 +157,9 @@ pub struct TrajEvalArgs {
     /// (`time tx ty tz qx qy qz qw`)
     estimate: PathBuf,
     /// Ground-truth poses, same formats. Two TUM files are matched by timestamp (nearest within
-    /// --max-diff, as evo does); otherwise pose i of one file is pose i of the other
+    /// --max-diff, as evo does); a TUM estimate and a KITTI ground truth by time too, the ground truth's
+    /// line k being frame k at line k of sequences/NN/times.txt beside poses/NN.txt (else 0.1 s × k);
+    /// two KITTI files pose i with pose i
     ground_truth: PathBuf,
     /// Largest time difference of a TUM match, seconds
     #[arg(long, default_value_t = 0.01, value_parser = crate::args::non_negative)]

@@ -87,6 +87,21 @@ pub fn parse_tracking_labels(path: &Path, text: &str) -> Result<Vec<TrackingLabe
                 v[6], v[7], v[8]
             )));
         }
+        if kind != "DontCare" {
+            let most = max_label_size_m(&kind);
+            if let Some(k) = (0..3).find(|&k| v[6 + k] > most[k]) {
+                let name = ["height", "width", "length"][k];
+                return Err(err(format!(
+                    "{name} {} m for a {kind}: at most {} m (a {kind} box is at most {} × {} × {} m, height × width × length; {})",
+                    v[6 + k],
+                    most[k],
+                    most[0],
+                    most[1],
+                    most[2],
+                    LABEL_SIZE_REASON
+                )));
+            }
+        }
         // KITTI numbers tracks from 0 and gives DontCare regions -1
         let valid_id = if kind == "DontCare" { track_id == -1 } else { track_id >= 0 };
         if !valid_id {
@@ -149,6 +164,21 @@ pub fn check_label_frames(
         None => Ok(()),
     }
 }
+
+/// Largest 3-D box a label of `kind` may have, metres (height, width, length). Road vehicles are at most
+/// 4 m high and 2.55 m wide and a road train 25.25 m long (EU Directive 96/53/EC); coupled city trams
+/// reach about 75 m; a person or a cyclist fits in 3 m. The bounds leave room for labelling slack
+/// (KITTI's own labels reach a 4.05 m truck and a 35 m tram) and refuse only boxes no object has.
+pub fn max_label_size_m(kind: &str) -> [f64; 3] {
+    match kind {
+        "Pedestrian" | "Person" | "Person_sitting" | "Cyclist" => [3.0, 3.0, 3.0],
+        "Tram" => [5.0, 4.0, 80.0],
+        _ => [5.0, 4.0, 30.0],
+    }
+}
+
+const LABEL_SIZE_REASON: &str =
+    "road vehicles are at most 4 m high, 2.55 m wide, 25.25 m long (EU 96/53/EC), coupled trams about 75 m";
 
 /// Farthest a labelled object's 3-D box may lie from the camera, metres, on each axis.
 pub const MAX_LABEL_DISTANCE_M: f64 = 1000.0;
@@ -213,7 +243,7 @@ impl TrackingSequence {
         let d = dir.as_ref();
         let labels = read_tracking_labels(d.join("label_02.txt"))?;
         let calib = crate::kitti::calib::Calib::read(d.join("calib.txt"))?;
-        let poses = crate::kitti::poses::read_kitti_poses(d.join("poses_orbslam3.txt"))?;
+        let poses = crate::kitti::poses::read_ground_truth_poses(d.join("poses_orbslam3.txt"))?;
         let source =
             format!("the {} poses of {} (line k is frame k)", poses.len(), d.join("poses_orbslam3.txt").display());
         check_label_frames(&d.join("label_02.txt"), &labels, poses.len(), &source)?;
@@ -251,5 +281,21 @@ mod tests {
         }
         let labels = parse_tracking_labels(p, &format!("{CAR}\n")).expect("parses");
         check_label_frames(p, &labels, 1, "one pose").expect("frame 0 of 1");
+    }
+
+    #[test]
+    fn a_box_no_object_has_is_refused_by_class() {
+        let p = Path::new("label_02.txt");
+        let tall = CAR.replacen("1.5 1.6 3.9", "500 1.6 3.9", 1);
+        let e = parse_tracking_labels(p, &tall).expect_err("500 m high").to_string();
+        assert!(
+            e.contains("label_02.txt:1:") && e.contains("height 500 m for a Car") && e.contains("at most 5 m"),
+            "{e}"
+        );
+        let long_person = CAR.replacen("Car", "Pedestrian", 1);
+        let e = parse_tracking_labels(p, &long_person).expect_err("3.9 m person").to_string();
+        assert!(e.contains("length 3.9 m for a Pedestrian"), "{e}");
+        let tram = CAR.replacen("Car", "Tram", 1).replacen("1.5 1.6 3.9", "3.7 2.8 35.2", 1);
+        parse_tracking_labels(p, &tram).expect("a long tram");
     }
 }
