@@ -1075,7 +1075,61 @@ fn figures_that_cannot_be_right_round_three() {
         1,
         &["13 of 14 frames repeat an earlier frame's images exactly"],
     ));
-    assert_eq!(check(cases), 16);
+    // TUM times in nanoseconds against seconds: the error gives both files' spans
+    let secs = write(&d.join("s.tum"), "0.0 0 0 0 0 0 0 1\n0.1 1 0 0 0 0 0 1\n0.2 2 0 0 0 0 0 1\n");
+    let nanos = write(&d.join("ns.tum"), "0 0 0 0 0 0 0 1\n100000000 1 0 0 0 0 0 1\n200000000 2 0 0 0 0 0 1\n");
+    cases.push(case(
+        "trajectory-eval, nanoseconds against seconds",
+        &[&"trajectory-eval", &nanos, &secs],
+        1,
+        &[
+            "fewer than two matched poses",
+            "ns.tum spans times 0 to 200000000 s",
+            "s.tum spans times 0 to 0.2 s",
+            "nanoseconds",
+        ],
+    ));
+    assert_eq!(check(cases), 17);
+    // an OXTS packet that is a folder is said to be one, not "missing"
+    let raw = fixtures().join("kitti_raw_0005/2011_09_26");
+    let date = d.join("raw-folder/2011_09_26");
+    let drive = date.join("2011_09_26_drive_0005_sync");
+    for f in ["calib_cam_to_cam.txt", "calib_imu_to_velo.txt", "calib_velo_to_cam.txt"] {
+        write(&date.join(f), &std::fs::read_to_string(raw.join(f)).expect("calib"));
+    }
+    for i in 0..3 {
+        for cam in ["image_00", "image_01"] {
+            let f = format!("{cam}/data/{i:010}.png");
+            std::fs::create_dir_all(drive.join(cam).join("data")).expect("dir");
+            std::fs::copy(raw.join("2011_09_26_drive_0005_sync").join(&f), drive.join(&f)).expect("copy");
+        }
+        let p = format!("oxts/data/{i:010}.txt");
+        if i == 1 {
+            std::fs::create_dir_all(drive.join(&p)).expect("folder");
+        } else {
+            std::fs::copy(raw.join("2011_09_26_drive_0005_sync").join(&p), write(&drive.join(&p), "")).expect("packet");
+        }
+    }
+    let ts = std::fs::read_to_string(raw.join("2011_09_26_drive_0005_sync/image_00/timestamps.txt")).expect("ts");
+    write(&drive.join("image_00/timestamps.txt"), &ts);
+    let mut c = app();
+    c.args(["run", "--detector", "none"]).arg(&drive).arg("--out").arg(d.join("raw-out"));
+    let (code, _, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("0000000001.txt") && err.contains("a folder") && !err.contains("is missing"), "{err}");
+    // depth-check: frame 1's scan missing, frame 2's a link to /dev/zero: skipped, logged and counted
+    let src = raw.join("2011_09_26_drive_0005_sync");
+    let scans = drive.join("velodyne_points/data");
+    std::fs::create_dir_all(&scans).expect("dir");
+    std::fs::copy(src.join("velodyne_points/data/0000000000.bin"), scans.join("0000000000.bin")).expect("scan");
+    #[cfg(unix)]
+    std::os::unix::fs::symlink("/dev/zero", scans.join("0000000002.bin")).expect("link");
+    let mut c = app();
+    c.arg("depth-check").arg(&drive);
+    let (code, text, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    assert!(text.contains("2 of 3 frames skipped without a readable Velodyne scan (first: frame 1"), "{text}");
+    assert!(err.contains("0000000002.bin") && err.contains("character device"), "{err}");
     // a strided run's TUM file against the KITTI ground truth: matched by time, the figures of the
     // KITTI file matched with the run's own --frames/--stride
     let seq = sequence(&d, "strided", 6, None);

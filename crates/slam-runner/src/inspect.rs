@@ -92,9 +92,26 @@ pub fn trajectory_eval(
             if ne > ng { "estimate" } else { "ground truth" }
         ));
     }
-    let e = c
-        .errors
-        .ok_or_else(|| RunnerError::Invalid(format!("fewer than two matched poses ({} matched)", c.pairs.len())))?;
+    let span = |f: &PoseFile, path: &Path| match f {
+        PoseFile::Tum(t, _) if !t.is_empty() => {
+            format!("{} spans times {} to {} s", path.display(), t[0], t[t.len() - 1])
+        }
+        _ => format!("{} holds {} poses", path.display(), f.poses().len()),
+    };
+    let e = c.errors.ok_or_else(|| {
+        RunnerError::Invalid(format!(
+            "fewer than two matched poses ({} matched {}): {}, {}{}",
+            c.pairs.len(),
+            c.how,
+            span(&est, estimate),
+            span(&gt, truth),
+            if matches!((&est, &gt), (PoseFile::Tum(..), PoseFile::Tum(..))) {
+                " (times in other units, e.g. nanoseconds against seconds, or of other clocks do not match)"
+            } else {
+                ""
+            }
+        ))
+    })?;
     lines.push("| metric | value |\n|---|---:|".into());
     lines.push(format!("| poses compared | {} |\n| path (ground truth) | {:.1} m |", e.frames, e.path_m));
     lines.push(format!(

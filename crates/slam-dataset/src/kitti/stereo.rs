@@ -327,9 +327,17 @@ fn raw_truth(
         // the packet of a frame has the image's file stem (`0000000042.txt`)
         let name = img.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
         let path = oxts.join(format!("{name}.txt"));
-        if !path.is_file() {
-            warnings.push(no_truth(format_args!("the OXTS packet of frame {id} ({}) is missing", path.display())));
-            return Ok(None);
+        // the reader's gate says what a packet that is no file is (a folder, a pipe, a device)
+        match slam_core::files::regular_file(&path) {
+            Ok(_) => {}
+            Err(slam_core::files::ReadError::Io { source, .. }) if source.kind() == std::io::ErrorKind::NotFound => {
+                warnings.push(no_truth(format_args!("the OXTS packet of frame {id} ({}) is missing", path.display())));
+                return Ok(None);
+            }
+            Err(e) => {
+                warnings.push(no_truth(format_args!("the OXTS packet of frame {id} cannot be read: {e}")));
+                return Ok(None);
+            }
         }
         packets.push(read_oxts_packet(&path)?);
         names.push(path);
