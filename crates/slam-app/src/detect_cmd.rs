@@ -4,37 +4,46 @@ use std::path::PathBuf;
 
 use clap::Args;
 use slam_core::DetectionSource;
-use slam_frontend::{DnnDetector, ModeName, ModelError, ModelSpec};
+use slam_frontend::{parse_input_size, DnnDetector, FamilyName, ModeName, ModelError, ModelSpec, ShippedModel};
 
 #[derive(Args, Debug, Clone, Default)]
 pub struct ModelArgs {
-    /// Darknet .cfg (default: the shipped Yolo-Fastest 1.1)
+    /// A shipped detector: yolox-nano (YOLOX-nano, ONNX; the default) or yolo-fastest (Yolo-Fastest
+    /// 1.1, Darknet)
+    #[arg(long, value_enum, conflicts_with_all = ["cfg", "weights", "onnx"])]
+    model: Option<ShippedModel>,
+    /// Darknet .cfg of a model giving YOLO rows (default: the shipped Yolo-Fastest 1.1's)
     #[arg(long)]
     cfg: Option<PathBuf>,
-    /// Darknet .weights (default: the shipped Yolo-Fastest 1.1)
+    /// Darknet .weights (default: the shipped Yolo-Fastest 1.1's)
     #[arg(long)]
     weights: Option<PathBuf>,
-    /// ONNX model instead of Darknet
+    /// An ONNX model instead; its output layout is --family
     #[arg(long, conflicts_with_all = ["cfg", "weights"])]
     onnx: Option<PathBuf>,
-    /// Input mode (default: tiles)
+    /// Output layout of the --onnx model: yolox (YOLOX's grid cells of strides 8/16/32, input BGR
+    /// 0-255; default) or rows (Darknet-style YOLO rows, normalised boxes, input RGB 0-1)
+    #[arg(long, value_enum, requires = "onnx")]
+    family: Option<FamilyName>,
+    /// Input mode (default: letterbox for YOLOX, tiles for rows)
     #[arg(long, value_enum)]
     mode: Option<ModeName>,
     /// Number of tiles across the width (selects --mode tiles; default 3)
     #[arg(long)]
     tiles: Option<u32>,
-    /// Network input size, a multiple of 32 (default 320)
-    #[arg(long)]
-    input_size: Option<i32>,
-    /// Smallest score kept (default 0.2)
+    /// Network input, WIDTHxHEIGHT or N for a square, multiples of 32 (default: 736x224 for YOLOX,
+    /// 320 for rows)
+    #[arg(long, value_parser = parse_input_size)]
+    input_size: Option<[i32; 2]>,
+    /// Smallest score kept (default: 0.4 for YOLOX, 0.2 for rows)
     #[arg(long)]
     score: Option<f32>,
 }
 
 impl ModelArgs {
-    fn spec(&self) -> ModelSpec {
-        let ModelArgs { cfg, weights, onnx, mode, tiles, input_size, score } = self.clone();
-        ModelSpec { cfg, weights, onnx, mode, tiles, input_size, score }
+    pub(crate) fn spec(&self) -> ModelSpec {
+        let ModelArgs { model, cfg, weights, onnx, family, mode, tiles, input_size, score } = self.clone();
+        ModelSpec { model, cfg, weights, onnx, family, mode, tiles, input_size, score }
     }
 
     /// Range checks of the model options (before any model is loaded).
@@ -53,9 +62,11 @@ impl ModelArgs {
     /// The first of these options given on the command line (they only make sense with the network).
     pub(crate) fn given(&self) -> Option<&'static str> {
         [
+            (self.model.is_some(), "--model"),
             (self.cfg.is_some(), "--cfg"),
             (self.weights.is_some(), "--weights"),
             (self.onnx.is_some(), "--onnx"),
+            (self.family.is_some(), "--family"),
             (self.mode.is_some(), "--mode"),
             (self.tiles.is_some(), "--tiles"),
             (self.input_size.is_some(), "--input-size"),
@@ -66,7 +77,7 @@ impl ModelArgs {
     }
 
     pub(crate) fn load(&self) -> anyhow::Result<DnnDetector> {
-        self.spec().load(&crate::fixture("detector")).map_err(model_error)
+        self.spec().load(&crate::fixture("")).map_err(model_error)
     }
 }
 
@@ -84,6 +95,10 @@ fn model_error(e: ModelError) -> anyhow::Error {
         ModelError::Invalid(v) => v.as_flag().into(),
         ModelError::TilesWithoutTiling(m) => {
             anyhow::anyhow!("--tiles is an option of --mode tiles, but --mode {m} was given")
+        }
+        ModelError::FamilyWithoutOnnx => anyhow::anyhow!("--family is an option of --onnx"),
+        ModelError::ModelWithFiles => {
+            anyhow::anyhow!("--model names a shipped model: give it without --onnx/--cfg/--weights")
         }
         ModelError::Load(e) => e.into(),
     }
@@ -121,17 +136,46 @@ pub fn detect(a: &DetectArgs) -> anyhow::Result<()> {
 
 #[derive(Args, Debug)]
 pub struct RecallArgs {
-    /// The drive-0052 fixture folder (default: fixtures/kitti_raw_0052)
+    /// Also the other input modes of both shipped models (squash, letterbox, tiles)
     #[arg(long)]
-    data: Option<PathBuf>,
-    /// Only this mode (default: compare squash, letterbox and tiles)
-    #[arg(long, value_enum)]
-    mode: Option<ModeName>,
+    all: bool,
+    /// One detector only, as these options name it (default: the shipped YOLOX-nano and Yolo-Fastest
+    /// with their own settings)
+    #[command(flatten)]
+    model: ModelArgs,
 }
 
 pub fn recall(a: &RecallArgs) -> anyhow::Result<()> {
-    let data = a.data.clone().unwrap_or_else(|| crate::fixture("kitti_raw_0052"));
-    let modes = a.mode.map_or_else(|| vec![ModeName::Squash, ModeName::Letterbox, ModeName::Tiles], |m| vec![m]);
-    slam_runner::detect::detector_recall(&data, &crate::fixture("detector"), &modes, &mut |l| println!("{l}"))?;
+    let sets = slam_runner::detect::recall_sets(&crate::fixture(""))?;
+    let specs: Vec<ModelSpec> = if a.model.given().is_some() {
+        a.model.check()?;
+        vec![a.model.spec()]
+    } else {
+        let (yolox, fastest) = (ShippedModel::YoloxNano, ShippedModel::YoloFastest);
+        let mut v = vec![ModelSpec::shipped(yolox), ModelSpec::shipped(fastest)];
+        if a.all {
+            let with = |model, mode, tiles| ModelSpec { mode: Some(mode), tiles, ..ModelSpec::shipped(model) };
+            v.extend([
+                with(yolox, ModeName::Tiles, Some(3)),
+                with(yolox, ModeName::Squash, None),
+                with(fastest, ModeName::Squash, None),
+                with(fastest, ModeName::Letterbox, None),
+            ]);
+        }
+        v
+    };
+    use slam_runner::detect::DetectorLoader as Loader;
+    let mut detectors: Vec<(String, Loader)> = specs
+        .into_iter()
+        .map(|spec| {
+            let name = spec.describe().map_err(model_error)?;
+            let load: Loader = Box::new(move || {
+                let d = spec.load(&crate::fixture("")).map_err(slam_runner::RunnerError::other)?;
+                Ok(Box::new(d) as Box<dyn DetectionSource>)
+            });
+            Ok((name, load))
+        })
+        .collect::<anyhow::Result<_>>()?;
+    slam_runner::detect::detector_recall(&sets, &mut detectors, &mut |l| println!("{l}"))?;
     Ok(())
 }

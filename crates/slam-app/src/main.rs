@@ -75,7 +75,8 @@ enum Command {
     /// Run a detector over a folder of images (or a KITTI sequence) and write the detection JSON
     /// (docs/detections.md) and, on request, overlay images.
     Detect(detect_cmd::DetectArgs),
-    /// Recall of the shipped detector on the labelled KITTI frames of drive 0052, per input mode.
+    /// Recall and precision of the shipped detectors (or one given with the model options) on the
+    /// labelled KITTI frames of drives 0052 (camera 2) and 0005 (camera 0, KITTI's moderate labels).
     DetectRecall(detect_cmd::RecallArgs),
     /// Image-free object mapping on a KITTI tracking folder (label_02.txt, poses_orbslam3.txt,
     /// calib.txt): association (track ids not used), DQP initialisation and object optimisation.

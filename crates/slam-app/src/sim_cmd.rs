@@ -22,11 +22,16 @@ pub struct SimArgs {
     /// Skip the plots.
     #[arg(long)]
     no_plots: bool,
+    /// Also run Tri+Yaw+refine alone with the next N-1 master seeds (--seed + 1, + 2, ...) and print how
+    /// its target cells vary over the N seeds (mean ± sd, least, largest)
+    #[arg(long, default_value_t = 1)]
+    seeds: u64,
 }
 
 pub fn run(a: &SimArgs) -> anyhow::Result<()> {
     slam_core::check::count("--objects", a.objects as usize, 1, 100_000)?;
     slam_core::check::count("--noise-seeds", a.noise_seeds as usize, 1, 100_000)?;
+    slam_core::check::count("--seeds", a.seeds as usize, 1, 1000)?;
     // written beside the old folder and swapped in at the end; checked writable before the sweep
     let dir = slam_dataset::output::OutputDir::create(&a.out, "--out", "sim")?;
     let config = SweepConfig { seed: a.seed, objects: a.objects, noise_seeds: a.noise_seeds, ..SweepConfig::default() };
@@ -55,6 +60,18 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
     );
     for f in plots {
         println!("plot: {}", a.out.join(f.file_name().unwrap_or_default()).display());
+    }
+    if a.seeds > 1 {
+        let mut runs = vec![(a.seed, cells)];
+        let mut bar = slam_runner::console::Progress::new("seeds", a.seeds - 1, "seeds", false);
+        for k in 1..a.seeds {
+            let seed = a.seed.wrapping_add(k);
+            let config = SweepConfig { seed, methods: vec![slam_sim::Method::TriYawRefine], ..config.clone() };
+            runs.push((seed, sweep(&config, |_, _| {})));
+            bar.inc();
+        }
+        bar.finish();
+        print!("{}", report::seed_spread(&runs));
     }
     Ok(())
 }

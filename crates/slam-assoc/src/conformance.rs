@@ -103,8 +103,8 @@ fn validate(a: &Assignment, dets: &[Detection], tracks: &[TrackView<'_>]) -> Res
     }
     for &(d, id) in &a.matches {
         let t = tracks.iter().find(|t| t.id == id).ok_or(format!("unknown track {id}"))?;
-        if t.class != dets[d].class {
-            return Err(format!("detection {d} matched across classes"));
+        if t.class.group() != dets[d].class.group() {
+            return Err(format!("detection {d} matched across class groups"));
         }
     }
     if !a.matches.windows(2).all(|w| w[0].0 < w[1].0) || !a.unmatched.windows(2).all(|w| w[0] < w[1]) {
@@ -149,7 +149,8 @@ pub fn check_permutation_invariance(make: Factory<'_>) -> Result<(), String> {
     Ok(())
 }
 
-/// A detection never matches a track of another class, even when the boxes coincide.
+/// A detection never matches a track of another class group ([`ClassId::group`]), even when the boxes
+/// coincide, and does match one of its group.
 pub fn check_class_gating(make: Factory<'_>) -> Result<(), String> {
     let b = BBox::new(100.0, 100.0, 200.0, 180.0);
     let tracks = [(TrackId(1), ClassId(3), b)];
@@ -162,6 +163,13 @@ pub fn check_class_gating(make: Factory<'_>) -> Result<(), String> {
     let a = make().associate(&AssociationInput { detections: &dets, tracks: &views(&tracks), flow: &[] });
     if a.matches != vec![(0, TrackId(1))] {
         return Err("did not match an identical box of the same class".into());
+    }
+    // a class group (`ClassId::group`) is one: the detector calls one vehicle car, then truck
+    let tracks = [(TrackId(1), ClassId(2), b)];
+    let dets = vec![Detection::new(ClassId(7), 0.9, b)];
+    let a = make().associate(&AssociationInput { detections: &dets, tracks: &views(&tracks), flow: &[] });
+    if a.matches != vec![(0, TrackId(1))] {
+        return Err("did not match a truck box to the identical box of a car track".into());
     }
     Ok(())
 }

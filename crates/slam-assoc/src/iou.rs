@@ -33,7 +33,7 @@ impl Associator for IouAssociator {
         let ids: Vec<_> = input.tracks.iter().map(|t| t.id).collect();
         assign(input.detections, &ids, |d, t| {
             let (det, trk) = (&input.detections[d], &input.tracks[t]);
-            if det.class != trk.class {
+            if det.class.group() != trk.class.group() {
                 return None;
             }
             let iou = trk.last.iou(&det.bbox);

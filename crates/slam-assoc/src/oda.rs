@@ -101,7 +101,8 @@ impl Oda {
                     .tracks
                     .iter()
                     .map(|t| {
-                        if t.class != d.class {
+                        // one vehicle is called car, bus and truck in turn by a detector
+                        if t.class.group() != d.class.group() {
                             return None;
                         }
                         let (mut num, mut den) = (0.0, 0.0);

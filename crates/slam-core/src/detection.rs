@@ -100,6 +100,17 @@ impl ClassId {
     pub fn name(self) -> &'static str {
         COCO_NAMES.get(self.0 as usize).copied().unwrap_or("unknown")
     }
+
+    /// The group of classes a detector confuses on one object, named by its lowest member: vehicles
+    /// (car 2, bus 5, truck 7) are 2, two-wheelers (bicycle 1, motorcycle 3) are 1; any other class is
+    /// its own group.
+    pub fn group(self) -> u16 {
+        match self.0 {
+            2 | 5 | 7 => 2,
+            1 | 3 => 1,
+            other => other,
+        }
+    }
 }
 
 impl fmt::Display for ClassId {
@@ -237,5 +248,13 @@ mod tests {
         assert!(Mask::new(0, 0, 2, 2, vec![true; 3]).is_none());
         let r = Region::Mask(&m);
         assert!(r.contains(11.0, 21.0));
+    }
+
+    #[test]
+    fn class_groups_join_the_classes_a_detector_confuses() {
+        let g = |c: u16| ClassId(c).group();
+        assert_eq!((g(2), g(5), g(7)), (2, 2, 2), "car, bus, truck");
+        assert_eq!((g(1), g(3)), (1, 1), "bicycle, motorcycle");
+        assert_eq!((g(0), g(6), g(9)), (0, 6, 9), "person, train, traffic light alone");
     }
 }

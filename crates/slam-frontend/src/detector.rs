@@ -1,9 +1,12 @@
-//! An object detector on OpenCV's dnn module (Darknet cfg + weights, or ONNX), for YOLO-style outputs.
+//! An object detector on OpenCV's dnn module (Darknet cfg + weights, or ONNX), for two output layouts
+//! ([`ModelFamily`]): YOLOX's grid cells (the shipped YOLOX-nano, the default) and the normalised rows
+//! of Darknet's YOLO layers (the shipped Yolo-Fastest 1.1).
 //!
-//! KITTI frames are 3.3 : 1. Squashing one into a square network input shrinks cars horizontally by a
-//! factor of 3 and loses the small ones. [`InputMode`] offers letterboxing (keep the aspect ratio, pad)
-//! and tiling (overlapping near-square crops across the width, each letterboxed, plus the whole frame),
-//! with class-wise non-maximum suppression over all of them.
+//! KITTI frames are 3.3 : 1. A network that takes any input whose sides are multiples of 32 (YOLOX) is
+//! fed the whole frame letterboxed into a wide input (736 × 224 keeps the aspect ratio). A square-input
+//! network loses small cars when the frame is squashed or letterboxed into its square; [`InputMode`]
+//! offers tiling for it (overlapping near-square crops across the width, each letterboxed, plus the
+//! whole frame), with non-maximum suppression over all of them.
 
 use std::path::Path;
 
@@ -12,36 +15,191 @@ use slam_core::{geometry::BBox, ClassId, DetectError, Detection, DetectionSource
 
 use crate::image_io::{image_to_mat, FrontendError};
 
-/// How a frame is fed to the network.
+/// How frames are fed to the network.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum InputMode {
-    /// Resize to the square input, ignoring the aspect ratio.
+    /// Resize to the input, ignoring the aspect ratio.
     Squash,
-    /// Resize keeping the aspect ratio, pad the rest.
+    /// Resize keeping the aspect ratio, pad the rest (right and bottom, grey 114).
     Letterbox,
     /// `n` overlapping crops across the width (each letterboxed) plus the letterboxed whole frame.
     Tiles(u32),
 }
 
+/// A network's input scaling and output layout.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModelFamily {
+    /// YOLOX (Ge et al. 2021) as exported to ONNX: input BGR 0–255; output `1 × N × (5 + classes)`, one
+    /// row per grid cell of strides 8, 16 and 32 in turn (row-major within a stride), each row
+    /// `(dx, dy, log w, log h, objectness, class scores)` with the sigmoids applied ([`decode_yolox`]).
+    Yolox,
+    /// Darknet's YOLO rows (as OpenCV's region layer gives them): input RGB 0–1; rows
+    /// `(cx, cy, w, h, objectness, class scores)`, box normalised to the input, class scores already
+    /// multiplied by the objectness.
+    Rows,
+}
+
+impl ModelFamily {
+    /// Lower-case name, as on a command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            ModelFamily::Yolox => "yolox",
+            ModelFamily::Rows => "rows",
+        }
+    }
+}
+
 /// Detector settings.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DetectorConfig {
-    /// Square network input size, pixels (a multiple of 32).
-    pub input_size: i32,
+    /// The network's input scaling and output layout.
+    pub family: ModelFamily,
+    /// Network input `[width, height]`, pixels (multiples of 32).
+    pub input: [i32; 2],
     /// Frame feeding.
     pub mode: InputMode,
-    /// Smallest class confidence kept.
+    /// Smallest detection score kept.
     pub score_threshold: f32,
-    /// IoU above which a lower-scored box of the same class is suppressed.
+    /// IoU above which a lower-scored box is suppressed (within its class, or its class group for
+    /// [`DetectorConfig::group_nms`]).
     pub nms_iou: f32,
+    /// Suppress overlapping boxes across the classes a detector confuses on one object (car, bus,
+    /// truck; bicycle, motorcycle: [`ClassId::group`]) instead of within each class.
+    pub group_nms: bool,
     /// Classes kept (empty = all).
     pub classes: Vec<u16>,
 }
 
-impl Default for DetectorConfig {
-    fn default() -> Self {
-        Self { input_size: 320, mode: InputMode::Tiles(3), score_threshold: 0.2, nms_iou: 0.45, classes: Vec::new() }
+impl DetectorConfig {
+    /// The shipped YOLOX-nano's settings: the whole frame letterboxed into 736 × 224 (a KITTI frame,
+    /// 1242 × 375, keeps its aspect ratio: 736 × 222 and two rows of padding), score ≥ 0.4, one box per
+    /// object across car / bus / truck (NMS at IoU 0.45 by class group). docs/detections.md has the
+    /// measurements behind the input and the score threshold.
+    pub fn yolox() -> Self {
+        Self {
+            family: ModelFamily::Yolox,
+            input: [736, 224],
+            mode: InputMode::Letterbox,
+            score_threshold: 0.4,
+            nms_iou: 0.45,
+            group_nms: true,
+            classes: Vec::new(),
+        }
     }
+
+    /// The shipped Yolo-Fastest 1.1's settings: 320 × 320, the whole frame and 3 tiles, score ≥ 0.2,
+    /// class-wise NMS at IoU 0.45.
+    pub fn yolo_fastest() -> Self {
+        Self {
+            family: ModelFamily::Rows,
+            input: [320, 320],
+            mode: InputMode::Tiles(3),
+            score_threshold: 0.2,
+            nms_iou: 0.45,
+            group_nms: false,
+            classes: Vec::new(),
+        }
+    }
+}
+
+impl Default for DetectorConfig {
+    /// [`DetectorConfig::yolox`], the default detector's.
+    fn default() -> Self {
+        Self::yolox()
+    }
+}
+
+/// The strides of YOLOX's three output grids, in the order of its output rows.
+pub const YOLOX_STRIDES: [i32; 3] = [8, 16, 32];
+
+/// Decode YOLOX's output for an input of `width × height` pixels: `out` holds one row of `row_len`
+/// values (`5 + classes`) per grid cell, cells of stride 8, then 16, then 32 ([`YOLOX_STRIDES`]),
+/// row-major within each stride. A cell `(gx, gy)` of stride `s` gives a box centred at
+/// `((dx + gx) s, (dy + gy) s)` of size `(e^{log w} s, e^{log h} s)`; its score is the objectness times
+/// the best class score, its class that class. Boxes scoring below `score_threshold`, of classes not in
+/// `classes` (when not empty) or not finite are left out. Boxes are in input pixels, not clipped. An
+/// output whose length does not match the input's grids is an error that says both.
+pub fn decode_yolox(
+    out: &[f32],
+    row_len: usize,
+    [width, height]: [i32; 2],
+    score_threshold: f32,
+    classes: &[u16],
+) -> Result<Vec<Detection>, String> {
+    if row_len < 6 {
+        return Err(format!("YOLOX rows have 5 box values and at least one class score, got rows of {row_len}"));
+    }
+    let cells: usize = YOLOX_STRIDES.iter().map(|s| ((width / s) * (height / s)) as usize).sum();
+    if out.len() != cells * row_len {
+        return Err(format!(
+            "a {width}x{height} input has {cells} YOLOX grid cells (strides 8, 16, 32) of {row_len} values, \
+             {} values in all; the output has {}",
+            cells * row_len,
+            out.len()
+        ));
+    }
+    let mut dets = Vec::new();
+    let mut rows = out.chunks_exact(row_len);
+    for s in YOLOX_STRIDES {
+        let (gw, gh) = (width / s, height / s);
+        for gy in 0..gh {
+            for gx in 0..gw {
+                let Some(row) = rows.next() else { return Err("YOLOX output shorter than its grids".into()) };
+                let (best, class_score) = row[5..]
+                    .iter()
+                    .enumerate()
+                    .fold((0usize, f32::NEG_INFINITY), |b, (i, &c)| if c > b.1 { (i, c) } else { b });
+                let score = row[4] * class_score;
+                if !(score >= score_threshold && score.is_finite()) {
+                    continue;
+                }
+                if !classes.is_empty() && !classes.contains(&(best as u16)) {
+                    continue;
+                }
+                let s = s as f64;
+                let (cx, cy) = ((row[0] as f64 + gx as f64) * s, (row[1] as f64 + gy as f64) * s);
+                let (w, h) = ((row[2] as f64).exp() * s, (row[3] as f64).exp() * s);
+                let b = BBox::new(cx - w / 2.0, cy - h / 2.0, cx + w / 2.0, cy + h / 2.0);
+                if b.to_array().iter().all(|v| v.is_finite()) && b.validated().is_ok() {
+                    dets.push(Detection::new(ClassId(best as u16), score as f64, b));
+                }
+            }
+        }
+    }
+    Ok(dets)
+}
+
+/// Decode Darknet YOLO rows (see [`ModelFamily::Rows`]) for an input of `width × height` pixels: one
+/// detection per row whose best class score reaches `score_threshold` (and whose class is in `classes`,
+/// when not empty), box in input pixels.
+fn decode_rows(
+    out: &Mat,
+    [width, height]: [i32; 2],
+    score_threshold: f32,
+    classes: &[u16],
+) -> Result<Vec<Detection>, FrontendError> {
+    let mut dets = Vec::new();
+    for r in 0..out.rows() {
+        let row = out.at_row::<f32>(r)?;
+        if row.len() < 6 {
+            continue;
+        }
+        let (best, score) =
+            row[5..].iter().enumerate().fold((0usize, 0f32), |b, (i, &s)| if s > b.1 { (i, s) } else { b });
+        if score < score_threshold || !score.is_finite() {
+            continue;
+        }
+        if !classes.is_empty() && !classes.contains(&(best as u16)) {
+            continue;
+        }
+        let (w, h) = (width as f64, height as f64);
+        let (cx, cy, bw, bh) = (row[0] as f64 * w, row[1] as f64 * h, row[2] as f64 * w, row[3] as f64 * h);
+        let b = BBox::new(cx - bw / 2.0, cy - bh / 2.0, cx + bw / 2.0, cy + bh / 2.0);
+        if b.to_array().iter().all(|v| v.is_finite()) {
+            dets.push(Detection::new(ClassId(best as u16), score as f64, b));
+        }
+    }
+    Ok(dets)
 }
 
 /// A YOLO-style detector running in OpenCV's dnn module on the CPU.
@@ -112,13 +270,14 @@ impl DnnDetector {
         Ok(Self { net, out_names, config })
     }
 
-    /// Run the network on one crop, letterboxed or squashed into the input; boxes in crop pixels.
+    /// Run the network on one crop, letterboxed or squashed into the input; boxes in crop pixels,
+    /// clipped to the crop.
     fn run_crop(&mut self, crop: &Mat, letterbox: bool) -> Result<Vec<Detection>, FrontendError> {
-        let n = self.config.input_size;
+        let [nw_in, nh_in] = self.config.input;
         let (w, h) = (crop.cols() as f64, crop.rows() as f64);
         let (sx, sy, input) = if letterbox {
-            let s = (n as f64 / w).min(n as f64 / h);
-            let (nw, nh) = (((w * s).round() as i32).max(1), ((h * s).round() as i32).max(1));
+            let s = (nw_in as f64 / w).min(nh_in as f64 / h);
+            let (nw, nh) = (((w * s).round() as i32).clamp(1, nw_in), ((h * s).round() as i32).clamp(1, nh_in));
             let mut resized = Mat::default();
             imgproc::resize(crop, &mut resized, core::Size::new(nw, nh), 0.0, 0.0, imgproc::INTER_LINEAR)?;
             let mut padded = Mat::default();
@@ -126,63 +285,64 @@ impl DnnDetector {
                 &resized,
                 &mut padded,
                 0,
-                n - nh,
+                nh_in - nh,
                 0,
-                n - nw,
+                nw_in - nw,
                 core::BORDER_CONSTANT,
                 core::Scalar::all(114.0),
             )?;
             (s, s, padded)
         } else {
             let mut resized = Mat::default();
-            imgproc::resize(crop, &mut resized, core::Size::new(n, n), 0.0, 0.0, imgproc::INTER_LINEAR)?;
-            (n as f64 / w, n as f64 / h, resized)
+            imgproc::resize(crop, &mut resized, core::Size::new(nw_in, nh_in), 0.0, 0.0, imgproc::INTER_LINEAR)?;
+            (nw_in as f64 / w, nh_in as f64 / h, resized)
+        };
+        // Darknet wants RGB in 0..1, YOLOX BGR (OpenCV's order) in 0..255
+        let (scale, swap_rb) = match self.config.family {
+            ModelFamily::Rows => (1.0 / 255.0, true),
+            ModelFamily::Yolox => (1.0, false),
         };
         let blob = dnn::blob_from_image(
             &input,
-            1.0 / 255.0,
-            core::Size::new(n, n),
+            scale,
+            core::Size::new(nw_in, nh_in),
             core::Scalar::default(),
-            true,
+            swap_rb,
             false,
             core::CV_32F,
         )?;
         self.net.set_input(&blob, "", 1.0, core::Scalar::default())?;
         let mut outs: core::Vector<Mat> = core::Vector::new();
         self.net.forward(&mut outs, &self.out_names)?;
+        let (threshold, classes) = (self.config.score_threshold, &self.config.classes);
         let mut dets = Vec::new();
         for out in outs.iter() {
-            for r in 0..out.rows() {
-                let row = out.at_row::<f32>(r)?;
-                if row.len() < 6 {
-                    continue;
-                }
-                let (best, score) =
-                    row[5..].iter().enumerate().fold((0usize, 0f32), |b, (i, &s)| if s > b.1 { (i, s) } else { b });
-                if score < self.config.score_threshold || !score.is_finite() {
-                    continue;
-                }
-                if !self.config.classes.is_empty() && !self.config.classes.contains(&(best as u16)) {
-                    continue;
-                }
-                let (cx, cy, bw, bh) = (
-                    row[0] as f64 * n as f64,
-                    row[1] as f64 * n as f64,
-                    row[2] as f64 * n as f64,
-                    row[3] as f64 * n as f64,
-                );
-                let b = BBox::new(
-                    ((cx - bw / 2.0) / sx).clamp(0.0, w),
-                    ((cy - bh / 2.0) / sy).clamp(0.0, h),
-                    ((cx + bw / 2.0) / sx).clamp(0.0, w),
-                    ((cy + bh / 2.0) / sy).clamp(0.0, h),
-                );
-                if b.validated().is_ok() {
-                    dets.push(Detection::new(ClassId(best as u16), score as f64, b));
+            match self.config.family {
+                ModelFamily::Rows => dets.extend(decode_rows(&out, self.config.input, threshold, classes)?),
+                ModelFamily::Yolox => {
+                    let sizes = out.mat_size();
+                    let row_len = sizes.iter().last().copied().unwrap_or(0).max(0) as usize;
+                    let data = out.data_typed::<f32>()?;
+                    dets.extend(decode_yolox(data, row_len, self.config.input, threshold, classes).map_err(|m| {
+                        FrontendError::OpenCv(format!("the network's output is not YOLOX's (--family yolox): {m}"))
+                    })?);
                 }
             }
         }
-        Ok(dets)
+        // input pixels → crop pixels
+        Ok(dets
+            .into_iter()
+            .filter_map(|mut d| {
+                let b = d.bbox;
+                d.bbox = BBox::new(
+                    (b.xmin / sx).clamp(0.0, w),
+                    (b.ymin / sy).clamp(0.0, h),
+                    (b.xmax / sx).clamp(0.0, w),
+                    (b.ymax / sy).clamp(0.0, h),
+                );
+                d.bbox.validated().is_ok().then_some(d)
+            })
+            .collect())
     }
 
     /// Detect objects in an image.
@@ -223,12 +383,23 @@ impl DnnDetector {
                 }
             }
         }
-        Ok(nms(all, self.config.nms_iou as f64))
+        let iou = self.config.nms_iou as f64;
+        Ok(if self.config.group_nms { nms_by_group(all, iou) } else { nms(all, iou) })
     }
 }
 
 /// Class-wise non-maximum suppression, highest score first (ties by box), deterministic.
-pub fn nms(mut dets: Vec<Detection>, iou: f64) -> Vec<Detection> {
+pub fn nms(dets: Vec<Detection>, iou: f64) -> Vec<Detection> {
+    suppress(dets, iou, |c| c.0)
+}
+
+/// Non-maximum suppression within class groups ([`ClassId::group`]: a box called car and another
+/// called truck on one vehicle are one object), highest score first (ties by box), deterministic.
+pub fn nms_by_group(dets: Vec<Detection>, iou: f64) -> Vec<Detection> {
+    suppress(dets, iou, ClassId::group)
+}
+
+fn suppress(mut dets: Vec<Detection>, iou: f64, key: impl Fn(ClassId) -> u16) -> Vec<Detection> {
     dets.sort_by(|a, b| {
         b.score
             .total_cmp(&a.score)
@@ -238,7 +409,7 @@ pub fn nms(mut dets: Vec<Detection>, iou: f64) -> Vec<Detection> {
     });
     let mut keep: Vec<Detection> = Vec::new();
     for d in dets {
-        if keep.iter().all(|k| k.class != d.class || k.bbox.iou(&d.bbox) <= iou) {
+        if keep.iter().all(|k| key(k.class) != key(d.class) || k.bbox.iou(&d.bbox) <= iou) {
             keep.push(d);
         }
     }
@@ -257,5 +428,60 @@ impl DetectionSource for DnnDetector {
     fn detect(&mut self, frame: usize, image: Option<&Image>) -> Result<Vec<Detection>, DetectError> {
         let image = image.ok_or(DetectError::NeedsImage(frame))?;
         self.detect_image(image).map_err(|e| DetectError::failed(frame, e))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A hand-built YOLOX output for a 64 × 32 input (grids 8 × 4, 4 × 2, 2 × 1: 42 cells) with three
+    /// classes: every cell empty but two.
+    fn output(cells: &[(usize, [f32; 8])]) -> Vec<f32> {
+        let mut out = vec![0.0f32; 42 * 8];
+        for (i, row) in out.chunks_exact_mut(8).enumerate() {
+            row[2] = 0.3; // log w, log h of an empty cell: anything
+            row[4] = 0.01; // objectness
+            row[5 + i % 3] = 0.5;
+        }
+        for (cell, values) in cells {
+            out[cell * 8..cell * 8 + 8].copy_from_slice(values);
+        }
+        out
+    }
+
+    #[test]
+    fn yolox_decode_gives_back_known_boxes() {
+        // stride 16, cell (gx 2, gy 1): after the 32 cells of stride 8, row-major: cell 32 + 4 + 2
+        // centre ((0.25 + 2) 16, (0.5 + 1) 16) = (36, 24), size e^0 16 = 16 by e^0 16: [28, 16, 44, 32]
+        let a = (38, [0.25, 0.5, 0.0, 0.0, 0.9, 0.1, 0.8, 0.3]);
+        // stride 32, cell (1, 0): cell 32 + 8 + 1; centre (48, 16), size 32 e^ln2 = 64 by 32 e^ln0.5 = 16
+        let b = (41, [0.5, 0.5, 2f32.ln(), 0.5f32.ln(), 1.0, 0.0, 0.0, 0.6]);
+        // stride 8, cell (3, 1): cell 11; scores 0.9 × 0.4 = 0.36, under the threshold
+        let c = (11, [0.0, 0.0, 0.0, 0.0, 0.9, 0.4, 0.0, 0.0]);
+        let out = output(&[a, b, c]);
+        let d = decode_yolox(&out, 8, [64, 32], 0.4, &[]).expect("decodes");
+        assert_eq!(d.len(), 2, "{d:?}");
+        assert_eq!((d[0].class, d[0].bbox), (ClassId(1), BBox::new(28.0, 16.0, 44.0, 32.0)));
+        assert!((d[0].score - 0.72).abs() < 1e-6, "objectness × the best class score: {}", d[0].score);
+        assert_eq!(d[1].class, ClassId(2));
+        let want = [16.0, 8.0, 80.0, 24.0];
+        assert!(d[1].bbox.to_array().iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-5), "{:?}", d[1].bbox);
+        // a lower threshold lets the third through; a class filter keeps only class 2
+        assert_eq!(decode_yolox(&out, 8, [64, 32], 0.3, &[]).expect("decodes").len(), 3);
+        let only = decode_yolox(&out, 8, [64, 32], 0.3, &[2]).expect("decodes");
+        assert!(only.len() == 1 && only[0].class == ClassId(2));
+    }
+
+    #[test]
+    fn yolox_decode_refuses_an_output_of_another_input_or_layout() {
+        let out = output(&[]);
+        let e = decode_yolox(&out, 8, [64, 64], 0.4, &[]).expect_err("a 64 x 64 input has 84 cells");
+        assert!(e.contains("84 YOLOX grid cells") && e.contains("the output has 336"), "{e}");
+        assert!(decode_yolox(&out, 5, [64, 32], 0.4, &[]).is_err(), "rows without class scores");
+        // NaN scores and boxes are left out, not kept
+        let nan = (5, [0.0, 0.0, f32::NAN, 0.0, 1.0, 0.9, 0.0, 0.0]);
+        let nan_score = (6, [0.0, 0.0, 0.0, 0.0, f32::NAN, 0.9, 0.0, 0.0]);
+        assert!(decode_yolox(&output(&[nan, nan_score]), 8, [64, 32], 0.4, &[]).expect("decodes").is_empty());
     }
 }

@@ -10,7 +10,7 @@ pub mod batch;
 pub mod detector;
 pub mod detectors;
 pub mod disparity;
-pub use detector::nms;
+pub use detector::{decode_yolox, nms, nms_by_group};
 pub use matching::hamming;
 pub mod image_io;
 pub mod image_size;
@@ -22,7 +22,7 @@ mod pose_only;
 mod settings;
 pub mod stereo_vo;
 
-pub use detector::{DetectorConfig, DnnDetector, InputMode};
+pub use detector::{DetectorConfig, DnnDetector, InputMode, ModelFamily};
 pub use image_io::{draw_detections, draw_overlay, ellipse_outline, read_image, write_image, FrontendError, Overlay};
-pub use model::{ModeName, ModelError, ModelSpec};
+pub use model::{parse_input_size, FamilyName, ModeName, ModelError, ModelSpec, ShippedModel};
 pub use stereo_vo::{StereoRig, StereoVo, VoConfig};

@@ -1,16 +1,16 @@
-//! A detector model as a user names it ([`ModelSpec`]): the network files (default: the shipped
-//! Yolo-Fastest 1.1) and how to feed it, every field optional. [`ModelSpec::check`] range-checks the
-//! settings before anything is loaded; [`ModelSpec::load`] builds the [`DnnDetector`].
+//! A detector model as a user names it ([`ModelSpec`]): a shipped model by name (default: YOLOX-nano),
+//! or model files with their family, and how to feed it, every field optional. [`ModelSpec::check`]
+//! range-checks the settings before anything is loaded; [`ModelSpec::load`] builds the [`DnnDetector`].
 
 use std::path::{Path, PathBuf};
 
 use slam_core::check::{count, number, InvalidValue, Range};
 
-use crate::{DetectorConfig, DnnDetector, FrontendError, InputMode};
+use crate::{DetectorConfig, DnnDetector, FrontendError, InputMode, ModelFamily};
 
-/// Largest square network input accepted, pixels. Memory and time grow with its square (the input blob
-/// and every activation map): 320 is the shipped model's size, 2048 keeps a CPU forward pass within a few
-/// hundred megabytes; an input of 32000 once asked for 23.8 GB.
+/// Largest network input side accepted, pixels. Memory and time grow with the input's area (the input
+/// blob and every activation map): 2048 keeps a CPU forward pass within a few hundred megabytes; an
+/// input of 32000 once asked for 23.8 GB.
 pub const MAX_INPUT_SIZE: i32 = 2048;
 
 /// More tiles than this across a KITTI frame would be narrower than the objects they should hold.
@@ -20,7 +20,7 @@ pub const MAX_TILES: u32 = 16;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum ModeName {
-    /// Resize to the square input, ignoring the aspect ratio.
+    /// Resize to the input, ignoring the aspect ratio.
     Squash,
     /// Keep the aspect ratio, pad.
     Letterbox,
@@ -39,6 +39,55 @@ impl ModeName {
     }
 }
 
+/// The detector models shipped in `fixtures/`, by name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum ShippedModel {
+    /// YOLOX-nano (COCO, ONNX, Apache-2.0; `fixtures/yolox_nano`): the default.
+    #[default]
+    YoloxNano,
+    /// Yolo-Fastest 1.1 (COCO, Darknet, public domain; `fixtures/detector`).
+    YoloFastest,
+}
+
+impl ShippedModel {
+    /// Name, as on a command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            ShippedModel::YoloxNano => "yolox-nano",
+            ShippedModel::YoloFastest => "yolo-fastest",
+        }
+    }
+
+    /// Its family's settings ([`DetectorConfig::yolox`], [`DetectorConfig::yolo_fastest`]).
+    pub fn config(self) -> DetectorConfig {
+        match self {
+            ShippedModel::YoloxNano => DetectorConfig::yolox(),
+            ShippedModel::YoloFastest => DetectorConfig::yolo_fastest(),
+        }
+    }
+}
+
+/// A network's output layout by name (the `--family` of an ONNX model).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum FamilyName {
+    /// YOLOX: grid cells of strides 8, 16, 32, input BGR 0–255 ([`ModelFamily::Yolox`]).
+    Yolox,
+    /// Darknet-style YOLO rows, normalised boxes, input RGB 0–1 ([`ModelFamily::Rows`]).
+    Rows,
+}
+
+impl FamilyName {
+    /// The family.
+    pub fn family(self) -> ModelFamily {
+        match self {
+            FamilyName::Yolox => ModelFamily::Yolox,
+            FamilyName::Rows => ModelFamily::Rows,
+        }
+    }
+}
+
 /// Errors of a model specification.
 #[derive(Debug, thiserror::Error)]
 pub enum ModelError {
@@ -48,70 +97,139 @@ pub enum ModelError {
     /// `tiles` given with another mode than tiles.
     #[error("tiles is a setting of mode tiles, but mode {0} was given")]
     TilesWithoutTiling(&'static str),
+    /// A family given for a Darknet model (Darknet's YOLO layers always give rows).
+    #[error("family is a setting of an ONNX model; a Darknet model (cfg and weights) always gives rows")]
+    FamilyWithoutOnnx,
+    /// A shipped model named together with model files.
+    #[error("model names a shipped model; with model files (onnx, or cfg and weights) give no model")]
+    ModelWithFiles,
     /// The model files could not be loaded.
     #[error(transparent)]
     Load(#[from] FrontendError),
 }
 
-/// A detector model and its settings; `None` fields take the shipped model's defaults.
+/// A detector model and its settings; `None` fields take the defaults of the model's family.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ModelSpec {
-    /// Darknet .cfg (default: the shipped one).
+    /// A shipped model by name (default: YOLOX-nano, unless model files are given).
+    pub model: Option<ShippedModel>,
+    /// Darknet .cfg (the rows family; default: the shipped Yolo-Fastest's).
     pub cfg: Option<PathBuf>,
-    /// Darknet .weights (default: the shipped ones).
+    /// Darknet .weights (default: the shipped Yolo-Fastest's).
     pub weights: Option<PathBuf>,
-    /// An ONNX model instead of Darknet.
+    /// An ONNX model.
     pub onnx: Option<PathBuf>,
-    /// Input mode (default: tiles).
+    /// The ONNX model's output layout (default: YOLOX).
+    pub family: Option<FamilyName>,
+    /// Input mode (default: the family's: letterbox for YOLOX, tiles for rows).
     pub mode: Option<ModeName>,
     /// Tiles across the width (mode tiles only; default 3).
     pub tiles: Option<u32>,
-    /// Network input size, a multiple of 32 (default 320).
-    pub input_size: Option<i32>,
-    /// Smallest score kept (default 0.2).
+    /// Network input `[width, height]`, multiples of 32 (default: 736 × 224 for YOLOX, 320 × 320 for
+    /// rows).
+    pub input_size: Option<[i32; 2]>,
+    /// Smallest score kept (default: 0.4 for YOLOX, 0.2 for rows).
     pub score: Option<f32>,
 }
 
+/// Parse an input size: `W` x `H` (`736x224`) or one number for a square input (`320`).
+pub fn parse_input_size(s: &str) -> Result<[i32; 2], String> {
+    let num =
+        |t: &str| t.trim().parse::<i32>().map_err(|_| format!("'{s}': expected WIDTHxHEIGHT (736x224) or N (320)"));
+    match s.split_once(['x', 'X']) {
+        Some((w, h)) => Ok([num(w)?, num(h)?]),
+        None => num(s).map(|n| [n, n]),
+    }
+}
+
 impl ModelSpec {
-    /// The shipped model in one input mode, every other setting at its default.
-    pub fn shipped(mode: ModeName) -> Self {
-        Self { mode: Some(mode), ..Self::default() }
+    /// A shipped model with its own settings.
+    pub fn shipped(model: ShippedModel) -> Self {
+        Self { model: Some(model), ..Self::default() }
     }
 
-    /// Range checks and the mode's consistency (before any model is loaded).
+    /// Range checks and the settings' consistency (before any model is loaded).
     pub fn check(&self) -> Result<(), ModelError> {
         self.config().map(drop)
     }
 
+    /// The family of the model this specification names.
+    fn base(&self) -> Result<DetectorConfig, ModelError> {
+        if self.family.is_some() && self.onnx.is_none() {
+            return Err(ModelError::FamilyWithoutOnnx);
+        }
+        if self.model.is_some() && (self.onnx.is_some() || self.cfg.is_some() || self.weights.is_some()) {
+            return Err(ModelError::ModelWithFiles);
+        }
+        Ok(match (&self.onnx, &self.cfg, &self.weights) {
+            (Some(_), _, _) => match self.family.unwrap_or(FamilyName::Yolox) {
+                FamilyName::Yolox => DetectorConfig::yolox(),
+                FamilyName::Rows => DetectorConfig::yolo_fastest(),
+            },
+            (None, Some(_), _) | (None, _, Some(_)) => DetectorConfig::yolo_fastest(),
+            (None, None, None) => self.model.unwrap_or_default().config(),
+        })
+    }
+
     /// The detector settings this specification describes.
     pub fn config(&self) -> Result<DetectorConfig, ModelError> {
-        let input_size = self.input_size.unwrap_or(320);
-        if !(32..=MAX_INPUT_SIZE).contains(&input_size) || input_size % 32 != 0 {
-            let valid = format!("a multiple of 32 in [32, {MAX_INPUT_SIZE}] (memory grows with its square)");
-            return Err(InvalidValue { key: "input_size".into(), value: input_size.to_string(), valid }.into());
+        let base = self.base()?;
+        let input = self.input_size.unwrap_or(base.input);
+        for v in input {
+            if !(32..=MAX_INPUT_SIZE).contains(&v) || v % 32 != 0 {
+                let valid =
+                    format!("multiples of 32 in [32, {MAX_INPUT_SIZE}], each side (memory grows with the area)");
+                let value =
+                    if input[0] == input[1] { input[0].to_string() } else { format!("{}x{}", input[0], input[1]) };
+                return Err(InvalidValue { key: "input_size".into(), value, valid }.into());
+            }
         }
         count("tiles", self.tiles.unwrap_or(3) as usize, 1, MAX_TILES as usize)?;
-        number("score", self.score.unwrap_or(0.2) as f64, Range::closed(0.0, 1.0), "")?;
+        let score = self.score.unwrap_or(base.score_threshold);
+        number("score", score as f64, Range::closed(0.0, 1.0), "")?;
         let mode = match (self.mode, self.tiles) {
+            (None, None) => base.mode,
             (None | Some(ModeName::Tiles), t) => InputMode::Tiles(t.unwrap_or(3)),
             (Some(m), Some(_)) => return Err(ModelError::TilesWithoutTiling(m.name())),
             (Some(ModeName::Squash), None) => InputMode::Squash,
             (Some(ModeName::Letterbox), None) => InputMode::Letterbox,
         };
-        Ok(DetectorConfig { input_size, mode, score_threshold: self.score.unwrap_or(0.2), ..DetectorConfig::default() })
+        Ok(DetectorConfig { input, mode, score_threshold: score, ..base })
     }
 
-    /// Load the network; `shipped` is the folder of the shipped Darknet files (`yolo-fastest-1.1.cfg`
-    /// and `.weights`), used for whichever of the two is not given.
-    pub fn load(&self, shipped: &Path) -> Result<DnnDetector, ModelError> {
+    /// A short description: the model and its settings (`yolox-nano, letterbox 736x224, score 0.4`).
+    pub fn describe(&self) -> Result<String, ModelError> {
+        let c = self.config()?;
+        let name = match (&self.onnx, &self.cfg, &self.weights) {
+            (Some(m), _, _) => format!("{} ({})", m.display(), c.family.name()),
+            (None, Some(_), _) | (None, _, Some(_)) => "darknet model (rows)".to_string(),
+            (None, None, None) => self.model.unwrap_or_default().name().to_string(),
+        };
+        let mode = match c.mode {
+            InputMode::Squash => "squash".to_string(),
+            InputMode::Letterbox => "letterbox".to_string(),
+            InputMode::Tiles(n) => format!("whole frame + {n} tiles"),
+        };
+        Ok(format!("{name}, {mode} {}x{}, score {}", c.input[0], c.input[1], c.score_threshold))
+    }
+
+    /// Load the network; `fixtures` is the folder holding the shipped models (`yolox_nano/` and
+    /// `detector/`), used for a shipped model and for whichever Darknet file is not given.
+    pub fn load(&self, fixtures: &Path) -> Result<DnnDetector, ModelError> {
         let config = self.config()?;
-        Ok(match &self.onnx {
-            Some(m) => DnnDetector::from_onnx(m, config)?,
-            None => {
-                let cfg = self.cfg.clone().unwrap_or_else(|| shipped.join("yolo-fastest-1.1.cfg"));
-                let weights = self.weights.clone().unwrap_or_else(|| shipped.join("yolo-fastest-1.1.weights"));
-                DnnDetector::from_darknet(cfg, weights, config)?
-            }
+        let darknet = |cfg: &Option<PathBuf>, weights: &Option<PathBuf>, config| {
+            let shipped = fixtures.join("detector");
+            let cfg = cfg.clone().unwrap_or_else(|| shipped.join("yolo-fastest-1.1.cfg"));
+            let weights = weights.clone().unwrap_or_else(|| shipped.join("yolo-fastest-1.1.weights"));
+            DnnDetector::from_darknet(cfg, weights, config)
+        };
+        Ok(match (&self.onnx, &self.cfg, &self.weights) {
+            (Some(m), _, _) => DnnDetector::from_onnx(m, config)?,
+            (None, Some(_), _) | (None, _, Some(_)) => darknet(&self.cfg, &self.weights, config)?,
+            (None, None, None) => match self.model.unwrap_or_default() {
+                ShippedModel::YoloxNano => DnnDetector::from_onnx(fixtures.join("yolox_nano/yolox_nano.onnx"), config)?,
+                ShippedModel::YoloFastest => darknet(&None, &None, config)?,
+            },
         })
     }
 }
@@ -123,30 +241,60 @@ mod tests {
     #[test]
     fn settings_are_checked_and_mapped() {
         let c = ModelSpec::default().config().expect("defaults");
-        assert_eq!(c, DetectorConfig::default());
+        assert_eq!(c, DetectorConfig::yolox());
+        assert_eq!((c.input, c.mode, c.family), ([736, 224], InputMode::Letterbox, ModelFamily::Yolox));
+        let fastest = ModelSpec::shipped(ShippedModel::YoloFastest).config().expect("yolo-fastest");
+        assert_eq!(fastest, DetectorConfig::yolo_fastest());
+        // a Darknet file alone selects the rows family and its defaults
+        let darknet = ModelSpec { cfg: Some("m.cfg".into()), ..Default::default() }.config().expect("darknet");
+        assert_eq!((darknet.family, darknet.mode), (ModelFamily::Rows, InputMode::Tiles(3)));
+        let rows = ModelSpec { onnx: Some("m.onnx".into()), family: Some(FamilyName::Rows), ..Default::default() };
+        assert_eq!(rows.config().expect("rows").family, ModelFamily::Rows);
         let s = ModelSpec {
+            model: Some(ShippedModel::YoloFastest),
             mode: Some(ModeName::Letterbox),
-            input_size: Some(416),
+            input_size: Some([416, 416]),
             score: Some(0.5),
             ..Default::default()
         };
         let c = s.config().expect("valid");
-        assert_eq!((c.mode, c.input_size, c.score_threshold), (InputMode::Letterbox, 416, 0.5));
+        assert_eq!((c.mode, c.input, c.score_threshold), (InputMode::Letterbox, [416, 416], 0.5));
         assert_eq!(
             ModelSpec { tiles: Some(5), ..Default::default() }.config().expect("tiles").mode,
             InputMode::Tiles(5)
         );
         for (bad, want) in [
-            (ModelSpec { input_size: Some(100), ..Default::default() }, "input_size 100: must be a multiple of 32"),
-            (ModelSpec { input_size: Some(4096), ..Default::default() }, "input_size 4096"),
+            (
+                ModelSpec { input_size: Some([100, 100]), ..Default::default() },
+                "input_size 100: must be multiples of 32",
+            ),
+            (ModelSpec { input_size: Some([736, 230]), ..Default::default() }, "input_size 736x230"),
+            (ModelSpec { input_size: Some([4096, 4096]), ..Default::default() }, "input_size 4096"),
             (ModelSpec { tiles: Some(0), ..Default::default() }, "tiles 0: must be an integer in [1, 16]"),
             (ModelSpec { score: Some(f32::NAN), ..Default::default() }, "score NaN"),
             (ModelSpec { mode: Some(ModeName::Squash), tiles: Some(2), ..Default::default() }, "mode squash was given"),
+            (
+                ModelSpec { family: Some(FamilyName::Yolox), ..Default::default() },
+                "family is a setting of an ONNX model",
+            ),
+            (
+                ModelSpec { model: Some(ShippedModel::YoloxNano), onnx: Some("m.onnx".into()), ..Default::default() },
+                "give no model",
+            ),
         ] {
             let e = bad.check().expect_err(want).to_string();
             assert!(e.contains(want), "{e}");
         }
         let missing = ModelSpec { onnx: Some("/nonexistent/model.onnx".into()), ..Default::default() };
         assert!(matches!(missing.load(Path::new("/nonexistent")), Err(ModelError::Load(_))));
+        assert_eq!(ModelSpec::default().describe().expect("valid"), "yolox-nano, letterbox 736x224, score 0.4");
+    }
+
+    #[test]
+    fn input_sizes_parse_as_width_by_height_or_one_side() {
+        assert_eq!(parse_input_size("736x224"), Ok([736, 224]));
+        assert_eq!(parse_input_size("320"), Ok([320, 320]));
+        assert_eq!(parse_input_size("640X192"), Ok([640, 192]));
+        assert!(parse_input_size("736x").is_err() && parse_input_size("wide").is_err());
     }
 }

@@ -39,6 +39,16 @@ pub fn cuboid_bounds(e: &Ellipsoid, camera: &Camera) -> Option<BBox> {
     b.to_vector().iter().all(|v| v.is_finite()).then_some(b)
 }
 
+/// **Box IoU2D**: the IoU of `bbox` (a labelled or detected box) with the image-clipped bounds of the
+/// projected corners of `e`'s circumscribed cuboid, its own 3-D box. An object's ground-truth ellipsoid
+/// is the one inscribed in its labelled 3-D box, so on the projected label box it scores 1, where the
+/// paper's IoU2D ([`crate::metrics::projected_iou`], the bounds of the projected ellipsoid) scores less
+/// (e.g. `(z − c) / (z + c)` for a box seen face-on, centred, its face at depth `z − c`). 0 when a corner
+/// lies behind the camera or nothing of the box is in the image.
+pub fn box_iou(e: &Ellipsoid, camera: &Camera, image: &crate::ImageSize, bbox: &BBox) -> f64 {
+    cuboid_bounds(e, camera).and_then(|b| b.clipped(image)).map_or(0.0, |b| b.iou(bbox))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -83,5 +93,32 @@ mod tests {
         // behind the camera: no box
         let behind = Camera::new(K, Isometry3::translation(0.0, 0.0, 40.0));
         assert!(cuboid_bounds(&e, &behind).is_none());
+    }
+
+    /// A ground-truth ellipsoid (inscribed in a 4 × 1.5 × 2 m box) seen face-on, centred, 20 m ahead: its
+    /// box IoU2D against the box's own projection is 1 and against that box shifted by d px sideways
+    /// (W − d) / (W + d); its paper IoU2D against the unshifted box is (z − c) / (z + c) = 19 / 21: the
+    /// ellipse's bounds are f a / √(z² − c²) wide against the face's f a / (z − c).
+    #[test]
+    fn box_iou_of_a_ground_truth_ellipsoid_against_its_own_box_is_analytic() {
+        let (z, c) = (20.0, 1.0);
+        let e = Ellipsoid::new(Isometry3::translation(0.0, 0.0, z), Vector3::new(2.0, 0.75, c));
+        let cam = Camera::new(K, Isometry3::identity());
+        let image = crate::ImageSize::new(1242.0, 375.0);
+        let own = BBox::new(
+            600.0 - 700.0 * 2.0 / (z - c),
+            180.0 - 700.0 * 0.75 / (z - c),
+            600.0 + 700.0 * 2.0 / (z - c),
+            180.0 + 700.0 * 0.75 / (z - c),
+        );
+        assert!((box_iou(&e, &cam, &image, &own) - 1.0).abs() < 1e-12);
+        let d = 10.0;
+        let shifted = BBox::new(own.xmin + d, own.ymin, own.xmax + d, own.ymax);
+        let want = (own.width() - d) / (own.width() + d);
+        assert!((box_iou(&e, &cam, &image, &shifted) - want).abs() < 1e-12);
+        let paper = crate::metrics::projected_iou(&e, &cam, &image, &own);
+        assert!((paper - (z - c) / (z + c)).abs() < 1e-9, "{paper}");
+        // behind the camera: 0
+        assert_eq!(box_iou(&e, &Camera::new(K, Isometry3::translation(0.0, 0.0, 40.0)), &image, &own), 0.0);
     }
 }

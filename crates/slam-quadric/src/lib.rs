@@ -51,7 +51,7 @@ pub use conic::{
     box_error, classify, predict_box, project, BoundsModel, BoxPrediction, BoxResidual, DualConic, Ellipse2,
     ProjectionError, Visibility,
 };
-pub use cuboid::{cuboid_bounds, cuboid_corners, cuboid_signs};
+pub use cuboid::{box_iou, cuboid_bounds, cuboid_corners, cuboid_signs};
 pub use ellipsoid::{ConstrainError, Ellipsoid, Tangent9};
 pub use init::{BoxView, InitError, Initializer};
 /// The linear-algebra crate of the public API, re-exported so dependants use the same version.

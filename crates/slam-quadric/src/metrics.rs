@@ -6,13 +6,16 @@
 //!   so the semi-axes are compared in the order that matches best. [`e_axe_ordered`] compares them as
 //!   given, for callers that know the axes correspond (e.g. length/height/width of a car).
 //! * IoU2D: IoU of the projected ellipsoid's image-clipped box with a box, see [`projected_iou`].
+//! * Box IoU2D (ours): IoU of the image-clipped bounds of the ellipsoid's own 3-D box (its circumscribed
+//!   cuboid) projected, with a box, see [`box_iou`]: a ground-truth ellipsoid, inscribed in the labelled
+//!   3-D box, scores 1 against that box's projection, where the paper's IoU2D cannot.
 //! * `e_yaw` (ours, not the paper's): angle between the estimate's longest horizontal axis and the
 //!   truth's heading (its own x axis), modulo 180°, see [`e_yaw`].
 
 use nalgebra::Vector3;
 
-pub use crate::conic::projected_iou;
 use crate::ellipsoid::Ellipsoid;
+pub use crate::{conic::projected_iou, cuboid::box_iou};
 
 /// Centre distance, metres.
 pub fn e_trans(estimate: &Ellipsoid, truth: &Ellipsoid) -> f64 {

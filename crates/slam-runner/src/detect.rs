@@ -1,6 +1,6 @@
 //! The detector commands: `slam-app detect` (a detector over a folder of images into a detection file
-//! and overlays, [`DetectPlan`]) and `slam-app detect-recall` (recall of the shipped detector on the
-//! labelled frames of drive 0052, per input mode, [`detector_recall`]).
+//! and overlays, [`DetectPlan`]) and `slam-app detect-recall` (recall and precision of detectors on
+//! the labelled frames of drives 0052 and 0005, [`recall_sets`], [`detector_recall`]).
 
 use std::{
     path::{Path, PathBuf},
@@ -12,8 +12,8 @@ use slam_dataset::{
     detections::DetectionFile,
     output::{refuse_overwriting_inputs, AtomicFile, OutputDir, Written},
 };
-use slam_eval::recall::RecallSet;
-use slam_frontend::{batch::detect_images, read_image, ModeName, ModelSpec};
+use slam_eval::recall::{Counts, RecallSet};
+use slam_frontend::{batch::detect_images, read_image};
 
 use crate::error::{Result, RunnerError};
 
@@ -78,27 +78,77 @@ impl DetectPlan {
     }
 }
 
-/// Load the labelled frames in `data`, run the shipped model (its files in `shipped`) in each of `modes`
-/// and give `print` the table: header lines, then one row per mode (found, recall, ms per frame).
-pub fn detector_recall(data: &Path, shipped: &Path, modes: &[ModeName], print: &mut dyn FnMut(String)) -> Result<()> {
-    let set = RecallSet::load(data)?;
-    let n_labels = set.label_count();
-    let images: Vec<_> = set.images.iter().map(|p| read_image(p, true)).collect::<std::result::Result<_, _>>()?;
-    print(format!(
-        "Detector recall on KITTI raw 2011_09_26_drive_0052, frames 7/14/21/31: {n_labels} labelled vehicles (Car, Van)"
-    ));
-    print("A label counts as found when a car/truck/bus detection overlaps it with IoU > 0.5 (one-to-one).".into());
-    print(format!("{:<12} {:>7} {:>10} {:>12}", "mode", "found", "recall", "ms / frame"));
-    for &m in modes {
-        let mut det = ModelSpec::shipped(m).load(shipped)?;
-        let mut found = 0;
-        let start = Instant::now();
-        for (i, img) in images.iter().enumerate() {
-            found += set.found(i, &det.detect(i, Some(img)).map_err(crate::RunnerError::other)?);
+/// The labelled frames a detector is measured on (`slam-app detect-recall`): the four frames of drive
+/// 0052 (`kitti_raw_0052`, object-benchmark labels on camera 2) and drive 0005's 91 frames of camera 0
+/// with the KITTI tracking labels of sequence 0000 (`kitti_raw_0005`, `kitti_tracking/0000`; the
+/// protocol of [`RecallSet::load_drive`]), found under `fixtures`.
+pub fn recall_sets(fixtures: &Path) -> Result<Vec<(String, RecallSet)>> {
+    let d0052 = RecallSet::load(&fixtures.join("kitti_raw_0052"))?;
+    let drive = fixtures.join("kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync");
+    let (d0005, _) = RecallSet::load_drive(&drive, &fixtures.join("kitti_tracking/0000/label_02.txt"))?;
+    Ok(vec![
+        (format!("drive 0052, frames 7/14/21/31, camera 2: {} Car/Van labels", d0052.label_count()), d0052),
+        (
+            format!(
+                "drive 0005, frames 0-90, camera 0: {} Car/Van/Truck labels of occlusion <= 1, >= 25 px tall",
+                d0005.label_count()
+            ),
+            d0005,
+        ),
+    ])
+}
+
+/// Loads a detector for [`detector_recall`].
+pub type DetectorLoader = Box<dyn FnMut() -> Result<Box<dyn DetectionSource>>>;
+
+/// Run each detector (`name`, loader) over every frame of each set and give `print` the table: the
+/// protocol, then one row per detector with found / labels, recall and precision per set, and the
+/// median milliseconds per frame over all frames.
+pub fn detector_recall(
+    sets: &[(String, RecallSet)],
+    detectors: &mut [(String, DetectorLoader)],
+    print: &mut dyn FnMut(String),
+) -> Result<()> {
+    // each set's images, read once (colour as stored: camera 2 colour, camera 0 grey)
+    let images: Vec<Vec<_>> = sets
+        .iter()
+        .map(|(_, s)| s.images.iter().map(|p| read_image(p, true)).collect::<std::result::Result<Vec<_>, _>>())
+        .collect::<std::result::Result<_, _>>()?;
+    print("Detector recall and precision: a label is found by one car/truck/bus detection overlapping it with IoU >= 0.5 \
+           (one to one, best overlaps first); a prediction matching no label and lying at least half inside a \
+           DontCare region is not counted (vehicles KITTI left unlabelled elsewhere count as wrong: precision is a \
+           lower bound)"
+        .into());
+    for (k, (name, _)) in sets.iter().enumerate() {
+        print(format!("set {}: {name}", k + 1));
+    }
+    let mut header = format!("| {:<52} |", "detector");
+    let mut rule = format!("|{}|", "-".repeat(54));
+    for k in 1..=sets.len() {
+        header.push_str(&format!(" set {k}: found | recall | precision |"));
+        rule.push_str("---:|---:|---:|");
+    }
+    header.push_str(" ms / frame (median) |");
+    rule.push_str("---:|");
+    print(header);
+    print(rule);
+    for (name, load) in detectors.iter_mut() {
+        let mut det = load()?;
+        let mut row = format!("| {name:<52} |");
+        let mut times = Vec::new();
+        for ((_, set), imgs) in sets.iter().zip(&images) {
+            let mut c = Counts::default();
+            for (i, img) in imgs.iter().enumerate() {
+                let start = Instant::now();
+                let d = det.detect(set.frame_ids[i], Some(img)).map_err(crate::RunnerError::other)?;
+                times.push(start.elapsed().as_secs_f64() * 1000.0);
+                c += set.score(i, &d);
+            }
+            row.push_str(&format!(" {}/{} | {:.3} | {:.3} |", c.found, c.labels, c.recall(), c.precision()));
         }
-        let ms = start.elapsed().as_secs_f64() * 1000.0 / images.len().max(1) as f64;
-        let recall = found as f64 / n_labels.max(1) as f64;
-        print(format!("{:<12} {found:>4}/{n_labels:<2} {recall:>10.2} {ms:>12.0}", m.name()));
+        times.sort_by(f64::total_cmp);
+        row.push_str(&format!(" {:.0} |", times.get(times.len() / 2).copied().unwrap_or(f64::NAN)));
+        print(row);
     }
     Ok(())
 }

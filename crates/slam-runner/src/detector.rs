@@ -37,7 +37,7 @@ pub enum DetectorChoice {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum DetectorKind {
-    /// The shipped Yolo-Fastest detector (or the model given with --cfg/--weights/--onnx).
+    /// The shipped YOLOX-nano detector (or the model given with --model/--cfg/--weights/--onnx).
     Dnn,
     /// A detection JSON file (--detections; format in docs/detections.md).
     File,

@@ -98,6 +98,65 @@ pub fn tables(cells: &[CellStats], config: &SweepConfig) -> String {
     text + &breakdown_table(cells, config)
 }
 
+/// The cells the targets name for Tri+Yaw+refine (docs/simulation.md): geometry, noise kind, level (%).
+pub const TARGET_CELLS: [(Geometry, NoiseKind, f64); 4] = [
+    (Geometry::Arc, NoiseKind::Box, 6.0),
+    (Geometry::DriveBy, NoiseKind::Translation, 2.0),
+    (Geometry::DriveBy, NoiseKind::Rotation, 2.0),
+    (Geometry::DriveBy, NoiseKind::Box, 3.0),
+];
+
+/// Mean, sample standard deviation, least and largest of `x` (NaN for a mean of none; the deviation is
+/// 0 for one value).
+fn spread(x: &[f64]) -> (f64, f64, f64, f64) {
+    let n = x.len() as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    let var = if x.len() > 1 { x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0) } else { 0.0 };
+    let (lo, hi) = x.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
+    (mean, var.sqrt(), lo, hi)
+}
+
+/// How Tri+Yaw+refine's target cells ([`TARGET_CELLS`]) vary with the master seed: one sweep's cells
+/// per seed (`runs`: seed and cells); per cell the success and the mean e_trans and e_axe of each seed,
+/// as mean ± standard deviation over the seeds, with the least and largest. A cell's figure is a mean
+/// over its 100 trials (10 objects × 10 noise seeds), whose own spread makes it move from seed to seed.
+pub fn seed_spread(runs: &[(u64, Vec<CellStats>)]) -> String {
+    let mut s = format!(
+        "\n== Tri+Yaw+refine's target cells over {} master seeds ({}): mean ± sd [least, largest] of each seed's figure ==\n",
+        runs.len(),
+        runs.iter().map(|r| r.0.to_string()).collect::<Vec<_>>().join(", ")
+    );
+    let _ = writeln!(s, "{:<26} | {:<28} | {:<28} | {:<28}", "cell", "success", "e_trans mean (m)", "e_axe mean (m)");
+    for (g, k, level) in TARGET_CELLS {
+        let of = |f: fn(&CellStats) -> f64| -> Vec<f64> {
+            runs.iter()
+                .filter_map(|(_, cells)| {
+                    cells.iter().find(|c| {
+                        c.geometry == g && c.noise == k && c.level == level && c.method == Method::TriYawRefine
+                    })
+                })
+                .map(f)
+                .collect()
+        };
+        let col = |v: Vec<f64>, prec: usize| {
+            if v.is_empty() {
+                return "-".to_string();
+            }
+            let (m, sd, lo, hi) = spread(&v);
+            format!("{} ± {} [{}, {}]", fmt(m, prec), fmt(sd, prec), fmt(lo, prec), fmt(hi, prec))
+        };
+        let _ = writeln!(
+            s,
+            "{:<26} | {:<28} | {:<28} | {:<28}",
+            format!("{}, {} {}%", g.name(), k.name(), level),
+            col(of(|c| c.success), 2),
+            col(of(|c| c.e_trans_mean), 3),
+            col(of(|c| c.e_axe_mean), 3)
+        );
+    }
+    s
+}
+
 /// The cells as CSV (a header, one row per cell).
 pub fn csv(cells: &[CellStats]) -> Result<String, csv::Error> {
     let mut w = csv::Writer::from_writer(Vec::new());
@@ -138,6 +197,31 @@ pub fn csv(cells: &[CellStats]) -> Result<String, csv::Error> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_seed_spread_gives_mean_deviation_and_range_per_target_cell() {
+        let at = |e_trans: f64| CellStats {
+            geometry: Geometry::DriveBy,
+            noise: NoiseKind::Translation,
+            level: 2.0,
+            method: Method::TriYawRefine,
+            trials: 100,
+            success: 1.0,
+            e_trans_mean: e_trans,
+            e_trans_median: e_trans,
+            e_axe_mean: 0.15,
+            e_axe_median: 0.15,
+            iou_mean: 0.9,
+            iou_median: 0.9,
+        };
+        let runs = vec![(1, vec![at(0.4)]), (2, vec![at(0.5)]), (3, vec![at(0.6)])];
+        let t = seed_spread(&runs);
+        let line = t.lines().find(|l| l.starts_with("drive-by, translation 2%")).expect("the cell");
+        // mean 0.5, sample sd 0.1, range 0.4-0.6
+        assert!(line.contains("0.500 ± 0.100 [0.400, 0.600]") && line.contains("1.00 ± 0.00"), "{t}");
+        // cells no run has print a dash
+        assert!(t.lines().find(|l| l.starts_with("arc, box 6%")).is_some_and(|l| l.contains(" - ")), "{t}");
+    }
 
     fn cell(level: f64, method: Method, success: f64) -> CellStats {
         CellStats {
