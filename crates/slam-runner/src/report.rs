@@ -64,7 +64,7 @@ impl Outcome {
                 c.frames as f64 / self.elapsed,
                 match median_fps(out) {
                     f if f.is_finite() => format!("{f:.1} frames/s median"),
-                    _ => "no median frames/s (it needs two frames)".to_string(),
+                    _ => "no median frames/s (it needs two tracked frames)".to_string(),
                 }
             ),
             format!(
