@@ -1088,7 +1088,18 @@ fn figures_that_cannot_be_right_round_three() {
             "nanoseconds",
         ],
     ));
-    assert_eq!(check(cases), 17);
+    // a wrong JSON type or a missing field is named by its path in the document
+    let dets = write(&d.join("frames-map.json"), r#"{"version": 1, "frames": {}}"#);
+    let seq = sequence(&d, "dets", 2, None);
+    cases.push(case(
+        "detections with \"frames\": {}",
+        &[&"run", &seq, &"--detections", &dets, &"--out", &d.join("x")],
+        1,
+        &["frames-map.json:1: frames: invalid type: map, expected a sequence"],
+    ));
+    let bare = write(&d.join("bare.json"), &MAP_OK.replace(r#""objects":[]"#, r#""objects":[{"id":1}]"#));
+    cases.push(case("map object without its fields", &[&"map", &bare], 1, &["objects[0]: missing field `class`"]));
+    assert_eq!(check(cases), 19);
     // an OXTS packet that is a folder is said to be one, not "missing"
     let raw = fixtures().join("kitti_raw_0005/2011_09_26");
     let date = d.join("raw-folder/2011_09_26");
