@@ -53,8 +53,10 @@ fn kitti(a: &KittiArgs) -> anyhow::Result<()> {
     let dir = a.dir.clone().unwrap_or_else(|| crate::fixture("kitti_tracking"));
     let seqs = slam_dataset::folders::tracking_sequences(&dir)?;
     if let Some(p) = &a.csv {
-        let labels: Vec<PathBuf> = seqs.iter().map(|s| s.join("label_02.txt")).collect();
-        let inputs: Vec<(&str, &std::path::Path)> = labels.iter().map(|l| ("the labels", l.as_path())).collect();
+        // every file of a sequence, read or not: the csv must not replace any of the dataset
+        let files: Vec<PathBuf> =
+            seqs.iter().flat_map(|s| slam_eval::labelled::SEQUENCE_FILES.map(|f| s.join(f))).collect();
+        let inputs: Vec<(&str, &std::path::Path)> = files.iter().map(|l| ("the sequence file", l.as_path())).collect();
         slam_dataset::output::refuse_overwriting_inputs(&inputs, &[slam_dataset::output::Written::File("--csv", p)])?;
         // checked writable before the study runs
         drop(slam_dataset::output::AtomicFile::new(p)?);

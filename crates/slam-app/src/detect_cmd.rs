@@ -121,7 +121,7 @@ pub struct DetectArgs {
 
 pub fn detect(a: &DetectArgs) -> anyhow::Result<()> {
     // both outputs are checked writable before the first image, and put in place whole at the end
-    let plan = slam_runner::detect::DetectPlan::new(&a.input, &a.out, a.overlays.as_deref())?;
+    let plan = slam_runner::detect::DetectPlan::new(&a.input, &a.out, a.overlays.as_deref(), &a.model.files())?;
     if let Some(note) = &plan.note {
         println!("{note}");
     }

@@ -9,9 +9,7 @@ use slam_pipeline::{map::Map, system::FrameView};
 use slam_runner::{
     bench,
     console::{catch_interrupt, interrupted, Interrupted, Progress},
-    inspect,
-    report::run_output_name,
-    stereo, RunConfig, RunObserver, RunSettings,
+    inspect, stereo, RunConfig, RunObserver, RunSettings,
 };
 
 use crate::args::{DetectorArgs, OutputArgs, SequenceArgs, SettingsArgs, WiringArgs};
@@ -92,7 +90,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     let mut outputs = vec![Written::Folder("--out", out)];
     outputs.extend(a.rerun.as_deref().map(|p| Written::File("--rerun", p)));
     refuse_overwriting_inputs(&inputs, &outputs)?;
-    let dir = slam_dataset::output::OutputDir::create(out, "--out", "run", run_output_name)?;
+    let dir = slam_dataset::output::OutputDir::create(out, "--out", "run")?;
     let s = a.seq.run_settings(&cfg, &a.wiring, a.detector.choice()?, a.detector.labels.clone());
     let played = run_with_progress(&s, a.rerun.as_deref());
     let stop = |done: usize| Interrupted::nothing_written(done, out, dir.target().exists());
@@ -190,7 +188,9 @@ pub struct TrajEvalArgs {
     /// (`time tx ty tz qx qy qz qw`)
     estimate: PathBuf,
     /// Ground-truth poses, same formats. Two TUM files are matched by timestamp (nearest within
-    /// --max-diff, as evo does); otherwise pose i of one file is pose i of the other
+    /// --max-diff, as evo does); a TUM estimate and a KITTI ground truth by time too, the ground truth's
+    /// line k being frame k at line k of sequences/NN/times.txt beside poses/NN.txt (else 0.1 s × k);
+    /// two KITTI files pose i with pose i
     ground_truth: PathBuf,
     /// Largest time difference of a TUM match, seconds
     #[arg(long, default_value_t = 0.01, value_parser = crate::args::non_negative)]

@@ -33,7 +33,7 @@ pub fn run(a: &SimArgs) -> anyhow::Result<()> {
     slam_core::check::count("--noise-seeds", a.noise_seeds as usize, 1, 100_000)?;
     slam_core::check::count("--seeds", a.seeds as usize, 1, 1000)?;
     // written beside the old folder and swapped in at the end; checked writable before the sweep
-    let dir = slam_dataset::output::OutputDir::create(&a.out, "--out", "sim", report::is_output_name)?;
+    let dir = slam_dataset::output::OutputDir::create(&a.out, "--out", "sim")?;
     let config = SweepConfig { seed: a.seed, objects: a.objects, noise_seeds: a.noise_seeds, ..SweepConfig::default() };
     println!("{}", report::title(&config));
     let mut bar = slam_runner::console::Progress::new("sim", 0, "cells", false);

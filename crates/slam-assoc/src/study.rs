@@ -102,7 +102,14 @@ pub fn id_switches_on_labels(
     let mut ids = IdSwitchCounter::default();
     let mut n_det = 0;
     let projected = BTreeMap::new();
-    for f in 0..n_frames {
+    let mut f = 0;
+    while f < n_frames {
+        // a frame without labels while no track is alive changes nothing: go to the next labelled frame,
+        // so the cost follows the labels, not the largest frame id
+        if tracker.tracks().is_empty() && !frames.contains_key(&f) {
+            f = frames.range(f..).next().map_or(n_frames, |(&next, _)| next);
+            continue;
+        }
         let mut truth = Vec::new();
         let mut dets = Vec::new();
         for (id, d) in frames.get(&f).map(|v| v.as_slice()).unwrap_or(&[]) {
@@ -124,6 +131,7 @@ pub fn id_switches_on_labels(
         n_det += dets.len();
         let out = tracker.step(&TrackerInput { detections: &dets, projected: &projected, flow: &[], keyframe: true });
         ids.frame(truth.iter().zip(&out.tracks).filter_map(|(t, k)| Some((*t, (*k)?))));
+        f += 1;
     }
     LabelRun { id_switches: ids.switches, detections: n_det }
 }
@@ -154,7 +162,7 @@ pub fn labelled_frames(
     let mut frames = LabelledFrames::new();
     let (mut n_frames, mut objects) = (0, std::collections::BTreeSet::new());
     for (frame, track, class, bbox) in rows {
-        n_frames = n_frames.max(frame + 1);
+        n_frames = n_frames.max(frame.saturating_add(1));
         if let (Some(class), true) = (class, track >= 0) {
             frames.entry(frame).or_default().push((track as u64, Detection::new(class, 1.0, bbox)));
             objects.insert(track);

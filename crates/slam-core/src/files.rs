@@ -373,9 +373,93 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
     AtomicWrite::create(path)?.write_all_with(|w| w.write_all(bytes))
 }
 
+/// Where in a JSON document a position lies (`line` and `column`, 1-based, as `serde_json` reports an
+/// error): the path of keys and array indices, e.g. `objects[0]` or `frames`; empty at the top. A
+/// position on a closing `}` names the object itself (serde reports a missing field there). Text past
+/// the end gives the path at the end.
+pub fn json_path_at(text: &str, line: usize, column: usize) -> String {
+    enum Level {
+        Object(Option<String>),
+        Array(usize),
+    }
+    let start = text.split_inclusive('\n').take(line.saturating_sub(1)).map(str::len).sum::<usize>();
+    let end = (start + column.saturating_sub(1)).min(text.len());
+    let (mut stack, mut expect_key) = (Vec::<Level>::new(), false);
+    let mut chars = text.char_indices().peekable();
+    while let Some((k, c)) = chars.next() {
+        if k >= end {
+            if c == '}' {
+                if let Some(Level::Object(key)) = stack.last_mut() {
+                    *key = None;
+                }
+            }
+            break;
+        }
+        match c {
+            '"' => {
+                let mut s = String::new();
+                while let Some((_, c)) = chars.next() {
+                    match c {
+                        // an escaped character is part of the string (a quote does not end it)
+                        '\\' => s.extend(chars.next().map(|(_, c)| c)),
+                        '"' => break,
+                        c => s.push(c),
+                    }
+                }
+                if expect_key {
+                    if let Some(Level::Object(key)) = stack.last_mut() {
+                        *key = Some(s);
+                    }
+                    expect_key = false;
+                }
+            }
+            '{' => {
+                stack.push(Level::Object(None));
+                expect_key = true;
+            }
+            '[' => stack.push(Level::Array(0)),
+            '}' | ']' => {
+                stack.pop();
+            }
+            ',' => match stack.last_mut() {
+                Some(Level::Array(i)) => *i += 1,
+                Some(Level::Object(_)) => expect_key = true,
+                None => {}
+            },
+            _ => {}
+        }
+    }
+    let mut out = String::new();
+    for level in &stack {
+        match level {
+            Level::Object(Some(key)) => {
+                if !out.is_empty() {
+                    out.push('.');
+                }
+                out.push_str(key);
+            }
+            Level::Object(None) => {}
+            Level::Array(i) => out.push_str(&format!("[{i}]")),
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_json_position_is_named_by_its_path() {
+        let t = r#"{"version": 1, "frames": {}}"#;
+        assert_eq!(json_path_at(t, 1, 26), "frames");
+        let t = "{\"objects\": [\n  {\"id\": 1, \"a\\\"]\": [2, 3]},\n  {\"id\": 2}\n]}";
+        // the closing brace of the second object (a missing field is reported there)
+        assert_eq!(json_path_at(t, 3, 12), "objects[1]");
+        // the 3 in the array under the first object's key with an escaped quote
+        assert_eq!(json_path_at(t, 2, 25), "objects[0].a\"][1]");
+        assert_eq!(json_path_at(t, 1, 1), "");
+    }
 
     fn scratch(name: &str) -> PathBuf {
         let d = std::env::temp_dir().join(format!("slam-core-files-{name}-{}", std::process::id()));

@@ -193,10 +193,13 @@ impl DetectionFile {
                 ),
             });
         }
-        let parsed: FileJson = serde_json::from_str(text).map_err(|e| DatasetError::Parse {
-            path: path.to_path_buf(),
-            line: e.line(),
-            message: e.to_string(),
+        let parsed: FileJson = serde_json::from_str(text).map_err(|e| {
+            let at = slam_core::files::json_path_at(text, e.line(), e.column());
+            DatasetError::Parse {
+                path: path.to_path_buf(),
+                line: e.line(),
+                message: if at.is_empty() { e.to_string() } else { format!("{at}: {e}") },
+            }
         })?;
         let invalid = |m: String| DatasetError::Invalid { path: path.to_path_buf(), message: m };
         if parsed.version != SCHEMA_VERSION {

@@ -9,9 +9,9 @@
 //! * [`write_file`] / [`AtomicFile`]: a single file is written beside its destination and renamed over it.
 //!
 //! Folders are replaced as a whole, so a folder is only replaced when this program wrote it: it is empty,
-//! or every entry is one its marker file (`.slam-app-output`, written last) lists, or (folders written
-//! before the marker existed) every entry is a name the command writes. Anything else is refused before
-//! any work starts, naming the foreign entries.
+//! or every entry is one its marker file (`.slam-app-output`, written last) lists. Anything else (a folder
+//! without the marker, even one holding only names the command writes) is refused before any work
+//! starts, naming the foreign entries.
 
 use std::path::{Path, PathBuf};
 
@@ -103,11 +103,13 @@ pub struct OutputDir {
 }
 
 impl OutputDir {
-    /// Prepare `dir` (named `option` in messages, e.g. `--out`) for a command that writes the entries
-    /// `ours` accepts: checks that `dir` is a folder this program wrote (or new, or empty), recovers from an
+    /// Prepare `dir` (named `option` in messages, e.g. `--out`) for a command: checks that `dir` is new,
+    /// empty, or a folder this program wrote (every entry listed in its marker), recovers from an
     /// interrupted replacement, removes temporary folders of dead runs, and creates the temporary folder
-    /// (which also proves the location writable, before any work starts).
-    pub fn create(dir: &Path, option: &str, command: &str, ours: fn(&str) -> bool) -> Result<Self> {
+    /// (which also proves the location writable, before any work starts). A folder without the marker is
+    /// never replaced, even when its files have the names the command writes: a user's own `map.json` or
+    /// a camera's image folder looks the same.
+    pub fn create(dir: &Path, option: &str, command: &str) -> Result<Self> {
         let (parent, name) = split(dir, option)?;
         std::fs::create_dir_all(&parent)
             .with_context(|| format!("{option} {}: cannot create its parent folder", dir.display()))?;
@@ -162,9 +164,21 @@ impl OutputDir {
                 .with_context(|| format!("{option} {}: cannot list it", dir.display()))?
                 .flatten()
                 .map(|e| e.file_name().to_string_lossy().into_owned())
-                .filter(|n| n != MARKER && !(if marked { listed.contains(n) } else { ours(n) }))
+                .filter(|n| n != MARKER && !(marked && listed.contains(n)))
                 .collect();
             foreign.sort();
+            if !foreign.is_empty() && !marked {
+                let shown: Vec<&str> = foreign.iter().take(5).map(String::as_str).collect();
+                bail!(
+                    "{option} {}: holds {} entr{} ({}{}) and no `{MARKER}` file, so `slam-app {command}` did not \
+                     write it: the folder is replaced as a whole, so choose a new or empty folder",
+                    dir.display(),
+                    foreign.len(),
+                    if foreign.len() == 1 { "y" } else { "ies" },
+                    shown.join(", "),
+                    if foreign.len() > 5 { ", …" } else { "" }
+                );
+            }
             if !foreign.is_empty() {
                 let shown: Vec<&str> = foreign.iter().take(5).map(String::as_str).collect();
                 bail!(
@@ -335,46 +349,48 @@ pub enum Written<'a> {
     Folder(&'a str, &'a Path),
 }
 
-/// Where a path leads: its canonical form when it exists (symbolic links, `.` and `..` resolved);
-/// otherwise the canonical form of its deepest existing ancestor with the rest of the path appended
-/// (`..` taken off there: those folders do not exist yet, so they are no links); a dangling symbolic
-/// link leads where it points.
+/// Where a path leads, resolved one component at a time from the start: symbolic links are followed
+/// (a dangling link leads where it points: writing it creates the target), `.` is dropped and `..` takes
+/// off the last component. Existing components are canonical, so taking one off is the real parent;
+/// components that do not exist yet are no links, so `..` after them is lexical. `DIR/nx/../f` with no
+/// `nx` is thus `DIR/f`, the file the system would write once `nx` is created.
 pub fn resolve(path: &Path) -> PathBuf {
-    resolve_within(path, 0)
+    let mut out = if path.is_absolute() {
+        PathBuf::new()
+    } else {
+        std::env::current_dir().ok().and_then(|d| std::fs::canonicalize(d).ok()).unwrap_or_default()
+    };
+    let mut links = 0;
+    follow(&mut out, path, &mut links);
+    out
 }
 
-fn resolve_within(path: &Path, depth: usize) -> PathBuf {
-    if let Ok(p) = std::fs::canonicalize(path) {
-        return p;
-    }
-    // a link to a path that does not exist yet: writing it creates the target
-    if let (true, Ok(to)) = (depth < 40, std::fs::read_link(path)) {
-        let base = path.parent().unwrap_or(Path::new("."));
-        return resolve_within(&base.join(to), depth + 1);
-    }
-    let mut rest = Vec::new();
-    let mut at = path.to_path_buf();
-    while let Some(name) = at.file_name().map(|n| n.to_os_string()) {
-        rest.push(name);
-        at.pop();
-        if at.as_os_str().is_empty() {
-            at = PathBuf::from(".");
-        }
-        if let Ok(base) = std::fs::canonicalize(&at) {
-            let mut out = base;
-            for n in rest.iter().rev() {
-                match n.to_str() {
-                    Some(".") => {}
-                    Some("..") => {
-                        out.pop();
+/// Append `path`'s components to the resolved `out` (see [`resolve`]); `links` counts the symbolic links
+/// followed, to stop at a loop (40, as Linux does).
+fn follow(out: &mut PathBuf, path: &Path, links: &mut usize) {
+    use std::path::Component;
+    for c in path.components() {
+        match c {
+            Component::Prefix(_) | Component::RootDir => *out = PathBuf::from(c.as_os_str()),
+            Component::CurDir => {}
+            Component::ParentDir => {
+                out.pop();
+            }
+            Component::Normal(n) => {
+                let next = out.join(n);
+                match std::fs::symlink_metadata(&next) {
+                    Ok(m) if m.file_type().is_symlink() && *links < 40 => {
+                        *links += 1;
+                        match std::fs::read_link(&next) {
+                            Ok(to) => follow(out, &to, links),
+                            Err(_) => *out = next,
+                        }
                     }
-                    _ => out.push(n),
+                    _ => *out = next,
                 }
             }
-            return out;
         }
     }
-    path.to_path_buf()
 }
 
 /// Whether two existing paths are one file (hard links included).
@@ -411,6 +427,17 @@ pub fn refuse_overwriting_inputs(inputs: &[(&str, &Path)], outputs: &[Written<'_
                 if let Some((what, p, _)) = resolved.iter().find(|(_, p, rp)| same(path, &r, p, rp)) {
                     bail!(
                         "{option} {}: is {what} {}, an input of this command: writing it would replace what is being read; choose another file",
+                        shown(path, &r),
+                        p.display()
+                    );
+                }
+                // a file already inside an input folder (a dataset's calib.txt next to its images) is
+                // the dataset's, even when this command does not read it
+                if let Some((what, p, _)) =
+                    resolved.iter().find(|(_, p, rp)| p.is_dir() && r.starts_with(rp) && r.exists())
+                {
+                    bail!(
+                        "{option} {}: is a file inside {what} {}, an input of this command: writing it would replace part of that folder; choose a file outside it",
                         shown(path, &r),
                         p.display()
                     );
@@ -507,10 +534,6 @@ mod tests {
         d
     }
 
-    fn ours(n: &str) -> bool {
-        n == "a.txt" || n == "b.txt"
-    }
-
     fn listing(d: &Path) -> Vec<String> {
         let mut v: Vec<String> = std::fs::read_dir(d)
             .expect("list")
@@ -525,14 +548,14 @@ mod tests {
     fn a_committed_folder_replaces_the_old_one_whole() {
         let root = scratch("commit");
         let dir = root.join("out");
-        let o = OutputDir::create(&dir, "--out", "test", ours).expect("new");
+        let o = OutputDir::create(&dir, "--out", "test").expect("new");
         std::fs::write(o.path().join("a.txt"), "1").expect("write");
         std::fs::write(o.path().join("b.txt"), "1").expect("write");
         assert!(!dir.exists(), "nothing in place before the commit");
         o.commit().expect("commit");
         assert_eq!(listing(&dir), [MARKER, "a.txt", "b.txt"]);
         // second run writes only a.txt: b.txt of the first run must not survive
-        let o = OutputDir::create(&dir, "--out", "test", ours).expect("again");
+        let o = OutputDir::create(&dir, "--out", "test").expect("again");
         std::fs::write(o.path().join("a.txt"), "2").expect("write");
         assert_eq!(std::fs::read_to_string(dir.join("a.txt")).expect("old"), "1", "old intact while writing");
         o.commit().expect("commit");
@@ -548,8 +571,9 @@ mod tests {
         let dir = root.join("out");
         std::fs::create_dir_all(&dir).expect("dir");
         std::fs::write(dir.join("a.txt"), "old").expect("write");
+        std::fs::write(dir.join(MARKER), "slam-app test\na.txt\n").expect("marker");
         {
-            let o = OutputDir::create(&dir, "--out", "test", ours).expect("create");
+            let o = OutputDir::create(&dir, "--out", "test").expect("create");
             std::fs::write(o.path().join("a.txt"), "new").expect("write");
         }
         assert_eq!(std::fs::read_to_string(dir.join("a.txt")).expect("old"), "old");
@@ -564,28 +588,31 @@ mod tests {
         std::fs::create_dir_all(&dir).expect("dir");
         std::fs::write(dir.join("a.txt"), "x").expect("write");
         std::fs::write(dir.join("thesis.tex"), "x").expect("write");
-        let e = OutputDir::create(&dir, "--out", "test", ours).err().expect("refused").to_string();
-        assert!(e.contains("thesis.tex") && e.contains("did not write") && !e.contains("a.txt"), "{e}");
+        let e = OutputDir::create(&dir, "--out", "test").err().expect("refused").to_string();
+        assert!(e.contains("thesis.tex") && e.contains("a.txt") && e.contains(MARKER), "{e}");
         assert_eq!(listing(&root), ["out"], "nothing created when refused");
-        // a marker lists what the earlier run wrote: other names are foreign even if `ours` accepts them
+        // without the marker, even a name the command writes is the user's (their own map.json)
         std::fs::remove_file(dir.join("thesis.tex")).expect("rm");
+        let e = OutputDir::create(&dir, "--out", "test").err().expect("refused").to_string();
+        assert!(e.contains("(a.txt)") && e.contains("did not write it"), "{e}");
+        // a marker lists what the earlier run wrote: other names are foreign
         std::fs::write(dir.join(MARKER), "slam-app test\nb.txt\n").expect("marker");
-        let e = OutputDir::create(&dir, "--out", "test", ours).err().expect("refused").to_string();
+        let e = OutputDir::create(&dir, "--out", "test").err().expect("refused").to_string();
         assert!(e.contains("(a.txt)"), "{e}");
         #[cfg(unix)]
         {
             let link = root.join("link");
             std::os::unix::fs::symlink(&dir, &link).expect("symlink");
-            let e = OutputDir::create(&link, "--out", "test", ours).err().expect("refused").to_string();
+            let e = OutputDir::create(&link, "--out", "test").err().expect("refused").to_string();
             assert!(e.contains("symbolic link"), "{e}");
             std::fs::remove_file(&link).expect("rm");
         }
         let file = root.join("file");
         std::fs::write(&file, "x").expect("write");
-        let e = OutputDir::create(&file, "--out", "test", ours).err().expect("refused").to_string();
+        let e = OutputDir::create(&file, "--out", "test").err().expect("refused").to_string();
         assert!(e.contains("is a file"), "{e}");
         for p in [".", "..", "/"] {
-            let e = OutputDir::create(Path::new(p), "--out", "test", ours).err().expect("refused").to_string();
+            let e = OutputDir::create(Path::new(p), "--out", "test").err().expect("refused").to_string();
             assert!(e.contains("name a folder of its own"), "{p}: {e}");
         }
         std::fs::remove_dir_all(&root).ok();
@@ -600,7 +627,8 @@ mod tests {
         std::fs::create_dir_all(root.join(".out.partial-999999999")).expect("tmp");
         std::fs::create_dir_all(root.join(".out.old-999999999")).expect("backup");
         std::fs::write(root.join(".out.old-999999999/a.txt"), "old").expect("write");
-        let o = OutputDir::create(&dir, "--out", "test", ours).expect("create");
+        std::fs::write(root.join(".out.old-999999999").join(MARKER), "slam-app test\na.txt\n").expect("marker");
+        let o = OutputDir::create(&dir, "--out", "test").expect("create");
         assert_eq!(std::fs::read_to_string(dir.join("a.txt")).expect("restored"), "old");
         drop(o);
         assert_eq!(listing(&root), ["out"]);
@@ -625,13 +653,24 @@ mod tests {
             std::os::unix::fs::symlink(&map, root.join("link.json")).expect("symlink");
             std::fs::hard_link(&map, root.join("hard.json")).expect("hard link");
         }
-        for out in [map.clone(), dotted, root.join("link.json"), root.join("hard.json")] {
+        // through a folder that does not exist yet (`nx/..` is `run` once `nx` is created)
+        let through_new = run.join("nx").join("..").join("map.json");
+        let deeper = run.join("nx").join("ny").join("..").join("..").join("map.json");
+        for out in [map.clone(), dotted, root.join("link.json"), root.join("hard.json"), through_new, deeper] {
             let e = refused(&out).unwrap_or_else(|| panic!("{} accepted", out.display()));
             assert!(e.contains("is the map") && e.contains("an input of this command"), "{e}");
         }
         // a link to a file not yet written that is an input? no: a new file beside the input is fine
         assert_eq!(refused(&run.join("points.ply")), None);
         assert_eq!(refused(&run.join("new/../points.ply")), None);
+        assert!(!run.join("nx").exists() && !run.join("new").exists(), "the check creates no folder");
+        let e = refuse_overwriting_inputs(
+            &[("the images", run.as_path())],
+            &[Written::Folder("--overlays", &run.join("nx/../../run"))],
+        )
+        .expect_err("is the input folder")
+        .to_string();
+        assert!(e.contains("holds the images"), "{e}");
         // a folder replaced as a whole must not hold an input, nor be one
         let e = refuse_overwriting_inputs(&inputs, &[Written::Folder("--out", &run)]).expect_err("holds").to_string();
         assert!(e.contains("--out") && e.contains("holds the map"), "{e}");
@@ -654,17 +693,17 @@ mod tests {
     fn a_file_written_later_into_a_marked_folder_joins_its_marker() {
         let root = scratch("marker");
         let dir = root.join("out");
-        let o = OutputDir::create(&dir, "--out", "test", ours).expect("new");
+        let o = OutputDir::create(&dir, "--out", "test").expect("new");
         std::fs::write(o.path().join("a.txt"), "1").expect("write");
         o.commit().expect("commit");
         std::fs::write(dir.join("b.txt"), "added later").expect("write");
         // b.txt is not in the marker: the folder is not ours to replace
-        assert!(OutputDir::create(&dir, "--out", "test", ours).is_err());
+        assert!(OutputDir::create(&dir, "--out", "test").is_err());
         record_in_marker(&dir, "b.txt").expect("record");
         record_in_marker(&dir, "b.txt").expect("twice is once");
         let marker = std::fs::read_to_string(dir.join(MARKER)).expect("marker");
         assert_eq!(marker, "slam-app test\na.txt\nb.txt\n");
-        drop(OutputDir::create(&dir, "--out", "test", ours).expect("ours again"));
+        drop(OutputDir::create(&dir, "--out", "test").expect("ours again"));
         std::fs::remove_dir_all(&root).ok();
     }
 

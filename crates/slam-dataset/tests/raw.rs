@@ -290,12 +290,13 @@ fn drive_0005_dead_reckoning_traces_the_velocities_path() {
 #[test]
 fn impossible_oxts_steps_name_the_packet() {
     // lat, lon, alt, roll, pitch, yaw, … pos_accuracy (value 23) 0.5 m
-    let packet = |lat: f64, yaw: f64| {
+    let packet_with = |lat: f64, yaw: f64, accuracy: f64| {
         let mut v = vec![0.0; 30];
-        (v[0], v[1], v[2], v[5], v[23]) = (49.0 + lat, 8.4, 110.0, yaw, 0.5);
+        (v[0], v[1], v[2], v[5], v[23]) = (49.0 + lat, 8.4, 110.0, yaw, accuracy);
         let line: Vec<String> = v.iter().map(|x| x.to_string()).collect();
         parse_oxts_packet(std::path::Path::new("p.txt"), &line.join(" ")).expect("packet")
     };
+    let packet = |lat: f64, yaw: f64| packet_with(lat, yaw, 0.5);
     let names: Vec<PathBuf> = (0..4).map(|i| PathBuf::from(format!("oxts/{i:010}.txt"))).collect();
     let named: Vec<&std::path::Path> = names.iter().map(PathBuf::as_path).collect();
     let times = [0.0, 0.1, 0.2, 0.3];
@@ -306,6 +307,10 @@ fn impossible_oxts_steps_name_the_packet() {
     jump[2] = packet(0.01 + 2e-5, 0.02);
     let e = check_oxts_steps(&jump, &times, &named).expect_err("jump").to_string();
     assert!(e.starts_with("oxts/0000000002.txt: the IMU moved 111") && e.contains("0000000001.txt"), "{e}");
+    // a fix claiming an accuracy of 1000 km opens the check no wider than a 20 m fix would
+    jump[2] = packet_with(0.01 + 2e-5, 0.02, 1e6);
+    let e = check_oxts_steps(&jump, &times, &named).expect_err("jump with a huge accuracy").to_string();
+    assert!(e.contains("the IMU moved 111") && e.contains("(20.50 m)"), "{e}");
     let mut spin = driving.clone();
     spin[3] = packet(3e-5, std::f64::consts::FRAC_PI_2);
     let e = check_oxts_steps(&spin, &times, &named).expect_err("spin").to_string();
@@ -315,4 +320,35 @@ fn impossible_oxts_steps_name_the_packet() {
         .join("../../fixtures/kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync");
     let seq = open_stereo(d5).expect("drive 0005");
     assert!(seq.ground_truth.is_some());
+}
+
+/// Frame times are read with their dates: a clock 13 h earlier on the same date is an error (it was read
+/// as a midnight crossing), a real crossing is 0.1 s, a year's jump or a `times.txt` line of 1e300 s is
+/// no recording's.
+#[test]
+fn frame_times_follow_the_date_and_stay_within_a_recording() {
+    use slam_dataset::kitti::{frames::read_frame_times, raw::parse_timestamps};
+    let p = std::path::Path::new("timestamps.txt");
+    let crossing = "2011-09-26 23:59:59.950000000\n2011-09-27 00:00:00.050000000\n";
+    let t = parse_timestamps(p, crossing).expect("a midnight crossing");
+    assert!((t[1] - 0.1).abs() < 1e-9, "{t:?}");
+    let leap_year = "2012-02-28 23:59:59.950000000\n2012-02-29 00:00:00.050000000\n2012-03-01 00:00:00.150000000\n";
+    let e = parse_timestamps(p, leap_year).expect_err("a day's jump").to_string();
+    assert!(e.contains("timestamps.txt:3:") && e.contains("at most 3600"), "{e}");
+    let back = "2011-09-26 13:02:25.9\n2011-09-26 00:02:26.0\n";
+    let e = parse_timestamps(p, back).expect_err("13 h back").to_string();
+    assert!(e.contains("timestamps.txt:2:") && e.contains("not after the line before"), "{e}");
+    let year = "2011-09-26 13:02:25.9\n2012-09-26 13:02:26.0\n";
+    assert!(parse_timestamps(p, year).expect_err("a year").to_string().contains("at most 3600"));
+    let e = parse_timestamps(p, "2011-02-30 13:02:25.9\n").expect_err("no such day").to_string();
+    assert!(e.contains("2011-02-30 is not a date"), "{e}");
+    let dir = std::env::temp_dir().join(format!("slam-times-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let f = dir.join("times.txt");
+    std::fs::write(&f, "0.0\n0.1\n1e300\n").expect("write");
+    let e = read_frame_times(&f).expect_err("1e300").to_string();
+    assert!(e.contains("times.txt:3:") && e.contains("at most 1e10 s"), "{e}");
+    std::fs::write(&f, "0.0\n0.1\n0.2\n").expect("write");
+    assert_eq!(read_frame_times(&f).expect("times").len(), 3);
+    std::fs::remove_dir_all(&dir).ok();
 }

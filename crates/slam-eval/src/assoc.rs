@@ -44,6 +44,13 @@ pub fn kitti_assoc_study(seqs: &[PathBuf], seed: u64, on_row: &mut dyn FnMut(Str
     for seq in seqs {
         let name = seq.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let labels = read_tracking_labels(seq.join("label_02.txt"))?;
+        // the poses, when given, say how many frames the sequence has (one per line)
+        let poses_path = seq.join("poses_orbslam3.txt");
+        if poses_path.exists() {
+            let n = slam_dataset::kitti::poses::read_kitti_poses(&poses_path)?.len();
+            let source = format!("the {n} poses of {} (line k is frame k)", poses_path.display());
+            slam_dataset::kitti::tracking::check_label_frames(&seq.join("label_02.txt"), &labels, n, &source)?;
+        }
         let (frames, n_frames, objects) =
             labelled_frames(labels.iter().map(|l| (l.frame, l.track_id, l.class, l.bbox)));
         let runs = label_study(&frames, n_frames, seed);

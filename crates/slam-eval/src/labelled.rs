@@ -16,7 +16,7 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use slam_core::{geometry::BBox, rng::SimRng, Detection};
 use slam_dataset::{
     classes,
-    kitti::{calib::Calib, poses::read_kitti_poses, tracking::read_tracking_labels, tracking::TrackingLabel},
+    kitti::{calib::Calib, tracking::read_tracking_labels, tracking::TrackingLabel},
 };
 use slam_pipeline::objects::{MappedObject, ObjectMapper};
 use slam_quadric::{metrics, Camera, Ellipsoid, ImageSize, Intrinsics};
@@ -45,7 +45,7 @@ impl LabelledSequence {
     pub fn load(labels: &Path, poses: &Path, calib: &Path) -> Result<Self, EvalError> {
         let (label_path, pose_path, calib_path) = (labels, poses, calib);
         let labels = read_tracking_labels(label_path)?;
-        let poses = read_kitti_poses(pose_path)?;
+        let poses = slam_dataset::kitti::poses::read_ground_truth_poses(pose_path)?;
         let calib = Calib::read(calib_path)?;
         let p2 = calib.matrix3x4("P2")?;
         let k = Intrinsics { fx: p2[(0, 0)], fy: p2[(1, 1)], skew: p2[(0, 1)], cx: p2[(0, 2)], cy: p2[(1, 2)] };
@@ -57,20 +57,13 @@ impl LabelledSequence {
                 k.fy
             )));
         }
+        check_tracking_calibration(calib_path, &calib, &p2)?;
         let kinv = p2.fixed_view::<3, 3>(0, 0).into_owned().try_inverse().ok_or_else(|| {
             EvalError::Invalid(format!("{}: the camera matrix of P2 is singular", calib_path.display()))
         })?;
         let t2 = kinv * p2.column(3).into_owned();
-        let frames = labels.iter().map(|l| l.frame + 1).max().unwrap_or(0);
-        if poses.len() < frames {
-            return Err(EvalError::Invalid(format!(
-                "{}: {} poses, but the labels of {} go up to frame {} (line k of the pose file is frame k)",
-                pose_path.display(),
-                poses.len(),
-                label_path.display(),
-                frames - 1
-            )));
-        }
+        let source = format!("the {} poses of {} (line k is frame k)", poses.len(), pose_path.display());
+        slam_dataset::kitti::tracking::check_label_frames(label_path, &labels, poses.len(), &source)?;
         Ok(Self { labels, poses, k, t2 })
     }
 
@@ -80,6 +73,28 @@ impl LabelledSequence {
         let [labels, poses, calib] = SEQUENCE_FILES.map(|f| dir.join(f));
         Self::load(&labels, &poses, &calib)
     }
+}
+
+/// Size of KITTI tracking's colour images (1242 × 375 px; a few sequences are a little smaller), which
+/// the image-free layout's calibration describes.
+pub const TRACKING_IMAGE_SIZE: (u32, u32) = (1242, 375);
+
+/// The rules the odometry layout's calibration is held to, on the image-free tracking layout's: P2 a
+/// rectified camera, with P3 a rectified pair, and the intrinsics and baseline plausible for KITTI's
+/// colour image ([`slam_dataset::check::calibration`]).
+fn check_tracking_calibration(path: &Path, calib: &Calib, p2: &nalgebra::Matrix3x4<f64>) -> Result<(), EvalError> {
+    use slam_dataset::kitti::calib::{rectified_camera, rectified_pair};
+    let invalid = |m: String| EvalError::Invalid(format!("{}: {m}", path.display()));
+    rectified_camera(p2, "P2").map_err(invalid)?;
+    let (intrinsics, baseline) = if calib.has("P3") {
+        rectified_pair(p2, &calib.matrix3x4("P3")?, ("P2", "P3")).map_err(invalid)?
+    } else {
+        // one camera: no baseline to check
+        ([p2[(0, 0)], p2[(1, 1)], p2[(0, 2)], p2[(1, 2)]], 0.5)
+    };
+    let image = Path::new("KITTI tracking's colour image");
+    slam_dataset::check::calibration(path, intrinsics, baseline, image, TRACKING_IMAGE_SIZE)
+        .map_err(|e| EvalError::Invalid(e.to_string()))
 }
 
 /// How label boxes are perturbed before they play the detector.

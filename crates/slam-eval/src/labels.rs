@@ -219,6 +219,7 @@ mod tests {
             dimensions: [1.5, 1.6, 4.0],
             location: [1.0, 1.7, 20.0],
             rotation_y,
+            line: 0,
         }
     }
 

@@ -682,6 +682,7 @@ mod tests {
             dimensions: [1.5, 1.6, 4.0],
             location: [p.x, p.y, p.z],
             rotation_y: -std::f64::consts::FRAC_PI_2,
+            line: 0,
         }
     }
 

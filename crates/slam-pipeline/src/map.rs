@@ -285,7 +285,12 @@ impl Map {
             format: String,
             version: u32,
         }
-        let fmt = |e: serde_json::Error| MapError::Format { path: path.to_path_buf(), message: e.to_string() };
+        // serde says where (line, column); the path of keys says what (`objects[0]: missing field ...`)
+        let fmt = |e: serde_json::Error| {
+            let at = slam_core::files::json_path_at(&text, e.line(), e.column());
+            let message = if at.is_empty() { e.to_string() } else { format!("{at}: {e}") };
+            MapError::Format { path: path.to_path_buf(), message }
+        };
         let header: Header = serde_json::from_str(&text).map_err(|e| {
             // an object map (objects.json) has "objects" but no "format": say which file to give
             let objects_only = serde_json::from_str::<serde_json::Value>(&text)

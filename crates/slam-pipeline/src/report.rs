@@ -3,10 +3,10 @@
 
 use crate::system::{FrameRecord, FrameTimes, RunOutput};
 
-/// Frames per second from the median interval between consecutive frames (start-up and the first frame
-/// excluded).
+/// Frames per second from the median interval between consecutive tracked frames (start-up and the
+/// first frame excluded; unreadable frames are not timed, their interval 0, and would make it infinite).
 pub fn median_fps(out: &RunOutput) -> f64 {
-    let mut v: Vec<f64> = out.frames.iter().skip(1).map(|f| f.times.interval).collect();
+    let mut v: Vec<f64> = out.frames.iter().filter(|f| f.state.is_some()).skip(1).map(|f| f.times.interval).collect();
     1000.0 / median(&mut v)
 }
 
@@ -218,6 +218,17 @@ mod tests {
         assert_eq!(names(StagesOn { objects: false, bundle_adjustment: true }), [&tracking[..], &[ba]].concat());
         assert_eq!(names(StagesOn { objects: false, bundle_adjustment: false }), tracking);
         assert_eq!(names(StagesOn { objects: true, bundle_adjustment: true }).len(), 8);
+        // every other frame unreadable (interval 0): the median is over the frames tracked
+        let alternating = RunOutput {
+            map: crate::map::Map::default(),
+            poses: Vec::new(),
+            objects: Vec::new(),
+            frames: (0..30)
+                .map(|i| if i % 2 == 0 { record(i, 80.0, false, tracked) } else { record(i, 0.0, false, None) })
+                .collect(),
+            counts: Default::default(),
+        };
+        assert!((median_fps(&alternating) - 12.5).abs() < 1e-12);
         let csv = tracking_csv(&out).expect("csv");
         assert_eq!(csv.lines().count(), 5);
         assert!(csv.lines().nth(4).expect("row").starts_with("3,unreadable,0,7,,"), "{csv}");

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use slam_dataset::kitti::{
     raw::RawCalib,
     stereo::{open_stereo, Layout},
-    velodyne::{project_into_left, read_scan, scan_path, ProjectedPoint},
+    velodyne::{project_into_left, read_scan, ProjectedPoint},
 };
 use slam_frontend::{read_image, stereo_vo::stereo_keypoints, StereoRig, VoConfig};
 use slam_quadric::Intrinsics;
@@ -330,10 +330,18 @@ pub fn depth_check(path: &Path, tracking: &VoConfig) -> Result<DepthReport> {
     let [fx, fy, cx, cy] = seq.intrinsics;
     let rig = StereoRig { k: Intrinsics::new(fx, fy, cx, cy), baseline: seq.baseline };
     let fx_b = fx * seq.baseline;
-    let header = format!("{}: fx {fx:.1} px, baseline {:.4} m", seq.dir.display(), seq.baseline);
+    let mut header = format!("{}: fx {fx:.1} px, baseline {:.4} m", seq.dir.display(), seq.baseline);
     let (mut frames, mut samples) = (Vec::new(), Vec::new());
+    // frames without a readable scan (none, or a scan that is no file: a link to /dev/zero) are
+    // skipped, each logged with the reason and counted in the header
+    let mut no_scan = Vec::new();
     for (i, &id) in seq.ids.iter().enumerate() {
-        let Some(scan) = scan_path(&seq.dir, id) else { continue };
+        let scan = seq.dir.join("velodyne_points").join("data").join(format!("{id:010}.bin"));
+        if let Err(e) = slam_core::files::regular_file(&scan) {
+            tracing::warn!(frame = id, "skipped: no Velodyne scan: {e}");
+            no_scan.push(id);
+            continue;
+        }
         let left = read_image(&seq.left[i], false).map_err(RunnerError::other)?;
         let right = read_image(&seq.right[i], false).map_err(RunnerError::other)?;
         let size = (left.width as f64, left.height as f64);
@@ -370,6 +378,13 @@ pub fn depth_check(path: &Path, tracking: &VoConfig) -> Result<DepthReport> {
             "{}: no frame has a Velodyne scan (velodyne_points/data/NNNNNNNNNN.bin)",
             seq.dir.display()
         )));
+    }
+    if let Some(first) = no_scan.first() {
+        header.push_str(&format!(
+            "; {} of {} frames skipped without a readable Velodyne scan (first: frame {first}; reasons in the log)",
+            no_scan.len(),
+            seq.ids.len()
+        ));
     }
     Ok(DepthReport { header, frames, samples, fx_b })
 }

@@ -32,8 +32,9 @@ pub struct DetectPlan {
 impl DetectPlan {
     /// The images of `input` (any KITTI layout or a folder of images) numbered by the numbers in their
     /// file names (by position in name order when those are not distinct numbers), and the outputs
-    /// `out` and `overlays` checked writable.
-    pub fn new(input: &Path, out: &Path, overlays: Option<&Path>) -> Result<Self> {
+    /// `out` and `overlays` checked writable; `models` are the model files the detector will read
+    /// (`--cfg`, `--weights`, `--onnx`), which no output may replace either.
+    pub fn new(input: &Path, out: &Path, overlays: Option<&Path>, models: &[(&str, &Path)]) -> Result<Self> {
         let images = slam_dataset::folders::list_images(input)?;
         let (ids, note) = match slam_dataset::folders::frame_ids(&images) {
             Some(ids) => (ids, None),
@@ -48,13 +49,12 @@ impl DetectPlan {
         // nothing it reads may be written over: an image, the input folder (inside an overlay folder)
         let mut inputs: Vec<(&str, &Path)> = vec![("the input folder", input)];
         inputs.extend(images.iter().map(|p| ("an input image", p.as_path())));
+        inputs.extend(models.iter().copied());
         let mut outputs = vec![Written::File("--out", out)];
         outputs.extend(overlays.map(|o| Written::Folder("--overlays", o)));
         refuse_overwriting_inputs(&inputs, &outputs)?;
         let json = AtomicFile::new(out)?;
-        let overlays = overlays
-            .map(|o| OutputDir::create(o, "--overlays", "detect", |name| name.ends_with(".png")))
-            .transpose()?;
+        let overlays = overlays.map(|o| OutputDir::create(o, "--overlays", "detect")).transpose()?;
         Ok(Self { frames: ids.into_iter().zip(images).collect(), note, json, shown: out.to_path_buf(), overlays })
     }
 

@@ -22,6 +22,10 @@ pub fn trajectory_eval(
 ) -> Result<String> {
     let (est, est_note) = PoseFile::read_noting(estimate)?;
     let (all, truth_note) = PoseFile::read_noting(truth)?;
+    // ground truth moves as a vehicle does: a step beyond its speed is a corrupt line, not a figure
+    if let PoseFile::Kitti(p) = &all {
+        slam_dataset::kitti::poses::check_pose_steps(truth, p).map_err(RunnerError::other)?;
+    }
     // the ground truth's line k is frame id k: a run of a subset (`run --frames --stride`) is compared
     // with the same subset
     let whole = *selection == slam_dataset::kitti::stereo::FrameSelection::default();
@@ -52,6 +56,19 @@ pub fn trajectory_eval(
         all.subset(&keep)
     };
     let mut lines: Vec<String> = est_note.into_iter().chain(truth_note).collect();
+    // a TUM estimate carries times, a KITTI ground truth frame ids: give the ground truth its frames'
+    // times and match by time (pairing by line ignores frames a run skipped or strode over)
+    let gt = match (&est, gt) {
+        (PoseFile::Tum(..), PoseFile::Kitti(poses)) => {
+            let (times, source) = ground_truth_times(truth, &frame_ids)?;
+            lines.push(format!(
+                "ground truth {}: line k is frame id k, at {source}; matched to the TUM estimate by time",
+                truth.display()
+            ));
+            PoseFile::Tum(times, poses)
+        }
+        (_, gt) => gt,
+    };
     if !whole {
         lines.push(format!(
             "ground truth {}: {} only (its line k is frame id k)",
@@ -75,9 +92,26 @@ pub fn trajectory_eval(
             if ne > ng { "estimate" } else { "ground truth" }
         ));
     }
-    let e = c
-        .errors
-        .ok_or_else(|| RunnerError::Invalid(format!("fewer than two matched poses ({} matched)", c.pairs.len())))?;
+    let span = |f: &PoseFile, path: &Path| match f {
+        PoseFile::Tum(t, _) if !t.is_empty() => {
+            format!("{} spans times {} to {} s", path.display(), t[0], t[t.len() - 1])
+        }
+        _ => format!("{} holds {} poses", path.display(), f.poses().len()),
+    };
+    let e = c.errors.ok_or_else(|| {
+        RunnerError::Invalid(format!(
+            "fewer than two matched poses ({} matched {}): {}, {}{}",
+            c.pairs.len(),
+            c.how,
+            span(&est, estimate),
+            span(&gt, truth),
+            if matches!((&est, &gt), (PoseFile::Tum(..), PoseFile::Tum(..))) {
+                " (times in other units, e.g. nanoseconds against seconds, or of other clocks do not match)"
+            } else {
+                ""
+            }
+        ))
+    })?;
     lines.push("| metric | value |\n|---|---:|".into());
     lines.push(format!("| poses compared | {} |\n| path (ground truth) | {:.1} m |", e.frames, e.path_m));
     lines.push(format!(
@@ -111,6 +145,30 @@ pub fn trajectory_eval(
     };
     lines.extend(crate::report::interpolation_lines(&matched(est.poses(), true), &matched(gt.poses(), false), names));
     Ok(lines.join("\n"))
+}
+
+/// Times of the ground-truth frames `ids` of a KITTI pose file `truth`: the odometry layout's
+/// `sequences/NN/times.txt` beside `poses/NN.txt` when there is one, else KITTI's nominal 0.1 s per
+/// frame id; with a description of the source.
+fn ground_truth_times(truth: &Path, ids: &[usize]) -> Result<(Vec<f64>, String)> {
+    let times_file = truth
+        .parent()
+        .and_then(Path::parent)
+        .zip(truth.file_stem())
+        .map(|(root, stem)| root.join("sequences").join(stem).join("times.txt"))
+        .filter(|p| p.is_file());
+    match times_file {
+        Some(p) => {
+            let all = slam_dataset::kitti::frames::read_frame_times(&p).map_err(RunnerError::other)?;
+            let times =
+                slam_dataset::kitti::frames::values_of_ids(&all, ids, &p, "times").map_err(RunnerError::other)?;
+            Ok((times, format!("the times of {}", p.display())))
+        }
+        None => Ok((
+            slam_dataset::kitti::frames::nominal_times(ids),
+            "KITTI's nominal 0.1 s per frame id (no sequences/NN/times.txt beside it)".into(),
+        )),
+    }
 }
 
 /// A saved map's description: format, counts, and one line per object.

@@ -26,24 +26,6 @@ use crate::{
     run::{played_ids, Outcome},
 };
 
-/// The entries a run writes into its output folder (a folder written before the marker file existed may
-/// be replaced when it holds only these).
-pub fn run_output_name(name: &str) -> bool {
-    matches!(
-        name,
-        "trajectory.kitti.txt"
-            | "trajectory.tum.txt"
-            | "map.json"
-            | "objects.json"
-            | "map.svg"
-            | "map.png"
-            | "overlays"
-            | "camera.json"
-            | "objects_score.json"
-            | "tracking.csv"
-    ) || name.ends_with(".tmp")
-}
-
 /// Overlay images to draw: every `every`-th frame, as `format` (`png` or `jpg`).
 #[derive(Debug, Clone)]
 pub struct OverlayChoice {
@@ -82,7 +64,7 @@ impl Outcome {
                 c.frames as f64 / self.elapsed,
                 match median_fps(out) {
                     f if f.is_finite() => format!("{f:.1} frames/s median"),
-                    _ => "no median frames/s (it needs two frames)".to_string(),
+                    _ => "no median frames/s (it needs two tracked frames)".to_string(),
                 }
             ),
             format!(
@@ -440,19 +422,4 @@ pub fn oxts_path_line(p: &OxtsPath) -> String {
         p.velocities_m,
         p.position_excess_pct()
     )
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn run_output_names_are_the_files_a_run_writes() {
-        for name in ["trajectory.kitti.txt", "map.json", "overlays", "tracking.csv", "objects_score.json", "x.tmp"] {
-            assert!(run_output_name(name), "{name}");
-        }
-        for name in ["notes.txt", "map.json.bak", "images"] {
-            assert!(!run_output_name(name), "{name}");
-        }
-    }
 }

@@ -71,7 +71,9 @@ pub struct StereoReport {
 }
 
 /// The checked sequence and the frames (positions) that can be read.
-fn open_checked(c: &StereoCheck) -> Result<(StereoSequence, StereoRig, Vec<usize>, usize)> {
+/// The sequence, its rig, the positions of the frames to use (readable, not repeating an earlier frame's
+/// images), the frames looked at, and how many of them repeated an earlier frame.
+fn open_checked(c: &StereoCheck) -> Result<(StereoSequence, StereoRig, Vec<usize>, usize, usize)> {
     let seq = open_stereo(&c.path)?;
     let (l0, r0) = first_pair(&seq.left, &seq.right)?;
     let size = stereo_pair(l0, r0)?;
@@ -84,16 +86,33 @@ fn open_checked(c: &StereoCheck) -> Result<(StereoSequence, StereoRig, Vec<usize
         tracing::warn!("{w}");
     }
     let colour = seq.layout != Layout::Odometry;
+    // a frame whose two images repeat an earlier frame's is no new evidence: the offset's interval comes
+    // from the spread over frame pairs, and copies of one view would make it zero (14 copies of one
+    // frame gave ± 0.000 px)
+    let mut seen = std::collections::HashSet::new();
+    let mut repeats = 0usize;
     let readable: Vec<usize> = (0..n)
         .filter(|&i| match read_pair(&seq, i, colour) {
-            Ok(_) => true,
+            Ok((l, r)) => {
+                use std::hash::{Hash, Hasher};
+                let mut h = std::collections::hash_map::DefaultHasher::new();
+                (l.width, l.height, &l.data, &r.data).hash(&mut h);
+                let new = seen.insert(h.finish());
+                repeats += usize::from(!new);
+                new
+            }
             Err(e) => {
                 tracing::warn!(frame = seq.ids[i], "skipped: {e}");
                 false
             }
         })
         .collect();
-    Ok((seq, rig, readable, n))
+    if repeats > 0 {
+        tracing::warn!(
+            "{repeats} of {n} frames repeat an earlier frame's images exactly: skipped (a copy is no independent evidence)"
+        );
+    }
+    Ok((seq, rig, readable, n, repeats))
 }
 
 fn read_pair(
@@ -124,11 +143,12 @@ pub fn stereo_check(
     on_round: &mut dyn FnMut(&Round),
 ) -> Result<StereoReport> {
     c.validate()?;
-    let (seq, rig, readable, n) = open_checked(c)?;
+    let (seq, rig, readable, n, repeats) = open_checked(c)?;
     let header = format!(
-        "{}: {n} frames ({} unreadable), fx {:.1} px, baseline {:.4} m",
+        "{}: {n} frames ({} unreadable{}), fx {:.1} px, baseline {:.4} m",
         seq.dir.display(),
-        n - readable.len(),
+        n - readable.len() - repeats,
+        if repeats > 0 { format!(", {repeats} repeating an earlier frame's images") } else { String::new() },
         rig.k.fx,
         seq.baseline
     );

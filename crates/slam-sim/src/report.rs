@@ -98,14 +98,6 @@ pub fn tables(cells: &[CellStats], config: &SweepConfig) -> String {
     text + &breakdown_table(cells, config)
 }
 
-/// Entries the study writes into its output folder (`simulation.csv`, the `sim_*` plots, temporary
-/// files): a folder holding only these may be replaced.
-pub fn is_output_name(name: &str) -> bool {
-    name == "simulation.csv"
-        || (name.starts_with("sim_") && (name.ends_with(".svg") || name.ends_with(".png")))
-        || name.ends_with(".tmp")
-}
-
 /// The cells the targets name for Tri+Yaw+refine (docs/simulation.md): geometry, noise kind, level (%).
 pub const TARGET_CELLS: [(Geometry, NoiseKind, f64); 4] = [
     (Geometry::Arc, NoiseKind::Box, 6.0),

@@ -23,6 +23,33 @@ pub const RECTIFIED_TOLERANCE_PX: f64 = 0.01;
 /// calibration, has 0.5 % (2.7 mm over 0.53 m); its grey pairs have none.
 pub const RECTIFIED_OFFSET_SHARE: f64 = 0.01;
 
+/// Check one projection matrix `p` (named `key`) is a rectified camera's: `[fx 0 cx tx; 0 fy cy ty;
+/// 0 0 1 tz]` with positive focal lengths (the intrinsics against the image: [`crate::check::calibration`]).
+/// The error states the rule broken.
+pub fn rectified_camera(p: &Matrix3x4<f64>, key: &str) -> Result<(), String> {
+    let tol = RECTIFIED_TOLERANCE_PX;
+    let (fx, fy) = (p[(0, 0)], p[(1, 1)]);
+    if !(fx > 0.0 && fy > 0.0) {
+        return Err(format!(
+            "{key} has focal lengths fx {fx}, fy {fy}: a camera's focal lengths are positive (a negative one mirrors the image)"
+        ));
+    }
+    if p[(0, 1)].abs() > tol || p[(1, 0)].abs() > tol {
+        return Err(format!(
+            "{key} has skew {:e} (row 1, column 2) and {:e} (row 2, column 1): a rectified camera has none (at most {tol} px)",
+            p[(0, 1)],
+            p[(1, 0)]
+        ));
+    }
+    let third = [p[(2, 0)], p[(2, 1)], p[(2, 2)]];
+    if third[0].abs() > 1e-6 || third[1].abs() > 1e-6 || (third[2] - 1.0).abs() > 1e-6 {
+        return Err(format!(
+            "{key}'s third row starts {third:?}: a rectified camera's is [0, 0, 1] (the depth along its optical axis)"
+        ));
+    }
+    Ok(())
+}
+
 /// The intrinsics `[fx, fy, cx, cy]` and baseline (metres) of a rectified stereo pair from its two
 /// projection matrices (`keys` name them in messages), after checking that they are one: each of the
 /// form `[fx 0 cx tx; 0 fy cy ty; 0 0 1 tz]` with positive focal lengths, equal intrinsics, and the
@@ -34,27 +61,8 @@ pub fn rectified_pair(
     (lk, rk): (&str, &str),
 ) -> Result<([f64; 4], f64), String> {
     let tol = RECTIFIED_TOLERANCE_PX;
-    for (p, key) in [(left, lk), (right, rk)] {
-        let (fx, fy) = (p[(0, 0)], p[(1, 1)]);
-        if !(fx > 0.0 && fy > 0.0) {
-            return Err(format!(
-                "{key} has focal lengths fx {fx}, fy {fy}: a camera's focal lengths are positive (a negative one mirrors the image)"
-            ));
-        }
-        if p[(0, 1)].abs() > tol || p[(1, 0)].abs() > tol {
-            return Err(format!(
-                "{key} has skew {:e} (row 1, column 2) and {:e} (row 2, column 1): a rectified camera has none (at most {tol} px)",
-                p[(0, 1)],
-                p[(1, 0)]
-            ));
-        }
-        let third = [p[(2, 0)], p[(2, 1)], p[(2, 2)]];
-        if third[0].abs() > 1e-6 || third[1].abs() > 1e-6 || (third[2] - 1.0).abs() > 1e-6 {
-            return Err(format!(
-                "{key}'s third row starts {third:?}: a rectified camera's is [0, 0, 1] (the depth along its optical axis)"
-            ));
-        }
-    }
+    rectified_camera(left, lk)?;
+    rectified_camera(right, rk)?;
     let k = |p: &Matrix3x4<f64>| [p[(0, 0)], p[(1, 1)], p[(0, 2)], p[(1, 2)]];
     let (kl, kr) = (k(left), k(right));
     for (i, name) in ["fx", "fy", "cx", "cy"].iter().enumerate() {
@@ -123,6 +131,16 @@ impl Calib {
                     path: path.to_path_buf(),
                     line: i + 1,
                     message: format!("key '{key}' has no values"),
+                });
+            }
+            // text entries (a raw calibration's date) stay text; a number must be finite, used or not
+            if let Some(v) = values.iter().find(|v| v.parse::<f64>().is_ok_and(|x| !x.is_finite())) {
+                return Err(DatasetError::Parse {
+                    path: path.to_path_buf(),
+                    line: i + 1,
+                    message: format!(
+                        "key '{key}' holds {v}, a non-finite number: every number of a calibration is finite"
+                    ),
                 });
             }
             if let Some((first, _)) = entries.insert(key.clone(), (i + 1, values)) {

@@ -176,7 +176,8 @@ pub fn values_of_ids<T: Clone>(all: &[T], ids: &[usize], path: &Path, what: &str
                 "{} {what} but the images go up to frame {last}: line k of this file is frame k, so it needs at \
                  least {} lines",
                 all.len(),
-                last + 1
+                // the largest id has no usize after it
+                last as u128 + 1
             ),
         }),
         _ => Ok(ids.iter().map(|&i| all[i].clone()).collect()),
@@ -195,8 +196,57 @@ pub(crate) fn too_close(dt: f64) -> String {
     )
 }
 
+/// Longest time between two consecutive frames of one recording, seconds: a camera that stopped for
+/// more than an hour made two recordings, and a time file saying so holds another clock's times or a
+/// corrupt line (`1e300`; a date a year on).
+pub const MAX_FRAME_GAP_S: f64 = 3600.0;
+
+/// Largest time a `times.txt` line may hold, seconds: 1e10 s is 317 years, past any clock a recording
+/// counts from (a Unix time is 1.8e9 s now; KITTI's count from the sequence's start).
+pub const MAX_FRAME_TIME_S: f64 = 1e10;
+
+/// Why frame time `now` (seconds) cannot follow `before` on the line before in a time file: not after
+/// it, closer than [`MIN_FRAME_INTERVAL_S`], or further than [`MAX_FRAME_GAP_S`]; `None` when it can.
+pub(crate) fn next_time_error(before: f64, now: f64) -> Option<String> {
+    if now <= before {
+        Some(format!("time {now} s is not after the line before ({before} s): frames are in time order"))
+    } else if now - before < MIN_FRAME_INTERVAL_S {
+        Some(too_close(now - before))
+    } else if now - before > MAX_FRAME_GAP_S {
+        Some(format!(
+            "{:.3e} s after the line before: consecutive frames of one recording are at most {MAX_FRAME_GAP_S} s (an hour) apart",
+            now - before
+        ))
+    } else {
+        None
+    }
+}
+
+/// Read a KITTI odometry `times.txt` (one time in seconds per line, line k being frame k), each line
+/// checked: finite, at most [`MAX_FRAME_TIME_S`], after the line before by [`next_time_error`]'s rules.
+pub fn read_frame_times(path: &Path) -> Result<Vec<f64>, DatasetError> {
+    let text = crate::read_text(path, &slam_core::files::TABLE)?;
+    let mut t: Vec<f64> = Vec::new();
+    for (n, l) in crate::frame_lines(path, &text)? {
+        let err = |message: String| DatasetError::Parse { path: path.to_path_buf(), line: n, message };
+        let v = crate::parse_numbers(path, n, &[l.trim()])?;
+        for &now in &v {
+            if now.abs() > MAX_FRAME_TIME_S {
+                return Err(err(format!(
+                    "time {now:e} s: a frame time is at most {MAX_FRAME_TIME_S:e} s (317 years) from its clock's origin"
+                )));
+            }
+            if let Some(m) = t.last().and_then(|&before| next_time_error(before, now)) {
+                return Err(err(m));
+            }
+            t.push(now);
+        }
+    }
+    Ok(t)
+}
+
 /// Frame times of a sequence without a time file: KITTI's nominal 10 Hz, by frame id.
-pub(crate) fn nominal_times(ids: &[usize]) -> Vec<f64> {
+pub fn nominal_times(ids: &[usize]) -> Vec<f64> {
     ids.iter().map(|&i| 0.1 * i as f64).collect()
 }
 
@@ -238,6 +288,13 @@ mod tests {
         for i in ids {
             std::fs::write(dir.join(format!("{i:06}.png")), b"").expect("file");
         }
+    }
+
+    #[test]
+    fn a_per_frame_file_shorter_than_the_largest_id_says_how_many_lines_without_overflow() {
+        let e = values_of_ids(&[1.0, 2.0], &[0, usize::MAX], Path::new("t.txt"), "times").expect_err("short");
+        assert!(e.to_string().contains("at least 18446744073709551616 lines"), "{e}");
+        assert_eq!(values_of_ids(&[1.0, 2.0], &[1], Path::new("t.txt"), "times").expect("fits"), [2.0]);
     }
 
     #[test]

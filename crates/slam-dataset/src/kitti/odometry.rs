@@ -8,13 +8,10 @@ use nalgebra::{Isometry3, Matrix3x4};
 use crate::{
     kitti::{
         calib::Calib,
-        frames::{
-            no_truth, nominal_times, nominal_times_note, pair_frames, too_close, values_of_ids, IdRuns,
-            MIN_FRAME_INTERVAL_S,
-        },
-        poses::read_kitti_poses,
+        frames::{no_truth, nominal_times, nominal_times_note, pair_frames, read_frame_times, values_of_ids, IdRuns},
+        poses::read_ground_truth_poses,
     },
-    read_text, DatasetError,
+    DatasetError,
 };
 
 /// A sequence on disk (images are listed, not decoded).
@@ -65,30 +62,7 @@ impl OdometrySequence {
         let mut warnings = pairs.warnings;
         let times_path = dir.join("times.txt");
         let times = if times_path.exists() {
-            let text = read_text(&times_path, &slam_core::files::TABLE)?;
-            let mut t: Vec<f64> = Vec::new();
-            for (n, l) in crate::frame_lines(&times_path, &text)? {
-                let v = crate::parse_numbers(&times_path, n, &[l.trim()])?;
-                if let (Some(&now), Some(&before)) = (v.first(), t.last()) {
-                    if now <= before {
-                        return Err(DatasetError::Parse {
-                            path: times_path.clone(),
-                            line: n,
-                            message: format!(
-                                "time {now} s is not after the line before ({before} s): frames are in time order"
-                            ),
-                        });
-                    }
-                    if now - before < MIN_FRAME_INTERVAL_S {
-                        return Err(DatasetError::Parse {
-                            path: times_path.clone(),
-                            line: n,
-                            message: too_close(now - before),
-                        });
-                    }
-                }
-                t.extend(v);
-            }
+            let t = read_frame_times(&times_path)?;
             values_of_ids(&t, &pairs.ids, &times_path, "times")?
         } else {
             warnings.push(nominal_times_note(&times_path));
@@ -100,7 +74,7 @@ impl OdometrySequence {
             .zip(dir.file_name())
             .map(|(root, name)| root.join("poses").join(format!("{}.txt", name.to_string_lossy())));
         let ground_truth = match gt_path {
-            Some(p) if p.exists() => match values_of_ids(&read_kitti_poses(&p)?, &pairs.ids, &p, "poses") {
+            Some(p) if p.exists() => match values_of_ids(&read_ground_truth_poses(&p)?, &pairs.ids, &p, "poses") {
                 Ok(g) => Some(g),
                 Err(e) => {
                     warnings.push(no_truth(e));

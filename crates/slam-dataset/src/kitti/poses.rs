@@ -41,11 +41,16 @@ pub fn parse_kitti_poses(path: &Path, text: &str) -> Result<Vec<Isometry3<f64>>,
         let v = parse_exact(path, i + 1, &fields, 12)?;
         let r = Matrix3::new(v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10]);
         let err = (r.transpose() * r - Matrix3::identity()).norm();
-        if err > 1e-3 || r.determinant() < 0.0 {
+        let det = r.determinant();
+        if err > 1e-3 || det < 0.0 {
             return Err(DatasetError::Parse {
                 path: path.to_path_buf(),
                 line: i + 1,
-                message: format!("rotation part is not a rotation (‖RᵀR − I‖ = {err:.2e})"),
+                message: format!(
+                    "rotation part is not a rotation (‖RᵀR − I‖ = {err:.2e}, det = {det:.3}{}): a rotation has \
+                     orthonormal rows and det = +1",
+                    if err <= 1e-3 { ": a reflection" } else { "" }
+                ),
             });
         }
         let t = Vector3::new(v[3], v[7], v[11]);
@@ -56,6 +61,40 @@ pub fn parse_kitti_poses(path: &Path, text: &str) -> Result<Vec<Isometry3<f64>>,
     if poses.is_empty() {
         return Err(DatasetError::Invalid { path: path.to_path_buf(), message: "no poses".into() });
     }
+    Ok(poses)
+}
+
+/// Nominal time between two lines of a KITTI pose file, seconds: its line k is frame k, and KITTI
+/// records ten frames a second.
+pub const NOMINAL_FRAME_PERIOD_S: f64 = 0.1;
+
+/// Refuse a ground-truth pose file (`poses/NN.txt`, `poses_orbslam3.txt`) with a step no vehicle makes:
+/// a camera more than [`crate::kitti::raw::MAX_VEHICLE_SPEED_MPS`] × [`NOMINAL_FRAME_PERIOD_S`] (10 m)
+/// from the line before; the error names the line. The OXTS packets are held to the same speed.
+pub fn check_pose_steps(path: &Path, poses: &[Isometry3<f64>]) -> Result<(), DatasetError> {
+    let reach = crate::kitti::raw::MAX_VEHICLE_SPEED_MPS * NOMINAL_FRAME_PERIOD_S;
+    for (k, w) in poses.windows(2).enumerate() {
+        let step = (w[1].translation.vector - w[0].translation.vector).norm();
+        if step > reach {
+            return Err(DatasetError::Parse {
+                path: path.to_path_buf(),
+                line: k + 2,
+                message: format!(
+                    "the camera moved {step:.1} m from the line before: ground truth at ten frames a second moves at most \
+                     {reach} m a frame (a vehicle at {} m/s)",
+                    crate::kitti::raw::MAX_VEHICLE_SPEED_MPS
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// [`read_kitti_poses`] of a ground-truth file, its steps checked ([`check_pose_steps`]).
+pub fn read_ground_truth_poses(path: impl AsRef<Path>) -> Result<Vec<Isometry3<f64>>, DatasetError> {
+    let path = path.as_ref();
+    let poses = read_kitti_poses(path)?;
+    check_pose_steps(path, &poses)?;
     Ok(poses)
 }
 

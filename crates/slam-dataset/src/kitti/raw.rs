@@ -106,9 +106,17 @@ pub const MAX_VEHICLE_TURN_RADPS: f64 = std::f64::consts::TAU;
 /// compared.
 const POSITION_ACCURACY_SIGMAS: f64 = 5.0;
 
+/// Most `pos_accuracy` a fix counts with, metres. A stand-alone civilian GPS fix is within about 9 m
+/// horizontally 95 % of the time (the GPS Standard Positioning Service performance standard, 2008), so
+/// a receiver claiming worse than 20 m has no real fix; without this cap one packet's claim (10^6 m)
+/// would open the jump check to any distance (a 1.1 km jump passed). With it the reach is at most
+/// 5 × 2 × 20 = 200 m beyond the vehicle's own travel.
+pub const MAX_FIX_ACCURACY_M: f64 = 20.0;
+
 /// Packets whose step from the packet before no vehicle makes: their positions (Mercator, as
 /// [`oxts_poses`]) further apart than [`MAX_VEHICLE_SPEED_MPS`] over the time between their frames
-/// plus [`POSITION_ACCURACY_SIGMAS`] times both fixes' `pos_accuracy`, or their orientations turned
+/// plus [`POSITION_ACCURACY_SIGMAS`] times both fixes' `pos_accuracy` (each at most
+/// [`MAX_FIX_ACCURACY_M`]), or their orientations turned
 /// faster than [`MAX_VEHICLE_TURN_RADPS`]. `names` name the packets in the error (their files).
 pub fn check_oxts_steps(packets: &[OxtsPacket], times: &[f64], names: &[&Path]) -> Result<(), DatasetError> {
     let poses = oxts_poses(packets);
@@ -116,7 +124,9 @@ pub fn check_oxts_steps(packets: &[OxtsPacket], times: &[f64], names: &[&Path]) 
         let dt = times[k] - times[k - 1];
         let (a, b) = (&poses[k - 1], &poses[k]);
         let step = (b.translation.vector - a.translation.vector).norm();
-        let accuracy = packets[k - 1].values[OXTS_POS_ACCURACY].abs() + packets[k].values[OXTS_POS_ACCURACY].abs();
+        // NaN accuracy counts as none: `min` keeps the cap
+        let fix = |p: &OxtsPacket| p.values[OXTS_POS_ACCURACY].abs().min(MAX_FIX_ACCURACY_M);
+        let accuracy = fix(&packets[k - 1]) + fix(&packets[k]);
         let reach = MAX_VEHICLE_SPEED_MPS * dt + POSITION_ACCURACY_SIGMAS * accuracy;
         let turn = a.rotation.angle_to(&b.rotation);
         // a non-finite step or turn is no vehicle's either
@@ -225,7 +235,7 @@ pub fn camera_poses_from_imu(imu: Vec<Isometry3<f64>>, calib: &RawCalib) -> Vec<
 }
 
 /// Read a KITTI `timestamps.txt` (`YYYY-MM-DD HH:MM:SS.fffffffff` per line) as seconds since the first
-/// line (midnight crossings are handled; dates are otherwise ignored).
+/// line, dates included (a clock earlier on the same date is an error, not a midnight crossing).
 pub fn read_timestamps(path: impl AsRef<Path>) -> Result<Vec<f64>, DatasetError> {
     let path = path.as_ref();
     let text = read_text(path, &slam_core::files::TABLE)?;
@@ -235,11 +245,14 @@ pub fn read_timestamps(path: impl AsRef<Path>) -> Result<Vec<f64>, DatasetError>
 /// Parse the contents of such a file; `path` only names it in error messages.
 pub fn parse_timestamps(path: &Path, text: &str) -> Result<Vec<f64>, DatasetError> {
     let mut out = Vec::new();
-    let mut day_offset = 0.0;
+    let mut first_day: Option<i64> = None;
     let mut last = f64::NEG_INFINITY;
     for (n, line) in crate::frame_lines(path, text)? {
         let err = |m: &str| DatasetError::Parse { path: path.to_path_buf(), line: n, message: m.into() };
-        let time = line.split_whitespace().nth(1).ok_or_else(|| err("expected 'date time'"))?;
+        let mut fields = line.split_whitespace();
+        let date = fields.next().unwrap_or_default();
+        let time = fields.next().ok_or_else(|| err("expected 'date time'"))?;
+        let day = civil_day(date).ok_or_else(|| err(&format!("{date} is not a date (YYYY-MM-DD)")))?;
         let parts: Vec<&str> = time.split(':').collect();
         if parts.len() != 3 {
             return Err(err("time must be HH:MM:SS.fraction"));
@@ -254,20 +267,16 @@ pub fn parse_timestamps(path: &Path, text: &str) -> Result<Vec<f64>, DatasetErro
         if !((0.0..24.0).contains(&h) && (0.0..60.0).contains(&m) && (0.0..61.0).contains(&s)) {
             return Err(err(&format!("{time} is not a time of day (HH 0-23, MM 0-59, SS below 61)")));
         }
-        let mut t = h * 3600.0 + m * 60.0 + s + day_offset;
-        // past midnight the clock starts again: a drop of more than half a day is the next day
-        if t < last - 43_200.0 {
-            day_offset += 86_400.0;
-            t += 86_400.0;
-        }
+        // seconds from the first line's day: the date says when the clock passed midnight
+        let t = (day - *first_day.get_or_insert(day)) as f64 * 86_400.0 + h * 3600.0 + m * 60.0 + s;
         if t <= last {
             return Err(err(&format!(
-                "time {time} is not after the line before ({:.3} s earlier or the same): frames are in time order",
+                "{date} {time} is not after the line before ({:.3} s earlier or the same): frames are in time order",
                 last - t
             )));
         }
-        if t - last < crate::kitti::frames::MIN_FRAME_INTERVAL_S {
-            return Err(err(&crate::kitti::frames::too_close(t - last)));
+        if let Some(m) = crate::kitti::frames::next_time_error(last, t).filter(|_| last.is_finite()) {
+            return Err(err(&m));
         }
         last = t;
         out.push(t);
@@ -278,6 +287,27 @@ pub fn parse_timestamps(path: &Path, text: &str) -> Result<Vec<f64>, DatasetErro
         }
     }
     Ok(out)
+}
+
+/// Days from 1970-01-01 of a `YYYY-MM-DD` date of the Gregorian calendar (`None` if it is none).
+fn civil_day(date: &str) -> Option<i64> {
+    let mut it = date.split('-');
+    let (y, m, d): (i64, i64, i64) = (it.next()?.parse().ok()?, it.next()?.parse().ok()?, it.next()?.parse().ok()?);
+    let leap = (y % 4 == 0 && y % 100 != 0) || y % 400 == 0;
+    let month_days = [31, if leap { 29 } else { 28 }, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31];
+    if it.next().is_some()
+        || !(1..=9999).contains(&y)
+        || !(1..=12).contains(&m)
+        || d < 1
+        || d > month_days[(m - 1) as usize]
+    {
+        return None;
+    }
+    // whole years since 1970 (leap days counted), then the months of this year
+    let leaps_before = |y: i64| (y - 1) / 4 - (y - 1) / 100 + (y - 1) / 400;
+    let days_to_year = (y - 1970) * 365 + leaps_before(y) - leaps_before(1970);
+    let days_to_month: i64 = month_days[..(m - 1) as usize].iter().sum();
+    Some(days_to_year + days_to_month + d - 1)
 }
 
 /// The calibration of a raw-data date folder.

@@ -143,8 +143,9 @@ impl FrameSelection {
             let a = num(t)?.ok_or_else(|| format!("'{text}': empty frame range"))?;
             (Some(a), a.checked_add(1))
         };
-        if let (Some(a), Some(b)) = (first, end) {
-            if b <= a {
+        // without a start the range starts at frame 0: `..0` holds no frame, as `3..3` does not
+        if let Some(b) = end {
+            if b <= first.unwrap_or(0) {
                 return Err(format!("'{text}' holds no frame: the end must be after the start"));
             }
         }
@@ -166,7 +167,7 @@ impl FrameSelection {
     pub fn describe(&self) -> String {
         let range = match (self.first, self.end) {
             (None, None) => "all frames".to_string(),
-            (a, Some(e)) => format!("frames {}..={}", a.unwrap_or(0), e - 1),
+            (a, Some(e)) => format!("frames {}..={}", a.unwrap_or(0), e.saturating_sub(1)),
             (Some(a), None) => format!("frames {a}.."),
         };
         if self.stride > 1 {
@@ -326,9 +327,17 @@ fn raw_truth(
         // the packet of a frame has the image's file stem (`0000000042.txt`)
         let name = img.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
         let path = oxts.join(format!("{name}.txt"));
-        if !path.is_file() {
-            warnings.push(no_truth(format_args!("the OXTS packet of frame {id} ({}) is missing", path.display())));
-            return Ok(None);
+        // the reader's gate says what a packet that is no file is (a folder, a pipe, a device)
+        match slam_core::files::regular_file(&path) {
+            Ok(_) => {}
+            Err(slam_core::files::ReadError::Io { source, .. }) if source.kind() == std::io::ErrorKind::NotFound => {
+                warnings.push(no_truth(format_args!("the OXTS packet of frame {id} ({}) is missing", path.display())));
+                return Ok(None);
+            }
+            Err(e) => {
+                warnings.push(no_truth(format_args!("the OXTS packet of frame {id} cannot be read: {e}")));
+                return Ok(None);
+            }
         }
         packets.push(read_oxts_packet(&path)?);
         names.push(path);
@@ -535,7 +544,7 @@ mod tests {
         assert_eq!(p(&format!("..={}", usize::MAX)), Ok((None, None)));
         assert_eq!(p(&format!("7..={}", usize::MAX)), Ok((Some(7), None)));
         assert_eq!(p(&usize::MAX.to_string()), Ok((Some(usize::MAX), None)));
-        for bad in ["20..10", "5..5", "a..3", "-1..4", "..=", "", "1.5..3"] {
+        for bad in ["20..10", "5..5", "..0", "0..0", "a..3", "-1..4", "..=", "", "1.5..3"] {
             assert!(p(bad).is_err(), "{bad}");
         }
     }

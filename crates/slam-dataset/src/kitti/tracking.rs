@@ -33,6 +33,8 @@ pub struct TrackingLabel {
     pub location: [f64; 3],
     /// Yaw about the camera y axis, radians.
     pub rotation_y: f64,
+    /// Line of the label file it was read from (1-based; 0 when made in code).
+    pub line: usize,
 }
 
 impl TrackingLabel {
@@ -85,6 +87,21 @@ pub fn parse_tracking_labels(path: &Path, text: &str) -> Result<Vec<TrackingLabe
                 v[6], v[7], v[8]
             )));
         }
+        if kind != "DontCare" {
+            let most = max_label_size_m(&kind);
+            if let Some(k) = (0..3).find(|&k| v[6 + k] > most[k]) {
+                let name = ["height", "width", "length"][k];
+                return Err(err(format!(
+                    "{name} {} m for a {kind}: at most {} m (a {kind} box is at most {} × {} × {} m, height × width × length; {})",
+                    v[6 + k],
+                    most[k],
+                    most[0],
+                    most[1],
+                    most[2],
+                    LABEL_SIZE_REASON
+                )));
+            }
+        }
         // KITTI numbers tracks from 0 and gives DontCare regions -1
         let valid_id = if kind == "DontCare" { track_id == -1 } else { track_id >= 0 };
         if !valid_id {
@@ -115,6 +132,7 @@ pub fn parse_tracking_labels(path: &Path, text: &str) -> Result<Vec<TrackingLabe
             dimensions: [v[6], v[7], v[8]],
             location: [v[9], v[10], v[11]],
             rotation_y: v[12],
+            line: i + 1,
         });
     }
     if out.is_empty() {
@@ -122,6 +140,45 @@ pub fn parse_tracking_labels(path: &Path, text: &str) -> Result<Vec<TrackingLabe
     }
     Ok(out)
 }
+
+/// Refuse a label whose frame is not one of the sequence's `frames` (frames `0..frames`, counted from
+/// `source`, e.g. "the 270 poses of poses_orbslam3.txt"), naming the label file's line. Everything that
+/// then walks the labelled frames costs in proportion to the sequence, never to the largest id a label
+/// names (an id of 10^8 or 2^64 - 1 would otherwise mean a loop or a table that long).
+pub fn check_label_frames(
+    path: &Path,
+    labels: &[TrackingLabel],
+    frames: usize,
+    source: &str,
+) -> Result<(), DatasetError> {
+    match labels.iter().find(|l| l.frame >= frames) {
+        Some(l) => Err(DatasetError::Parse {
+            path: path.to_path_buf(),
+            line: l.line,
+            message: format!(
+                "frame {} is not a frame of the sequence: it has {frames} frame(s) (0-{}), from {source}",
+                l.frame,
+                frames.saturating_sub(1)
+            ),
+        }),
+        None => Ok(()),
+    }
+}
+
+/// Largest 3-D box a label of `kind` may have, metres (height, width, length). Road vehicles are at most
+/// 4 m high and 2.55 m wide and a road train 25.25 m long (EU Directive 96/53/EC); coupled city trams
+/// reach about 75 m; a person or a cyclist fits in 3 m. The bounds leave room for labelling slack
+/// (KITTI's own labels reach a 4.05 m truck and a 35 m tram) and refuse only boxes no object has.
+pub fn max_label_size_m(kind: &str) -> [f64; 3] {
+    match kind {
+        "Pedestrian" | "Person" | "Person_sitting" | "Cyclist" => [3.0, 3.0, 3.0],
+        "Tram" => [5.0, 4.0, 80.0],
+        _ => [5.0, 4.0, 30.0],
+    }
+}
+
+const LABEL_SIZE_REASON: &str =
+    "road vehicles are at most 4 m high, 2.55 m wide, 25.25 m long (EU 96/53/EC), coupled trams about 75 m";
 
 /// Farthest a labelled object's 3-D box may lie from the camera, metres, on each axis.
 pub const MAX_LABEL_DISTANCE_M: f64 = 1000.0;
@@ -186,19 +243,10 @@ impl TrackingSequence {
         let d = dir.as_ref();
         let labels = read_tracking_labels(d.join("label_02.txt"))?;
         let calib = crate::kitti::calib::Calib::read(d.join("calib.txt"))?;
-        let poses = crate::kitti::poses::read_kitti_poses(d.join("poses_orbslam3.txt"))?;
-        let frames = labels.iter().map(|l| l.frame + 1).max().unwrap_or(0);
-        if poses.len() < frames {
-            return Err(DatasetError::Invalid {
-                path: d.join("poses_orbslam3.txt"),
-                message: format!(
-                    "{} poses, but the labels of {} go up to frame {} (line k of the pose file is frame k)",
-                    poses.len(),
-                    d.join("label_02.txt").display(),
-                    frames - 1
-                ),
-            });
-        }
+        let poses = crate::kitti::poses::read_ground_truth_poses(d.join("poses_orbslam3.txt"))?;
+        let source =
+            format!("the {} poses of {} (line k is frame k)", poses.len(), d.join("poses_orbslam3.txt").display());
+        check_label_frames(&d.join("label_02.txt"), &labels, poses.len(), &source)?;
         Ok(Self { labels, calib, images: Vec::new(), poses: Some(poses), imu_poses: None })
     }
 
@@ -212,5 +260,42 @@ impl TrackingSequence {
             path: self.calib.path().to_path_buf(),
             message: "the camera matrix of P2 is singular".into(),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const CAR: &str = "0 0 Car 0 0 -1.5 100 150 200 190 1.5 1.6 3.9 2.0 1.7 20.0 -1.6";
+
+    #[test]
+    fn a_label_beyond_the_sequence_is_named_by_its_line() {
+        let p = Path::new("label_02.txt");
+        for frame in ["5", "100000000", "18446744073709551615"] {
+            let text = format!("{CAR}\n\n{}\n", CAR.replacen("0 0 Car", &format!("{frame} 1 Car"), 1));
+            let labels = parse_tracking_labels(p, &text).expect("parses");
+            let e = check_label_frames(p, &labels, 5, "the 5 poses").expect_err("beyond").to_string();
+            assert!(e.contains("label_02.txt:3:") && e.contains(frame), "{e}");
+            assert!(e.contains("5 frame(s) (0-4)"), "{e}");
+        }
+        let labels = parse_tracking_labels(p, &format!("{CAR}\n")).expect("parses");
+        check_label_frames(p, &labels, 1, "one pose").expect("frame 0 of 1");
+    }
+
+    #[test]
+    fn a_box_no_object_has_is_refused_by_class() {
+        let p = Path::new("label_02.txt");
+        let tall = CAR.replacen("1.5 1.6 3.9", "500 1.6 3.9", 1);
+        let e = parse_tracking_labels(p, &tall).expect_err("500 m high").to_string();
+        assert!(
+            e.contains("label_02.txt:1:") && e.contains("height 500 m for a Car") && e.contains("at most 5 m"),
+            "{e}"
+        );
+        let long_person = CAR.replacen("Car", "Pedestrian", 1);
+        let e = parse_tracking_labels(p, &long_person).expect_err("3.9 m person").to_string();
+        assert!(e.contains("length 3.9 m for a Pedestrian"), "{e}");
+        let tram = CAR.replacen("Car", "Tram", 1).replacen("1.5 1.6 3.9", "3.7 2.8 35.2", 1);
+        parse_tracking_labels(p, &tram).expect("a long tram");
     }
 }
