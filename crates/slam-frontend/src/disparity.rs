@@ -87,8 +87,7 @@ fn pair_cost(
         if d <= 0.0 {
             continue;
         }
-        let z = rig.k.fx * rig.baseline / d;
-        let p = nalgebra::Vector3::new((a[0] - rig.k.cx) * z / rig.k.fx, (a[1] - rig.k.cy) * z / rig.k.fy, z);
+        let p = rig.point(a[0], a[1], d);
         let x = values.add(Var::Point(p));
         graph.eliminate(x);
         for (pose, obs) in [(kf, a), (fr, shift(b))] {

@@ -515,13 +515,8 @@ mod tests {
 
     /// A synthetic keyframe: stereo observations of `points` (camera frame) with these ids.
     fn keyframe_of(k: &Intrinsics, b: f64, points: &[Vector3<f64>], ids: &[PointId], desc: &[[u8; 32]]) -> Frame {
-        let obs: Vec<[f64; 3]> = points
-            .iter()
-            .map(|x| {
-                let (u, v) = (k.fx * x.x / x.z + k.cx, k.fy * x.y / x.z + k.cy);
-                [u, v, u - k.fx * b / x.z]
-            })
-            .collect();
+        let rig = StereoRig { k: *k, baseline: b };
+        let obs: Vec<[f64; 3]> = points.iter().map(|x| rig.observe(x)).collect();
         let n = points.len();
         Frame {
             points: points.to_vec(),

@@ -12,6 +12,23 @@ pub struct StereoRig {
     pub baseline: f64,
 }
 
+impl StereoRig {
+    /// The point (left camera frame) seen at left pixel `(u, v)` with `disparity` pixels: depth
+    /// `fx b / disparity`, then the left camera's ray at that depth.
+    pub fn point(&self, u: f64, v: f64, disparity: f64) -> nalgebra::Vector3<f64> {
+        let k = &self.k;
+        let z = k.fx * self.baseline / disparity;
+        nalgebra::Vector3::new((u - k.cx) * z / k.fx, (v - k.cy) * z / k.fy, z)
+    }
+
+    /// Where a point (left camera frame, in front of it) is seen: `[u_l, v, u_r]`.
+    pub fn observe(&self, p: &nalgebra::Vector3<f64>) -> [f64; 3] {
+        let k = &self.k;
+        let u = k.fx * p.x / p.z + k.cx;
+        [u, k.fy * p.y / p.z + k.cy, u - k.fx * self.baseline / p.z]
+    }
+}
+
 /// Settings of [`StereoVo`](super::StereoVo) (the `[tracking]` table of `slam-app run --config`).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, documented::DocumentedFieldsOpt)]
 #[serde(default, deny_unknown_fields)]

@@ -201,7 +201,6 @@ impl StereoMatcher {
     /// right keypoint's best left match along the row is that keypoint too (left-right consistency),
     /// and its disparity is refined to sub-pixel by block matching.
     pub(crate) fn frame(&self, left: &Features, right: &Features, grey: (&GreyView<'_>, &GreyView<'_>)) -> Frame {
-        let k = &self.rig.k;
         let rows = right.points.iter().map(|p| p.1.max(0.0) as usize).max().unwrap_or(0) + 1;
         let mut by_row: Vec<Vec<usize>> = vec![Vec::new(); rows + 3];
         for (i, p) in right.points.iter().enumerate() {
@@ -246,12 +245,12 @@ impl StereoMatcher {
             let disparity = refine_disparity(grey.0, grey.1, u, v, right.points[arg].0)
                 .unwrap_or(u - right.points[arg].0)
                 + self.disparity_offset;
-            let z = k.fx * self.rig.baseline / disparity;
-            if z < self.depth_range.0 || z > self.depth_range.1 {
+            let p = self.rig.point(u, v, disparity);
+            if p.z < self.depth_range.0 || p.z > self.depth_range.1 {
                 continue;
             }
             of_keypoint[i] = Some(points.len());
-            points.push(Vector3::new((u - k.cx) * z / k.fx, (v - k.cy) * z / k.fy, z));
+            points.push(p);
             desc.push(left.desc[i]);
             obs.push([u, v, u - disparity]);
         }

@@ -47,7 +47,6 @@ impl Street {
     /// keypoint and right column observed with independent Gaussian noise of `sigma_px`, and its stereo
     /// point triangulated from the noisy observation as the stereo matcher does.
     pub(crate) fn frame(&self, world_from_camera: &Isometry3<f64>, sigma_px: f64, rng: &mut SimRng) -> Frame {
-        let k = &RIG.k;
         let camera_from_world = world_from_camera.inverse();
         let (mut keypoints, mut keypoint_desc, mut points, mut obs, mut desc, mut of_keypoint) =
             (vec![], vec![], vec![], vec![], vec![], vec![]);
@@ -56,15 +55,13 @@ impl Street {
             if c.z < 1.0 || c.z > 80.0 {
                 continue;
             }
-            let (u, v) = (k.fx * c.x / c.z + k.cx, k.fy * c.y / c.z + k.cy);
-            let ur = u - k.fx * RIG.baseline / c.z;
+            let [u, v, ur] = RIG.observe(&c.coords);
             if u < 0.0 || v < 0.0 || u >= SIZE.0 || v >= SIZE.1 || ur < 0.0 {
                 continue;
             }
             let (u, v, ur) = (u + sigma_px * rng.normal(), v + sigma_px * rng.normal(), ur + sigma_px * rng.normal());
-            let disparity = u - ur;
-            let z = k.fx * RIG.baseline / disparity;
-            if !(1.0..=80.0).contains(&z) {
+            let p = RIG.point(u, v, u - ur);
+            if !(1.0..=80.0).contains(&p.z) {
                 keypoints.push((u, v));
                 keypoint_desc.push(*d);
                 of_keypoint.push(None);
@@ -73,7 +70,7 @@ impl Street {
             of_keypoint.push(Some(points.len()));
             keypoints.push((u, v));
             keypoint_desc.push(*d);
-            points.push(Vector3::new((u - k.cx) * z / k.fx, (v - k.cy) * z / k.fy, z));
+            points.push(p);
             obs.push([u, v, ur]);
             desc.push(*d);
         }
