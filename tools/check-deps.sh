@@ -2,8 +2,9 @@
 # Layering checks (docs/architecture.md), on normal (not dev-) dependencies, from Cargo.lock alone:
 #  1. slam-quadric's normal dependencies are nalgebra only, plus serde behind its feature;
 #  2. nothing below the front end links OpenCV;
-#  3. the seam crates (slam-core, slam-optim) depend on no implementation crate;
-#  4. implementation crates depend on seams only (slam-quadric, slam-core, slam-optim), never on each other.
+#  3. the seam crates (slam-map, slam-core, slam-optim) depend on no implementation crate;
+#  4. implementation crates depend on seams only (slam-quadric, slam-map, slam-core, slam-optim), never on
+#     each other.
 # Composition crates (slam-pipeline, slam-sim, slam-eval, slam-viz, slam-runner, slam-app) may combine implementations;
 #  5. slam-eval and everything below the front end stay free of OpenCV; slam-viz (pictures, above the
 #     front end) is used by slam-runner and slam-app only;
@@ -28,7 +29,7 @@ fi
 echo "check-deps: slam-quadric depends on [ ${plain}] (+ serde with the serde feature): ok"
 
 # Nothing below the front end links OpenCV.
-for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-eval; do
+for crate in slam-quadric slam-map slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-eval; do
   if cargo tree -q -p "$crate" --all-features -e normal --prefix none | grep -q '^opencv '; then
     echo "check-deps: $crate must not depend on opencv" >&2
     exit 1
@@ -54,10 +55,11 @@ check_only() { # crate, allowed workspace dependencies...
   done
 }
 
-seams="slam-quadric slam-core slam-optim"
-check_only slam-core slam-quadric
-check_only slam-optim slam-quadric slam-core
-echo "check-deps: the seams (slam-core, slam-optim) depend on no implementation crate: ok"
+seams="slam-quadric slam-map slam-core slam-optim"
+check_only slam-map slam-quadric
+check_only slam-core slam-quadric slam-map
+check_only slam-optim slam-quadric slam-core slam-map
+echo "check-deps: the seams (slam-map, slam-core, slam-optim) depend on no implementation crate: ok"
 for crate in slam-assoc slam-dataset slam-frontend slam-lm slam-dogleg; do
   # shellcheck disable=SC2086
   check_only "$crate" $seams
@@ -103,9 +105,9 @@ for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg sl
 done
 rerun_deps=$(direct -p slam-rerun)
 for dep in $(echo "$rerun_deps" | tr ' ' '\n' | grep '^slam-' || true); do
-  case " slam-quadric slam-core slam-pipeline slam-viz slam-frontend " in
+  case " slam-quadric slam-map slam-core slam-pipeline slam-viz slam-frontend " in
     *" $dep "*) ;;
-    *) echo "check-deps: slam-rerun must not depend on $dep (allowed: slam-quadric slam-core slam-pipeline slam-viz slam-frontend)" >&2; exit 1 ;;
+    *) echo "check-deps: slam-rerun must not depend on $dep (allowed: slam-quadric slam-map slam-core slam-pipeline slam-viz slam-frontend)" >&2; exit 1 ;;
   esac
 done
 if echo "$rerun_deps" | tr ' ' '\n' | grep -q '^re_'; then

@@ -24,9 +24,12 @@ pub use assoc::{Assignment, AssociationInput, Associator, PointPair, TrackView};
 pub use detection::{ClassId, Detection, Mask, Region, TrackId, COCO_NAMES};
 pub use source::{DetectError, DetectionSource, Image};
 pub use tracking::{
-    FramePoint, KeyframeCorrection, KeyframeData, KeyframeId, KeyframePoint, MovingRegion, PointId, StageTimes,
+    FramePoint, KeyframeId, KeyframePoint, Map, MovingRegion, NewKeyframe, PointId, Sightings, StageTimes,
     StereoTracker, TrackError, TrackState, TrackedFrame,
 };
+
+/// The map crate, re-exported so that users of the tracking seam need one dependency.
+pub use slam_map as map;
 
 /// Common types, meant to be glob-imported: `use slam_core::prelude::*;`.
 pub mod prelude {

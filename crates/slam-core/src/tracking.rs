@@ -1,9 +1,10 @@
 //! The tracking contract: the visual front end as the pipeline sees it.
 //!
-//! A [`StereoTracker`] turns rectified stereo pairs into camera poses and, on keyframes, hands over the
-//! keyframe's stereo points with stable map-point ids, so that a local-mapping stage (which owns the map)
-//! can run bundle adjustment and send corrections back. The pipeline (`slam-pipeline`) depends on this
-//! trait only; the OpenCV implementation lives in `slam-frontend`.
+//! A [`StereoTracker`] turns rectified stereo pairs into camera poses against the map it is shown
+//! ([`slam_map::Map`], which the pipeline owns and changes), and on keyframes hands over the new
+//! keyframe (its features and the map points its keypoints matched) for the pipeline to insert. The
+//! pipeline (`slam-pipeline`) depends on this trait only; the OpenCV implementation lives in
+//! `slam-frontend`.
 
 use slam_quadric::{
     nalgebra::{Isometry3, Vector3},
@@ -12,11 +13,7 @@ use slam_quadric::{
 
 use crate::{assoc::PointPair, source::Image};
 
-/// Identity of a map point, unique within a run.
-pub type PointId = u64;
-
-/// Identity of a keyframe, unique within a run (0, 1, 2, … in creation order).
-pub type KeyframeId = u64;
+pub use slam_map::{KeyframeId, Map, NewKeyframe, PointId};
 
 /// One observation of a map point in a keyframe: stereo, or left image only for a point triangulated
 /// from two keyframes.
@@ -35,25 +32,6 @@ impl KeyframePoint {
     pub fn is_stereo(&self) -> bool {
         self.observation[2].is_finite()
     }
-}
-
-/// What the tracker gives the mapper for a new keyframe.
-#[derive(Debug, Clone, PartialEq)]
-pub struct KeyframeData {
-    /// Keyframe id.
-    pub id: KeyframeId,
-    /// Frame index in the sequence.
-    pub frame: usize,
-    /// Tracked pose of the left camera (world from camera).
-    pub world_from_camera: Isometry3<f64>,
-    /// The keyframe it was tracked from and the pose relative to it (`parent_from_this`); `None` for
-    /// the first keyframe of a map segment.
-    pub parent: Option<(KeyframeId, Isometry3<f64>)>,
-    /// Observations in this keyframe; points matched to earlier keyframes keep their ids.
-    pub points: Vec<KeyframePoint>,
-    /// Observations in earlier keyframes of points new in this one that were triangulated between the
-    /// two (left image only; `camera_point` in that earlier keyframe's frame).
-    pub earlier: Vec<(KeyframeId, KeyframePoint)>,
 }
 
 /// A stereo point of a tracked frame: where the stereo match puts it and where it was seen. Unlike a
@@ -167,23 +145,25 @@ pub struct TrackedFrame {
     /// RMS reprojection error of those points in the left image at the accepted pose, pixels (NaN when
     /// no pose was accepted).
     pub reprojection_rms_px: f64,
-    /// Set when this frame became a keyframe.
-    pub keyframe: Option<KeyframeData>,
+    /// Set when this frame becomes a keyframe: the keyframe for the pipeline to insert into the map
+    /// (its id is the map's next one).
+    pub keyframe: Option<NewKeyframe>,
+    /// Map points that lay in the frame's view at its accepted pose (inside the image, within their
+    /// distance range and viewing angle) and those of them matched and kept: the counts that decide
+    /// whether a young map point stays ([`slam_map::Map::count_sightings`]). Empty when no pose was
+    /// accepted.
+    pub sightings: Sightings,
     /// Stage timings.
     pub times: StageTimes,
 }
 
-/// A keyframe pose and points refined by the mapper.
-#[derive(Debug, Clone, PartialEq)]
-pub struct KeyframeCorrection {
-    /// Which keyframe.
-    pub id: KeyframeId,
-    /// Its refined pose.
-    pub world_from_camera: Isometry3<f64>,
-    /// Refined world positions of map points it observes.
-    pub points: Vec<(PointId, Vector3<f64>)>,
-    /// Map points the mapper culled (outliers); the tracker stops using them.
-    pub culled: Vec<PointId>,
+/// The map points a frame's view held and those it found ([`TrackedFrame::sightings`]).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Sightings {
+    /// In the view.
+    pub visible: Vec<PointId>,
+    /// Matched and kept.
+    pub found: Vec<PointId>,
 }
 
 /// Errors a tracker reports (a failed frame is not an error but [`TrackState::Lost`]). Marked
@@ -228,20 +208,19 @@ impl MovingRegion {
 
 /// A stereo visual front end.
 pub trait StereoTracker: Send {
-    /// Track one rectified stereo pair. Keypoints on the `exclude` regions (moving objects) are not used
-    /// for the pose, the map or [`TrackedFrame::points`].
+    /// Track one rectified stereo pair against `map`. Keypoints on the `exclude` regions (moving
+    /// objects) are not used for the pose, the map or [`TrackedFrame::points`]. The map changes only
+    /// between calls, by its owner (a keyframe handed over is inserted before the next call, local
+    /// mapping's edits are applied at moments that do not depend on thread timing), so runs are
+    /// reproducible.
     fn track(
         &mut self,
         frame: usize,
         left: &Image,
         right: &Image,
         exclude: &[MovingRegion],
+        map: &Map,
     ) -> Result<TrackedFrame, TrackError>;
-
-    /// Apply the mapper's refinement of a keyframe: when it is the reference keyframe (or the reference's
-    /// parent), the reference pose and points follow it. Callers apply corrections at points that do
-    /// not depend on thread timing, so runs are reproducible.
-    fn correct(&mut self, correction: &KeyframeCorrection);
 
     /// Keypoints of the last tracked frame's predecessor followed into the last frame by optical flow
     /// (for the associator's semantic-inlier cue), restricted to `regions` of the predecessor. Trackers

@@ -9,6 +9,7 @@ pub mod classes;
 pub mod detections;
 pub mod folders;
 pub mod kitti;
+pub mod layout;
 pub mod output;
 pub mod trajectory;
 

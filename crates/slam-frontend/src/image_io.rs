@@ -35,6 +35,9 @@ pub enum FrontendError {
     /// OpenCV failed while running.
     #[error("OpenCV: {0}")]
     OpenCv(String),
+    /// A worker thread of the front end stopped without an answer (it panicked).
+    #[error("the {0} thread stopped without an answer")]
+    Thread(&'static str),
 }
 
 impl From<opencv::Error> for FrontendError {

@@ -11,7 +11,7 @@
 //! which keyframes are tried; a candidate is accepted by the pose verification in
 //! [`crate::stereo_vo`], never by its votes.
 
-use crate::matching::hamming;
+use slam_map::hamming;
 
 /// A binary descriptor (ORB: 256 bits).
 pub(crate) type Descriptor = [u8; 32];

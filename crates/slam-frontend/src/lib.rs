@@ -11,13 +11,13 @@ pub mod detector;
 pub mod detectors;
 pub mod disparity;
 pub use detector::{decode_yolox, nms, nms_by_group};
-pub use matching::hamming;
+pub use slam_map::hamming;
 pub mod image_io;
 pub mod image_size;
 mod keyframe_index;
 mod keyframe_motion;
-mod matching;
 pub mod model;
+pub mod odometry;
 mod pose_only;
 mod settings;
 pub mod stereo_vo;
@@ -27,4 +27,5 @@ pub use image_io::{
     draw_detections, draw_overlay, ellipse_outline, encode_jpeg, read_image, write_image, FrontendError, Overlay,
 };
 pub use model::{parse_input_size, FamilyName, ModeName, ModelError, ModelSpec, ShippedModel};
+pub use odometry::Odometry;
 pub use stereo_vo::{StereoRig, StereoVo, VoConfig};

@@ -47,12 +47,16 @@ impl VoConfig {
         // `1e9` (a finite number) weights every point alike
         number("far_baselines", self.far_baselines, pos, "baselines")?;
         number("max_lost_s", self.max_lost_s, Range::closed(0.0, 3600.0), "s")?;
-        number("keyframe_overlap", self.keyframe_overlap, Range::closed(0.0, 1.0), "(share of the keyframe's points)")?;
+        let share = "(share of the reference keyframe's points)";
+        number("keyframe_tracked_ratio", self.keyframe_tracked_ratio, Range::closed(0.0, 1.0), share)?;
+        // a view holds a few thousand keypoints at most
+        count("keyframe_near_points (tracked)", self.keyframe_near_points.0, 0, 100_000)?;
+        count("keyframe_near_points (not in the map)", self.keyframe_near_points.1, 0, 100_000)?;
+        count("keyframe_max_gap", self.keyframe_max_gap, 0, usize::MAX)?;
         count("flow_points_per_region", self.flow_points_per_region, 0, 100_000)?;
-        count("relocalisation_keyframes", self.relocalisation_keyframes, 0, 100_000)?;
-        number("keyframe_inlier_ratio", self.keyframe_inlier_ratio, Range::closed(0.0, 1.0), "")?;
-        count("keyframe_max_gap", self.keyframe_max_gap, 1, usize::MAX)?;
-        count("local_keyframes", self.local_keyframes, 0, 1000)?;
+        // the local map needs the reference keyframe at least
+        count("local_keyframes", self.local_keyframes, 1, 1000)?;
+        count("local_neighbours", self.local_neighbours, 0, 1000)?;
         number("local_radius", self.local_radius, Range::above(0.0, 10_000.0), "px")?;
         // a rectification error of more than a few pixels is a wrong calibration, not a correction
         number("disparity_offset", self.disparity_offset, Range::closed(-10.0, 10.0), "px")?;
@@ -61,7 +65,6 @@ impl VoConfig {
         number("vehicle_lever_m (mean)", self.vehicle_lever_m.0, Range::closed(-10.0, 10.0), "m")?;
         number("vehicle_lever_m (σ)", self.vehicle_lever_m.1, Range::closed(0.0, 10.0), "m")?;
         number("vehicle_height_m", self.vehicle_height_m, Range::closed(-5.0, 5.0), "m")?;
-        number("triangulate_parallax_deg", self.triangulate_parallax_deg, Range::open(0.0, 90.0), "degrees")?;
         Ok(())
     }
 }
@@ -80,10 +83,7 @@ mod tests {
             (|c| c.depth_range = (5.0, 2.0), "depth_range (far) 2: must be a finite number in (5, ∞) m (beyond near)"),
             (|c| c.min_inliers = 2, "min_inliers 2: must be at least 4"),
             (|c| c.stereo_hamming = 300, "stereo_hamming 300: must be an integer in [0, 256]"),
-            (
-                |c| c.triangulate_parallax_deg = 90.0,
-                "triangulate_parallax_deg 90: must be a finite number in (0, 90) degrees",
-            ),
+            (|c| c.local_keyframes = 0, "local_keyframes 0: must be an integer in [1, 1000]"),
             (
                 |c| c.weak_inliers = 40,
                 "weak_inliers 40: must be an integer in [4, min_inliers (30)] (lowering min_inliers below it, lower weak_inliers too)",
@@ -91,8 +91,8 @@ mod tests {
             (|c| c.max_rms_px = f64::NAN, "max_rms_px NaN: must be a finite number in (0, 1000] px"),
             (|c| c.max_speed = -5.0, "max_speed -5: must be a finite number in (0, 300] m/s"),
             (
-                |c| c.keyframe_overlap = 7.0,
-                "keyframe_overlap 7: must be a finite number in [0, 1] (share of the keyframe's points)",
+                |c| c.keyframe_tracked_ratio = 7.0,
+                "keyframe_tracked_ratio 7: must be a finite number in [0, 1] (share of the reference keyframe's points)",
             ),
             (
                 |c| c.frame_period_s = -1.0,

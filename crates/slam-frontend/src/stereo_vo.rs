@@ -1,29 +1,35 @@
-//! Stereo visual odometry against a local map, in parts a reader finds by name:
+//! Stereo visual odometry against the map, in parts a reader finds by name:
 //!
 //! - [`config`]: the rig and the settings;
 //! - `features`: ORB features of each image, spread over it; `frame`: the stereo frame: stereo matching
 //!   along rectified rows (mutual best, sub-pixel);
-//! - `local_map`: the map points of the reference keyframe and its covisible keyframes;
-//! - `tracker`: the local map's points projected from a guess into windows sized by its uncertainty,
-//!   PnP RANSAC, a second search at the found pose; `refine`: the robust pose refinement with staged
+//! - `local_map`: the points of the keyframes around the view (those observing what the last frame
+//!   matched and their best covisible neighbours), in the reference keyframe's frame;
+//! - `tracker`: the local map's points projected from a guess into windows sized by its uncertainty
+//!   (within their distance range and viewing angle, at the level their distance predicts), PnP
+//!   RANSAC, a second search at the found pose; `refine`: the robust pose refinement with staged
 //!   outlier rejection (keyframes fixed, points free with their keyframe observations);
 //! - `motion`: the constant-velocity motion model; `checks`: every pose is checked for support and
 //!   for consistency with a vehicle's motion before it is accepted ([`TrackState`]);
-//! - `relocaliser`: relocalisation against the keyframes when tracking fails;
-//! - `keyframes`: the keyframes kept and the keyframe policy; `triangulate`: optional left-only
-//!   map points; `flow`: optical flow for the association and the scene flow.
+//! - `relocaliser`: when the prediction fails: along the motion, by descriptors against the local map,
+//!   by retrieval of any keyframe of the map;
+//! - `keyframe_policy`: when a frame becomes a keyframe and what it hands over; `flow`: optical flow
+//!   for the association and the scene flow.
 //!
-//! [`StereoVo`] holds one of each and runs them per frame ([`StereoVo::process`]). The thresholds and
-//! why they hold beyond one sequence are in `docs/system.md` ("Tracking").
+//! [`StereoVo`] holds one of each and runs them per frame ([`StereoVo::process`]) against a map it
+//! reads but never changes ([`slam_map::Map`]: its owner inserts the keyframes handed over and applies
+//! local mapping's edits). The thresholds and why they hold beyond one sequence are in
+//! `docs/system.md` ("Tracking").
 
 use std::time::Instant;
 
 use nalgebra::Isometry3;
 use opencv::prelude::*;
 use slam_core::{
-    geometry::BBox, FramePoint, Image, KeyframeCorrection, KeyframeData, KeyframeId, MovingRegion, PointId, PointPair,
-    StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
+    geometry::BBox, FramePoint, Image, KeyframeId, MovingRegion, PointId, PointPair, Sightings, StageTimes,
+    StereoTracker, TrackError, TrackState, TrackedFrame,
 };
+use slam_map::{CreationPolicy, Map};
 use slam_optim::SharedOptimizer;
 
 use crate::disparity::DisparityPair;
@@ -34,7 +40,7 @@ pub mod config;
 mod features;
 mod flow;
 mod frame;
-mod keyframes;
+mod keyframe_policy;
 mod local_map;
 mod motion;
 mod refine;
@@ -42,7 +48,6 @@ mod relocaliser;
 #[cfg(test)]
 mod synthetic;
 mod tracker;
-mod triangulate;
 
 pub use checks::{motion_consistent, motion_limits, support, Support};
 pub use config::{StereoRig, VoConfig};
@@ -52,28 +57,33 @@ use checks::judge;
 use features::Extractor;
 use flow::FlowHistory;
 use frame::{Frame, GreyView, StereoMatcher};
-use keyframes::{KeyframePolicy, Keyframes};
+use keyframe_policy::{new_keyframe, KeyframePolicy, View};
 use local_map::LocalMap;
 use motion::MotionModel;
 use refine::Refined;
 use relocaliser::{Context, Relocalisation, Relocaliser};
 use tracker::{Route, Tracker};
 
-/// Stereo visual odometry against a local map, with keyframe corrections from a mapper.
+/// Stereo visual odometry against a map.
 pub struct StereoVo {
-    /// ORB features of each image.
+    /// ORB features of each image (the left one, and the right one's extractor for when the two run
+    /// side by side).
     features: Extractor,
+    features_right: Extractor,
     /// Stereo matching of each frame.
     stereo: StereoMatcher,
     /// Pose search and refinement (holds the rig, the settings, the optimiser, the image size).
     tracker: Tracker,
-    /// The constant-velocity motion model and its frame gaps.
+    /// The constant-velocity motion model and its frame gaps (poses relative to the reference).
     motion: MotionModel,
-    /// The reference keyframe and the older keyframes of the segment.
-    keyframes: Keyframes,
+    /// The reference keyframe: the one the last frame shared the most points with (or the last
+    /// keyframe made); `None` before the first keyframe.
+    reference: Option<KeyframeId>,
+    /// The map points the last measured frame matched (they choose the next frame's local map).
+    last_matched: Vec<PointId>,
     /// When a frame becomes a keyframe.
     policy: KeyframePolicy,
-    /// Every keyframe of the run, for relocalisation by retrieval.
+    /// Every keyframe's descriptors, for relocalisation by retrieval.
     relocaliser: Relocaliser,
     /// The last two frames' grey images and keypoints (optical flow).
     flow: FlowHistory,
@@ -102,14 +112,16 @@ pub fn stereo_keypoints(
 }
 
 impl StereoVo {
-    /// Odometry for a rig; its two-frame bundle adjustments use `optimizer`.
+    /// Odometry for a rig; its refinements use `optimizer`.
     pub fn new(rig: StereoRig, config: VoConfig, optimizer: SharedOptimizer) -> Result<Self, FrontendError> {
         Ok(Self {
             features: Extractor::new(config.features, config.spread_features)?,
+            features_right: Extractor::new(config.features, config.spread_features)?,
             stereo: StereoMatcher::new(rig, &config),
             tracker: Tracker { rig, config, optimizer, image_size: (1.0, 1.0) },
             motion: MotionModel::default(),
-            keyframes: Keyframes::default(),
+            reference: None,
+            last_matched: Vec::new(),
             policy: KeyframePolicy::default(),
             relocaliser: Relocaliser::default(),
             flow: FlowHistory::default(),
@@ -120,6 +132,12 @@ impl StereoVo {
     /// The settings.
     fn config(&self) -> &VoConfig {
         &self.tracker.config
+    }
+
+    /// The map's point-creation policy that goes with these settings: stereo points nearer than
+    /// `far_baselines` at once, and at least `min_points` of the nearest.
+    pub fn creation_policy(&self, min_points: usize) -> CreationPolicy {
+        CreationPolicy { near_baselines: self.config().far_baselines, min_points }
     }
 
     fn grey_of(img: &Image) -> Result<Mat, FrontendError> {
@@ -139,93 +157,149 @@ impl StereoVo {
         &self.pairs
     }
 
-    /// Track one rectified stereo pair (grey or colour; colour is converted): features and stereo
-    /// points ([`StereoVo::prepare`]), the pose ([`StereoVo::find_pose`]) and its state
-    /// ([`StereoVo::decide`]), the motion model ([`StereoVo::record`]), and a keyframe when the
-    /// keyframe policy wants one ([`StereoVo::new_keyframe`]).
+    /// Track one rectified stereo pair (grey or colour; colour is converted) against `map`: features
+    /// and stereo points ([`StereoVo::prepare`]), the pose ([`StereoVo::find_pose`]) and its state
+    /// ([`StereoVo::decide`]), the motion model ([`StereoVo::record`]), and the keyframe the frame
+    /// becomes when the map needs one (handed over in [`TrackedFrame::keyframe`] for the map's owner
+    /// to insert before the next frame).
     pub fn process(
         &mut self,
         frame_index: usize,
         left: &Image,
         right: &Image,
         exclude: &[MovingRegion],
+        map: &Map,
     ) -> Result<TrackedFrame, FrontendError> {
         let (frame, points, masked_points, times) = self.prepare(left, right, exclude)?;
-        self.track_frame(frame_index, frame, (points, masked_points), times)
+        self.track_frame(frame_index, frame, (points, masked_points), times, map)
+    }
+
+    /// The reference keyframe for this frame and the local map around the view: the keyframes
+    /// observing what the last frame matched (its own reference's points when it matched none) and
+    /// their neighbours; the reference becomes the one observing the most (the motion model follows it).
+    fn local_map(&mut self, map: &Map, reference: KeyframeId) -> (KeyframeId, LocalMap) {
+        let c = *self.config();
+        let seeds: Vec<PointId> = if self.last_matched.is_empty() {
+            map.keyframe(reference).map(|k| k.observations().map(|(_, p)| p).collect()).unwrap_or_default()
+        } else {
+            self.last_matched.clone()
+        };
+        let local = map.local_keyframes(&seeds, c.local_neighbours, c.local_keyframes);
+        let mut reference = reference;
+        if let Some(best) = local.reference.filter(|&b| b != reference) {
+            if let (Some(old), Some(new)) = (map.keyframe_pose(reference), map.keyframe_pose(best)) {
+                tracing::debug!(from = reference, to = best, "reference switched");
+                self.motion.rebase_to(&(new.inverse() * old));
+                reference = best;
+            }
+        }
+        self.reference = Some(reference);
+        (reference, LocalMap::of(map, reference, &local.keyframes))
     }
 
     /// Track a prepared frame (its stereo points as the pipeline sees them, and those on moving
-    /// regions; the extraction and stereo times, ms): everything [`StereoVo::process`] does after the
-    /// images are turned into a frame.
+    /// regions; the extraction and stereo times, ms) against `map`: everything [`StereoVo::process`]
+    /// does after the images are turned into a frame.
     fn track_frame(
         &mut self,
         frame_index: usize,
         frame: Frame,
         (points, masked_points): (Vec<FramePoint>, Vec<FramePoint>),
         (extraction, stereo): (f64, f64),
+        map: &Map,
     ) -> Result<TrackedFrame, FrontendError> {
         let t2 = Instant::now();
         let times = |t3: Instant| StageTimes { extraction, stereo, tracking: (t3 - t2).as_secs_f64() * 1e3 };
         let stereo_points = frame.points.len();
-        let Some(reference) = self.keyframes.reference.as_ref() else {
-            let mut tf = self.initialise(frame, frame_index);
+        let Some(reference) = self.reference.filter(|r| map.keyframe_pose(*r).is_some()) else {
+            let mut tf = self.initialise(frame, frame_index, map);
             tf.times = times(Instant::now());
             tf.points = points;
             tf.masked_points = masked_points;
             return Ok(tf);
         };
-        let (ref_id, world_from_ref) = (reference.id, reference.world_from_kf);
-        let reference_points = reference.frame.valid.iter().filter(|v| **v).count();
-        let map = self.keyframes.local_map(self.config().local_keyframes);
+        let (reference, local) = self.local_map(map, reference);
+        let world_from_ref = map.keyframe_pose(reference).unwrap_or_else(Isometry3::identity);
         self.motion.advance(frame_index);
         let predicted = self.motion.predicted(); // curr ← keyframe
-        let (found, fallback, retrieved) = self.find_pose(&map, &frame, &predicted)?;
-        // the map the inliers index: a retrieved keyframe's, else the local map
-        let map = retrieved.unwrap_or(map);
+        tracing::debug!(frame = frame_index, reference, predicted = ?predicted.inverse().translation.vector.as_slice(), last = ?self.motion.kf_from_last.translation.vector.as_slice(), velocity = ?self.motion.velocity.translation.vector.as_slice(), "prediction");
+        let (found, fallback, retrieved) = self.find_pose(map, &local, &frame, &predicted)?;
         let route = found.as_ref().map(|f| f.2);
+        // a retrieved keyframe becomes the reference, and the map its inliers index the local map
+        let (reference, world_from_ref, local) = match (route, retrieved) {
+            (Some(Route::Retrieved(id)), Some(m)) => {
+                let world_from_new = map.keyframe_pose(id).unwrap_or(world_from_ref);
+                self.motion.rebase_to(&(world_from_new.inverse() * world_from_ref));
+                self.reference = Some(id);
+                (id, world_from_new, m)
+            }
+            _ => (reference, world_from_ref, local),
+        };
         let (state, curr_from_ref, refined) = self.decide(frame_index, found, &frame, predicted);
         let kf_from_curr = curr_from_ref.inverse();
         let measured = refined.is_some();
-        // matched map points: (id, keypoint)
-        let carried: Vec<(PointId, usize)> =
-            refined.as_ref().map(|r| r.inliers.iter().map(|&(i, c)| (map.ids[i], c)).collect()).unwrap_or_default();
-        self.record(frame_index, state, refined.as_ref(), (&map, &frame), &curr_from_ref);
+        self.record(frame_index, state, refined.as_ref(), (&local, &frame), &curr_from_ref);
         let tracked_map_points = refined.as_ref().map_or(0, |r| r.inliers.len());
         let rms = refined.as_ref().map_or(f64::NAN, |r| r.rms);
         let world_from_curr = world_from_ref * kf_from_curr;
-        if measured && matches!(route, Some(Route::Retrieved(_))) {
+        if measured && matches!(route, Some(Route::Retrieved(_) | Route::Descriptors)) {
             self.motion.forget_velocity();
         }
+        let seen = match &refined {
+            Some(_) => self.in_view(&local, &curr_from_ref),
+            None => Vec::new(),
+        };
+        let sightings = refined
+            .as_ref()
+            .map(|r| Sightings {
+                visible: local.ids.iter().zip(&seen).filter(|(_, s)| s.is_some()).map(|(id, _)| *id).collect(),
+                found: r.inliers.iter().map(|&(i, _)| local.ids[i]).collect(),
+            })
+            .unwrap_or_default();
+        if let Some(r) = &refined {
+            self.last_matched = r.inliers.iter().map(|&(i, _)| local.ids[i]).collect();
+        }
+        if let Some(r) = refined.as_ref().filter(|_| tracing::enabled!(tracing::Level::DEBUG)) {
+            let near = self.config().far_baselines * self.tracker.rig.baseline;
+            let far_inliers = r
+                .inliers
+                .iter()
+                .filter(|&&(i, _)| (r.pose * nalgebra::Point3::from(local.points[i])).z >= near)
+                .count();
+            let mono_map = local.views.iter().filter(|v| v.iter().all(|(_, o)| o[2].is_nan())).count();
+            tracing::debug!(
+                frame = frame_index,
+                local = local.len(),
+                keyframes = local.slots.len(),
+                mono_map,
+                visible = seen.iter().filter(|s| s.is_some()).count(),
+                inliers = r.inliers.len(),
+                far_inliers,
+                "tracked"
+            );
+        }
         let since_measured = self.motion.since_measured;
-        let wants = self.policy.wants(
-            &self.tracker.config,
-            state,
-            refined.as_ref(),
-            (&map, reference_points, &frame.keypoints),
-            since_measured,
-            stereo_points,
-        );
+        let view = View { frame: &frame, map: &local, refined: refined.as_ref(), seen: &seen };
+        let rig = self.tracker.rig;
+        let wants = self.policy.wants(&self.tracker.config, &rig, state, &view, map, since_measured);
         let keyframe = if wants {
-            // a frame lost for too long starts a new map segment: no parent, no carried points, at the
+            // a frame lost for too long starts a new map segment: no parent, no matched points, at the
             // first unverified candidate pose when there was one, else at the motion prediction
-            let (parent, world_from_kf) = if let (true, Some(Route::Retrieved(id))) = (measured, route) {
-                // the pose was measured against the retrieved keyframe: it is the parent
-                let world_from_parent = self.relocaliser.world_from(id).unwrap_or(world_from_ref);
-                (Some((id, world_from_parent.inverse() * world_from_curr)), world_from_curr)
-            } else if measured {
-                ((Some((ref_id, kf_from_curr))), world_from_curr)
+            let (parent, world_from_kf) = if measured {
+                (Some(reference), world_from_curr)
             } else {
                 tracing::warn!(frame = frame_index, "tracking lost: new map segment from this frame");
                 (None, world_from_ref * fallback.unwrap_or(curr_from_ref).inverse())
             };
-            let triangulate = measured && !matches!(route, Some(Route::Retrieved(_)));
-            Some(self.new_keyframe(
-                frame,
-                frame_index,
+            let kf = new_keyframe(
+                (map.next_keyframe_id(), frame_index),
+                &frame,
+                self.tracker.image_size,
                 (world_from_kf, parent),
-                (&carried, &curr_from_ref),
-                triangulate,
-            ))
+                refined.as_ref().map(|r| (r, &local)),
+            );
+            self.take_keyframe(&kf, frame_index, parent.is_none());
+            Some(kf)
         } else {
             self.motion.kf_from_last = kf_from_curr;
             None
@@ -233,8 +307,8 @@ impl StereoVo {
         // a keyframe is its own reference: its pose in the trajectory is the keyframe's, which local
         // bundle adjustment then refines together with the frames that follow it
         let (reference, world_from_camera) = match &keyframe {
-            Some(kf) => ((kf.id, Isometry3::identity()), kf.world_from_camera),
-            None => ((ref_id, kf_from_curr), world_from_curr),
+            Some(kf) => ((kf.id, Isometry3::identity()), kf.pose),
+            None => ((reference, kf_from_curr), world_from_curr),
         };
         Ok(TrackedFrame {
             world_from_camera,
@@ -246,8 +320,22 @@ impl StereoVo {
             tracked_map_points,
             reprojection_rms_px: rms,
             keyframe,
+            sightings,
             times: times(Instant::now()),
         })
+    }
+
+    /// Where each local-map point is seen from `curr_from_ref` when it is in the view: inside the image,
+    /// in front of the camera, within its distance range and viewing angle.
+    fn in_view(&self, local: &LocalMap, curr_from_ref: &Isometry3<f64>) -> Vec<Option<(f64, f64)>> {
+        let centre = curr_from_ref.inverse().translation.vector;
+        let (w, h) = self.tracker.image_size;
+        (0..local.len())
+            .map(|i| {
+                let ((u, v), ..) = self.tracker.projection(local, i, curr_from_ref, &centre)?;
+                (u >= 0.0 && v >= 0.0 && u < w && v < h).then_some((u, v))
+            })
+            .collect()
     }
 
     /// ORB features of both images, the stereo points (as the pipeline sees them), the stereo points
@@ -261,8 +349,17 @@ impl StereoVo {
         let t0 = Instant::now();
         let (lm, rm) = (Self::grey_of(left)?, Self::grey_of(right)?);
         self.tracker.image_size = (lm.cols().max(1) as f64, lm.rows().max(1) as f64);
-        let lf = self.features.extract(&lm)?;
-        let rf = self.features.extract(&rm)?;
+        let (lf, rf) = if self.config().parallel_extraction {
+            let (left_x, right_x) = (&mut self.features, &mut self.features_right);
+            std::thread::scope(|s| {
+                let right = s.spawn(|| right_x.extract(&rm));
+                let left = left_x.extract(&lm);
+                (left, right.join().unwrap_or(Err(FrontendError::Thread("feature extraction"))))
+            })
+        } else {
+            (self.features.extract(&lm), self.features.extract(&rm))
+        };
+        let (lf, rf) = (lf?, rf?);
         let t1 = Instant::now();
         let (lg, rg) = (GreyView::of(&lm)?, GreyView::of(&rm)?);
         let all = self.stereo.frame(&lf, &rf, (&lg, &rg));
@@ -296,10 +393,18 @@ impl StereoVo {
         Ok((frame, points, masked, ((t1 - t0).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3)))
     }
 
-    /// The first frame of the run: the first keyframe, at the origin (times left at zero).
-    fn initialise(&mut self, frame: Frame, frame_index: usize) -> TrackedFrame {
+    /// The first frame of the run, or of a map whose reference keyframe is gone: the first keyframe, at
+    /// the origin (times left at zero).
+    fn initialise(&mut self, frame: Frame, frame_index: usize, map: &Map) -> TrackedFrame {
         let stereo_points = frame.points.len();
-        let kf = self.take_keyframe(frame, frame_index, (Isometry3::identity(), None), &[], &[]);
+        let kf = new_keyframe(
+            (map.next_keyframe_id(), frame_index),
+            &frame,
+            self.tracker.image_size,
+            (Isometry3::identity(), None),
+            None,
+        );
+        self.take_keyframe(&kf, frame_index, true);
         self.motion.start(frame_index);
         TrackedFrame {
             world_from_camera: Isometry3::identity(),
@@ -311,6 +416,7 @@ impl StereoVo {
             tracked_map_points: 0,
             reprojection_rms_px: f64::NAN,
             keyframe: Some(kf),
+            sightings: Sightings::default(),
             times: StageTimes::default(),
         }
     }
@@ -321,6 +427,7 @@ impl StereoVo {
     /// candidate pose of any stage as the fallback.
     fn find_pose(
         &self,
+        whole: &Map,
         map: &LocalMap,
         frame: &Frame,
         predicted: &Isometry3<f64>,
@@ -343,7 +450,7 @@ impl StereoVo {
                 }
             }
         }
-        let cx = Context { tracker: &self.tracker, motion: m, keyframes: &self.keyframes };
+        let cx = Context { tracker: &self.tracker, motion: m, map: whole };
         let (found, first, retrieved) = self.relocaliser.relocalise(&cx, map, frame, &accept)?;
         Ok((found, fallback.or(first), retrieved))
     }
@@ -363,7 +470,16 @@ impl StereoVo {
         let was_measured = !self.motion.failed;
         match (found, support) {
             (Some((r, ransac, route)), Some(s)) if s != Support::Rejected => {
-                let state = if !was_measured || route != Route::Motion {
+                // against the local map without the prediction, right after a measured frame and within
+                // the speed limit of it, is tracking (the motion model broke, the map did not: a
+                // reversal, a start after a standstill); anything else after a failure, or along the
+                // motion, or by retrieval, or a jump no vehicle makes, is relocalisation
+                let tracking = match route {
+                    Route::Motion => true,
+                    Route::Descriptors => self.within_speed_limit(&r),
+                    _ => false,
+                };
+                let state = if !was_measured || !tracking {
                     tracing::info!(frame = frame_index, inliers = r.inliers.len(), ?route, "relocalised");
                     TrackState::Relocalised { inliers: ransac }
                 } else if s == Support::Full {
@@ -375,6 +491,21 @@ impl StereoVo {
             }
             _ => (if was_measured { TrackState::Lost } else { TrackState::Predicted }, predicted, None),
         }
+    }
+
+    /// Whether a pose (`curr_from_ref`) lies within the vehicle's top speed of the last measured pose
+    /// over the frames since ([`motion_consistent`] without a known velocity).
+    fn within_speed_limit(&self, r: &Refined) -> bool {
+        let m = &self.motion;
+        let frames = m.steps(m.since_measured);
+        motion_consistent(
+            &m.step_config(self.config()),
+            &r.pose.inverse(),
+            &m.kf_from_measured,
+            &m.kf_from_measured,
+            frames,
+            false,
+        )
     }
 
     /// After a frame's state is decided: the velocity (from a tracked or weak frame right after a
@@ -410,58 +541,18 @@ impl StereoVo {
         self.motion.measured(frame_index, kf_from_curr, steady);
     }
 
-    /// Make the frame a keyframe at `world_from_kf` with `parent` (none: a new map segment, which
-    /// also restarts the motion model), carrying the matched map points' ids, and with `triangulate`
-    /// (and the setting on) the points triangulated against the reference keyframe at `curr_from_ref`.
-    fn new_keyframe(
-        &mut self,
-        mut frame: Frame,
-        frame_index: usize,
-        (world_from_kf, parent): (Isometry3<f64>, Option<(KeyframeId, Isometry3<f64>)>),
-        (carried, curr_from_ref): (&[(PointId, usize)], &Isometry3<f64>),
-        triangulate: bool,
-    ) -> KeyframeData {
-        let config = *self.config();
-        let earlier = match (triangulate && config.triangulate, self.keyframes.reference.as_ref()) {
-            (true, Some(r)) => triangulate::triangulate(
-                &self.tracker.rig.k,
-                &r.frame,
-                &mut frame,
-                curr_from_ref,
-                carried,
-                config.triangulate_parallax_deg,
-            )
-            .into_iter()
-            .map(|(q, obs, x)| (r.id, q, obs, x))
-            .collect(),
-            _ => Vec::new(),
-        };
-        let kf = self.take_keyframe(frame, frame_index, (world_from_kf, parent), carried, &earlier);
-        if parent.is_none() {
+    /// The frame becomes keyframe `kf` (a new map segment when `segment`): it is the reference from
+    /// now on, its descriptors go into the retrieval index, and the motion model and the keyframe
+    /// policy start from it.
+    fn take_keyframe(&mut self, kf: &slam_core::NewKeyframe, frame_index: usize, segment: bool) {
+        self.reference = Some(kf.id);
+        self.relocaliser.index(kf.id, &kf.features.descriptors);
+        if segment {
             self.motion.restart(frame_index);
-        }
-        kf
-    }
-
-    /// Make `frame` the reference keyframe ([`Keyframes::insert`]), keep it for retrieval, and start
-    /// the motion model and the keyframe policy from it.
-    fn take_keyframe(
-        &mut self,
-        frame: Frame,
-        frame_index: usize,
-        placed: (Isometry3<f64>, Option<(KeyframeId, Isometry3<f64>)>),
-        carried: &[(PointId, usize)],
-        earlier: &[(KeyframeId, usize, [f64; 3], nalgebra::Vector3<f64>)],
-    ) -> KeyframeData {
-        let keep = self.config().local_keyframes.max(self.config().relocalisation_keyframes);
-        let far = self.config().far_disparity_px(self.tracker.rig.k.fx);
-        let data = self.keyframes.insert(frame, frame_index, placed, carried, earlier, (keep, far));
-        if let Some(kf) = &self.keyframes.reference {
-            self.relocaliser.archive(kf);
+            self.last_matched.clear();
         }
         self.motion.rebase();
         self.policy.reset();
-        data
     }
 
     /// Whether a refined pose found by `route` is accepted ([`checks`]).
@@ -485,13 +576,9 @@ impl StereoTracker for StereoVo {
         left: &Image,
         right: &Image,
         exclude: &[MovingRegion],
+        map: &Map,
     ) -> Result<TrackedFrame, TrackError> {
-        self.process(frame, left, right, exclude).map_err(TrackError::backend)
-    }
-
-    fn correct(&mut self, c: &KeyframeCorrection) {
-        self.keyframes.correct(c);
-        self.relocaliser.correct(c, self.keyframes.reference.as_ref());
+        self.process(frame, left, right, exclude, map).map_err(TrackError::backend)
     }
 
     fn flow(&mut self, regions: &[BBox]) -> Result<Vec<PointPair>, TrackError> {
@@ -506,15 +593,16 @@ impl StereoTracker for StereoVo {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::matching::KeypointGrid;
-    use keyframes::Reference;
     use nalgebra::Vector3;
     use slam_core::rng::SimRng;
+    use slam_map::{KeypointGrid, ScalePyramid};
     use slam_quadric::Intrinsics;
     use std::collections::HashMap;
 
-    /// A synthetic keyframe: stereo observations of `points` (camera frame) with these ids.
-    fn keyframe_of(k: &Intrinsics, b: f64, points: &[Vector3<f64>], ids: &[PointId], desc: &[[u8; 32]]) -> Frame {
+    /// A synthetic keyframe: stereo observations of `points` (camera frame), each keypoint on the
+    /// pyramid level its depth gives (a corner twice as near looks twice as large: about four levels
+    /// coarser).
+    fn keyframe_of(k: &Intrinsics, b: f64, points: &[Vector3<f64>], desc: &[[u8; 32]]) -> Frame {
         let rig = StereoRig { k: *k, baseline: b };
         let obs: Vec<[f64; 3]> = points.iter().map(|x| rig.observe(x)).collect();
         let n = points.len();
@@ -523,25 +611,22 @@ mod tests {
             desc: desc.to_vec(),
             obs: obs.clone(),
             of_keypoint: (0..n).map(Some).collect(),
-            ids: ids.to_vec(),
-            valid: vec![true; n],
             keypoints: obs.iter().map(|o| (o[0], o[1])).collect(),
             keypoint_desc: desc.to_vec(),
-            octave: vec![0; n],
+            octave: points.iter().map(|x| ((20.0 / x.z).ln() / 1.2f64.ln()).floor().clamp(0.0, 7.0) as i32).collect(),
             angle: vec![10.0; n],
             grid: KeypointGrid::new(&obs.iter().map(|o| (o[0], o[1])).collect::<Vec<_>>()),
         }
     }
 
     /// The local-map scene: 240 random points (inside the view of every camera below, the nearest
-    /// 5.6 m away) with random descriptors; keyframe 0 at the origin sees them all, keyframe 1 (the
-    /// reference), 1.2 m ahead, misses the last 30.
+    /// 8 m away) with random descriptors; keyframe 0 at the origin sees them all, keyframe 1, 1.2 m
+    /// ahead, misses the last 30.
     struct Scene {
         k: Intrinsics,
         b: f64,
         world: Vec<Vector3<f64>>,
         desc: Vec<[u8; 32]>,
-        ids: Vec<PointId>,
         seen: usize,
     }
 
@@ -556,9 +641,8 @@ mod tests {
         let desc: Vec<[u8; 32]> = (0..world.len())
             .map(|_| std::array::from_fn(|_| (rng.uniform(0.0, 256.0) as u32).min(255) as u8))
             .collect();
-        let ids: Vec<PointId> = (0..world.len() as PointId).collect();
         let seen = world.len() - 30;
-        Scene { k: Intrinsics::new(707.0, 707.0, 601.9, 183.1), b: 0.54, world, desc, ids, seen }
+        Scene { k: Intrinsics::new(707.0, 707.0, 601.9, 183.1), b: 0.54, world, desc, seen }
     }
 
     /// `pts` (world) in the camera at `world_from_camera`.
@@ -566,66 +650,67 @@ mod tests {
         pts.iter().map(|x| (world_from_camera.inverse() * nalgebra::Point3::from(*x)).coords).collect()
     }
 
-    /// A tracker holding the scene's two keyframes, with `local_keyframes` older keyframes in its
-    /// local map.
-    fn tracker_of(s: &Scene, local_keyframes: usize) -> StereoVo {
+    /// A tracker and the map of the scene's two keyframes (every stereo point made a map point,
+    /// keyframe 1's points matched to keyframe 0's), the reference keyframe 1.
+    fn tracker_of(s: &Scene) -> (StereoVo, Map) {
         let world_from = |z: f64| Isometry3::translation(0.0, 0.0, z);
-        let config = VoConfig { local_keyframes, ..VoConfig::default() };
         let optimizer = std::sync::Arc::new(slam_lm::LevenbergMarquardt::default());
-        let mut vo = StereoVo::new(StereoRig { k: s.k, baseline: s.b }, config, optimizer).expect("ORB");
+        let rig = StereoRig { k: s.k, baseline: s.b };
+        let mut vo = StereoVo::new(rig, VoConfig::default(), optimizer).expect("ORB");
         vo.tracker.image_size = (1241.0, 376.0);
-        let (seen, desc) = (&s.world[..s.seen], &s.desc[..s.seen]);
-        vo.keyframes.reference = Some(Reference {
-            frame: keyframe_of(&s.k, s.b, &in_camera(&world_from(1.2), seen), &s.ids[..s.seen], desc),
-            id: 1,
-            world_from_kf: world_from(1.2),
-            parent: Some((0, world_from(1.2))),
-        });
-        vo.keyframes.local.push_front(Reference {
-            frame: keyframe_of(&s.k, s.b, &in_camera(&world_from(0.0), &s.world), &s.ids, &s.desc),
-            id: 0,
-            world_from_kf: world_from(0.0),
-            parent: None,
-        });
-        vo
+        let mut map = Map::new(rig, ScalePyramid::default());
+        let every = CreationPolicy { near_baselines: f64::INFINITY, min_points: 0 };
+        let f0 = keyframe_of(&s.k, s.b, &in_camera(&world_from(0.0), &s.world), &s.desc);
+        let kf0 = new_keyframe((0, 0), &f0, vo.tracker.image_size, (world_from(0.0), None), None);
+        map.insert_keyframe(kf0, &every).expect("keyframe 0");
+        let f1 = keyframe_of(&s.k, s.b, &in_camera(&world_from(1.2), &s.world[..s.seen]), &s.desc[..s.seen]);
+        let mut kf1 = new_keyframe((1, 1), &f1, vo.tracker.image_size, (world_from(1.2), Some(0)), None);
+        let first = map.keyframe(0).expect("keyframe 0").points.clone();
+        kf1.matched = first[..s.seen].to_vec();
+        map.insert_keyframe(kf1, &every).expect("keyframe 1");
+        vo.reference = Some(1);
+        (vo, map)
     }
 
     /// Local-map tracking: points the reference keyframe did not see (lost in that frame) are found
-    /// again from an older covisible keyframe, and the refinement recovers the pose; the motion guard
-    /// accepts the true pose and rejects it moved by 5 m.
+    /// again from a covisible keyframe, and the refinement recovers the pose; the motion guard accepts
+    /// the true pose and rejects it moved by 5 m.
     #[test]
     fn local_map_recovers_points_lost_for_one_frame_and_the_guard_rejects_a_5m_jump() {
         let s = scene();
         // the current frame, 2.4 m from the origin, sees every point
         let truth = Isometry3::translation(0.0, 0.0, 2.4);
-        let frame = keyframe_of(&s.k, s.b, &in_camera(&truth, &s.world), &vec![0; s.world.len()], &s.desc);
+        let frame = keyframe_of(&s.k, s.b, &in_camera(&truth, &s.world), &s.desc);
         let curr_from_ref = truth.inverse() * Isometry3::translation(0.0, 0.0, 1.2);
-        for (local_keyframes, expect_recovered) in [(0, false), (4, true)] {
-            let vo = tracker_of(&s, local_keyframes);
-            let map = vo.keyframes.local_map(vo.config().local_keyframes);
-            let skip = vec![false; map.points.len()];
+        let (vo, whole) = tracker_of(&s);
+        let ids_of_world: HashMap<PointId, usize> =
+            whole.keyframe(0).expect("kf").observations().map(|(kp, p)| (p, kp)).collect();
+        for (keyframes, expect_recovered) in [(vec![1], false), (vec![1, 0], true)] {
+            let map = LocalMap::of(&whole, 1, &keyframes);
+            let skip = vec![false; map.len()];
             let taken = vec![false; frame.keypoints.len()];
             // the prediction is off by 0.3 m and a little turn
             let guess = Isometry3::new(Vector3::new(0.1, 0.0, 0.3), Vector3::new(0.0, 0.01, 0.0)) * curr_from_ref;
             let t = &vo.tracker;
-            let matches = t.search(&map, &guess, &frame, &|c, o| t.window(c, o, (0.35, 0.03)), &skip, &taken);
-            let recovered: Vec<PointId> =
-                matches.iter().map(|&(i, _)| map.ids[i]).filter(|&id| id >= s.seen as PointId).collect();
-            assert_eq!(!recovered.is_empty(), expect_recovered, "{local_keyframes} keyframes: {recovered:?}");
+            let matches = t.search(&map, &guess, &frame, &|c, l| t.window(c, l, (0.35, 0.03)), (&skip, &taken));
+            let recovered: Vec<usize> =
+                matches.iter().map(|&(i, _)| ids_of_world[&map.ids[i]]).filter(|&w| w >= s.seen).collect();
+            assert_eq!(!recovered.is_empty(), expect_recovered, "{keyframes:?}: {recovered:?}");
             for &(i, c) in &matches {
-                assert_eq!(map.ids[i] as usize, c, "every match is right");
+                assert_eq!(ids_of_world[&map.ids[i]], c, "every match is right");
             }
             if !expect_recovered {
                 continue;
             }
             assert_eq!(recovered.len(), 30, "all the points the reference missed");
-            let r = vo.tracker.refine(&map, &frame, &matches, &guess, &Isometry3::identity()).expect("refined");
+            let r =
+                vo.tracker.refiner().refine(&map, &frame, &matches, &guess, &Isometry3::identity()).expect("refined");
             let err = r.pose * curr_from_ref.inverse();
             assert!(err.translation.vector.norm() < 1e-3 && err.rotation.angle() < 1e-5, "{err:?}");
             assert_eq!(r.inliers.len(), s.world.len(), "all inliers");
             assert!(r.rms < 1e-3, "rms {}", r.rms);
             // the motion guard: the camera moves 1.2 m per frame and the last frame was the reference
-            let mut vo = vo;
+            let mut vo = tracker_of(&s).0;
             vo.motion.velocity = Isometry3::translation(0.0, 0.0, 1.2);
             vo.motion.velocity_known = true;
             assert_eq!(vo.judge(&r, Route::Motion, &frame), Support::Full);
@@ -650,23 +735,23 @@ mod tests {
         };
         let k = Intrinsics::new(707.0912, 707.0912, 601.8873, 183.1104);
         let rig = StereoRig { k, baseline: 379.8145 / 707.0912 };
-        let mut vo =
-            StereoVo::new(rig, VoConfig::default(), std::sync::Arc::new(slam_lm::LevenbergMarquardt::default()))
+        let mut odo =
+            crate::Odometry::new(rig, VoConfig::default(), std::sync::Arc::new(slam_lm::LevenbergMarquardt::default()))
                 .expect("ORB");
         let mut keyframe_at: HashMap<KeyframeId, usize> = HashMap::new();
         let frames = 31;
         for i in 0..frames {
-            let t = vo.process(i, &read("image_0", i), &read("image_1", i), &[]).expect("tracks");
+            let t = odo.track(i, &read("image_0", i), &read("image_1", i), &[]).expect("tracks");
             if let Some(kf) = t.keyframe {
                 keyframe_at.insert(kf.id, kf.frame);
             }
         }
         assert!(keyframe_at.len() >= 6, "{keyframe_at:?}");
-        assert_eq!(vo.relocaliser.index.len(), keyframe_at.len(), "every keyframe indexed");
+        assert_eq!(odo.vo.relocaliser.index.len(), keyframe_at.len(), "every keyframe indexed");
         for i in (1..frames).step_by(3) {
             let grey = StereoVo::grey_of(&read("image_0", i)).expect("grey");
-            let f = vo.features.extract(&grey).expect("ORB");
-            let best = vo.relocaliser.index.query(&f.desc, 3);
+            let f = odo.vo.features.extract(&grey).expect("ORB");
+            let best = odo.vo.relocaliser.index.query(&f.desc, 3);
             let at = keyframe_at[&best[0].0];
             assert!(at.abs_diff(i) <= 4, "frame {i}: best keyframe at frame {at}: {best:?}");
         }

@@ -20,8 +20,9 @@ pub const MAP_FORMAT: &str = "quadric-slam-map";
 pub const MAP_WORLD: &str =
     "world = the left camera of the first frame: x right, y down, z forward, metres; poses world from camera";
 /// Version of the map file format. Version 2 added left-only observations (`u_right` written as
-/// `null`) of triangulated points; version 1 files read unchanged.
-pub const MAP_VERSION: u32 = 2;
+/// `null`) of triangulated points; version 3 the keyframes culled from the map (`culled`, kept with their
+/// pose as anchors of the frames tracked against them). Versions 1 and 2 read unchanged.
+pub const MAP_VERSION: u32 = 3;
 
 /// A pose as stored: quaternion `[qx, qy, qz, qw]` then translation `[tx, ty, tz]`, world from camera.
 pub type PoseArray = [f64; 7];
@@ -55,6 +56,10 @@ pub struct MapKeyframe {
     /// left-only observation of a triangulated point.
     #[serde(with = "observation_list")]
     pub observations: Vec<(PointId, [f64; 3])>,
+    /// Culled as redundant: it observes nothing and stays for the frames tracked against it (its pose
+    /// follows its parent's). Absent in older files: `false`.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub culled: bool,
 }
 
 /// Observations with a NaN right column written as `null` (JSON has no NaN) and read back as NaN.
@@ -233,6 +238,41 @@ pub struct MapStats {
 }
 
 impl Map {
+    /// The database of a run's live map (`slam_core::Map`): its keyframes with their observations, the
+    /// keyframes culled from it (at their poses, without observations, marked culled), its points; no
+    /// objects and no trajectory yet.
+    pub fn from_live(live: &slam_core::Map) -> Self {
+        let mut m = Map::default();
+        for k in live.keyframes() {
+            let observations = k.observations().map(|(kp, p)| (p, k.features.keypoints[kp].observation())).collect();
+            let stored = MapKeyframe {
+                frame: k.frame,
+                pose: pose_to_array(&k.pose),
+                parent: k.parent,
+                observations,
+                culled: false,
+            };
+            m.keyframes.insert(k.id, stored);
+        }
+        for (&id, r) in live.retired() {
+            let pose = live.keyframe_pose(id).unwrap_or_else(Isometry3::identity);
+            let stored = MapKeyframe {
+                frame: r.frame,
+                pose: pose_to_array(&pose),
+                parent: Some(r.parent),
+                observations: Vec::new(),
+                culled: true,
+            };
+            m.keyframes.insert(id, stored);
+        }
+        for (id, p) in live.points() {
+            let observed_by: Vec<KeyframeId> =
+                p.observations.iter().map(|o| o.keyframe).filter(|k| live.keyframe(*k).is_some()).collect();
+            m.points.insert(id, MapPoint { position: [p.position.x, p.position.y, p.position.z], observed_by });
+        }
+        m
+    }
+
     /// Pose of a keyframe.
     pub fn keyframe_pose(&self, id: KeyframeId) -> Option<Isometry3<f64>> {
         self.keyframes.get(&id).map(|k| pose_from_array(&k.pose))
@@ -254,9 +294,10 @@ impl Map {
 
     /// Counts.
     pub fn stats(&self) -> MapStats {
-        let poses: Vec<Isometry3<f64>> = self.keyframes.values().map(|k| pose_from_array(&k.pose)).collect();
+        let poses: Vec<Isometry3<f64>> =
+            self.keyframes.values().filter(|k| !k.culled).map(|k| pose_from_array(&k.pose)).collect();
         MapStats {
-            keyframes: self.keyframes.len(),
+            keyframes: self.keyframes.values().filter(|k| !k.culled).count(),
             segments: self.keyframes.values().filter(|k| k.parent.is_none()).count(),
             points: self.points.len(),
             observations: self.keyframes.values().map(|k| k.observations.len()).sum(),
@@ -310,7 +351,7 @@ impl Map {
                 message: format!("format is {:?}, expected {MAP_FORMAT:?}", header.format),
             });
         }
-        if header.version != MAP_VERSION && header.version != 1 {
+        if !(1..=MAP_VERSION).contains(&header.version) {
             return Err(MapError::Version { path: path.to_path_buf(), found: header.version });
         }
         let map: Self = serde_json::from_str(&text).map_err(fmt)?;
@@ -644,10 +685,13 @@ mod tests {
                 pose: pose_to_array(&Isometry3::identity()),
                 parent: None,
                 observations: vec![(7, [1.0, 2.0, 0.5])],
+                culled: false,
             },
         );
-        m.keyframes
-            .insert(1, MapKeyframe { frame: 3, pose: pose_to_array(&pose), parent: Some(0), observations: vec![] });
+        m.keyframes.insert(
+            1,
+            MapKeyframe { frame: 3, pose: pose_to_array(&pose), parent: Some(0), observations: vec![], culled: true },
+        );
         m.points.insert(7, MapPoint { position: [0.5, 0.1, 9.0], observed_by: vec![0] });
         m.trajectory.push(FramePose {
             frame: 0,

@@ -1,23 +1,27 @@
 //! The running system: the paper's threads, talking through `crossbeam-channel` messages.
 //!
 //! ```text
-//!  reader ──frames──▶ detection ──frames+boxes──▶ tracking ──keyframes+fit jobs──▶ local mapping
-//!                                                    ▲                                   │
-//!                                                    └──── corrections + fitted objects ─┘
+//!  reader ──frames──▶ detection ──frames+boxes──▶ tracking ──window snapshots + fit jobs──▶ local mapping
+//!                                                    ▲                                          │
+//!                                                    └─────────── map edits + fitted objects ───┘
 //! ```
 //! - **reader**: decodes the stereo pairs (the caller's iterator) ahead of time.
 //! - **detection**: runs the [`DetectionSource`] on every `detect_every`-th left image.
-//! - **tracking** (the calling thread): the [`StereoTracker`], optical flow in the boxes, object
-//!   association ([`ObjectMapper::associate`]), the moving-object test, and on keyframes the fit jobs.
-//! - **local mapping**: the only owner of the [`Map`]: keyframe insertion, local bundle adjustment,
-//!   culling, and the object fits (texture planes from the map points). The tracking thread reads the
-//!   map only through the mapper's replies (keyframe corrections, fitted objects); `on_frame` observers
-//!   get per-frame views ([`FrameView`]: the record, the pose, the left image, the corrections just
-//!   applied, the objects), and the final map is handed over when the run ends. No locks are shared.
+//! - **tracking** (the calling thread): owns the live map ([`slam_core::Map`]); the [`StereoTracker`]
+//!   tracks against it, the keyframes it hands over are inserted, optical flow in the boxes, object
+//!   association ([`ObjectMapper::associate`]), the moving-object test, and on keyframes the job of
+//!   local mapping (a snapshot of the keyframe's window) and the fit jobs.
+//! - **local mapping**: works on the snapshot (point culling, triangulation, fusion, local bundle
+//!   adjustment, keyframe culling: [`crate::mapping`]) and the object fits, and replies with the
+//!   snapshot's edits, which the tracking thread applies to the live map. `on_frame` observers get
+//!   per-frame views ([`FrameView`]: the record, the pose, the left image, the live map, the objects).
+//!   No locks are shared.
 //!
-//! Determinism: the tracker applies the mapper's reply for a keyframe made at the `k`-th input frame just
-//! before it tracks the `(k + correction_lag)`-th (waiting for it if need be), never "whenever it
-//! arrives", so a run gives the same output however the threads are scheduled.
+//! Determinism: the tracking thread applies local mapping's reply for a keyframe made at the `k`-th
+//! input frame just before it tracks the `(k + correction_lag)`-th, or before it inserts the next
+//! keyframe if that comes first (waiting for it if need be), never "whenever it arrives": every
+//! snapshot holds all earlier work, and a run gives the same output however the threads are
+//! scheduled. The map [`RunOutput::map`] holds is written from the live map at the end.
 //!
 //! Frame identity: [`FrameInput::index`] is the frame's id in its sequence (the number in the file
 //! names), not its position: records, the map's trajectory and keyframes, and the detector's `frame`
@@ -31,8 +35,7 @@ mod tracking;
 pub use builder::{FrameSource, System, SystemBuilder};
 use nalgebra::Isometry3;
 use slam_core::{
-    geometry::Intrinsics, Detection, DetectionSource, Image, KeyframeCorrection, StereoTracker, TrackError, TrackId,
-    TrackState,
+    geometry::Intrinsics, Detection, DetectionSource, Image, KeyframeId, StereoTracker, TrackError, TrackId, TrackState,
 };
 use slam_optim::SharedOptimizer;
 pub use threads::MapperRequest;
@@ -155,7 +158,7 @@ pub struct FrameRecord {
 
 /// What an observer of [`System::run`] sees of one frame as soon as it is tracked (a live view, a
 /// recording): its record and borrowed views of the state behind it, valid during the call. Nothing
-/// is copied for it: the image and the corrections are the ones tracking used.
+/// is copied for it: the image and the map are the ones tracking used.
 pub struct FrameView<'a> {
     /// The frame's record.
     pub record: &'a FrameRecord,
@@ -164,9 +167,11 @@ pub struct FrameView<'a> {
     pub world_from_camera: Option<Isometry3<f64>>,
     /// The left image; `None` for an unreadable frame.
     pub left: Option<&'a Image>,
-    /// Local mapping's refinements applied just before this frame was tracked, oldest first: each a
-    /// keyframe's refined pose and the refined positions of the map points it observes.
-    pub corrections: &'a [KeyframeCorrection],
+    /// The live map as the frame left it (its keyframe, if it made one, inserted).
+    pub map: &'a slam_core::Map,
+    /// The keyframes whose local mapping (refined poses and points, new and culled points) reached the
+    /// map just before this frame was tracked, oldest first.
+    pub mapped: &'a [KeyframeId],
     /// The objects so far (their ellipsoids as last fitted).
     pub objects: &'a ObjectMapper,
 }
@@ -191,6 +196,9 @@ pub struct FrameTimes {
     pub association: f64,
     /// Local bundle adjustment (keyframes; mapping thread).
     pub bundle_adjustment: f64,
+    /// The rest of local mapping: point culling, triangulation, fusion, keyframe culling (keyframes;
+    /// mapping thread).
+    pub map_maintenance: f64,
     /// Object initialisation and optimisation (keyframes; mapping thread).
     pub objects: f64,
 }
@@ -220,6 +228,14 @@ pub struct RunCounts {
     pub detector_errors: usize,
     /// Observations culled by local mapping.
     pub culled_observations: usize,
+    /// Young points culled (not found again, or seen by too few keyframes).
+    pub culled_points: usize,
+    /// Points triangulated between keyframes.
+    pub triangulated_points: usize,
+    /// Points merged into another by fusion.
+    pub fused_points: usize,
+    /// Keyframes culled as redundant.
+    pub culled_keyframes: usize,
     /// Detector boxes suppressed as duplicates or parts of another box of the same class group.
     pub suppressed_boxes: usize,
     /// Fitted ellipsoids refused for a size no real object of their class has

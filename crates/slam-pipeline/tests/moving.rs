@@ -174,13 +174,11 @@ impl slam_core::StereoTracker for Withholding {
         left: &slam_core::Image,
         right: &slam_core::Image,
         exclude: &[slam_core::MovingRegion],
+        map: &slam_core::Map,
     ) -> Result<slam_core::TrackedFrame, slam_core::TrackError> {
-        let mut tf = self.0.track(frame, left, right, exclude)?;
+        let mut tf = self.0.track(frame, left, right, exclude, map)?;
         tf.masked_points.clear();
         Ok(tf)
-    }
-    fn correct(&mut self, c: &slam_core::KeyframeCorrection) {
-        self.0.correct(c)
     }
     fn flow(
         &mut self,

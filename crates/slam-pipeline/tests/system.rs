@@ -146,8 +146,9 @@ fn stepping_frame_by_frame_gives_what_run_gives() {
 }
 
 /// What `System::run` shows its observer of each frame: the pose tracking gave it (the tracker's
-/// believed pose), the left image unless the frame is unreadable, each keyframe's refinement once,
-/// `correction_lag` frames after the keyframe, and the objects mapped so far.
+/// believed pose), the left image unless the frame is unreadable, each keyframe's local mapping once,
+/// `correction_lag` frames after the keyframe (or before the next keyframe goes in), and the objects
+/// mapped so far.
 #[test]
 fn each_frame_is_shown_with_its_pose_image_corrections_and_objects() {
     let system = SystemBuilder::new(K, B)
@@ -170,8 +171,9 @@ fn each_frame_is_shown_with_its_pose_image_corrections_and_objects() {
             if v.record.keyframe {
                 keyframes.push(i);
             }
-            for c in v.corrections {
-                assert!(!c.points.is_empty(), "a keyframe's refined points come with its correction");
+            for &k in v.mapped {
+                let kf = v.map.keyframe(k).expect("a keyframe whose local mapping was applied is in the map");
+                assert!(kf.observed() > 0, "a mapped keyframe observes points");
                 corrected.push(i);
             }
             with_objects += usize::from(v.objects.objects().any(|o| o.ellipsoid.is_some()));

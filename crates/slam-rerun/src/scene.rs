@@ -6,7 +6,7 @@
 use std::collections::HashSet;
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, UnitQuaternion, Vector3};
-use slam_core::{Image, KeyframeCorrection, KeyframeId, PointId, TrackId};
+use slam_core::{Image, KeyframeId, PointId, TrackId};
 use slam_pipeline::{
     map::{Map, MapObject},
     objects::MappedObject,
@@ -367,8 +367,8 @@ pub struct FrameScene {
 
 impl FrameScene {
     /// A running system's frame ([`FrameView`]): boxes and projected ellipsoids as the overlays draw
-    /// them (with [`box_colour`]), the objects as they stand, the map points local mapping refined for
-    /// the keyframes whose corrections were applied just before this frame (new ones only, bounded).
+    /// them (with [`box_colour`]), the objects as they stand, the map points of the keyframes whose
+    /// local mapping reached the map just before this frame (new ones only, bounded).
     pub fn of_view(view: &FrameView<'_>, setup: &SceneSetup, recorded: &mut NewPoints) -> Self {
         let rec = view.record;
         let objects: Vec<&MappedObject> = view.objects.objects().collect();
@@ -403,7 +403,7 @@ impl FrameScene {
                     .collect()
             })
             .unwrap_or_default();
-        let points = corrections_points(view.corrections, recorded);
+        let points = mapped_points(view.map, view.mapped, recorded);
         let name = rec.state.map_or("unreadable", |s| s.name());
         FrameScene {
             frame: rec.index,
@@ -466,14 +466,20 @@ impl FrameScene {
     }
 }
 
-/// The new map points of each correction, bounded per keyframe (corrections without new points left out).
-fn corrections_points(
-    corrections: &[KeyframeCorrection],
+/// The new map points of each keyframe of `mapped` still in the map, bounded per keyframe (keyframes
+/// without new points left out).
+fn mapped_points(
+    map: &slam_core::Map,
+    mapped: &[KeyframeId],
     recorded: &mut NewPoints,
 ) -> Vec<(KeyframeId, Vec<[f32; 3]>)> {
-    corrections
+    mapped
         .iter()
-        .map(|c| (c.id, recorded.take(c.points.iter().copied())))
+        .filter_map(|&id| map.keyframe(id).map(|k| (id, k)))
+        .map(|(id, k)| {
+            let xs = k.observations().filter_map(|(_, p)| map.position(p).map(|x| (p, x)));
+            (id, recorded.take(xs))
+        })
         .filter(|(_, xs)| !xs.is_empty())
         .collect()
 }
@@ -610,7 +616,10 @@ mod tests {
         for (id, frame, z) in [(0u64, 0usize, 0.0), (1, 2, 2.0)] {
             let pose = Isometry3::translation(0.0, 0.0, z);
             let observations = (0..3).map(|k| (10 * id + k, [1.0, 2.0, 3.0])).collect();
-            map.keyframes.insert(id, MapKeyframe { frame, pose: pose_to_array(&pose), parent: None, observations });
+            map.keyframes.insert(
+                id,
+                MapKeyframe { frame, pose: pose_to_array(&pose), parent: None, observations, culled: false },
+            );
             for k in 0..3 {
                 map.points.insert(10 * id + k, MapPoint { position: [k as f64, 0.0, 10.0 + z], observed_by: vec![id] });
             }

@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use slam_dataset::kitti::stereo::TruthSource;
+use slam_dataset::{kitti::stereo::TruthSource, layout::Order};
 use slam_pipeline::{
     eval::trajectory_errors,
     report::{median, median_fps, stage_table, state_counts, STATE_NAMES},
@@ -178,7 +178,7 @@ pub fn recording_cost(without: &BenchRow, with: &BenchRow) -> String {
     )
 }
 
-/// One case of `track-bench`: a sequence played at a stride.
+/// One case of `track-bench`: a sequence played at a stride, or its frames in another order.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct TrackCase {
     /// Name in the table.
@@ -187,6 +187,9 @@ pub struct TrackCase {
     pub path: PathBuf,
     /// Play every n-th frame id.
     pub stride: u64,
+    /// Play the sequence's frames in this order instead (a layout made for the case in a temporary
+    /// folder: [`slam_dataset::layout`]).
+    pub order: Option<Order>,
 }
 
 impl TrackCase {
@@ -202,29 +205,34 @@ impl TrackCase {
             }
             _ => (text, 1),
         };
-        Ok(TrackCase { name: format!("{path}, stride {stride}"), path: PathBuf::from(path), stride })
+        Ok(TrackCase { name: format!("{path}, stride {stride}"), path: PathBuf::from(path), stride, order: None })
     }
 
     /// The shipped dev cases: odometry 06 (folder `odometry`) at strides 1-4, odometry 01 (`highway`,
-    /// a curved on-ramp at 36-46 km/h with most texture far away), and raw drive 0005 (`raw`) at strides
-    /// 1, 4 and 8: that drive moves 0.39 m per frame, so every 4th frame is 1.6 m and every 8th 3.1 m
-    /// per frame, fast motion on a second drive (odometry 06 at strides 1 and 3).
+    /// a curved on-ramp at 36-46 km/h with most texture far away), raw drive 0005 (`raw`) at strides
+    /// 1, 4 and 8 (that drive moves 0.39 m per frame, so every 4th frame is 1.6 m and every 8th 3.1 m per
+    /// frame, fast motion on a second drive), and odometry 06 driven there and back over 5 legs and
+    /// with a standstill at frame 20 of 2, 30 and 200 frames (map reuse: [`slam_dataset::layout`]).
     pub fn dev_cases(odometry: PathBuf, highway: PathBuf, raw: PathBuf) -> Vec<Self> {
+        let case = |name: String, path: &PathBuf, stride: u64, order: Option<Order>| TrackCase {
+            name,
+            path: path.clone(),
+            stride,
+            order,
+        };
         let mut cases: Vec<Self> = (1..=4)
-            .map(|stride| TrackCase {
-                name: format!("odometry 06, frames 0-50, stride {stride}"),
-                path: odometry.clone(),
-                stride,
-            })
+            .map(|stride| case(format!("odometry 06, frames 0-50, stride {stride}"), &odometry, stride, None))
             .collect();
-        cases.push(TrackCase { name: "odometry 01, frames 0-50 (highway)".into(), path: highway, stride: 1 });
-        cases.push(TrackCase { name: "raw drive 0005, frames 0-90 (vs OXTS)".into(), path: raw.clone(), stride: 1 });
+        cases.push(case("odometry 01, frames 0-50 (highway)".into(), &highway, 1, None));
+        cases.push(case("raw drive 0005, frames 0-90 (vs OXTS)".into(), &raw, 1, None));
         for stride in [4, 8] {
-            cases.push(TrackCase {
-                name: format!("raw drive 0005, frames 0-88, stride {stride}"),
-                path: raw.clone(),
-                stride,
-            });
+            cases.push(case(format!("raw drive 0005, frames 0-88, stride {stride}"), &raw, stride, None));
+        }
+        let there_and_back = Order::ThereAndBack { legs: 5 };
+        cases.push(case("odometry 06 there and back, 5 legs".into(), &odometry, 1, Some(there_and_back)));
+        for extra in [2, 30, 200] {
+            let order = Order::Standstill { at: 20, extra };
+            cases.push(case(format!("odometry 06, standstill at frame 20 (+{extra})"), &odometry, 1, Some(order)));
         }
         cases
     }
@@ -262,7 +270,7 @@ pub fn track_bench(
 /// The `track-bench` table's header (markdown), with one column per tracking state.
 pub fn track_bench_header() -> String {
     format!(
-        "| case | frames | ATE aligned m | path error % | end drift % | largest step error m (frame), tracked frames | {} | ATE m | median frames/s |\n|---|---:|---:|---:|---:|---:|{}---:|---:|",
+        "| case | frames | ATE aligned m | path error % | end drift % | largest step error m (frame), tracked frames | {} | keyframes | map points | local BA median ms | ATE m | median frames/s |\n|---|---:|---:|---:|---:|---:|{}---:|---:|---:|---:|---:|",
         STATE_NAMES.join(" | "),
         "---:|".repeat(STATE_NAMES.len())
     )
@@ -277,7 +285,8 @@ pub struct TrackRow {
     pub notes: Vec<String>,
 }
 
-/// Run `case` with `base`'s settings (its path and stride replaced; no detector unless `objects`).
+/// Run `case` with `base`'s settings (its path and stride replaced, or its layout made in a temporary
+/// folder and removed after; no detector unless `objects`).
 pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<TrackRow> {
     let mut s = base.clone();
     s.path = case.path.clone();
@@ -285,7 +294,26 @@ pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<
     if !objects {
         s.detector = DetectorChoice::None;
     }
-    let o = run_quiet(&s, None).context_with(|| format!("case {}", case.name))?;
+    let layout = match case.order {
+        Some(order) => {
+            let folder =
+                std::env::temp_dir().join(format!("slam-track-bench-{}-{}", std::process::id(), case.name.len()));
+            let _ = std::fs::remove_dir_all(&folder);
+            let made = slam_dataset::layout::write_layout(&case.path, order, &folder);
+            let dir = made.map_err(|e| {
+                let _ = std::fs::remove_dir_all(&folder);
+                RunnerError::from(e)
+            })?;
+            s.path = dir;
+            Some(folder)
+        }
+        None => None,
+    };
+    let run = run_quiet(&s, None).context_with(|| format!("case {}", case.name));
+    if let Some(folder) = layout {
+        let _ = std::fs::remove_dir_all(folder);
+    }
+    let o = run?;
     let (out, seq) = (&o.out, &o.seq);
     let truth = seq.truth_from_first();
     let scored = truth.as_ref().map(|g| crate::report::Scored::of(out, g, &seq.ids));
@@ -294,8 +322,15 @@ pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<
     let step = scored.as_ref().and_then(|s| s.largest_tracked_step_error());
     let cell = |v: Option<f64>, digits: usize| v.map_or("–".to_string(), |v| format!("{v:.digits$}"));
     let states: Vec<String> = state_counts(&out.frames).iter().map(|n| n.to_string()).collect();
+    let stats = out.map.stats();
+    let mut ba: Vec<f64> = out
+        .frames
+        .iter()
+        .filter(|r| r.keyframe && r.times.bundle_adjustment > 0.0)
+        .map(|r| r.times.bundle_adjustment)
+        .collect();
     let line = format!(
-        "| {} | {} | {} | {} | {} | {} | {} | {} | {:.1} |",
+        "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} |",
         case.name,
         out.frames.len(),
         cell(errors.as_ref().map(|e| e.ate_aligned_m), 3),
@@ -303,6 +338,9 @@ pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<
         cell(errors.as_ref().map(|e| e.end_drift_pct), 2),
         step.map_or("–".to_string(), |(e, id)| format!("{e:.3} ({id})")),
         states.join(" | "),
+        stats.keyframes,
+        stats.points,
+        cell((!ba.is_empty()).then(|| median(&mut ba)), 1),
         cell(errors.as_ref().map(|e| e.ate_m), 3),
         median_fps(out)
     );
@@ -346,7 +384,8 @@ mod tests {
         assert!(TrackCase::parse("seq:0").expect_err("zero").to_string().contains("at least 1"));
         assert!(TrackCase::parse("seq:99999999999999999999999").is_err(), "overflow");
         let dev = TrackCase::dev_cases("o".into(), "h".into(), "r".into());
-        assert_eq!(dev.iter().map(|c| c.stride).collect::<Vec<_>>(), [1, 2, 3, 4, 1, 1, 4, 8]);
+        assert_eq!(dev.iter().map(|c| c.stride).collect::<Vec<_>>(), [1, 2, 3, 4, 1, 1, 4, 8, 1, 1, 1, 1]);
+        assert_eq!(dev[8].order, Some(Order::ThereAndBack { legs: 5 }));
         assert_eq!(dev[4].path, PathBuf::from("h"), "the highway case");
     }
 
@@ -356,7 +395,7 @@ mod tests {
         let mut lines = header.lines();
         let cols = lines.next().expect("head").matches('|').count();
         assert_eq!(lines.next().expect("rule").matches('|').count(), cols);
-        assert_eq!(cols, 9 + STATE_NAMES.len());
+        assert_eq!(cols, 12 + STATE_NAMES.len());
         let row =
             BenchRow { name: "x".into(), fps_median: 30.04, fps_overall: 20.0, stages: vec![1.0; 8], ate: 0.1234 };
         assert_eq!(

@@ -82,6 +82,10 @@ impl Outcome {
             "map: {} keyframes, {} points, {} observations; objects: {} with an ellipsoid ({} dynamic) from {dets} detections",
             st.keyframes, st.points, st.observations, st.objects, st.dynamic_objects
         ));
+        lines.push(format!(
+            "local mapping: {} points triangulated between keyframes, {} fused into another, {} young points culled, {} keyframes culled as redundant",
+            c.triangulated_points, c.fused_points, c.culled_points, c.culled_keyframes
+        ));
         lines.push("\n| stage | median ms | frames |\n|---|---:|---:|".into());
         for (name, ms, count) in stages_run(out, self.stages) {
             lines.push(format!("| {name} | {ms:.1} | {count} |"));

@@ -211,6 +211,8 @@ impl Prepared {
         let start = std::time::Instant::now();
         let mut sys = s.system;
         sys.objects.image = image;
+        // the map makes points and local BA weighs disparities by the tracker's near bound
+        sys.mapping.near_baselines = tracking.far_baselines;
         let out = SystemBuilder::new(k, seq.baseline)
             .config(sys)
             .source(frames)

@@ -124,7 +124,7 @@ mod tests {
     #[test]
     fn defaults_round_trip_through_toml_and_unknown_keys_fail() {
         let text = RunConfig::default().to_commented_toml();
-        assert!(text.contains("[tracking]") && text.contains("keyframe_max_gap = 4") && text.contains("[mapping]"));
+        assert!(text.contains("[tracking]") && text.contains("keyframe_max_gap = 0") && text.contains("[mapping]"));
         // every key carries its library doc comment
         assert!(text.contains("# ORB features per image.\nfeatures = 2000"), "{text}");
         assert!(text.contains("dynamic_rms_px = 25.0"), "the running system's default (library): {text}");

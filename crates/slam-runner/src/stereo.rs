@@ -9,7 +9,7 @@ use slam_dataset::{
     check::{calibration, calibration_file, first_pair},
     kitti::stereo::{open_stereo, Layout, StereoSequence},
 };
-use slam_frontend::{disparity::OffsetEstimate, read_image, StereoRig, StereoVo, VoConfig};
+use slam_frontend::{disparity::OffsetEstimate, read_image, StereoRig, VoConfig};
 use slam_quadric::Intrinsics;
 
 use slam_frontend::image_size::stereo_pair;
@@ -163,15 +163,15 @@ pub fn stereo_check(
         // with their disparity at full weight (tracking.far_baselines off)
         tracking.far_baselines = f64::INFINITY;
         let optimizer = (c.optimizer)();
-        let mut vo = StereoVo::new(rig, tracking, optimizer.clone())?;
+        let mut vo = slam_frontend::Odometry::new(rig, tracking, optimizer.clone())?;
         // images are read again in every round rather than held: a whole sequence would not fit
         for &i in &readable {
             let (l, r) = read_pair(&seq, i, colour).context_with(|| format!("frame {i} became unreadable"))?;
-            vo.process(seq.ids[i], &l, &r, &[]).map_err(RunnerError::other)?;
+            vo.track(seq.ids[i], &l, &r, &[]).map_err(RunnerError::other)?;
         }
         let e = slam_frontend::disparity::estimate_disparity_offset(
             &rig,
-            vo.disparity_pairs(),
+            vo.vo.disparity_pairs(),
             (-c.range, c.range),
             c.step,
             &*optimizer,

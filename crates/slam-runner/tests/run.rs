@@ -58,13 +58,15 @@ fn a_short_run_is_prepared_played_written_and_summarised() {
 fn a_track_bench_row_replaces_path_stride_and_detector() {
     let mut base = settings(3, 1);
     base.detector = DetectorChoice::File(PathBuf::from("/nonexistent.json"));
-    let case = bench::TrackCase { name: "odometry 06 stride 3".into(), path: base.path.clone(), stride: 3 };
+    let case =
+        bench::TrackCase { name: "odometry 06 stride 3".into(), path: base.path.clone(), stride: 3, order: None };
     let row = bench::track_row(&base, &case, false).expect("the detector is none in track-bench");
     assert!(row.line.starts_with("| odometry 06 stride 3 | 3 | "), "{}", row.line);
     assert!(row.notes.is_empty(), "ground truth present, not OXTS: {:?}", row.notes);
     // with objects the run keeps the base's detector: here a detection file that does not exist
     bench::track_row(&base, &case, true).expect_err("--objects keeps the detector");
-    let missing = bench::TrackCase { name: "nowhere".into(), path: PathBuf::from("/nonexistent/seq"), stride: 1 };
+    let missing =
+        bench::TrackCase { name: "nowhere".into(), path: PathBuf::from("/nonexistent/seq"), stride: 1, order: None };
     let e = bench::track_row(&base, &missing, false).expect_err("no such sequence");
     assert_eq!(e.to_string(), "case nowhere");
 }

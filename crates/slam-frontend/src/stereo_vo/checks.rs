@@ -82,7 +82,9 @@ pub(crate) fn spread_cells(points: impl Iterator<Item = (f64, f64)>, (width, hei
 
 /// Whether a refined pose (`curr_from_ref`) found by `route` is accepted: its support (`config`, over
 /// an image of `image_size`), and its consistency with the motion model over the frames since the last
-/// measured pose. A pose retrieved from the keyframe index needs full support and no motion check.
+/// measured pose. A pose found without the motion model (by descriptors against the local map, or
+/// against a keyframe retrieved from the index) needs full support and no motion check: it is found
+/// exactly where the motion model broke (a reversal, a start after a standstill, a revisit).
 pub(crate) fn judge(
     config: &VoConfig,
     image_size: (f64, f64),
@@ -93,7 +95,7 @@ pub(crate) fn judge(
 ) -> Support {
     let cells = spread_cells(r.inliers.iter().map(|&(_, c)| frame.keypoints[c]), image_size);
     let support = support(config, r.inliers.len(), cells, r.rms);
-    if let Route::Retrieved(_) = route {
+    if matches!(route, Route::Retrieved(_) | Route::Descriptors) {
         return if support == Support::Full { support } else { Support::Rejected };
     }
     if support == Support::Rejected {

@@ -1,33 +1,9 @@
 //! The rig and the tracker's settings (the `[tracking]` table of `slam-app run --config`; their valid
 //! ranges are in `crate::settings`).
 
-use slam_quadric::Intrinsics;
-
-/// A rectified stereo rig.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StereoRig {
-    /// Intrinsics of both (rectified) cameras.
-    pub k: Intrinsics,
-    /// Baseline, metres (right camera at +x of the left).
-    pub baseline: f64,
-}
-
-impl StereoRig {
-    /// The point (left camera frame) seen at left pixel `(u, v)` with `disparity` pixels: depth
-    /// `fx b / disparity`, then the left camera's ray at that depth.
-    pub fn point(&self, u: f64, v: f64, disparity: f64) -> nalgebra::Vector3<f64> {
-        let k = &self.k;
-        let z = k.fx * self.baseline / disparity;
-        nalgebra::Vector3::new((u - k.cx) * z / k.fx, (v - k.cy) * z / k.fy, z)
-    }
-
-    /// Where a point (left camera frame, in front of it) is seen: `[u_l, v, u_r]`.
-    pub fn observe(&self, p: &nalgebra::Vector3<f64>) -> [f64; 3] {
-        let k = &self.k;
-        let u = k.fx * p.x / p.z + k.cx;
-        [u, k.fy * p.y / p.z + k.cy, u - k.fx * self.baseline / p.z]
-    }
-}
+/// A rectified stereo rig: the map's stereo camera ([`slam_map::StereoCamera`]: intrinsics of both
+/// cameras, baseline in metres, the right camera at +x of the left one).
+pub type StereoRig = slam_map::StereoCamera;
 
 /// Settings of [`StereoVo`](super::StereoVo) (the `[tracking]` table of `slam-app run --config`).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, documented::DocumentedFieldsOpt)]
@@ -39,6 +15,9 @@ pub struct VoConfig {
     /// about one feature each, the best of every cell first (`stereo_vo/features.rs`). Off: OpenCV's
     /// choice, the highest corner scores wherever they are.
     pub spread_features: bool,
+    /// Extract the left and the right image's features side by side, on two threads (the right one on a
+    /// thread of its own for each frame).
+    pub parallel_extraction: bool,
     /// Largest Hamming distance of a stereo match.
     pub stereo_hamming: u32,
     /// Row tolerance of stereo matching, pixels.
@@ -87,33 +66,39 @@ pub struct VoConfig {
     pub far_baselines: f64,
     /// Lost for longer than this (seconds): a new map segment starts.
     pub max_lost_s: f64,
-    /// A new keyframe is taken when the tracked map points fall below this fraction of those tracked
-    /// in the first frame after the current keyframe.
-    pub keyframe_inlier_ratio: f64,
-    /// ... or when this many frames have been tracked against it.
+    /// A new keyframe is made when fewer than this share of the reference keyframe's established points
+    /// (those seen by at least three keyframes, two while the map has two or fewer) lie in the frame's
+    /// view (inside the image, within their distance range and viewing angle): a keyframe every time a
+    /// quarter of the reference's map has left the view, so that each point is seen by about four
+    /// keyframes while it is in view (triangulation needs two, keyframe culling three others).
+    /// Geometry, not matching: standing still or driving over mapped road, the reference's points stay
+    /// in view and no keyframe is made however many of them one frame's matching misses.
+    pub keyframe_tracked_ratio: f64,
+    /// ... or when it tracks fewer than `.0` map points nearer than `far_baselines` (the ones that set
+    /// the scale) while more than `.1` of its near stereo keypoints have no map point in view within
+    /// the second search's radius: the map lacks near structure the frame could give. 100 is the map's
+    /// own least number of points made per keyframe (`mapping.min_new_points`); 70 is a third of the
+    /// near stereo points of a typical street view, enough to be worth a keyframe.
+    pub keyframe_near_points: (usize, usize),
+    /// ... or, when not 0, after this many frames tracked against the reference keyframe if the frame
+    /// moved (its tracked points' median image motion since the keyframe of at least a pixel). 0 (the
+    /// default): keyframes only when the map needs them (the two rules above).
     pub keyframe_max_gap: usize,
-    /// ... or when fewer than this share of the reference keyframe's points are tracked (its overlap
-    /// with the frame; in fast motion it falls by half or more per frame).
-    pub keyframe_overlap: f64,
     /// Most keypoints followed by optical flow per detection box (association cue).
     pub flow_points_per_region: usize,
-    /// Keyframes before the reference whose map points form the local map (those sharing at least
-    /// 10 map points with the reference: its covisible keyframes).
+    /// Most keyframes in tracking's local map: those observing the points the last frame matched, by
+    /// how many each observes, then each one's best covisible neighbours. A view 40–80 m deep on a road
+    /// with a keyframe every 2–3 m meets some 30 keyframes; the bound keeps the cost flat where a
+    /// place has been mapped many times.
     pub local_keyframes: usize,
+    /// Best covisible neighbours of each of those keyframes added to the local map (the parts of the
+    /// map the next frames will see): ten, as many as new points are triangulated with.
+    pub local_neighbours: usize,
     /// Search radius of the second search at the found pose, pixels at pyramid level 0.
     pub local_radius: f64,
-    /// Keyframes kept for relocalisation (newest first).
-    pub relocalisation_keyframes: usize,
     /// Added to every measured disparity, pixels: a correction of the rig's rectification (see
     /// [`crate::disparity`]; `slam-app stereo-check` estimates it from a sequence's images). Default 0.
     pub disparity_offset: f64,
-    /// At a new keyframe, triangulate its keypoints without a stereo match against the previous
-    /// keyframe's (epipolar search, ≥ `triangulate_parallax_deg` of parallax, ≤ 2 px reprojection error
-    /// in both): new map points observed in the left images only. Default off: on the shipped sequence
-    /// it did not pay (docs/system.md).
-    pub triangulate: bool,
-    /// Least angle between the two rays of a triangulated point, degrees.
-    pub triangulate_parallax_deg: f64,
     /// σ of the slip angle at the rear axle, radians, of the vehicle-motion prior (0: no prior). A road
     /// vehicle's rear axle does not slide sideways: without tyre slip its velocity points along the
     /// car, so a step's sideways part at the camera is the yaw times the camera's lever arm (and the
@@ -157,6 +142,7 @@ impl Default for VoConfig {
         Self {
             features: 2000,
             spread_features: true,
+            parallel_extraction: false,
             stereo_hamming: 60,
             row_tolerance: 2.0,
             depth_range: (1.0, 80.0),
@@ -175,16 +161,14 @@ impl Default for VoConfig {
             rotation_tolerance_rad: 0.02,
             far_baselines: 40.0,
             max_lost_s: 0.5,
-            keyframe_inlier_ratio: 0.5,
-            keyframe_max_gap: 4,
-            keyframe_overlap: 0.3,
+            keyframe_tracked_ratio: 0.75,
+            keyframe_near_points: (100, 70),
+            keyframe_max_gap: 0,
             flow_points_per_region: 40,
-            local_keyframes: 4,
+            local_keyframes: 40,
+            local_neighbours: 10,
             local_radius: 4.0,
-            relocalisation_keyframes: 8,
             disparity_offset: 0.0,
-            triangulate: false,
-            triangulate_parallax_deg: 3.0,
             vehicle_slip_rad: 0.0,
             vehicle_lever_m: (1.35, 0.78),
             vehicle_height_m: 1.33,

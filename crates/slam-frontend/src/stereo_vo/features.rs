@@ -2,11 +2,17 @@
 //! with the highest corner scores, wherever they are: on a street that is foliage, fences and a few
 //! façades, while the road, the walls and the far field get few. A pose from such points is pulled by
 //! whatever those few structures' stereo errors have in common. ORB-SLAM spreads its keypoints over a
-//! grid for that reason (Mur-Artal et al., 2015); here the same idea in our own form: more candidates
-//! than wanted are detected at each level, and each level's share is taken from a grid of cells of
-//! about one keypoint each, the best of every cell first, then the second best, and so on.
+//! grid for that reason (Mur-Artal et al., 2015); here the same idea in our own form, each level of the
+//! pyramid on its own ([`detect_level`]):
+//! 1. FAST corners (threshold 20) over the level; in each cell of [`DETECTION_CELL`] pixels that has none,
+//!    FAST again at a lower threshold (7), so that low-contrast parts of the view (road, walls) still
+//!    offer a corner;
+//! 2. the level's share of the keypoints taken from a grid of cells of about one keypoint each, the best
+//!    corner score of every cell first, then the second best, and so on ([`spread_per_level`]);
+//! 3. the orientation (intensity centroid of the 31-pixel patch, [`orientation`]) and the descriptor
+//!    (OpenCV's ORB on the given keypoints) of the kept keypoints only.
 
-use opencv::{core, features2d, prelude::*};
+use opencv::{core, features2d, imgproc, prelude::*};
 
 use crate::image_io::FrontendError;
 
@@ -14,10 +20,20 @@ use crate::image_io::FrontendError;
 pub(crate) const LEVELS: usize = 8;
 /// Scale between pyramid levels.
 pub(crate) const SCALE: f64 = 1.2;
-/// Candidates detected per keypoint kept when spreading: a cell of a level's grid holds one keypoint
-/// on average, so four candidates per keypoint leave most cells of textured areas a choice and fill
-/// the sparse ones.
-const CANDIDATES_PER_KEPT: i32 = 4;
+/// FAST threshold of a corner (grey levels): ORB's, and ORB-SLAM's first pass.
+const FAST_THRESHOLD: i32 = 20;
+/// FAST threshold in a cell where the first pass found no corner: low enough for the road's and a
+/// wall's texture (a few grey levels of contrast under KITTI's sensor noise of about 2), high enough
+/// that flat sky yields nothing.
+const FAST_THRESHOLD_LOW: i32 = 7;
+/// Side of the cells of the low-threshold pass, pixels of the level: about one keypoint's worth of
+/// image at ORB's quota (2000 keypoints over a KITTI image give cells of 15–30 px at level 0).
+pub(crate) const DETECTION_CELL: i32 = 30;
+/// Margin a keypoint keeps from the level's border, pixels: the descriptor's rotated 31-pixel patch
+/// (OpenCV's ORB drops keypoints nearer than its edge threshold, 31, on the full image).
+const BORDER: i32 = 31;
+/// Half the side of the patch a keypoint's orientation is measured over (ORB's 31-pixel patch).
+const PATCH_RADIUS: i32 = 15;
 
 /// Keypoints: positions, 256-bit ORB descriptors, pyramid levels, orientations (degrees).
 pub(crate) struct Features {
@@ -27,9 +43,9 @@ pub(crate) struct Features {
     pub(crate) angle: Vec<f32>,
 }
 
-/// An ORB extractor: `features` keypoints per image, [`LEVELS`] levels [`SCALE`] apart, Harris
-/// score, FAST threshold 20, 31-pixel patches; with `spread`, spread over the image
-/// ([`spread_per_level`]).
+/// An ORB extractor: `features` keypoints per image, [`LEVELS`] levels [`SCALE`] apart, 31-pixel
+/// patches; with `spread`, detected and spread over the image level by level (the module's doc),
+/// without, OpenCV's ORB as it is (Harris score, FAST threshold 20).
 pub(crate) struct Extractor {
     orb: core::Ptr<features2d::ORB>,
     features: usize,
@@ -39,17 +55,16 @@ pub(crate) struct Extractor {
 impl Extractor {
     /// The extractor of `features` keypoints per image, spread over the image or not.
     pub(crate) fn new(features: i32, spread: bool) -> Result<Self, FrontendError> {
-        let detected = if spread { features.saturating_mul(CANDIDATES_PER_KEPT) } else { features };
         let orb = features2d::ORB::create(
-            detected,
+            features,
             SCALE as f32,
             LEVELS as i32,
-            31,
+            BORDER,
             0,
             2,
             features2d::ORB_ScoreType::HARRIS_SCORE,
             31,
-            20,
+            FAST_THRESHOLD,
         )?;
         Ok(Self { orb, features: features.max(0) as usize, spread })
     }
@@ -59,16 +74,7 @@ impl Extractor {
         let mut kps = core::Vector::<core::KeyPoint>::new();
         let mut desc = Mat::default();
         if self.spread {
-            self.orb.detect(img, &mut kps, &core::no_array())?;
-            let (w, h) = (img.cols() as f64, img.rows() as f64);
-            let all: Vec<Candidate> = kps
-                .iter()
-                .map(|k| Candidate { at: (k.pt().x as f64, k.pt().y as f64), level: k.octave(), score: k.response() })
-                .collect();
-            let mut kept: core::Vector<core::KeyPoint> = spread_per_level(&all, level_quotas(self.features), (w, h))
-                .into_iter()
-                .filter_map(|i| kps.get(i).ok())
-                .collect();
+            let mut kept = self.detect(img)?;
             // descriptors of the kept keypoints only (ORB drops those too near the border)
             self.orb.compute(img, &mut kept, &mut desc)?;
             kps = kept;
@@ -95,7 +101,160 @@ impl Extractor {
         }
         Ok(f)
     }
+
+    /// The spread keypoints of every level, with their orientation, in level-0 pixels.
+    fn detect(&self, img: &Mat) -> Result<core::Vector<core::KeyPoint>, FrontendError> {
+        let quotas = level_quotas(self.features);
+        let mut level_img = img.clone();
+        let mut out = core::Vector::<core::KeyPoint>::new();
+        for (level, &quota) in quotas.iter().enumerate() {
+            if level > 0 {
+                let scale = SCALE.powi(level as i32);
+                let size = core::Size::new(
+                    (img.cols() as f64 / scale).round() as i32,
+                    (img.rows() as f64 / scale).round() as i32,
+                );
+                if size.width <= 2 * BORDER || size.height <= 2 * BORDER {
+                    break;
+                }
+                let mut next = Mat::default();
+                imgproc::resize(&level_img, &mut next, size, 0.0, 0.0, imgproc::INTER_LINEAR)?;
+                level_img = next;
+            }
+            if quota == 0 {
+                continue;
+            }
+            let candidates = detect_level(&level_img)?;
+            let (w, h) = (level_img.cols() as f64, level_img.rows() as f64);
+            let all: Vec<Candidate> =
+                candidates.iter().map(|&(at, score)| Candidate { at, level: level as i32, score }).collect();
+            let mut quota_here = [0usize; LEVELS];
+            quota_here[level] = quota;
+            let grey = super::frame::GreyView::of(&level_img)?;
+            let scale = SCALE.powi(level as i32);
+            for i in spread_per_level(&all, quota_here, (w, h)) {
+                let (x, y) = all[i].at;
+                let angle = orientation(&grey, x.round() as i64, y.round() as i64);
+                out.push(core::KeyPoint::new_coords(
+                    (x * scale) as f32,
+                    (y * scale) as f32,
+                    (31.0 * scale) as f32,
+                    angle,
+                    all[i].score,
+                    level as i32,
+                    -1,
+                )?);
+            }
+        }
+        Ok(out)
+    }
 }
+
+/// A FAST corner: its position (level pixels) and score.
+type Corner = ((f64, f64), f32);
+
+/// The FAST corners of one pyramid level away from its border (level pixels, corner score): threshold
+/// [`FAST_THRESHOLD`] over the level, then [`FAST_THRESHOLD_LOW`] in each [`DETECTION_CELL`] without a
+/// corner.
+fn detect_level(img: &Mat) -> Result<Vec<Corner>, FrontendError> {
+    let (w, h) = (img.cols(), img.rows());
+    let inner = core::Rect::new(BORDER - 3, BORDER - 3, w - 2 * (BORDER - 3), h - 2 * (BORDER - 3));
+    let roi = Mat::roi(img, inner)?;
+    let mut kps = core::Vector::<core::KeyPoint>::new();
+    features2d::fast(&roi, &mut kps, FAST_THRESHOLD, true)?;
+    let keep =
+        |x: f64, y: f64| x >= BORDER as f64 && y >= BORDER as f64 && x < (w - BORDER) as f64 && y < (h - BORDER) as f64;
+    let (ox, oy) = (inner.x as f64, inner.y as f64);
+    let mut out: Vec<Corner> = kps
+        .iter()
+        .map(|k| ((k.pt().x as f64 + ox, k.pt().y as f64 + oy), k.response()))
+        .filter(|((x, y), _)| keep(*x, *y))
+        .collect();
+    let cols = ((w - 2 * BORDER) / DETECTION_CELL).max(1);
+    let rows = ((h - 2 * BORDER) / DETECTION_CELL).max(1);
+    let mut occupied = vec![false; (cols * rows) as usize];
+    let cell_of = |x: f64, y: f64| {
+        let c = (((x as i32) - BORDER) / DETECTION_CELL).clamp(0, cols - 1);
+        let r = (((y as i32) - BORDER) / DETECTION_CELL).clamp(0, rows - 1);
+        (r * cols + c) as usize
+    };
+    for ((x, y), _) in &out {
+        occupied[cell_of(*x, *y)] = true;
+    }
+    for r in 0..rows {
+        for c in 0..cols {
+            if occupied[(r * cols + c) as usize] {
+                continue;
+            }
+            // the cell with the 3-pixel ring FAST reads around each candidate
+            let x0 = BORDER + c * DETECTION_CELL - 3;
+            let y0 = BORDER + r * DETECTION_CELL - 3;
+            let x1 = if c == cols - 1 { w - BORDER + 3 } else { x0 + DETECTION_CELL + 6 };
+            let y1 = if r == rows - 1 { h - BORDER + 3 } else { y0 + DETECTION_CELL + 6 };
+            let cell = Mat::roi(img, core::Rect::new(x0, y0, x1 - x0, y1 - y0))?;
+            let mut low = core::Vector::<core::KeyPoint>::new();
+            features2d::fast(&cell, &mut low, FAST_THRESHOLD_LOW, true)?;
+            out.extend(
+                low.iter()
+                    .map(|k| ((k.pt().x as f64 + x0 as f64, k.pt().y as f64 + y0 as f64), k.response()))
+                    .filter(|((x, y), _)| keep(*x, *y) && cell_of(*x, *y) == (r * cols + c) as usize),
+            );
+        }
+    }
+    Ok(out)
+}
+
+/// Orientation of the keypoint at `(x, y)` (level pixels), degrees in `[0, 360)`: the direction from
+/// the keypoint to the intensity centroid of the disc of radius [`PATCH_RADIUS`] around it (Rosin's
+/// moments, as ORB measures it), so that the descriptor can be taken in a frame that turns with the
+/// image.
+pub(crate) fn orientation(grey: &super::frame::GreyView<'_>, x: i64, y: i64) -> f32 {
+    let (mut m10, mut m01) = (0i64, 0i64);
+    let r = PATCH_RADIUS as i64;
+    let (width, height) = grey.size();
+    let inside = x >= r && y >= r && x + r < width as i64 && y + r < height as i64;
+    for dy in -r..=r {
+        let half = DISC_HALF_WIDTH[(dy + r) as usize] as i64;
+        if inside {
+            // the whole row of the disc lies in the image: summed over the row's slice
+            let start = (y + dy) as usize * width + (x - half) as usize;
+            let row = &grey.data()[start..start + (2 * half + 1) as usize];
+            let (mut sum, mut moment) = (0i64, 0i64);
+            for (i, &v) in row.iter().enumerate() {
+                sum += v as i64;
+                moment += (i as i64 - half) * v as i64;
+            }
+            m10 += moment;
+            m01 += dy * sum;
+        } else {
+            for dx in -half..=half {
+                if let Some(v) = grey.at(x + dx, y + dy) {
+                    m10 += dx * v as i64;
+                    m01 += dy * v as i64;
+                }
+            }
+        }
+    }
+    let a = (m01 as f64).atan2(m10 as f64).to_degrees();
+    (if a < 0.0 { a + 360.0 } else { a }) as f32
+}
+
+/// Half the width of each row of the disc of radius [`PATCH_RADIUS`] (row `dy + radius`).
+const DISC_HALF_WIDTH: [u8; (2 * PATCH_RADIUS + 1) as usize] = {
+    let mut out = [0u8; (2 * PATCH_RADIUS + 1) as usize];
+    let r = PATCH_RADIUS;
+    let mut dy = -r;
+    while dy <= r {
+        // the largest dx with dx² + dy² ≤ r²
+        let mut half = 0;
+        while (half + 1) * (half + 1) + dy * dy <= r * r {
+            half += 1;
+        }
+        out[(dy + r) as usize] = half as u8;
+        dy += 1;
+    }
+    out
+};
 
 /// A detected keypoint: position (level-0 pixels), pyramid level, corner score.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,18 +1,17 @@
 //! The stereo frame: stereo matching of the two images' ORB features along rectified rows (mutual best,
 //! sub-pixel by block matching), and the frame the tracker works on (its keypoints, their stereo
-//! points and observations, map-point ids once it is a keyframe).
+//! points and observations; as a keyframe, its features in the map's form).
 
 use nalgebra::Vector3;
 use opencv::prelude::*;
-use slam_core::{FramePoint, PointId};
+use slam_core::FramePoint;
+use slam_map::{hamming, BestTwo, Keypoint, KeypointGrid};
 
 use super::config::{StereoRig, VoConfig};
 use super::features::Features;
 use crate::image_io::FrontendError;
-use crate::matching::{hamming, BestTwo, KeypointGrid};
 
-/// A stereo frame: its left keypoints, the stereo points matched among them, and (once it is a
-/// keyframe) their map-point ids.
+/// A stereo frame: its left keypoints and the stereo points matched among them.
 #[derive(Clone)]
 pub(crate) struct Frame {
     pub(crate) points: Vec<Vector3<f64>>,
@@ -21,11 +20,7 @@ pub(crate) struct Frame {
     pub(crate) obs: Vec<[f64; 3]>,
     /// For each left keypoint, its stereo point (if any).
     pub(crate) of_keypoint: Vec<Option<usize>>,
-    /// Map-point id of each point (set when the frame becomes a keyframe).
-    pub(crate) ids: Vec<PointId>,
-    /// Points still usable (the mapper may cull some).
-    pub(crate) valid: Vec<bool>,
-    /// All left keypoints and their descriptors (triangulation of keypoints without a stereo match).
+    /// All left keypoints and their descriptors.
     pub(crate) keypoints: Vec<(f64, f64)>,
     pub(crate) keypoint_desc: Vec<[u8; 32]>,
     /// Pyramid level and orientation (degrees) of each left keypoint.
@@ -44,15 +39,13 @@ impl Frame {
     /// The frame without the keypoints `keep` marks false, nor their stereo points (order kept).
     pub(crate) fn retain_keypoints(&self, keep: &[bool]) -> Frame {
         let mut new_point = vec![None; self.points.len()];
-        let (mut points, mut desc, mut obs, mut ids, mut valid) = (vec![], vec![], vec![], vec![], vec![]);
+        let (mut points, mut desc, mut obs) = (vec![], vec![], vec![]);
         for (q, &kp) in self.point_keypoints().iter().enumerate() {
             if keep.get(kp).copied().unwrap_or(false) {
                 new_point[q] = Some(points.len());
                 points.push(self.points[q]);
                 desc.push(self.desc[q]);
                 obs.push(self.obs[q]);
-                ids.push(self.ids[q]);
-                valid.push(self.valid[q]);
             }
         }
         let kept: Vec<usize> = (0..self.keypoints.len()).filter(|&i| keep.get(i).copied().unwrap_or(false)).collect();
@@ -62,14 +55,30 @@ impl Frame {
             desc,
             obs,
             of_keypoint: kept.iter().map(|&i| self.of_keypoint[i].and_then(|q| new_point[q])).collect(),
-            ids,
-            valid,
             keypoint_desc: kept.iter().map(|&i| self.keypoint_desc[i]).collect(),
             octave: kept.iter().map(|&i| self.octave[i]).collect(),
             angle: kept.iter().map(|&i| self.angle[i]).collect(),
             grid: KeypointGrid::new(&keypoints),
             keypoints,
         }
+    }
+
+    /// The frame's keypoints in the map's form, for an image of `size` (width, height): each with its
+    /// stereo match's right column where it has one.
+    pub(crate) fn map_features(&self, size: (f64, f64)) -> slam_map::Features {
+        let keypoints: Vec<Keypoint> = self
+            .keypoints
+            .iter()
+            .enumerate()
+            .map(|(i, &(u, v))| Keypoint {
+                u,
+                v,
+                u_right: self.of_keypoint[i].map_or(f64::NAN, |q| self.obs[q][2]),
+                level: self.octave[i].clamp(0, u8::MAX as i32) as u8,
+                angle: self.angle[i],
+            })
+            .collect();
+        slam_map::Features::new(keypoints, self.keypoint_desc.clone(), size).unwrap_or_default()
     }
 
     /// The keypoint of each point.
@@ -96,7 +105,17 @@ impl<'a> GreyView<'a> {
         Ok(Self { data: m.data_bytes()?, width: m.cols() as usize, height: m.rows() as usize })
     }
 
-    fn at(&self, x: i64, y: i64) -> Option<i32> {
+    /// Width and height, pixels.
+    pub(crate) fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// The pixels, row by row.
+    pub(crate) fn data(&self) -> &[u8] {
+        self.data
+    }
+
+    pub(crate) fn at(&self, x: i64, y: i64) -> Option<i32> {
         (x >= 0 && y >= 0 && (x as usize) < self.width && (y as usize) < self.height)
             .then(|| self.data[y as usize * self.width + x as usize] as i32)
     }
@@ -254,14 +273,11 @@ impl StereoMatcher {
             desc.push(left.desc[i]);
             obs.push([u, v, u - disparity]);
         }
-        let n = points.len();
         Frame {
             points,
             desc,
             obs,
             of_keypoint,
-            ids: vec![0; n],
-            valid: vec![true; n],
             keypoints: left.points.clone(),
             keypoint_desc: left.desc.clone(),
             octave: left.octave.clone(),
@@ -281,8 +297,6 @@ impl Frame {
             desc: Vec::new(),
             obs: Vec::new(),
             of_keypoint: vec![None; n],
-            ids: Vec::new(),
-            valid: Vec::new(),
             octave: vec![0; n],
             angle: vec![0.0; n],
             grid: KeypointGrid::new(&keypoints),
@@ -312,8 +326,6 @@ mod tests {
             f.points.push(Vector3::new(0.0, 0.0, 10.0 + i as f64));
             f.desc.push([i as u8; 32]);
             f.obs.push([keypoints[i].0, keypoints[i].1, keypoints[i].0 - 3.0]);
-            f.ids.push(100 + i as u64);
-            f.valid.push(true);
         }
         let keep = [true, false, true, true, false, true];
         let r = f.retain_keypoints(&keep);
@@ -327,10 +339,7 @@ mod tests {
             match r.of_keypoint[new] {
                 Some(q) => {
                     assert_eq!(r.points[q].z, 10.0 + old as f64);
-                    assert_eq!(
-                        (r.ids[q], r.desc[q], r.obs[q][0]),
-                        (100 + old as u64, [old as u8; 32], keypoints[old].0)
-                    );
+                    assert_eq!((r.desc[q], r.obs[q][0]), ([old as u8; 32], keypoints[old].0));
                 }
                 None => assert!(f.of_keypoint[old].is_none(), "keypoint {old} lost its stereo point"),
             }

@@ -78,6 +78,13 @@ impl MotionModel {
         self.kf_from_measured = Isometry3::identity();
     }
 
+    /// The reference keyframe changed to one at `new_from_old` of the old one: the poses kept relative
+    /// to the reference follow.
+    pub(crate) fn rebase_to(&mut self, new_from_old: &Isometry3<f64>) {
+        self.kf_from_last = new_from_old * self.kf_from_last;
+        self.kf_from_measured = new_from_old * self.kf_from_measured;
+    }
+
     /// A frame at `kf_from_curr` was measured (`steady`: tracked or weak, not relocalised): the
     /// velocity from the step when the previous frame was measured too.
     pub(crate) fn measured(&mut self, frame_index: usize, kf_from_curr: Isometry3<f64>, steady: bool) {

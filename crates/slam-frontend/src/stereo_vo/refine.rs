@@ -11,9 +11,9 @@ use slam_optim::{
     Graph, Huber, Key, NoiseModel, Options, Values, Var, L2,
 };
 
+use super::config::{StereoRig, VoConfig};
 use super::frame::Frame;
 use super::local_map::LocalMap;
-use super::tracker::Tracker;
 use crate::pose_only;
 
 /// σ floor of the vehicle-motion prior's sideways step, metres: the camera's sway on the body's
@@ -31,11 +31,14 @@ pub(crate) fn left_only_beyond(o: [f64; 3], min_disparity: f64) -> [f64; 3] {
     }
 }
 
+/// Least depth of a point in a camera observing it, metres (the reprojection factors' own bound).
+const MIN_DEPTH_M: f64 = 0.1;
+
 /// 95 % bounds of χ² with 3 (stereo) and 2 (left image only) degrees of freedom, σ = 1 px.
 pub(crate) const CHI2_STEREO: f64 = 7.815;
 const CHI2_MONO: f64 = 5.991;
 
-/// One refinement round's problem ([`Tracker::round_problem`]): the graph, its values, the current
+/// One refinement round's problem ([`Refiner::round_problem`]): the graph, its values, the current
 /// pose's key, and each match's point key and current factor (`usize::MAX`: set aside).
 pub(crate) struct RoundProblem {
     graph: Graph,
@@ -51,7 +54,14 @@ pub(crate) struct Refined {
     pub(crate) rms: f64,
 }
 
-impl Tracker {
+/// What the refinement reads: the rig, the settings and the optimiser of the joint round.
+pub(crate) struct Refiner<'a> {
+    pub(crate) rig: &'a StereoRig,
+    pub(crate) config: &'a VoConfig,
+    pub(crate) optimizer: &'a slam_optim::SharedOptimizer,
+}
+
+impl Refiner<'_> {
     /// An observation as the estimation uses it: a stereo observation of a point beyond
     /// `far_baselines` baselines (disparity below [`VoConfig::far_disparity_px`](super::config::VoConfig::far_disparity_px)) without its
     /// right-image column ([`left_only_beyond`]).
@@ -60,7 +70,7 @@ impl Tracker {
     }
 
     /// The current frame's observation of keypoint `c` as the estimation uses it: stereo
-    /// `[u_l, v, u_r]` where it has a stereo point that is not far ([`Tracker::usable`]), else
+    /// `[u_l, v, u_r]` where it has a stereo point that is not far ([`Refiner::usable`]), else
     /// `[u, v, NaN]`.
     pub(crate) fn observation(&self, frame: &Frame, c: usize) -> [f64; 3] {
         match frame.of_keypoint.get(c).copied().flatten() {
@@ -112,6 +122,11 @@ impl Tracker {
             let kx = values.add(Var::Point(map.points[i]));
             graph.eliminate(kx);
             for &(slot, o) in &map.views[i] {
+                // an observation from a keyframe the point now lies behind (local mapping moved one of
+                // the two since) is no measurement of it: left out, as local mapping will cull it
+                if (map.poses[slot].inverse() * nalgebra::Point3::from(map.points[i])).z <= MIN_DEPTH_M {
+                    continue;
+                }
                 let ks = *slots.entry(slot).or_insert_with(|| values.add(Var::Pose(map.poses[slot])));
                 graph.fix(ks);
                 self.add_observation(&mut graph, (ks, kx), self.usable(o), true);
@@ -238,7 +253,12 @@ impl Tracker {
                     w.row_mut(0).copy_from_slice((m.row / m.sigma).as_slice());
                     p.graph.add(PosePrior::new(p.pose, m.base), NoiseModel::SqrtInformation(w), L2).ok()?;
                 }
-                self.optimizer.optimize(&p.graph, &mut p.values, &Options::with_max_iterations(10), None).ok()?;
+                if let Err(e) =
+                    self.optimizer.optimize(&p.graph, &mut p.values, &Options::with_max_iterations(10), None)
+                {
+                    tracing::debug!("pose refinement, joint round: {e}");
+                    return None;
+                }
                 pose = p.values.pose(p.pose)?.inverse();
                 self.classify(frame, matches, &p, &pose)
             };

@@ -7,9 +7,10 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use slam_core::rng::SimRng;
 use slam_quadric::Intrinsics;
 
+use slam_map::{KeypointGrid, Map, ScalePyramid};
+
 use super::frame::Frame;
 use super::{StereoRig, StereoVo, VoConfig};
-use crate::matching::KeypointGrid;
 
 /// KITTI's rectified rig (odometry 06: fx 707.09 px, baseline 0.537 m) and image size.
 pub(crate) const RIG: StereoRig =
@@ -74,14 +75,12 @@ impl Street {
             obs.push([u, v, ur]);
             desc.push(*d);
         }
-        let (n, m) = (points.len(), keypoints.len());
+        let m = keypoints.len();
         Frame {
             points,
             desc,
             obs,
             of_keypoint,
-            ids: vec![0; n],
-            valid: vec![true; n],
             grid: KeypointGrid::new(&keypoints),
             keypoints,
             keypoint_desc,
@@ -107,42 +106,55 @@ pub(crate) fn drive(frames: usize, step: f64, yaw_per_frame: f64) -> Vec<Isometr
     out
 }
 
+/// A drive there and back: `frames` poses `step` metres apart straight ahead, then back over the same
+/// poses (the camera still facing ahead: a car reversing, or the images played backwards), `legs` legs
+/// in all.
+pub(crate) fn there_and_back(frames: usize, step: f64, legs: usize) -> Vec<Isometry3<f64>> {
+    let out_leg = drive(frames, step, 0.0);
+    let mut poses = out_leg.clone();
+    for leg in 1..legs {
+        if leg % 2 == 1 {
+            poses.extend(out_leg.iter().rev().skip(1).copied());
+        } else {
+            poses.extend(out_leg.iter().skip(1).copied());
+        }
+    }
+    poses
+}
+
 /// The tracker's poses (world from camera) on a synthetic drive with observation noise `sigma_px`, and
-/// the keyframes it handed to the mapper.
-pub(crate) fn track_keyframes(
+/// the map it made (each keyframe inserted at once with `policy`, no local mapping), the keyframe count
+/// after each frame, and each frame's state.
+pub(crate) fn track_map(
     config: VoConfig,
-    street: &Street,
+    (street, policy): (&Street, slam_map::CreationPolicy),
     truth: &[Isometry3<f64>],
     sigma_px: f64,
     seed: u64,
-) -> (Vec<Isometry3<f64>>, Vec<slam_core::KeyframeData>) {
+) -> (Vec<Isometry3<f64>>, Map, Vec<usize>, Vec<slam_core::TrackState>) {
     let optimizer = std::sync::Arc::new(slam_lm::LevenbergMarquardt::default());
     let mut vo = StereoVo::new(RIG, config, optimizer).expect("ORB");
     vo.tracker.image_size = SIZE;
+    let mut map = Map::new(RIG, ScalePyramid::default());
     let mut rng = SimRng::new(seed);
     let mut keyframes = Vec::new();
+    let mut states = Vec::new();
     let poses = truth
         .iter()
         .enumerate()
         .map(|(i, pose)| {
             let frame = street.frame(pose, sigma_px, &mut rng);
-            let t = vo.track_frame(i, frame, (Vec::new(), Vec::new()), (0.0, 0.0)).expect("tracks");
-            keyframes.extend(t.keyframe);
+            let t = vo.track_frame(i, frame, (Vec::new(), Vec::new()), (0.0, 0.0), &map).expect("tracks");
+            map.count_sightings(&t.sightings.visible, &t.sightings.found);
+            if let Some(kf) = t.keyframe {
+                map.insert_keyframe(kf, &policy).expect("inserted");
+            }
+            keyframes.push(map.keyframe_count());
+            states.push(t.state);
             t.world_from_camera
         })
         .collect();
-    (poses, keyframes)
-}
-
-/// The tracker's poses on a synthetic drive ([`track_keyframes`]).
-pub(crate) fn track(
-    config: VoConfig,
-    street: &Street,
-    truth: &[Isometry3<f64>],
-    sigma_px: f64,
-    seed: u64,
-) -> Vec<Isometry3<f64>> {
-    track_keyframes(config, street, truth, sigma_px, seed).0
+    (poses, map, keyframes, states)
 }
 
 /// Path length, metres.
@@ -155,37 +167,53 @@ mod tests {
     use super::*;
 
     /// The tracker's path error (estimated path length over the true one, minus one) on synthetic
-    /// streets with 0.5 px of observation noise, mean over seeds: unbiased within 0.2 %.
+    /// streets with 0.5 px of observation noise, mean over seeds, without local mapping: within 0.3 %.
+    /// What remains is the depth limits' selection: the 80 m depth range and the map's near bound keep
+    /// points by their measured depth, so those measured near a limit are biased near (−0.22 %).
     #[test]
     fn noisy_stereo_gives_an_unbiased_path() {
         let truth = drive(40, 1.0, 0.002);
         let mut errors = Vec::new();
         for seed in 0..4u64 {
             let street = Street::new(6000, 130.0, &mut SimRng::new(100 + seed));
-            let est = track(VoConfig::default(), &street, &truth, 0.5, seed);
+            // a keyframe every second frame at least: without local mapping, the longer a keyframe's
+            // points are tracked, the more of their depth noise reaches the path (measured: −0.22 %
+            // with a keyframe every 2 frames, −0.36 % with the map's own rules, 11–13 keyframes)
+            let config = VoConfig { keyframe_max_gap: 2, ..VoConfig::default() };
+            let policy = slam_map::CreationPolicy { near_baselines: 40.0, min_points: crate::odometry::MIN_NEW_POINTS };
+            let (est, ..) = track_map(config, (&street, policy), &truth, 0.5, seed);
             errors.push(100.0 * (path_length(&est) / path_length(&truth) - 1.0));
         }
         let mean = errors.iter().sum::<f64>() / errors.len() as f64;
         eprintln!("path errors % {errors:?}, mean {mean:+.3}");
-        assert!(mean.abs() < 0.2, "mean path error {mean:+.3} % ({errors:?})");
+        assert!(mean.abs() < 0.3, "mean path error {mean:+.3} % ({errors:?})");
     }
 
-    /// The keyframes handed to the mapper observe points beyond `far_baselines` in the left image only,
-    /// and nearer ones in both; without the limit every stereo observation keeps its right column.
+    /// Driving back over the street it mapped, the tracker follows the map's points (the reference
+    /// keyframe switches to the keyframes of the way out) instead of making new keyframes: after the
+    /// return leg the keyframes are within 1.5 × those of the way out, every frame is tracked, and the
+    /// poses stay on the road.
     #[test]
-    fn far_points_reach_the_mapper_as_left_only_observations() {
-        let truth = drive(6, 1.0, 0.0);
-        let street = Street::new(3000, 100.0, &mut SimRng::new(5));
-        let limit = VoConfig::default().far_disparity_px(RIG.k.fx);
-        let (_, kfs) = track_keyframes(VoConfig::default(), &street, &truth, 0.3, 1);
-        let obs: Vec<[f64; 3]> = kfs.iter().flat_map(|k| k.points.iter().map(|p| p.observation)).collect();
-        let far = obs.iter().filter(|o| o[2].is_nan()).count();
-        assert!(far > 100 && obs.len() - far > 100, "{far} far of {}", obs.len());
-        for o in obs.iter().filter(|o| o[2].is_finite()) {
-            assert!(o[0] - o[2] >= limit, "a stereo observation of disparity {}", o[0] - o[2]);
+    fn driving_back_reuses_the_map() {
+        let legs = there_and_back(30, 1.2, 2);
+        let street = Street::new(5000, 90.0, &mut SimRng::new(9));
+        let policy = slam_map::CreationPolicy { near_baselines: 40.0, min_points: crate::odometry::MIN_NEW_POINTS };
+        let (poses, map, keyframes, states) = track_map(VoConfig::default(), (&street, policy), &legs, 0.3, 2);
+        let untracked: Vec<(usize, &slam_core::TrackState)> = states
+            .iter()
+            .enumerate()
+            .skip(1)
+            .filter(|(_, s)| !matches!(s, slam_core::TrackState::Tracked { .. }))
+            .collect();
+        assert!(untracked.is_empty(), "{untracked:?}");
+        let outward = keyframes[29];
+        let after = *keyframes.last().expect("frames");
+        assert!(outward >= 5, "{outward} keyframes on the way out");
+        assert!(after as f64 <= 1.5 * outward as f64, "{outward} keyframes out, {after} after the way back");
+        for (i, (p, t)) in poses.iter().zip(&legs).enumerate() {
+            let e = (p.translation.vector - t.translation.vector).norm();
+            assert!(e < 0.5, "frame {i}: {e:.3} m off");
         }
-        let all = VoConfig { far_baselines: f64::INFINITY, ..VoConfig::default() };
-        let (_, kfs) = track_keyframes(all, &street, &truth, 0.3, 1);
-        assert!(kfs.iter().flat_map(|k| &k.points).all(|p| p.observation[2].is_finite()));
+        map.check().expect("a consistent map");
     }
 }

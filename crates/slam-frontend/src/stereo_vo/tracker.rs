@@ -11,15 +11,15 @@ use std::time::Instant;
 use nalgebra::{Isometry3, Matrix3, Vector3};
 use opencv::{calib3d, core, prelude::*};
 use slam_core::KeyframeId;
+use slam_map::{hamming, BestTwo, KeypointGrid, ScalePyramid};
 use slam_optim::SharedOptimizer;
 use slam_quadric::se3;
 
 use super::config::{StereoRig, VoConfig};
 use super::frame::Frame;
 use super::local_map::LocalMap;
-use super::refine::Refined;
+use super::refine::{Refined, Refiner};
 use crate::image_io::FrontendError;
-use crate::matching::{hamming, BestTwo, KeypointGrid};
 
 /// How a pose was found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -28,12 +28,17 @@ pub(crate) enum Route {
     Motion,
     /// Relocalisation along the motion, `k` frame intervals ahead (dropped frames).
     Along(usize),
-    /// Relocalisation by descriptors alone.
+    /// By descriptors alone against the local map, without the motion model's prediction (the motion
+    /// model broke: a reversal, a start after a standstill); accepted on its own support.
     Descriptors,
     /// Relocalisation against a keyframe retrieved from the keyframe index (any keyframe of the run,
     /// a revisit included); accepted on its own support, not the motion model.
     Retrieved(KeyframeId),
 }
+
+/// Ratio of the best to the second-best Hamming distance a match must stay below (that of every
+/// matching of the front end: [`slam_map::BestTwo::winner`]).
+const RATIO: f64 = 0.9;
 
 /// A pose found by PnP RANSAC (`curr_from_ref`) and its inlier matches (local-map point, keypoint).
 pub(crate) type Solved = (Isometry3<f64>, Vec<(usize, usize)>);
@@ -68,58 +73,93 @@ pub(crate) fn orientation_filter(matches: Vec<(usize, usize, f32)>) -> Vec<(usiz
 }
 
 impl Tracker {
-    /// Search window of a point at `c` (current camera frame) of pyramid level `octave`, when the
-    /// predicted pose may be off by `sigma_t` metres and `sigma_r` radians: the image motion those
+    /// The refinement of this rig and settings.
+    pub(crate) fn refiner(&self) -> Refiner<'_> {
+        Refiner { rig: &self.rig, config: &self.config, optimizer: &self.optimizer }
+    }
+
+    /// Search window of a point at `c` (current camera frame) expected at pyramid level `level`, when
+    /// the predicted pose may be off by `sigma_t` metres and `sigma_r` radians: the image motion those
     /// errors cause at that depth and offset from the axis, plus the keypoint's own scale.
-    pub(crate) fn window(&self, c: &Vector3<f64>, octave: i32, (sigma_t, sigma_r): (f64, f64)) -> f64 {
+    pub(crate) fn window(&self, c: &Vector3<f64>, level: u8, (sigma_t, sigma_r): (f64, f64)) -> f64 {
         let f = self.rig.k.fx;
         let off = (c.x.abs() + c.y.abs()) / c.z;
-        let r = 3.0 * 1.2f64.powi(octave) + f * (sigma_r + sigma_t * (1.0 + off) / c.z);
+        let r = 3.0 * ScalePyramid::default().scale(level) + f * (sigma_r + sigma_t * (1.0 + off) / c.z);
         r.min(self.config.search_radius)
     }
 
+    /// Where local-map point `i` is seen from `curr_from_ref`: its pixel, its camera-frame position and
+    /// the pyramid level its distance predicts; `None` outside the image (with a cell's margin), behind
+    /// the camera, or outside its distance range or viewing angle.
+    pub(crate) fn projection(
+        &self,
+        map: &LocalMap,
+        i: usize,
+        curr_from_ref: &Isometry3<f64>,
+        centre: &Vector3<f64>,
+    ) -> Option<((f64, f64), Vector3<f64>, u8)> {
+        let k = &self.rig.k;
+        let margin = KeypointGrid::CELL;
+        let c = curr_from_ref * nalgebra::Point3::from(map.points[i]);
+        if c.z <= 0.1 {
+            return None;
+        }
+        let (u, v) = (k.fx * c.x / c.z + k.cx, k.fy * c.y / c.z + k.cy);
+        if u < -margin || v < -margin || u > self.image_size.0 + margin || v > self.image_size.1 + margin {
+            return None;
+        }
+        let distance = map.viewable(i, centre)?;
+        let level = ScalePyramid::default().predicted_level(map.distance[i].1, distance);
+        Some(((u, v), c.coords, level))
+    }
+
     /// Project the local map's points (not yet matched: `skip`) with `curr_from_ref` and match each to
-    /// the keypoints (not yet `taken`) within its window: smallest Hamming distance under
-    /// `track_hamming`, ratio test, each keypoint to its closest point, then the orientation check.
+    /// the keypoints (not yet `taken`) within its window and one level of the level its distance
+    /// predicts: smallest Hamming distance under `track_hamming`, ratio test, each keypoint to its
+    /// closest point, then the orientation check.
     pub(crate) fn search(
         &self,
         map: &LocalMap,
         curr_from_ref: &Isometry3<f64>,
         frame: &Frame,
-        window: &dyn Fn(&Vector3<f64>, i32) -> f64,
-        skip: &[bool],
-        taken: &[bool],
+        window: &dyn Fn(&Vector3<f64>, u8) -> f64,
+        (skip, taken): (&[bool], &[bool]),
     ) -> Vec<(usize, usize)> {
-        let k = &self.rig.k;
-        let margin = KeypointGrid::CELL;
+        let centre = curr_from_ref.inverse().translation.vector;
         let mut found: Vec<(u32, usize, usize)> = Vec::new();
-        for (i, x) in map.points.iter().enumerate() {
-            if skip[i] {
-                continue;
-            }
-            let c = curr_from_ref * nalgebra::Point3::from(*x);
-            if c.z <= 0.1 {
-                continue;
-            }
-            let (u, v) = (k.fx * c.x / c.z + k.cx, k.fy * c.y / c.z + k.cy);
-            if u < -margin || v < -margin || u > self.image_size.0 + margin || v > self.image_size.1 + margin {
-                continue;
-            }
-            let radius = window(&c.coords, map.octave[i]);
-            let mut two = BestTwo::new();
+        let max_hamming = self.config.track_hamming;
+        for (i, _) in skip.iter().enumerate().filter(|(_, s)| !**s) {
+            let Some(((u, v), c, level)) = self.projection(map, i, curr_from_ref, &centre) else { continue };
+            let radius = window(&c, level);
+            // the two closest candidates (distance, keypoint)
+            let (mut best, mut second) = ((u32::MAX, usize::MAX), (u32::MAX, usize::MAX));
             let d = &map.desc[i];
             frame.grid.for_each_near((u, v), radius, |j| {
                 if taken[j] {
                     return;
                 }
+                let lj = frame.octave[j];
+                if lj + 1 < level as i32 || lj > level as i32 + 1 {
+                    return;
+                }
                 let (uj, vj) = frame.keypoints[j];
                 if (uj - u).powi(2) + (vj - v).powi(2) <= radius * radius {
-                    two.offer(hamming(d, &frame.keypoint_desc[j]), j);
+                    let h = hamming(d, &frame.keypoint_desc[j]);
+                    if h < best.0 {
+                        (second, best) = (best, (h, j));
+                    } else if h < second.0 {
+                        second = (h, j);
+                    }
                 }
             });
-            if let Some(j) = two.winner(self.config.track_hamming, false) {
-                found.push((two.best, i, j));
+            if best.0 > max_hamming {
+                continue;
             }
+            // ratio test: the best clearly better than the second (a lone candidate passes)
+            if second.0 != u32::MAX && best.0 as f64 >= RATIO * second.0 as f64 {
+                continue;
+            }
+            found.push((best.0, i, best.1));
         }
         Self::assign(found, map, frame)
     }
@@ -225,7 +265,7 @@ impl Tracker {
         let t0 = Instant::now();
         let skip = vec![false; map.points.len()];
         let taken = vec![false; frame.keypoints.len()];
-        let matches = self.search(map, guess, frame, &|c, o| self.window(c, o, bounds), &skip, &taken);
+        let matches = self.search(map, guess, frame, &|c, o| self.window(c, o, bounds), (&skip, &taken));
         let t1 = Instant::now();
         let first = self.pnp_ransac(map, frame, &matches, (self.config.ransac_px, 200, self.config.weak_inliers))?;
         let t2 = Instant::now();
@@ -257,12 +297,12 @@ impl Tracker {
             taken[c] = true;
         }
         let radius = self.config.local_radius;
-        let extra = self.search(map, pose, frame, &|_, o| radius * 1.2f64.powi(o), &skip, &taken);
+        let extra = self.search(map, pose, frame, &|_, l| radius * ScalePyramid::default().scale(l), (&skip, &taken));
         let mut all = inliers;
         all.extend(extra);
         all.sort_unstable();
         let t1 = Instant::now();
-        let refined = self.refine(map, frame, &all, pose, last_measured);
+        let refined = self.refiner().refine(map, frame, &all, pose, last_measured);
         tracing::debug!(
             matches = all.len(),
             search_ms = (t1 - t0).as_secs_f64() * 1e3,

@@ -126,6 +126,9 @@ pub struct FitJob {
     pub references: Vec<Option<(KeyframeId, nalgebra::Isometry3<f64>)>>,
     /// Its map points (the runner looks up their positions for texture planes).
     pub points: Vec<PointId>,
+    /// Positions of its map points when the job was made ([`FitJob::locate`]): the runner's fallback
+    /// for points its own map does not hold.
+    pub positions: Vec<(PointId, nalgebra::Vector3<f64>)>,
     /// The object's generation when the job was made (see [`FitResult::generation`]).
     generation: u32,
     method: FitMethod,
@@ -164,6 +167,12 @@ impl FitJob {
                 v.camera.world_from_camera = pose;
             }
         }
+    }
+
+    /// Keep the positions `position` gives of the job's points (those it knows), for a runner whose map
+    /// lacks some of them.
+    pub fn locate(&mut self, position: impl Fn(PointId) -> Option<nalgebra::Vector3<f64>>) {
+        self.positions = self.points.iter().filter_map(|&p| position(p).map(|x| (p, x))).collect();
     }
 
     /// Whether [`FitJob::run`] uses texture planes (only a method that refines does).
@@ -341,6 +350,7 @@ impl ObjectMapper {
             views,
             references,
             points: obj.points.iter().copied().collect(),
+            positions: Vec::new(),
             generation: obj.generation,
             method: self.method.clone(),
             box_shape: cfg.box_shape,

@@ -151,7 +151,7 @@ impl SystemBuilder {
             .map_err(|_| SystemError::Thread("detection"))?;
         let (req_tx, req_rx) = unbounded();
         let (reply_tx, reply_rx) = unbounded();
-        let mapper = LocalMapper::new(self.intrinsics, self.baseline, config.mapping, optimizer.clone());
+        let mapper = LocalMapper::new(config.mapping, optimizer.clone());
         let texture = config.texture;
         let mapping = std::thread::Builder::new()
             .name("local mapping".into())
@@ -164,7 +164,9 @@ impl SystemBuilder {
             }))
         });
         let objects = ObjectMapper::new(associator, config.objects, optimizer).with_method(self.method);
-        let tracking = Tracking::new(tracker, objects, self.intrinsics, self.baseline, config, req_tx, reply_rx);
+        let camera = slam_core::map::StereoCamera { k: self.intrinsics, baseline: self.baseline };
+        let map = slam_core::Map::new(camera, slam_core::map::ScalePyramid::default());
+        let tracking = Tracking::new(tracker, map, objects, config, req_tx, reply_rx);
         Ok(System { source: self.source, frames: Some(frame_tx), detected: Some(det_rx), detection, mapping, tracking })
     }
 }
@@ -178,7 +180,7 @@ pub struct System {
     frames: Option<Sender<FrameInput>>,
     detected: Option<Receiver<Detected>>,
     detection: JoinHandle<()>,
-    mapping: JoinHandle<Map>,
+    mapping: JoinHandle<()>,
     tracking: Tracking,
 }
 
@@ -235,7 +237,8 @@ impl System {
         self.tracking.stop_mapping();
         let Self { detection, mapping, tracking, .. } = self;
         detection.join().map_err(|_| SystemError::Thread("detection"))?;
-        let mut map = mapping.join().map_err(|_| SystemError::Thread("local mapping"))?;
+        mapping.join().map_err(|_| SystemError::Thread("local mapping"))?;
+        let mut map = Map::from_live(&tracking.map);
         map.trajectory = tracking.trajectory;
         map.objects = tracking.objects.objects().filter_map(MappedObject::to_map_object).collect();
         // local mapping culls points no keyframe observes any more; an object keeps the ids it was

@@ -5,12 +5,11 @@ use std::time::Instant;
 
 use crossbeam_channel::{Receiver, Sender};
 use nalgebra::Vector3;
-use slam_core::{DetectError, Detection, DetectionSource, KeyframeCorrection, KeyframeData};
+use slam_core::{DetectError, Detection, DetectionSource, Map};
 
 use super::FrameInput;
 use crate::{
-    map::Map,
-    mapping::LocalMapper,
+    mapping::{LocalMapper, MappingJob, MappingReport},
     objects::{FitJob, FitResult},
     texture::{texture_planes, TextureConfig},
     yaw_cue::{point_yaw, PointYawConfig},
@@ -22,19 +21,17 @@ pub(crate) type Detected = (FrameInput, Result<Vec<Detection>, DetectError>, f64
 
 /// Requests to the local-mapping thread.
 pub enum MapperRequest {
-    /// A new keyframe and the object fits due at it.
-    Keyframe(Box<KeyframeData>, Vec<FitJob>),
-    /// Stop and hand the map over.
+    /// The work around a new keyframe and the object fits due at it.
+    Keyframe(Box<MappingJob>, Vec<FitJob>),
+    /// Stop.
     Finish,
 }
 
 /// The local-mapping thread's answer to a keyframe.
 pub(crate) struct MapperReply {
-    pub(crate) correction: KeyframeCorrection,
+    pub(crate) report: MappingReport,
     pub(crate) fits: Vec<FitResult>,
-    pub(crate) ba_ms: f64,
     pub(crate) fit_ms: f64,
-    pub(crate) culled: usize,
 }
 
 /// The detection thread: runs `detector` on every `detect_every`-th frame of `frames` as they come
@@ -64,30 +61,24 @@ pub(crate) fn detection_thread(
     }
 }
 
-/// The local-mapping thread: inserts each keyframe (local bundle adjustment, culling), then runs the
-/// object fits due at it on the refined poses, and replies; hands the map over at the end.
+/// The local-mapping thread: does the work around each keyframe on its snapshot ([`LocalMapper::process`]),
+/// then runs the object fits due at it on the refined poses and points, and replies.
 pub(crate) fn mapping_thread(
-    mut mapper: LocalMapper,
+    mapper: LocalMapper,
     texture: TextureConfig,
     requests: Receiver<MapperRequest>,
     replies: Sender<MapperReply>,
-) -> Map {
+) {
     for req in requests {
         match req {
-            MapperRequest::Keyframe(kf, mut jobs) => {
-                let report = mapper.insert_keyframe(&kf);
+            MapperRequest::Keyframe(job, mut jobs) => {
+                let (report, snapshot) = mapper.process(*job);
                 for job in &mut jobs {
-                    job.repose(|k| mapper.keyframe_pose(k));
+                    job.repose(|k| snapshot.keyframe(k).map(|kf| kf.pose));
                 }
                 let t = Instant::now();
-                let fits = jobs.iter().map(|job| run_fit(&mapper, &texture, job)).collect();
-                let reply = MapperReply {
-                    correction: report.correction,
-                    fits,
-                    ba_ms: report.ba_ms,
-                    fit_ms: t.elapsed().as_secs_f64() * 1e3,
-                    culled: report.culled_observations,
-                };
+                let fits = jobs.iter().map(|job| run_fit(&snapshot, &texture, job)).collect();
+                let reply = MapperReply { report, fits, fit_ms: t.elapsed().as_secs_f64() * 1e3 };
                 if replies.send(reply).is_err() {
                     break;
                 }
@@ -95,20 +86,20 @@ pub(crate) fn mapping_thread(
             MapperRequest::Finish => break,
         }
     }
-    mapper.into_map()
 }
 
 /// One object fit, with texture planes from the object's map points as seen by its latest view, and
 /// the points' yaw cue ([`crate::yaw_cue`]) when it is confident.
-fn run_fit(mapper: &LocalMapper, texture: &TextureConfig, job: &FitJob) -> FitResult {
-    let points: Vec<Vector3<f64>> = job.points.iter().filter_map(|p| mapper.map().point(*p)).collect();
+fn run_fit(snapshot: &Map, texture: &TextureConfig, job: &FitJob) -> FitResult {
+    // the snapshot's (adjusted) position where it holds the point, else the live map's when the job was made
+    let points: Vec<Vector3<f64>> = job.positions.iter().map(|&(p, x)| snapshot.position(p).unwrap_or(x)).collect();
     let planes = match job.views.last() {
         Some(v) if job.uses_planes() => texture_planes(&points, &v.camera, texture),
         _ => Vec::new(),
     };
     let cue = match (job.views.first(), job.views.last()) {
         (Some(first), Some(last)) if job.uses_point_yaw() => {
-            let (k, baseline) = mapper.rig();
+            let (k, baseline) = (snapshot.camera().k, snapshot.camera().baseline);
             let up = first.camera.world_from_camera.rotation * Vector3::y();
             let camera = last.camera.world_from_camera.translation.vector;
             let prior = crate::objects::class_prior(job.class);

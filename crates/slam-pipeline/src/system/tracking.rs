@@ -7,7 +7,7 @@ use crossbeam_channel::{Receiver, Sender};
 use nalgebra::{Isometry3, Point3, Vector3};
 use slam_core::{
     geometry::{BBox, Camera, ImageSize, Intrinsics},
-    ClassId, DetectError, Detection, FramePoint, KeyframeCorrection, KeyframePoint, MovingRegion, PointPair,
+    ClassId, DetectError, Detection, FramePoint, KeyframeId, KeyframePoint, Map, MovingRegion, PointPair,
     StereoTracker, TrackState, TrackedFrame,
 };
 
@@ -17,6 +17,7 @@ use super::{
 };
 use crate::{
     map::{pose_to_array, FramePose},
+    mapping::LocalMapper,
     objects::{
         class_prior, scene_flow, suppress_duplicate_boxes, FlowedPoint, ObjectMapper, PointsCentroid, SceneFlow,
         StereoNoise,
@@ -27,9 +28,9 @@ use crate::{
 /// The tracking thread's state: what one [`Tracking::step`] per frame reads and updates.
 pub struct Tracking {
     pub(crate) tracker: Box<dyn StereoTracker>,
+    /// The live map: the tracker reads it, keyframes go in here, local mapping's edits are applied here.
+    pub(crate) map: Map,
     pub(crate) objects: ObjectMapper,
-    intrinsics: Intrinsics,
-    baseline: f64,
     config: SystemConfig,
     requests: Sender<MapperRequest>,
     replies: Receiver<MapperReply>,
@@ -49,26 +50,25 @@ pub struct Tracking {
     last_done: Instant,
     /// The last frame's pose at tracking time (`None` when it was unreadable).
     last_pose: Option<Isometry3<f64>>,
-    /// Local mapping's corrections applied before the last frame was tracked (kept for [`FrameView`]).
-    applied: Vec<KeyframeCorrection>,
+    /// The keyframes whose local mapping was applied before the last frame was tracked (kept for
+    /// [`FrameView`]).
+    applied: Vec<KeyframeId>,
 }
 
 impl Tracking {
     /// Tracking state talking to local mapping through `requests` and `replies`.
     pub(crate) fn new(
         tracker: Box<dyn StereoTracker>,
+        map: Map,
         objects: ObjectMapper,
-        intrinsics: Intrinsics,
-        baseline: f64,
         config: SystemConfig,
         requests: Sender<MapperRequest>,
         replies: Receiver<MapperReply>,
     ) -> Self {
         Self {
             tracker,
+            map,
             objects,
-            intrinsics,
-            baseline,
             config,
             requests,
             replies,
@@ -102,6 +102,11 @@ impl Tracking {
         &self.objects
     }
 
+    /// The live map.
+    pub fn map(&self) -> &Map {
+        &self.map
+    }
+
     /// The last frame's pose at tracking time, world from camera (`None` before the first frame and
     /// after an unreadable one).
     pub fn last_pose(&self) -> Option<Isometry3<f64>> {
@@ -114,7 +119,8 @@ impl Tracking {
             record: self.records.last()?,
             world_from_camera: self.last_pose,
             left: input.images.as_ref().ok().map(|(left, _)| left),
-            corrections: &self.applied,
+            map: &self.map,
+            mapped: &self.applied,
             objects: &self.objects,
         })
     }
@@ -156,21 +162,28 @@ impl Tracking {
         Ok(())
     }
 
-    /// Wait for the next reply of local mapping (to the keyframe of record `rec`) and apply it.
+    /// Wait for the next reply of local mapping (to the keyframe of record `rec`) and apply it: its edits
+    /// to the live map, its object fits.
     fn apply_next_reply(&mut self, rec: usize) -> Result<(), SystemError> {
         let reply = self.replies.recv().map_err(|_| SystemError::Thread("local mapping"))?;
-        self.tracker.correct(&reply.correction);
+        self.map.apply(&reply.report.edits);
         for fit in reply.fits {
             self.objects.apply(fit);
         }
+        let r = &reply.report;
         self.counts.implausible_fits = self.objects.implausible_fits();
-        self.counts.culled_observations += reply.culled;
-        if let Some(r) = self.records.get_mut(rec) {
-            r.times.bundle_adjustment = reply.ba_ms;
-            r.times.objects = reply.fit_ms;
+        self.counts.culled_observations += r.culled_observations;
+        self.counts.culled_points += r.points.0;
+        self.counts.triangulated_points += r.points.1;
+        self.counts.fused_points += r.points.2;
+        self.counts.culled_keyframes += r.culled_keyframes.len();
+        if let Some(rec) = self.records.get_mut(rec) {
+            rec.times.bundle_adjustment = r.ba_ms;
+            rec.times.map_maintenance = r.maintenance_ms;
+            rec.times.objects = reply.fit_ms;
         }
-        // kept (not copied) until the next frame, for the frame's observers
-        self.applied.push(reply.correction);
+        // kept until the next frame, for the frame's observers
+        self.applied.push(r.keyframe);
         Ok(())
     }
 
@@ -241,14 +254,22 @@ impl Tracking {
         mut times: FrameTimes,
     ) -> Result<FrameRecord, SystemError> {
         let exclude: &[MovingRegion] = if self.config.exclude_moving { &self.moving_regions } else { &[] };
-        let tf =
-            self.tracker.track(i, left, right, exclude).map_err(|source| SystemError::Tracker { frame: i, source })?;
+        let tf = self
+            .tracker
+            .track(i, left, right, exclude, &self.map)
+            .map_err(|source| SystemError::Tracker { frame: i, source })?;
         times.extraction = tf.times.extraction;
         times.stereo = tf.times.stereo;
         times.tracking = tf.times.tracking;
         self.last_pose = Some(tf.world_from_camera);
         self.count_state(i, &tf);
-        let tracks = self.map_boxes(i, &tf, &detections, &mut times);
+        self.map.count_sightings(&tf.sightings.visible, &tf.sightings.found);
+        let keyframe = match &tf.keyframe {
+            Some(kf) => self.insert_keyframe(i, kf)?,
+            None => None,
+        };
+        let keyframe_points = keyframe.map(|id| self.keyframe_points(id));
+        let tracks = self.map_boxes(i, &tf, keyframe_points.as_ref(), &detections, &mut times);
         self.last_reference = Some(tf.reference);
         self.trajectory.push(FramePose {
             frame: i,
@@ -256,12 +277,17 @@ impl Tracking {
             relative: pose_to_array(&tf.reference.1),
             state: tf.state.name().into(),
         });
-        let is_kf = tf.keyframe.is_some();
-        if let Some(kf) = tf.keyframe {
+        let is_kf = keyframe.is_some();
+        if let Some(id) = keyframe {
             self.counts.keyframes += 1;
-            let jobs = self.objects.fit_jobs();
+            let mut jobs = self.objects.fit_jobs();
+            for job in &mut jobs {
+                job.locate(|p| self.map.position(p));
+                job.repose(|k| self.map.keyframe_pose(k));
+            }
+            let job = LocalMapper::job(&self.config.mapping, &self.map, id);
             self.requests
-                .send(MapperRequest::Keyframe(Box::new(kf), jobs))
+                .send(MapperRequest::Keyframe(Box::new(job), jobs))
                 .map_err(|_| SystemError::Thread("local mapping"))?;
             self.pending.push_back(self.records.len());
         }
@@ -277,6 +303,46 @@ impl Tracking {
             tracks,
             times,
         })
+    }
+
+    /// Insert the keyframe the tracker handed over, once local mapping's work on every earlier keyframe
+    /// is in the map (waiting for it if need be: the snapshot of the next job must hold it, whatever the
+    /// threads' timing). `None` (logged) when the map refuses it.
+    fn insert_keyframe(
+        &mut self,
+        frame: usize,
+        kf: &slam_core::NewKeyframe,
+    ) -> Result<Option<KeyframeId>, SystemError> {
+        self.drain_replies()?;
+        if kf.parent.is_none() && kf.id > 0 {
+            self.counts.new_segments += 1;
+        }
+        match self.map.insert_keyframe(kf.clone(), &self.config.mapping.creation_policy()) {
+            Ok(inserted) => Ok(Some(inserted.id)),
+            Err(e) => {
+                tracing::warn!(frame, "keyframe not inserted: {e}");
+                Ok(None)
+            }
+        }
+    }
+
+    /// The points keyframe `id` observes, as the object cues read them (a stereo keypoint's own stereo
+    /// point, else the map point seen from the keyframe), and its pose.
+    fn keyframe_points(&self, id: KeyframeId) -> (Vec<KeyframePoint>, Isometry3<f64>) {
+        let Some(kf) = self.map.keyframe(id) else { return (Vec::new(), Isometry3::identity()) };
+        let camera = *self.map.camera();
+        let from_world = kf.pose.inverse();
+        let points = kf
+            .observations()
+            .filter_map(|(kp, p)| {
+                let k = &kf.features.keypoints[kp];
+                let camera_point = k
+                    .stereo_point(&camera)
+                    .or_else(|| self.map.position(p).map(|x| (from_world * Point3::from(x)).coords))?;
+                Some(KeyframePoint { id: p, camera_point, observation: k.observation() })
+            })
+            .collect();
+        (points, kf.pose)
     }
 
     /// Count the frame's tracking state (a lost frame is logged).
@@ -301,6 +367,7 @@ impl Tracking {
         &mut self,
         i: usize,
         tf: &TrackedFrame,
+        keyframe: Option<&(Vec<KeyframePoint>, Isometry3<f64>)>,
         detections: &[Detection],
         times: &mut FrameTimes,
     ) -> Vec<Option<slam_core::TrackId>> {
@@ -315,20 +382,16 @@ impl Tracking {
         };
         times.flow = t.elapsed().as_secs_f64() * 1e3;
         let t = Instant::now();
-        let camera = Camera::new(self.intrinsics, tf.world_from_camera);
+        let rig = *self.map.camera();
+        let camera = Camera::new(rig.k, tf.world_from_camera);
         let tracks = self.objects.associate(i, &camera, Some(tf.reference), detections, &flow);
-        if let Some(kf) = &tf.keyframe {
-            if kf.parent.is_none() && kf.id > 0 {
-                self.counts.new_segments += 1;
-            }
-        }
         let geometry = PointGeometry {
             noise: StereoNoise {
-                focal_baseline: self.intrinsics.fx * self.baseline,
+                focal_baseline: rig.focal_baseline(),
                 disparity_sigma_px: self.config.disparity_sigma_px,
                 core: self.config.object_core,
             },
-            k: self.intrinsics,
+            k: rig.k,
             image: self.config.objects.image,
         };
         // each detection's object in this frame's stereo points: where they put it, the depths they span
@@ -339,7 +402,7 @@ impl Tracking {
                 FrameObject { centroid, depths: centroid.map(|_| depth_span(&kept)) }
             })
             .collect();
-        self.attach_points(tf, detections, &tracks, (&geometry, &on_frame));
+        self.attach_points(tf, keyframe, detections, &tracks, (&geometry, &on_frame));
         // the scene flow reads every stereo point of the frame, those on moving regions too (kept out of
         // tracking, the map and the objects' points above): a masked object goes on being measured
         // (the frame's own points first, then the masked ones)
@@ -465,6 +528,7 @@ impl Tracking {
     fn attach_points(
         &mut self,
         tf: &TrackedFrame,
+        keyframe: Option<&(Vec<KeyframePoint>, Isometry3<f64>)>,
         detections: &[Detection],
         tracks: &[Option<slam_core::TrackId>],
         (geometry, on_frame): (&PointGeometry, &[FrameObject]),
@@ -472,15 +536,14 @@ impl Tracking {
         let measured = tf.state.is_measured();
         for ((d, t), o) in detections.iter().zip(tracks).zip(on_frame) {
             let Some(id) = t else { continue };
-            let on_keyframe =
-                tf.keyframe.as_ref().map(|kf| object_points(&kf.points, &kf.world_from_camera, d, geometry));
+            let on_keyframe = keyframe.map(|(points, pose)| object_points(points, pose, d, geometry));
             let centroid = match (&on_keyframe, measured && !tf.points.is_empty()) {
                 (_, true) => o.centroid,
                 (Some((_, c)), false) => *c,
                 (None, false) => None,
             };
             let ids: Vec<u64> = on_keyframe.map(|(kept, _)| kept.iter().map(|p| p.id).collect()).unwrap_or_default();
-            if tf.keyframe.is_some() || centroid.is_some() {
+            if keyframe.is_some() || centroid.is_some() {
                 self.objects.add_points(*id, &ids, centroid);
             }
         }

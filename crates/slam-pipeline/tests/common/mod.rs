@@ -6,10 +6,13 @@
 #![allow(dead_code)] // each test file uses its own part
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use std::{collections::HashMap, sync::Arc};
+
 use slam_core::{
-    geometry::BBox, ClassId, DetectError, Detection, DetectionSource, FramePoint, Image, KeyframeCorrection,
-    KeyframeData, KeyframePoint, MovingRegion, PointPair, StageTimes, StereoTracker, TrackError, TrackState,
-    TrackedFrame,
+    geometry::BBox,
+    map::{Features, Keypoint},
+    ClassId, DetectError, Detection, DetectionSource, FramePoint, Image, KeyframeId, KeyframePoint, Map, MovingRegion,
+    NewKeyframe, PointId, PointPair, Sightings, StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
 };
 use slam_pipeline::system::FrameInput;
 use slam_quadric::{project, Camera, Ellipsoid, ImageSize, Intrinsics};
@@ -58,21 +61,36 @@ pub struct Scene {
     pub texture: fn(usize) -> Vec<(u64, Vector3<f64>)>,
 }
 
-/// A tracker that reports the scene's believed poses and takes a keyframe every third frame with exact
-/// stereo observations (from the true pose) of the visible field points and the texture.
+/// A tracker that reports the scene's believed poses and makes a keyframe every third frame with exact
+/// stereo observations (from the true pose) of the visible field points and the texture, each keypoint
+/// matched to the map point its scene point became (learnt from the map once the keyframe is in).
 pub struct ScriptedTracker {
     scene: Scene,
     /// `(keyframe id, its pose as the tracker believes it)`.
     reference: Option<(u64, Isometry3<f64>)>,
-    next_kf: u64,
     /// The stereo points of the frame before and of the last frame (optical flow follows ids).
     seen: [Vec<KeyframePoint>; 2],
+    /// The last keyframe handed over and the scene point of each of its keypoints.
+    handed: Option<(KeyframeId, Vec<u64>)>,
+    /// The map point each scene point became.
+    map_id: HashMap<u64, PointId>,
 }
 
 impl ScriptedTracker {
     /// A tracker at the start of `scene`.
     pub fn new(scene: Scene) -> Self {
-        Self { scene, reference: None, next_kf: 0, seen: [Vec::new(), Vec::new()] }
+        Self { scene, reference: None, seen: [Vec::new(), Vec::new()], handed: None, map_id: HashMap::new() }
+    }
+
+    /// A scene point's descriptor: its id spread over 256 bits (distinct ids differ in many bits).
+    fn descriptor(id: u64) -> [u8; 32] {
+        let mut x = id.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0x5851_F42D_4C95_7F2D;
+        std::array::from_fn(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x as u8
+        })
     }
 
     /// The visible points of frame `frame` seen from `t`.
@@ -122,15 +140,46 @@ impl StereoTracker for ScriptedTracker {
         _: &Image,
         _: &Image,
         exclude: &[MovingRegion],
+        map: &Map,
     ) -> Result<TrackedFrame, TrackError> {
+        // the map points the last keyframe's scene points became
+        if let Some((id, scene_ids)) = self.handed.take() {
+            if let Some(kf) = map.keyframe(id) {
+                for (kp, &scene) in scene_ids.iter().enumerate() {
+                    if let Some(p) = kf.points[kp] {
+                        self.map_id.insert(scene, p);
+                    }
+                }
+            }
+        }
         let pose = (self.scene.believed)(frame);
         let (ref_id, ref_pose) = self.reference.unwrap_or((0, pose));
         let keyframe = (frame % 3 == 0).then(|| {
             let points = self.observations(frame, (self.scene.truth)(frame));
-            let id = self.next_kf;
-            self.next_kf += 1;
-            let parent = self.reference.map(|(rid, rp)| (rid, rp.inverse() * pose));
-            KeyframeData { id, frame, world_from_camera: pose, parent, points, earlier: vec![] }
+            let keypoints: Vec<Keypoint> = points
+                .iter()
+                .map(|p| Keypoint {
+                    u: p.observation[0],
+                    v: p.observation[1],
+                    u_right: p.observation[2],
+                    level: 0,
+                    angle: 0.0,
+                })
+                .collect();
+            let descriptors = points.iter().map(|p| Self::descriptor(p.id)).collect();
+            let features = Features::new(keypoints, descriptors, (IMAGE.width, IMAGE.height)).expect("lengths");
+            let matched =
+                points.iter().map(|p| self.map_id.get(&p.id).copied().filter(|m| map.point(*m).is_some())).collect();
+            let id = map.next_keyframe_id();
+            self.handed = Some((id, points.iter().map(|p| p.id).collect()));
+            NewKeyframe {
+                id,
+                frame,
+                pose,
+                parent: self.reference.map(|(rid, _)| rid),
+                features: Arc::new(features),
+                matched,
+            }
         });
         let relative = ref_pose.inverse() * pose;
         if let Some(kf) = &keyframe {
@@ -149,12 +198,9 @@ impl StereoTracker for ScriptedTracker {
             tracked_map_points: 100,
             reprojection_rms_px: 0.5,
             keyframe,
+            sightings: Sightings::default(),
             times: StageTimes::default(),
         })
-    }
-
-    fn correct(&mut self, c: &KeyframeCorrection) {
-        assert!(c.world_from_camera.translation.vector.iter().all(|v| v.is_finite()));
     }
 
     fn flow(&mut self, _: &[BBox]) -> Result<Vec<PointPair>, TrackError> {

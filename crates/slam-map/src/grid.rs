@@ -1,53 +1,11 @@
-//! Descriptor distances and a spatial index of keypoints for guided matching.
-
-/// Hamming distance of two 256-bit ORB descriptors, on 64-bit words (four population counts instead
-/// of 32).
-#[inline]
-pub fn hamming(a: &[u8; 32], b: &[u8; 32]) -> u32 {
-    let mut sum = 0;
-    for w in 0..4 {
-        let x = u64::from_ne_bytes(a[8 * w..8 * w + 8].try_into().unwrap_or([0; 8]));
-        let y = u64::from_ne_bytes(b[8 * w..8 * w + 8].try_into().unwrap_or([0; 8]));
-        sum += (x ^ y).count_ones();
-    }
-    sum
-}
-
-/// The two smallest Hamming distances among the candidates offered, and the best candidate.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct BestTwo {
-    pub(crate) best: u32,
-    second: u32,
-    arg: usize,
-}
-
-impl BestTwo {
-    pub(crate) fn new() -> Self {
-        Self { best: u32::MAX, second: u32::MAX, arg: usize::MAX }
-    }
-
-    pub(crate) fn offer(&mut self, h: u32, j: usize) {
-        if h < self.best {
-            (self.second, self.best, self.arg) = (self.best, h, j);
-        } else if h < self.second {
-            self.second = h;
-        }
-    }
-
-    /// The best candidate when its distance is at most `max_hamming` and below 0.9 × the second best
-    /// (at or below with `tie_ok`); a lone candidate passes the ratio test.
-    pub(crate) fn winner(&self, max_hamming: u32, tie_ok: bool) -> Option<usize> {
-        let limit = 0.9 * self.second as f64;
-        let ratio = self.second == u32::MAX || (self.best as f64) < limit || (tie_ok && self.best as f64 == limit);
-        (self.arg != usize::MAX && self.best <= max_hamming && ratio).then_some(self.arg)
-    }
-}
+//! Keypoints bucketed in square cells: a spatial index of an image's keypoints, built once per image
+//! and read by every projection search into it.
 
 /// Keypoints bucketed in square cells (compressed rows: the keypoints of cell `c` are
 /// `items[start[c]..start[c + 1]]`, in ascending index), built once per frame and queried by every
 /// projection search of that frame.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct KeypointGrid {
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct KeypointGrid {
     cell: f64,
     cols: usize,
     rows: usize,
@@ -58,10 +16,10 @@ pub(crate) struct KeypointGrid {
 impl KeypointGrid {
     /// Side of a cell, pixels: about the smallest search window (a few pixels at the coarse pyramid
     /// levels) times ten, so a typical window touches a handful of cells.
-    pub(crate) const CELL: f64 = 32.0;
+    pub const CELL: f64 = 32.0;
 
     /// The grid of `points` (pixels; negative coordinates count in the first cell).
-    pub(crate) fn new(points: &[(f64, f64)]) -> Self {
+    pub fn new(points: &[(f64, f64)]) -> Self {
         let cell = Self::CELL;
         let cols = points.iter().map(|p| Self::coord(p.0, cell)).max().unwrap_or(0) + 1;
         let rows = points.iter().map(|p| Self::coord(p.1, cell)).max().unwrap_or(0) + 1;
@@ -89,7 +47,7 @@ impl KeypointGrid {
     /// Calls `visit` with every keypoint index in the cells that a disc of `radius` around `(u, v)`
     /// touches, column by column (left to right), each column top to bottom, each cell in ascending
     /// index. The caller tests the exact distance.
-    pub(crate) fn for_each_near(&self, (u, v): (f64, f64), radius: f64, mut visit: impl FnMut(usize)) {
+    pub fn for_each_near(&self, (u, v): (f64, f64), radius: f64, mut visit: impl FnMut(usize)) {
         if self.items.is_empty() || !(u.is_finite() && v.is_finite() && radius.is_finite()) {
             return;
         }
@@ -115,30 +73,19 @@ impl KeypointGrid {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use slam_core::rng::SimRng;
-
-    #[test]
-    fn hamming_counts_differing_bits() {
-        let mut rng = SimRng::new(3);
-        for _ in 0..200 {
-            let a: [u8; 32] = std::array::from_fn(|_| (rng.uniform(0.0, 256.0) as u32).min(255) as u8);
-            let b: [u8; 32] = std::array::from_fn(|_| (rng.uniform(0.0, 256.0) as u32).min(255) as u8);
-            let bytewise: u32 = a.iter().zip(&b).map(|(x, y)| (x ^ y).count_ones()).sum();
-            assert_eq!(hamming(&a, &b), bytewise);
-        }
-        assert_eq!(hamming(&[0xff; 32], &[0; 32]), 256);
-    }
+    use rand::{rngs::ChaCha8Rng, RngExt, SeedableRng};
 
     /// The grid visits exactly the keypoints a scan of all keypoints finds within the window (and
     /// maybe a few more, which the caller's exact test drops), near the image border and outside it.
     #[test]
     fn grid_finds_every_keypoint_a_full_scan_finds() {
-        let mut rng = SimRng::new(5);
-        let points: Vec<(f64, f64)> = (0..800).map(|_| (rng.uniform(0.0, 1241.0), rng.uniform(0.0, 376.0))).collect();
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let points: Vec<(f64, f64)> =
+            (0..800).map(|_| (rng.random_range(0.0..1241.0), rng.random_range(0.0..376.0))).collect();
         let grid = KeypointGrid::new(&points);
         for _ in 0..300 {
-            let q = (rng.uniform(-80.0, 1320.0), rng.uniform(-80.0, 450.0));
-            let radius = rng.uniform(1.0, 170.0);
+            let q = (rng.random_range(-80.0..1320.0), rng.random_range(-80.0..450.0));
+            let radius = rng.random_range(1.0..170.0);
             let near = |p: &(f64, f64)| (p.0 - q.0).powi(2) + (p.1 - q.1).powi(2) <= radius * radius;
             let scan: Vec<usize> = (0..points.len()).filter(|&i| near(&points[i])).collect();
             let mut found = Vec::new();

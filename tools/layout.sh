@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# A derived layout of an odometry sequence, as a sequence of its own (slam_dataset::layout): the frames
+# linked, not copied; the calibration linked; frame times at the sequence's period; the ground-truth
+# poses in the same order. `slam-app run OUT/sequences/NN` and `slam-app track-bench --case` take it.
+#
+#   bash tools/layout.sh there-and-back fixtures/kitti_odom_06/sequences/06 out/tab5 5
+#   bash tools/layout.sh standstill fixtures/kitti_odom_06/sequences/06 out/still30 20 30
+#
+# there-and-back SEQUENCE OUT [LEGS]: the frames forwards, backwards, forwards, ... (LEGS legs, default 5;
+# a reversal does not repeat its end frame). standstill SEQUENCE OUT FRAME EXTRA: frame FRAME shown
+# EXTRA more times. OUT must not exist or be empty.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+exec cargo run --quiet --release -p slam-dataset --example layout -- "$@"
