@@ -63,8 +63,8 @@ impl Outcome {
                 self.elapsed,
                 c.frames as f64 / self.elapsed,
                 match median_fps(out) {
-                    f if f.is_finite() => format!("{f:.1} frames/s median"),
-                    _ => "no median frames/s (it needs two tracked frames)".to_string(),
+                    Some(f) => format!("{f:.1} frames/s median"),
+                    None => "no median frames/s (it needs two tracked frames)".to_string(),
                 }
             ),
             format!(
@@ -84,7 +84,7 @@ impl Outcome {
         ));
         lines.push("\n| stage | median ms | frames |\n|---|---:|---:|".into());
         for (name, ms, count) in stages_run(out, self.stages) {
-            lines.push(format!("| {name} | {ms:.1} | {count} |"));
+            lines.push(format!("| {name} | {} | {count} |", slam_core::figure::cell(ms, 1)));
         }
         lines.extend(self.truth_lines());
         if let Some(d) = &self.detections {
