@@ -150,6 +150,7 @@ pub fn motion_check(
     external: Option<&Path>,
 ) -> Result<DepthReport> {
     let seq = open_stereo(path)?;
+    crate::run::checked_size(&seq)?;
     let truth = seq.truth_from_first().ok_or_else(|| {
         RunnerError::Invalid(format!("{}: depth-check --motion needs ground-truth poses", path.display()))
     })?;
@@ -325,6 +326,7 @@ pub fn depth_check(path: &Path, tracking: &VoConfig) -> Result<DepthReport> {
             path.display()
         )));
     }
+    crate::run::checked_size(&seq)?;
     let date: PathBuf = seq.dir.parent().map(Path::to_path_buf).unwrap_or_default();
     let calib = RawCalib::read(&date)?;
     let [fx, fy, cx, cy] = seq.intrinsics;

@@ -108,7 +108,14 @@ impl Outcome {
             return lines;
         };
         let s = Scored::of(&self.out, &gt, &self.seq.ids);
-        let Some(e) = trajectory_errors(&s.est, &s.truth, &[10.0, 20.0, 40.0]) else { return lines };
+        let Some(e) = trajectory_errors(&s.est, &s.truth, &[10.0, 20.0, 40.0]) else {
+            lines.push(format!(
+                "\nground truth: no ATE/RPE: {} frame(s) with an estimate to compare (it needs two: unreadable frames \
+                 and frames before tracking started are left out)",
+                s.est.len().min(s.truth.len())
+            ));
+            return lines;
+        };
         if let Some(TruthSource::Oxts { median_pos_accuracy_m, path }) = self.seq.truth_source {
             lines.push(format!(
                 "\nground truth from the drive's OXTS packets (differential GPS + IMU; median position accuracy {median_pos_accuracy_m:.2} m from the packets' pos_accuracy): position errors below that are not meaningful"
