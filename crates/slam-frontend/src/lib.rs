@@ -7,6 +7,7 @@
 #![warn(missing_docs)]
 
 pub mod batch;
+pub mod darknet;
 pub mod detector;
 pub mod detectors;
 pub mod disparity;
@@ -26,5 +27,5 @@ pub use detector::{DetectorConfig, DnnDetector, InputMode, ModelFamily};
 pub use image_io::{
     draw_detections, draw_overlay, ellipse_outline, encode_jpeg, read_image, write_image, FrontendError, Overlay,
 };
-pub use model::{parse_input_size, FamilyName, ModeName, ModelError, ModelSpec, ShippedModel};
+pub use model::{parse_input_size, FamilyName, InputSize, ModeName, ModelError, ModelSpec, ShippedModel};
 pub use stereo_vo::{StereoRig, StereoVo, VoConfig};
