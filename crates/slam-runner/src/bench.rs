@@ -244,6 +244,11 @@ pub fn track_bench(
     if cases.is_empty() {
         return Err(RunnerError::Invalid("no cases: --only-cases needs at least one --case PATH[:STRIDE]".into()));
     }
+    // every case's sequence, calibration and image sizes are checked before the first frame of any
+    // (a typo in the last --case is found at once, not after the others ran)
+    for c in cases {
+        prepare(&case_settings(base, c, objects)).context_with(|| format!("case {}", c.name))?;
+    }
     print(if objects {
         "full system: detector on every frame, objects found moving masked out of tracking".to_string()
     } else {
@@ -279,14 +284,20 @@ pub struct TrackRow {
     pub notes: Vec<String>,
 }
 
-/// Run `case` with `base`'s settings (its path and stride replaced; no detector unless `objects`).
-pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<TrackRow> {
+/// `base`'s settings for `case`: its path and stride; no detector unless `objects`.
+fn case_settings(base: &RunSettings, case: &TrackCase, objects: bool) -> RunSettings {
     let mut s = base.clone();
     s.path = case.path.clone();
     s.selection.stride = case.stride as usize;
     if !objects {
         s.detector = DetectorChoice::None;
     }
+    s
+}
+
+/// Run `case` with `base`'s settings (its path and stride replaced; no detector unless `objects`).
+pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<TrackRow> {
+    let s = case_settings(base, case, objects);
     let o = run_quiet(&s, None).context_with(|| format!("case {}", case.name))?;
     let (out, seq) = (&o.out, &o.seq);
     let truth = seq.truth_from_first();

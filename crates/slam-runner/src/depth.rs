@@ -149,6 +149,9 @@ pub fn motion_check(
     (first, stride): (usize, usize),
     external: Option<&Path>,
 ) -> Result<DepthReport> {
+    if let Some(dir) = external.filter(|d| !d.is_dir()) {
+        return Err(RunnerError::Invalid(format!("--keypoints {}: not a folder", dir.display())));
+    }
     let seq = open_stereo(path)?;
     crate::run::checked_size(&seq)?;
     let truth = seq.truth_from_first().ok_or_else(|| {
