@@ -111,7 +111,8 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     if let Some(line) = recorded {
         println!("{line}");
     }
-    Ok(())
+    // the output is written, but a run that tracked no frame failed
+    o.nothing_tracked().map_or(Ok(()), |e| Err(e.into()))
 }
 
 #[derive(Args, Debug)]

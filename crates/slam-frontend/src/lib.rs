@@ -10,6 +10,7 @@ pub mod batch;
 pub mod darknet;
 pub mod detector;
 pub mod detectors;
+pub mod diagnosis;
 pub mod disparity;
 pub use detector::{decode_yolox, nms, nms_by_group};
 pub use matching::hamming;

@@ -35,7 +35,74 @@ pub struct OverlayChoice {
     pub format: String,
 }
 
+/// Most frames after the first are not tracked when fewer than this share of them is (tracked, weak or
+/// relocalised): then the run looks at its images and says what it saw.
+pub const MOSTLY_LOST_SHARE: f64 = 0.5;
+
 impl Outcome {
+    /// Frames after the first readable one, and how many of them were tracked (tracked, weak or
+    /// relocalised; not lost, predicted or unreadable).
+    pub fn tracked_after_first(&self) -> (usize, usize) {
+        let c = self.out.counts;
+        (c.frames.saturating_sub(c.unreadable + 1), c.tracked + c.weak + c.relocalised)
+    }
+
+    /// When most frames after the first were not tracked ([`MOSTLY_LOST_SHARE`]): what the images show
+    /// (`slam_frontend::diagnosis`, over up to three readable pairs spread over the run), one sentence
+    /// each; empty when the run tracked most frames.
+    pub fn diagnosis(&self) -> Vec<String> {
+        let (after, tracked) = self.tracked_after_first();
+        if after == 0 || tracked as f64 >= MOSTLY_LOST_SHARE * after as f64 {
+            return Vec::new();
+        }
+        let n = self.seq.len();
+        let mut positions = vec![0, n / 2, n.saturating_sub(1)];
+        positions.dedup();
+        let looked: Vec<slam_frontend::diagnosis::PairDiagnosis> = positions
+            .into_iter()
+            .filter_map(|i| slam_frontend::diagnosis::diagnose_pair(&self.seq.left[i], &self.seq.right[i]).ok())
+            .collect();
+        let head = format!("most frames were not tracked ({tracked} of the {after} after the first)");
+        let Some(first) = looked.first().copied() else {
+            return vec![format!("{head}; no pair of images could be read to say why")];
+        };
+        // the evidence of every pair looked at: matches summed, the value range the widest seen
+        let all = looked.iter().skip(1).fold(first, |mut a, d| {
+            a.matches += d.matches;
+            a.negative += d.negative;
+            a.positive += d.positive;
+            a.percentiles = (a.percentiles.0.min(d.percentiles.0), a.percentiles.1.max(d.percentiles.1));
+            a
+        });
+        let findings = all.findings();
+        if findings.is_empty() {
+            return vec![format!(
+                "{head}; the images look usable ({} matches along the rows of {} pairs, {} at positive disparity; grey \
+                 values {}-{} of 255): check the calibration (focal length, baseline) and whether consecutive frames \
+                 overlap",
+                all.matches,
+                looked.len(),
+                all.positive,
+                all.percentiles.0,
+                all.percentiles.1
+            )];
+        }
+        findings.into_iter().map(|f| format!("{head}: {f}")).collect()
+    }
+
+    /// An error when frames after the first were played and none of them was tracked: the run's output is
+    /// written (tracking.csv shows every frame's state), but the run failed.
+    pub fn nothing_tracked(&self) -> Option<RunnerError> {
+        let (after, tracked) = self.tracked_after_first();
+        (after > 0 && tracked == 0).then(|| {
+            RunnerError::Invalid(format!(
+                "no frame after the first of {} was tracked ({after} lost, predicted or relocalising; the diagnosis \
+                 above says what the images show)",
+                self.seq.dir.display()
+            ))
+        })
+    }
+
     /// Write the trajectory (KITTI and TUM: one pose per played frame, TUM with the frames' own times),
     /// tracking.csv, map.json and objects.json into `dir`; `shown` is the folder's name in messages.
     pub fn write_files(&self, dir: &Path, shown: &Path) -> Result<()> {
@@ -76,6 +143,13 @@ impl Outcome {
                 c.tracked, c.weak, c.relocalised, c.lost, c.predicted, c.unreadable
             ),
         ];
+        // what the images show, when most frames were not tracked, goes with the states it explains
+        for line in self.diagnosis() {
+            tracing::warn!("{line}");
+            if let Some(states) = lines.last_mut() {
+                states.push_str(&format!("; {line}"));
+            }
+        }
         let st = out.map.stats();
         let dets: usize = out.frames.iter().map(|f| f.detections.len()).sum();
         lines.push(format!(
