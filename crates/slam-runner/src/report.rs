@@ -165,7 +165,7 @@ impl Outcome {
             lines.push(d.summary(max_detections));
         }
         for note in &self.notes {
-            lines.push(format!("unused detections: {note}"));
+            lines.push(note.clone());
         }
         lines.join("\n")
     }

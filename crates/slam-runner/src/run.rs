@@ -258,7 +258,22 @@ impl Prepared {
         let tracker = Box::new(StereoVo::new(StereoRig { k, baseline: seq.baseline }, tracking, optimizer.clone())?);
         let labels = run_labels(s, &seq, image)?;
         let mut notes = Vec::new();
-        let (det, detections) = guarded(s, &seq, image, labels.as_ref(), &mut notes)?;
+        // labels of frames the run does not play score nothing: said as unused detections are (with
+        // --detector labels they are those detections, reported below)
+        if let (Some(path), Some((l, _))) = (&s.labels, &labels) {
+            if !matches!(s.detector, DetectorChoice::Labels { .. }) {
+                let mut per_frame: std::collections::BTreeMap<usize, usize> = Default::default();
+                for label in l.iter().filter(|l| !l.is_dont_care()) {
+                    *per_frame.entry(label.frame).or_default() += 1;
+                }
+                let source = path.display().to_string();
+                let unused = slam_frontend::detectors::unused_frames(&source, per_frame.into_iter(), &seq.ids);
+                notes.extend(unused.map(|n| format!("unused labels: {}", n.replace(" boxes)", " labels)"))));
+            }
+        }
+        let mut unused_detections = Vec::new();
+        let (det, detections) = guarded(s, &seq, image, labels.as_ref(), &mut unused_detections)?;
+        notes.extend(unused_detections.into_iter().map(|n| format!("unused detections: {n}")));
         for note in &notes {
             tracing::warn!("{note}");
         }
