@@ -127,6 +127,10 @@ pub fn run_bench_footer(repeat: usize, rows: &[BenchRow]) -> String {
     )
 }
 
+/// Most runs per `run-bench` configuration: the median of 100 runs moves by well under the spread of
+/// one, and 100 runs of the three configurations on the shipped sequence take about half an hour.
+pub const MAX_REPEAT: usize = 100;
+
 /// The name of `run-bench`'s row with a recording.
 pub const RECORDED_ROW: &str = "shipped detector, every frame, recorded (--rerun)";
 
@@ -143,6 +147,7 @@ pub fn run_bench(
     print: &mut dyn FnMut(String),
     progress: &mut dyn FnMut(String),
 ) -> Result<()> {
+    slam_core::check::count("--repeat", repeat, 1, MAX_REPEAT).map_err(RunnerError::other)?;
     print(RUN_BENCH_HEADER.to_string());
     let mut rows = Vec::new();
     let configs = bench_configs(file, network);

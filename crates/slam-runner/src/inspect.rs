@@ -163,8 +163,10 @@ fn ground_truth_times(truth: &Path, ids: &[usize]) -> Result<(Vec<f64>, String)>
     match times_file {
         Some(p) => {
             let all = slam_dataset::kitti::frames::read_frame_times(&p).map_err(RunnerError::other)?;
+            // the ground truth's lines ask for these frames, not images (none is read)
+            let by = format!("the lines of the ground truth {}", truth.display());
             let times =
-                slam_dataset::kitti::frames::values_of_ids(&all, ids, &p, "times").map_err(RunnerError::other)?;
+                slam_dataset::kitti::frames::values_of_ids(&all, ids, &p, "times", &by).map_err(RunnerError::other)?;
             Ok((times, format!("the times of {}", p.display())))
         }
         None => Ok((

@@ -200,8 +200,11 @@ impl Outcome {
         }
         // drift needs a ground-truth path, the scale an estimate that moves too
         let drift = drift_text(e.end_drift_pct);
-        let scale =
-            if e.scale.is_finite() { format!("{:.4}", e.scale) } else { "– (a path does not move)".to_string() };
+        let scale = match e.scale {
+            x if x.is_finite() => format!("{x:.4}"),
+            _ if e.frames < 3 => format!("– (the alignment needs 3 poses, {} here)", e.frames),
+            _ => "– (a path does not move)".to_string(),
+        };
         lines.push(format!(
             "\nground truth: path {:.1} m over {} frames; ATE {:.3} m (aligned {:.3} m); end-point drift {drift}; scale {scale}",
             e.path_m, e.frames, e.ate_m, e.ate_aligned_m
