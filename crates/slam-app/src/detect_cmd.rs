@@ -4,7 +4,9 @@ use std::path::PathBuf;
 
 use clap::Args;
 use slam_core::DetectionSource;
-use slam_frontend::{parse_input_size, DnnDetector, FamilyName, ModeName, ModelError, ModelSpec, ShippedModel};
+use slam_frontend::{
+    parse_input_size, DnnDetector, FamilyName, InputSize, ModeName, ModelError, ModelSpec, ShippedModel,
+};
 
 #[derive(Args, Debug, Clone, Default)]
 pub struct ModelArgs {
@@ -34,7 +36,7 @@ pub struct ModelArgs {
     /// Network input, WIDTHxHEIGHT or N for a square, multiples of 32 (default: 736x224 for YOLOX,
     /// 320 for rows)
     #[arg(long, value_parser = parse_input_size)]
-    input_size: Option<[i32; 2]>,
+    input_size: Option<InputSize>,
     /// Smallest score kept (default: 0.4 for YOLOX, 0.2 for rows)
     #[arg(long)]
     score: Option<f32>,

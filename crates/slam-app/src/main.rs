@@ -129,6 +129,8 @@ fn run() -> anyhow::Result<()> {
         .with_writer(slam_runner::console::log_writer)
         .init();
     let cli = Cli::parse();
+    // Ctrl-C removes this process's temporary files and folders (`run` polls it instead and stops)
+    slam_runner::console::handle_interrupts();
     match cli.command {
         Command::Run(a) => run_cmd::run(&a),
         Command::Map(a) => run_cmd::map(&a),

@@ -111,7 +111,8 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     if let Some(line) = recorded {
         println!("{line}");
     }
-    Ok(())
+    // the output is written, but a run that tracked no frame failed
+    o.nothing_tracked().map_or(Ok(()), |e| Err(e.into()))
 }
 
 #[derive(Args, Debug)]
@@ -342,15 +343,16 @@ pub fn map(a: &MapArgs) -> anyhow::Result<()> {
     outputs.extend(pictures.iter().map(|p| Written::File("--picture", p)));
     outputs.extend(a.rerun.as_deref().map(|p| Written::File("--rerun", p)));
     refuse_overwriting_inputs(&[("the map", &a.map)], &outputs)?;
-    let map = Map::load(&a.map)?;
-    println!("{}", inspect::map_summary(&map, &a.map));
     let exports = inspect::MapExports {
         ply: a.ply.clone(),
         scene: a.scene.clone(),
         trajectory: a.trajectory.clone(),
         picture: a.picture.clone(),
-    };
-    inspect::export_map(&map, &a.map, &exports, &mut |line| println!("{line}"))?;
+    }
+    .prepare()?;
+    let map = Map::load(&a.map)?;
+    println!("{}", inspect::map_summary(&map, &a.map));
+    inspect::export_map(&map, &a.map, exports, &mut |line| println!("{line}"))?;
     if let Some(path) = &a.rerun {
         println!("{}", crate::recording::record_map(&map, path)?);
     }

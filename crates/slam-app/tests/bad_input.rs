@@ -1839,3 +1839,652 @@ fn clear_errors_and_nothing_left_on_a_full_disk() {
     }
     std::fs::remove_dir_all(&d).ok();
 }
+
+// ---- Issue 39: bad input, round three ----
+
+/// A grey image scaled by `num / den` in each direction (nearest pixel), for images that do not have
+/// their calibration's size.
+fn scaled(img: &slam_core::Image, num: u32, den: u32) -> slam_core::Image {
+    let (w, h) = (img.width * num / den, img.height * num / den);
+    let data = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| img.data[((y * den / num) * img.width + x * den / num) as usize])
+        .collect();
+    slam_core::Image::new(w, h, 1, data).expect("image")
+}
+
+/// Rewrite both images of frames `frames` of `seq` through `edit`.
+fn edit_frames(seq: &Path, frames: std::ops::Range<usize>, edit: &dyn Fn(&slam_core::Image) -> slam_core::Image) {
+    for i in frames {
+        for cam in ["image_0", "image_1"] {
+            let f = seq.join(format!("{cam}/{i:06}.png"));
+            let img = slam_frontend::read_image(&f, false).expect("read");
+            slam_frontend::write_image(&f, &edit(&img)).expect("write");
+        }
+    }
+}
+
+/// A PNG file's bytes: signature, an `IHDR` declaring `w × h` of `depth` bits and colour `kind` (0 grey,
+/// 2 RGB), then `body` (further chunks, or nothing: a file that only declares its size).
+fn png_with(w: u32, h: u32, depth: u8, kind: u8, body: &[u8]) -> Vec<u8> {
+    let mut v = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut ihdr = Vec::new();
+    ihdr.extend(w.to_be_bytes());
+    ihdr.extend(h.to_be_bytes());
+    ihdr.extend([depth, kind, 0, 0, 0]);
+    v.extend(png_chunk(b"IHDR", &ihdr));
+    v.extend_from_slice(body);
+    v
+}
+
+/// One PNG chunk: length, type, data, CRC-32 of type and data.
+fn png_chunk(kind: &[u8; 4], data: &[u8]) -> Vec<u8> {
+    let mut crc = 0xFFFF_FFFFu32;
+    for &b in kind.iter().chain(data) {
+        crc ^= u32::from(b);
+        for _ in 0..8 {
+            crc = if crc & 1 == 1 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
+        }
+    }
+    let mut v = (data.len() as u32).to_be_bytes().to_vec();
+    v.extend_from_slice(kind);
+    v.extend_from_slice(data);
+    v.extend((!crc).to_be_bytes());
+    v
+}
+
+/// A 16-bit grey PNG of `w × h` samples (zlib's stored blocks: no compression needed for a test).
+fn png16(w: u32, h: u32, samples: &[u16]) -> Vec<u8> {
+    let mut raw = Vec::new();
+    for row in samples.chunks(w as usize) {
+        raw.push(0u8);
+        for s in row {
+            raw.extend(s.to_be_bytes());
+        }
+    }
+    let mut z = vec![0x78, 0x01];
+    let blocks: Vec<&[u8]> = raw.chunks(65_535).collect();
+    for (k, b) in blocks.iter().enumerate() {
+        z.push(u8::from(k + 1 == blocks.len()));
+        z.extend((b.len() as u16).to_le_bytes());
+        z.extend((!(b.len() as u16)).to_le_bytes());
+        z.extend_from_slice(b);
+    }
+    let (mut a, mut b) = (1u32, 0u32);
+    for &x in &raw {
+        a = (a + u32::from(x)) % 65_521;
+        b = (b + a) % 65_521;
+    }
+    z.extend(((b << 16) | a).to_be_bytes());
+    let body = [png_chunk(b"IDAT", &z), png_chunk(b"IEND", &[])].concat();
+    png_with(w, h, 16, 0, &body)
+}
+
+/// Class 1 (R01, R06, R14 9): images must fit their calibration, and no image is decoded before its
+/// header's size is checked. Images half or twice the calibrated size are refused before any frame by
+/// every command that tracks them (the principal point's place names both); a first frame cropped to
+/// another size no longer makes the others unreadable; a PNG or JPEG declaring 30000 × 30000 pixels is
+/// refused from its header (unreadable frame, skipped image), or as the first frame, an error.
+#[test]
+fn images_must_fit_their_calibration_and_their_header_bounds_decoding() {
+    let d = scratch("fit");
+    let half = sequence(&d, "half", 3, None);
+    edit_frames(&half, 0..3, &|img| scaled(img, 1, 2));
+    let double = sequence(&d, "double", 3, None);
+    edit_frames(&double, 0..3, &|img| scaled(img, 2, 1));
+    // a 33-byte PNG and a 23-byte JPEG that declare 30000 × 30000 pixels
+    let bomb = png_with(30_000, 30_000, 8, 2, &[]);
+    let jpeg_bomb = [
+        &[0xFF, 0xD8, 0xFF, 0xC0, 0x00, 0x11, 0x08][..],
+        &30_000u16.to_be_bytes(),
+        &30_000u16.to_be_bytes(),
+        &[3, 1, 0x22, 0, 2, 0x11, 1, 3, 0x11, 1],
+    ]
+    .concat();
+    let first_bomb = sequence(&d, "firstbomb", 3, None);
+    for cam in ["image_0", "image_1"] {
+        std::fs::write(first_bomb.join(format!("{cam}/000000.png")), &bomb).expect("bomb");
+    }
+    let out = d.join("o");
+    let half_msg = [
+        "calib.txt: the principal point (601.9, 183.1) px lies 48 % of the width",
+        "613×185",
+        "implies about 1204×366",
+    ];
+    let mut cases = vec![
+        case(
+            "run, images half the calibrated size",
+            &[&"run", &"--detector", &"none", &half, &"--out", &out],
+            1,
+            &half_msg,
+        ),
+        case(
+            "run, images twice the calibrated size",
+            &[&"run", &"--detector", &"none", &double, &"--out", &out],
+            1,
+            &["lies 25 % of the width", "2452×740"],
+        ),
+        case("stereo-check, half size", &[&"stereo-check", &half], 1, &half_msg),
+        case("track-bench, half size", &[&"track-bench", &"--only-cases", &"--case", &half], 1, &half_msg),
+        case(
+            "run, a 30000 × 30000 first frame",
+            &[&"run", &"--detector", &"none", &first_bomb, &"--out", &out],
+            1,
+            &["000000.png", "declares 30000×30000 pixels", "not decoded"],
+        ),
+    ];
+    // depth-check on a raw drive whose images are half the size
+    let raw = fixtures().join("kitti_raw_0005/2011_09_26");
+    let date = d.join("raw/2011_09_26");
+    let drive = date.join("2011_09_26_drive_0005_sync");
+    for f in ["calib_cam_to_cam.txt", "calib_imu_to_velo.txt", "calib_velo_to_cam.txt"] {
+        std::fs::copy(raw.join(f), date.join(f)).ok().or_else(|| {
+            std::fs::create_dir_all(&date).expect("dir");
+            std::fs::copy(raw.join(f), date.join(f)).ok()
+        });
+    }
+    for cam in ["image_00", "image_01"] {
+        std::fs::create_dir_all(drive.join(cam).join("data")).expect("dir");
+        for i in 0..2 {
+            let f = format!("{cam}/data/{i:010}.png");
+            let img = slam_frontend::read_image(raw.join("2011_09_26_drive_0005_sync").join(&f), false).expect("read");
+            slam_frontend::write_image(drive.join(&f), &scaled(&img, 1, 2)).expect("write");
+        }
+    }
+    cases.push(case(
+        "depth-check, half size",
+        &[&"depth-check", &drive],
+        1,
+        &["calib_cam_to_cam.txt: the principal point", "621×187"],
+    ));
+    check(cases);
+    assert!(!out.exists(), "no output folder from refused runs");
+    // counted: a bomb in the middle of a run, and among the images of detect
+    let seq = sequence(&d, "bomb", 4, None);
+    for cam in ["image_0", "image_1"] {
+        std::fs::write(seq.join(format!("{cam}/000002.png")), &bomb).expect("bomb");
+    }
+    let mut c = app();
+    c.args(["run", "--detector", "none"]).arg(&seq).arg("--out").arg(d.join("bomb-out"));
+    let (code, text, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(number_after(&text, "unreadable ") as usize, 1, "{text}");
+    assert!(err.contains("000002.png") && err.contains("declares 30000×30000 pixels"), "{err}");
+    let imgs = d.join("imgs");
+    std::fs::create_dir_all(&imgs).expect("dir");
+    std::fs::copy(seq.join("image_0/000000.png"), imgs.join("000000.png")).expect("copy");
+    std::fs::write(imgs.join("000001.png"), &bomb).expect("bomb");
+    std::fs::write(imgs.join("000002.jpg"), &jpeg_bomb).expect("bomb");
+    let mut c = app();
+    c.arg("detect").arg(&imgs).arg("--out").arg(d.join("det.json"));
+    let (code, text, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    assert!(text.contains("3 frames") && text.contains("2 unreadable frames skipped"), "{text}");
+    assert!(err.contains("000002.jpg") && err.contains("its JPEG header declares 30000×30000"), "{err}");
+    // the first frame cropped to 1000 px (both cameras): that frame is the odd one, the others track
+    let crop = sequence(&d, "crop", 6, None);
+    edit_frames(&crop, 0..1, &|img| {
+        let data = img.data.chunks(img.width as usize).flat_map(|r| r[..1000].to_vec()).collect();
+        slam_core::Image::new(1000, img.height, 1, data).expect("image")
+    });
+    std::fs::create_dir_all(d.join("crop/poses")).expect("dir");
+    let poses = std::fs::read_to_string(fixtures().join("kitti_odom_06/poses/06.txt")).expect("poses");
+    write(&d.join("crop/poses/06.txt"), &poses.lines().take(6).map(|l| format!("{l}\n")).collect::<String>());
+    let mut c = app();
+    c.args(["run", "--detector", "none"]).arg(&crop).arg("--out").arg(d.join("crop-out"));
+    let (code, text, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    assert!(text.contains("1 frame(s) of another image size than the others' 1226×370 (first: frame 0)"), "{text}");
+    assert_eq!(number_after(&text, "unreadable ") as usize, 1, "{text}");
+    assert_eq!(number_after(&text, "tracking states: tracked ") as usize, 4, "{text}");
+    assert!(text.contains("ground truth: path"), "scored from the first tracked frame: {text}");
+    assert!(err.contains("000000.png is 1000×370, most of the sequence's frames 1226×370"), "{err}");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Class 3 (R02, R14 2): a detector model is checked against its description before any frame. Darknet
+/// weights cut short, empty, padded, or for another cfg, and a cfg of other classes, are refused naming
+/// both files and the byte counts (they gave 1600 junk boxes a frame, or none); an ONNX model whose
+/// output is not what its decode reads is refused naming both shapes; an input size is echoed as
+/// written, and one that needs more memory than the process can have is refused with the figure.
+#[test]
+fn models_are_checked_against_their_description() {
+    let d = scratch("models");
+    let shipped = fixtures().join("detector");
+    let weights = std::fs::read(shipped.join("yolo-fastest-1.1.weights")).expect("weights");
+    let cfg = std::fs::read_to_string(shipped.join("yolo-fastest-1.1.cfg")).expect("cfg");
+    let half = d.join("half.weights");
+    std::fs::write(&half, &weights[..700_000]).expect("write");
+    let empty = write(&d.join("empty.weights"), "");
+    let padded = d.join("padded.weights");
+    std::fs::write(&padded, [&weights[..], &[0u8; 4096][..]].concat()).expect("write");
+    // another model's cfg (a wider first layer), and one of 3 classes
+    let wider = write(&d.join("wider.cfg"), &cfg.replacen("filters=8", "filters=16", 1));
+    let three = write(&d.join("three.cfg"), &cfg.replace("classes=80", "classes=3"));
+    let imgs = d.join("imgs");
+    std::fs::create_dir_all(&imgs).expect("dir");
+    std::fs::copy(fixtures().join("kitti_odom_06/sequences/06/image_0/000000.png"), imgs.join("000000.png"))
+        .expect("copy");
+    let json = d.join("d.json");
+    let detect = |extra: &[&dyn AsRef<std::ffi::OsStr>]| {
+        let mut v: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![&"detect", &imgs, &"--out", &json];
+        v.extend_from_slice(extra);
+        v.iter().map(|a| a.as_ref().to_os_string()).collect::<Vec<_>>()
+    };
+    let mk = |name: &str, args: Vec<OsString>, want: &[&str]| Case {
+        name: name.into(),
+        args,
+        code: 1,
+        want: want.iter().map(|s| s.to_string()).collect(),
+    };
+    let onnx = fixtures().join("yolox_nano/yolox_nano.onnx");
+    let cases = vec![
+        mk(
+            "weights cut short",
+            detect(&[&"--weights", &half]),
+            &["half.weights: holds 700000 bytes", "needs 1384268", "684268 bytes too few"],
+        ),
+        mk(
+            "empty weights",
+            detect(&[&"--weights", &empty]),
+            &["empty.weights: holds 0 bytes, too few for a Darknet weights header"],
+        ),
+        mk("weights padded", detect(&[&"--weights", &padded]), &["padded.weights", "4096 bytes too many"]),
+        mk(
+            "weights of another cfg",
+            detect(&[&"--cfg", &wider]),
+            &["yolo-fastest-1.1.weights: holds 1384268 bytes, but", "wider.cfg needs"],
+        ),
+        mk("cfg of 3 classes", detect(&[&"--cfg", &three]), &["three.cfg", "classes=3", "COCO's 80 classes"]),
+        mk(
+            "onnx read as rows",
+            detect(&[&"--onnx", &onnx, &"--family", &"rows"]),
+            &["yolox_nano.onnx", "its output is 1×2100×85", "2-D outputs of 85 columns"],
+        ),
+        mk("input size 0x0 as written", detect(&[&"--input-size", &"0x0"]), &["--input-size 0x0: must be"]),
+        case(
+            "run with weights cut short",
+            &[&"run", &"--weights", &half, &"--out", &d.join("o")],
+            1,
+            &["half.weights", "684268 bytes too few"],
+        ),
+    ];
+    check(cases);
+    assert!(!json.exists() && !d.join("o").exists(), "nothing written");
+    // the shipped pair loads; at an input of 2048 × 2048 the network needs more than 0.9 GB of address
+    // space leaves (about 0.8 GB: a quarter of OpenCV's estimate of 3.2 GB)
+    let mut c = app();
+    c.arg("detect").arg(&imgs).arg("--out").arg(&json).arg("--model").arg("yolo-fastest");
+    let (code, _, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    let mut c = app_under("ulimit -v 900000");
+    c.arg("detect").arg(&imgs).arg("--out").arg(d.join("big.json")).args(["--input-size", "2048"]);
+    let (code, _, err) = run_cmd(c);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("the network at an input of 2048x2048 needs about")
+            && err.contains("choose a smaller --input-size"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Class 4 (R04, R05, R14 5): a figure of an empty set is a dash (an empty CSV field), never 0.000 or
+/// NaN, in every table; and the labels' line order does not change `eval`'s figures.
+#[test]
+fn figures_of_empty_sets_are_dashes_and_line_order_does_not_matter() {
+    let d = scratch("dashes");
+    let csv = d.join("e.csv");
+    let mut c = app();
+    c.arg("eval").arg(fixtures().join("kitti_tracking/0000")).args(["--min-frames", "100000", "--csv"]).arg(&csv);
+    let (code, text, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    let row = text.lines().find(|l| l.starts_with("0000")).expect("row").to_string();
+    assert_eq!(row.split_whitespace().filter(|c| *c == "–").count(), 8, "{row}");
+    for tag in ["0000", "avg", "all"] {
+        let line = text.lines().find(|l| l.starts_with(tag)).expect("line");
+        assert!(!line.contains("NaN") && !line.contains("0.000"), "{line}");
+    }
+    let fields = std::fs::read_to_string(&csv).expect("csv");
+    assert_eq!(fields.lines().nth(1), Some("0000,0,0,,,,,,,,"), "{fields}");
+    // the same labels reversed line by line: the same figures, and the log says the file was sorted
+    let seq = |name: &str, reverse: bool| {
+        let dir = d.join(name);
+        for f in ["calib.txt", "poses_orbslam3.txt", "label_02.txt"] {
+            let text = std::fs::read_to_string(fixtures().join("kitti_tracking/0000").join(f)).expect("fixture");
+            let text = if reverse && f == "label_02.txt" {
+                text.lines().rev().map(|l| format!("{l}\n")).collect()
+            } else {
+                text
+            };
+            write(&dir.join(f), &text);
+        }
+        dir
+    };
+    let eval = |dir: &Path| {
+        let mut c = app();
+        c.arg("eval").arg(dir);
+        let (code, text, err) = run_cmd(c);
+        assert_eq!(code, 0, "{err}");
+        (
+            text.lines()
+                .filter(|l| l.starts_with("0000") || l.starts_with("what the ground-truth"))
+                .collect::<Vec<_>>()
+                .join("\n"),
+            err,
+        )
+    };
+    let (forward, _) = eval(&seq("forward", false));
+    let (backward, err) = eval(&seq("backward", true));
+    assert_eq!(forward, backward);
+    assert!(err.contains("labels are not in frame order") && err.contains("read in frame order"), "{err}");
+    // track-bench with a stride past the sequence (one frame), detect-recall with an input where
+    // nothing is found, run-bench over one frame: dashes where a figure has nothing to stand on
+    let shipped = fixtures().join("kitti_odom_06/sequences/06");
+    let mut c = app();
+    c.args(["track-bench", "--only-cases", "--case"]).arg(format!("{}:99999", shipped.display()));
+    let (code, text, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    let row = text.lines().find(|l| l.contains("stride 99999")).expect("row");
+    assert!(row.ends_with("| – | – |") && !row.contains("NaN"), "{row}");
+    let mut c = app();
+    c.args(["detect-recall", "--input-size", "32"]);
+    let (code, text, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    let row = text.lines().find(|l| l.contains("32x32")).expect("row");
+    assert!(row.contains("| 0/27 | 0.000 | – |") && !row.contains("NaN"), "{row}");
+    let mut c = app();
+    c.args(["run-bench", "--repeat", "1", "--max-frames", "1"]);
+    let (code, text, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    let rows: Vec<&str> =
+        text.lines().filter(|l| l.starts_with("| no objects") || l.starts_with("| detections")).collect();
+    assert_eq!(rows.len(), 2, "{text}");
+    assert!(
+        rows.iter().all(|r| r.starts_with("| no objects (--detector none) | – |")
+            || r.starts_with("| detections from a file | – |")),
+        "{rows:?}"
+    );
+    assert!(!text.contains("NaN"), "{text}");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Class 5 (R08, R09, R11, R14 7, item 5): every command's outputs follow `run`'s rules. `map --picture`
+/// does not replace a user's map.png / map.svg (it may replace its own, and a run's); an output file
+/// inside an output folder is refused as such, before any folder is made; every path is checked before
+/// any work: all of track-bench's cases, map's exports before the map is read, optim-bench's problem
+/// files before the first solve; a symbolic link that loops is named as one.
+#[test]
+fn outputs_follow_runs_rules_and_paths_are_checked_first() {
+    let d = scratch("outputs");
+    let run_dir = d.join("run");
+    let mut c = app();
+    c.args(["run", "--detector", "none", "--max-frames", "3", "--out"]).arg(&run_dir);
+    let (code, _, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    let map = run_dir.join("map.json");
+    let mine = d.join("mine");
+    write(&mine.join("map.png"), "my own picture");
+    write(&mine.join("map.svg"), "my own svg");
+    let loop_a = d.join("loopA");
+    std::os::unix::fs::symlink(d.join("loopB"), &loop_a).expect("link");
+    std::os::unix::fs::symlink(&loop_a, d.join("loopB")).expect("link");
+    let bad_map = write(&d.join("bad.json"), "{");
+    let optim = d.join("optim");
+    std::fs::create_dir_all(&optim).expect("dir");
+    std::fs::copy(fixtures().join("optim/problem-49-7776-pre.txt"), optim.join("problem-49-7776-pre.txt"))
+        .expect("copy");
+    let imgs = d.join("imgs");
+    std::fs::create_dir_all(&imgs).expect("dir");
+    std::fs::copy(fixtures().join("kitti_odom_06/sequences/06/image_0/000000.png"), imgs.join("000000.png"))
+        .expect("copy");
+    let cases = vec![
+        case(
+            "map --picture over a user's pictures",
+            &[&"map", &map, &"--picture", &mine],
+            1,
+            &["--picture", "holds map.svg, map.png that `slam-app map` did not write"],
+        ),
+        case(
+            "detect --out inside --overlays",
+            &[&"detect", &imgs, &"--out", &d.join("ov1/x.json"), &"--overlays", &d.join("ov1")],
+            1,
+            &["--out", "ov1/x.json: lies inside --overlays", "replaces as a whole"],
+        ),
+        case(
+            "detect --out below --overlays",
+            &[&"detect", &imgs, &"--out", &d.join("ov2/sub/x.json"), &"--overlays", &d.join("ov2")],
+            1,
+            &["ov2/sub/x.json: lies inside --overlays"],
+        ),
+        case(
+            "track-bench, a missing last case",
+            &[
+                &"track-bench",
+                &"--only-cases",
+                &"--case",
+                &fixtures().join("kitti_odom_06/sequences/06"),
+                &"--case",
+                &d.join("typo"),
+            ],
+            1,
+            &["case", "typo", "not a folder"],
+        ),
+        case(
+            "map exports checked before the map is read",
+            &[&"map", &bad_map, &"--ply", &d.join("loopA/p.ply")],
+            1,
+            &["loopA is a symbolic link", "loops or leads nowhere"],
+        ),
+        case(
+            "run --out below a link that loops",
+            &[&"run", &"--max-frames", &"2", &"--out", &d.join("loopA/sub")],
+            1,
+            &["loopA is a symbolic link to", "loops or leads nowhere"],
+        ),
+        case(
+            "optim-bench, a problem file missing",
+            &[&"optim-bench", &"--data", &optim],
+            1,
+            &["--data", "problem-16-22106-pre.txt"],
+        ),
+    ];
+    check(cases);
+    assert_eq!(std::fs::read_to_string(mine.join("map.svg")).expect("svg"), "my own svg", "the user's file is kept");
+    assert!(!d.join("ov1").exists() && !d.join("ov2").exists(), "no folder made by a refused command");
+    // track-bench printed nothing before the error (no case ran)
+    let mut c = app();
+    c.args(["track-bench", "--only-cases", "--case"])
+        .arg(fixtures().join("kitti_odom_06/sequences/06"))
+        .arg("--case")
+        .arg(d.join("typo"));
+    let (code, text, _) = run_cmd(c);
+    assert!(code == 1 && text.is_empty(), "{text}");
+    // a run's own pictures, and map's own in a new folder, are replaced again
+    for dir in [&run_dir, &d.join("pictures"), &d.join("pictures")] {
+        let mut c = app();
+        c.arg("map").arg(&map).arg("--picture").arg(dir);
+        let (code, text, err) = run_cmd(c);
+        assert_eq!(code, 0, "{err}");
+        assert!(text.contains("map.svg") && text.contains("map.png"), "{text}");
+    }
+    let marker = std::fs::read_to_string(d.join("pictures/.slam-app-output")).expect("marker");
+    assert_eq!(marker, "slam-app map\nmap.png\nmap.svg\n");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Class 6 (R12): unusable stereo gets a diagnosis. Cameras swapped, or 12-bit data in 16-bit PNG files:
+/// no frame is tracked, the run says what its images show, writes its output and exits with status 1.
+#[test]
+fn unusable_stereo_gets_a_diagnosis() {
+    let d = scratch("diagnosis");
+    let swapped = sequence(&d, "swapped", 6, None);
+    for i in 0..6 {
+        let (l, r) = (swapped.join(format!("image_0/{i:06}.png")), swapped.join(format!("image_1/{i:06}.png")));
+        let tmp = swapped.join("swap.png");
+        std::fs::rename(&l, &tmp).expect("swap");
+        std::fs::rename(&r, &l).expect("swap");
+        std::fs::rename(&tmp, &r).expect("swap");
+    }
+    // 10-bit data in 16-bit files: read as 8 bits, a grey value of at most 3 (12-bit data, at most 15,
+    // still holds enough contrast for the low-threshold FAST pass to track some frames)
+    let deep = sequence(&d, "bit10", 6, None);
+    for i in 0..6 {
+        for cam in ["image_0", "image_1"] {
+            let f = deep.join(format!("{cam}/{i:06}.png"));
+            let img = slam_frontend::read_image(&f, false).expect("read");
+            let samples: Vec<u16> = img.data.iter().map(|&v| u16::from(v) * 4).collect();
+            std::fs::write(&f, png16(img.width, img.height, &samples)).expect("write");
+        }
+    }
+    for (seq, want) in [
+        (&swapped, "the cameras look swapped"),
+        (&deep, "the images are nearly black: 99 % of the left image's pixels are at most 3 of 255; the files hold 16-bit samples"),
+    ] {
+        let out = d.join(format!("out-{}", seq.parent().and_then(Path::parent).expect("root").file_name().expect("name").to_string_lossy()));
+        let mut c = app();
+        c.args(["run", "--detector", "none"]).arg(seq).arg("--out").arg(&out);
+        let (code, text, err) = run_cmd(c);
+        assert_eq!(code, 1, "{text}\n{err}");
+        let states = text.lines().find(|l| l.starts_with("tracking states:")).expect("states");
+        assert!(states.contains("tracked 0,") && states.contains("most frames were not tracked (0 of the 5 after the first)") && states.contains(want), "{states}");
+        assert!(err.contains("no frame after the first") && err.contains("was tracked"), "{err}");
+        assert!(out.join("tracking.csv").is_file(), "the output is written for inspection");
+    }
+    // the shipped frames track, and say nothing of the kind
+    let mut c = app();
+    c.args(["run", "--detector", "none", "--max-frames", "6", "--out"]).arg(d.join("good"));
+    let (code, text, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    assert!(!text.contains("most frames were not tracked"), "{text}");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Class 7 (R07, R13, R14 1/3/4/6/8, R15): values that cannot be right, caught with the figure or range.
+#[test]
+fn values_that_cannot_be_right_round_four() {
+    let d = scratch("values4");
+    // a lidar a kilometre from the camera
+    let raw = fixtures().join("kitti_raw_0005/2011_09_26");
+    let date = d.join("velo/2011_09_26");
+    std::fs::create_dir_all(&date).expect("dir");
+    for f in ["calib_cam_to_cam.txt", "calib_imu_to_velo.txt"] {
+        std::fs::copy(raw.join(f), date.join(f)).expect("copy");
+    }
+    let v2c = std::fs::read_to_string(raw.join("calib_velo_to_cam.txt")).expect("calib");
+    let far: String =
+        v2c.lines().map(|l| if l.starts_with("T:") { "T: 1000 0 0\n".into() } else { format!("{l}\n") }).collect();
+    write(&date.join("calib_velo_to_cam.txt"), &far);
+    std::os::unix::fs::symlink(raw.join("2011_09_26_drive_0005_sync"), date.join("2011_09_26_drive_0005_sync"))
+        .expect("link");
+    let huge = write(&d.join("huge.toml"), "[tracking]\nransac_px = 1e308\n");
+    // a ground truth of 40 lines beside a times.txt of 20
+    let gt = d.join("t/poses/06.txt");
+    let poses = std::fs::read_to_string(fixtures().join("kitti_odom_06/poses/06.txt")).expect("poses");
+    write(&gt, &poses.lines().take(40).map(|l| format!("{l}\n")).collect::<String>());
+    write(&d.join("t/sequences/06/times.txt"), &(0..20).map(|i| format!("{:e}\n", 0.1 * i as f64)).collect::<String>());
+    // a run's TUM trajectory (times 0.1 s apart) is matched to the KITTI ground truth by its times.txt
+    let est = write(
+        &d.join("est.tum.txt"),
+        &(0..20).map(|i| format!("{:.6} {i} 0 0 0 0 0 1\n", 0.1 * i as f64)).collect::<String>(),
+    );
+    // labels: occlusion 9, alpha 100
+    // (line 5 of sequence 0003's labels is its first object: the lines before are DontCare regions)
+    let occluded = tracking_with(&d, "occluded", "label_02.txt", &|t| with_field(t, 4, 4, "9"));
+    let alpha = tracking_with(&d, "alpha", "label_02.txt", &|t| with_field(t, 4, 5, "100"));
+    // a detection whose class name is another class's
+    let banana = write(
+        &d.join("banana.json"),
+        r#"{"version":1,"frames":[{"frame":0,"detections":[{"class":2,"class_name":"banana","score":0.9,"box":[10,10,50,50]}]}]}"#,
+    );
+    let cases = vec![
+        case(
+            "depth-check: lidar 1 km from the camera",
+            &[&"depth-check", &date.join("2011_09_26_drive_0005_sync")],
+            1,
+            &["calib_velo_to_cam.txt:", "T puts the two sensors 1000.000 m apart", "at most 26 m"],
+        ),
+        case(
+            "ransac_px = 1e308",
+            &[&"run", &"--config", &huge, &"--print-config"],
+            1,
+            &["huge.toml", "[tracking] ransac_px = 1e308: beyond the range"],
+        ),
+        case(
+            "stereo-check --step 0",
+            &[&"stereo-check", &"--step", &"0"],
+            1,
+            &["--step 0: must be a finite number in (0.00006, 0.6] px"],
+        ),
+        case(
+            "run-bench --repeat 0",
+            &[&"run-bench", &"--repeat", &"0"],
+            1,
+            &["--repeat 0: must be an integer in [1, 100]"],
+        ),
+        case("run-bench --repeat 1000000", &[&"run-bench", &"--repeat", &"1000000"], 1, &["--repeat 1000000"]),
+        case(
+            "trajectory-eval: ground truth longer than times.txt",
+            &[&"trajectory-eval", &est, &gt],
+            1,
+            &["times.txt: 20 times but the lines of the ground truth", "06.txt go up to frame 39"],
+        ),
+        case(
+            "label occlusion 9",
+            &[&"objects", &occluded, &"--out", &d.join("o.json")],
+            1,
+            &["label_02.txt:5: occluded 9"],
+        ),
+        case(
+            "label alpha 100",
+            &[&"objects", &alpha, &"--out", &d.join("o.json")],
+            1,
+            &["label_02.txt:5: alpha 100 rad"],
+        ),
+        case(
+            "class_name of another class",
+            &[&"run", &"--detections", &banana, &"--max-frames", &"2", &"--out", &d.join("r")],
+            1,
+            &["banana.json", "class 2 is COCO's \"car\" but class_name \"banana\" names class 46"],
+        ),
+    ];
+    check(cases);
+    // two frames: the scale needs three poses, and says so
+    let mut c = app();
+    c.args(["run", "--detector", "none", "--frames", "49..", "--out"]).arg(d.join("two"));
+    let (code, text, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    assert!(text.contains("scale – (the alignment needs 3 poses, 2 here)"), "{text}");
+    // labels of frames beyond a 20-frame run are reported
+    let mut c = app();
+    c.args(["run", "--detector", "none", "--frames", "0..20", "--labels"])
+        .arg(fixtures().join("kitti_tracking/0000/label_02.txt"))
+        .arg("--out")
+        .arg(d.join("labels"));
+    let (code, text, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        text.contains("unused labels: ") && text.contains("lie after the last frame played, 19 (first: frame 20)"),
+        "{text}"
+    );
+    // optim-bench --generated: a problem beyond this process's memory is refused with the figure before it
+    // is built; the dense path alone beyond it is left out with its figure, the sparse row runs
+    let mut c = app_under("ulimit -v 3000000");
+    c.args(["optim-bench", "--generated", "100000", "--iterations", "1"]);
+    let (code, _, err) = run_cmd(c);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("--generated 100000: the generated BA of 100000 cameras on the sparse path needs about 6.9 GB"),
+        "{err}"
+    );
+    let mut c = app_under("ulimit -v 3000000");
+    c.args(["optim-bench", "--generated", "2000", "--iterations", "1"]);
+    let (code, text, err) = run_cmd(c);
+    assert_eq!(code, 0, "{err}");
+    assert!(text.lines().any(|l| l.starts_with("sparse")), "{text}");
+    assert!(
+        text.contains("dense: not run: the dense path's 11988 × 11988 reduced matrix needs about 3.6 GB"),
+        "{text}"
+    );
+    std::fs::remove_dir_all(&d).ok();
+}

@@ -159,3 +159,51 @@ fn ctrl_c_stops_cleanly_and_keeps_the_previous_run() {
     assert_eq!(left, ["out"], "no temporary folder left");
     std::fs::remove_dir_all(&d).ok();
 }
+
+/// Ctrl-C in a command that does not stop by itself (issue 39: `detect` left `.det.json.tmp-PID` behind
+/// for good): the temporary file it was writing is removed, the message says so, exit status 130; a
+/// temporary left by a process that no longer runs is removed by the next write of the same file.
+#[test]
+fn ctrl_c_in_any_command_removes_its_temporary_files() {
+    let d = scratch("ctrlc-detect");
+    // 400 frames (links to the shipped images): tens of seconds of detection, time enough to interrupt
+    let imgs = d.join("imgs");
+    std::fs::create_dir_all(&imgs).expect("dir");
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/kitti_odom_06/sequences/06/image_0");
+    for i in 0..400 {
+        std::os::unix::fs::symlink(shipped.join(format!("{:06}.png", i % 51)), imgs.join(format!("{i:06}.png")))
+            .expect("link");
+    }
+    let out = d.join("det.json");
+    // left by a process that no longer runs (pid 0 is never one)
+    let stale = d.join(".det.json.tmp-0");
+    std::fs::write(&stale, "left").expect("write");
+    let child = app()
+        .arg("detect")
+        .arg(&imgs)
+        .arg("--out")
+        .arg(&out)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    // the temporary output is made before the model loads: once it exists, the command is at work
+    let tmp = d.join(format!(".det.json.tmp-{}", child.id()));
+    let start = Instant::now();
+    while !tmp.exists() && start.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(tmp.exists(), "detect made its temporary output");
+    assert!(!stale.exists(), "a dead process's temporary is removed when the same file is written");
+    std::thread::sleep(Duration::from_millis(1500));
+    let sent = Command::new("kill").args(["-INT", &child.id().to_string()]).status().expect("kill");
+    assert!(sent.success());
+    let o = child.wait_with_output().expect("waits");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(130), "{err}");
+    assert!(err.contains("interrupted: Ctrl-C") && err.contains("1 temporary file(s) or folder(s) removed"), "{err}");
+    let left: Vec<String> =
+        std::fs::read_dir(&d).expect("list").flatten().map(|e| e.file_name().to_string_lossy().into_owned()).collect();
+    assert_eq!(left, ["imgs"], "nothing but the input is left");
+    std::fs::remove_dir_all(&d).ok();
+}

@@ -66,7 +66,15 @@ impl Range {
 
 impl std::fmt::Display for Range {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let num = |v: f64| if v.is_infinite() { "∞".to_string() } else { format!("{v}") };
+        // a bound computed from others (`--range / 10000`) carries float noise (5.9999999999999995e-5):
+        // shown to 12 significant digits, which no setting needs more of
+        let num = |v: f64| {
+            if v.is_infinite() {
+                "∞".to_string()
+            } else {
+                format!("{}", format!("{v:.11e}").parse::<f64>().unwrap_or(v))
+            }
+        };
         write!(
             f,
             "{}{}, {}{}",
@@ -121,5 +129,9 @@ mod tests {
         assert_eq!(count("n", 0, 1, usize::MAX).expect_err("zero").to_string(), "n 0: must be at least 1");
         assert_eq!(count("n", 7, 1, 5).expect_err("big").to_string(), "n 7: must be an integer in [1, 5]");
         assert!(count("n", 5, 1, 5).is_ok() && number("x", 0.0, Range::open(0.0, 1.0), "").is_err());
+        // a bound computed from another carries no float noise into the message
+        let e = number("--step", 0.0, Range::above(0.6 / 10_000.0, 0.6), "px").expect_err("zero");
+        assert_eq!(e.valid, "a finite number in (0.00006, 0.6] px");
+        assert_eq!(Range::closed(0.1 + 0.2, 1000.0).to_string(), "[0.3, 1000]");
     }
 }

@@ -12,7 +12,9 @@
 //! **Writing** ([`write_atomic`], [`AtomicWrite`]). A file is written to a temporary sibling
 //! `.NAME.tmp-PID`, flushed, and renamed over its destination only when whole. On any failure (a full
 //! disk included) the temporary file is removed: a failed write leaves the old file as it was and no
-//! temporary file behind.
+//! temporary file behind. Every temporary is registered while it exists, so that Ctrl-C removes it
+//! ([`remove_temporaries`]), and one left by a process that was killed is removed by the next write of
+//! the same file ([`remove_stale_temporaries`]).
 
 use std::{
     fs::File,
@@ -312,9 +314,80 @@ pub fn temporary_of(path: &Path) -> PathBuf {
     path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
 }
 
+/// Temporary files and folders this process is writing: what Ctrl-C removes before the process ends
+/// ([`remove_temporaries`]), so that no command leaves a `.NAME.tmp-PID` or `.DIR.partial-PID` behind.
+static TEMPORARIES: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+fn temporaries() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    TEMPORARIES.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// Note a temporary file or folder this process is about to create (call before creating it, so that
+/// nothing exists unregistered).
+pub fn register_temporary(path: &Path) {
+    temporaries().push(path.to_path_buf());
+}
+
+/// Forget a temporary that was renamed into place or removed.
+pub fn unregister_temporary(path: &Path) {
+    temporaries().retain(|p| p != path);
+}
+
+/// Remove every registered temporary file and folder, and keep the registry locked from then on: a
+/// thread still writing cannot register (so cannot create) another. For the process's last moments
+/// (Ctrl-C): returns what was removed.
+pub fn remove_temporaries() -> Vec<PathBuf> {
+    let mut held = temporaries();
+    let removed: Vec<PathBuf> = held
+        .drain(..)
+        .filter(|p| {
+            let meta = std::fs::symlink_metadata(p);
+            let gone = match meta {
+                Ok(m) if m.is_dir() => std::fs::remove_dir_all(p),
+                Ok(_) => std::fs::remove_file(p),
+                Err(e) => Err(e),
+            };
+            gone.is_ok()
+        })
+        .collect();
+    std::mem::forget(held);
+    removed
+}
+
+/// Whether process `pid` is alive (Linux: `/proc/PID`; elsewhere assumed alive, so nothing is removed).
+pub fn process_alive(pid: &str) -> bool {
+    if cfg!(target_os = "linux") {
+        Path::new("/proc").join(pid).exists()
+    } else {
+        true
+    }
+}
+
+/// Remove temporary siblings of `path` (`.NAME.tmp-PID`) that processes which no longer run left behind
+/// (a process killed while writing, or ended by a second Ctrl-C); returns how many.
+pub fn remove_stale_temporaries(path: &Path) -> usize {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let prefix = format!(".{name}.tmp-");
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let Ok(entries) = std::fs::read_dir(&dir) else { return 0 };
+    let mut removed = 0;
+    for e in entries.flatten() {
+        let n = e.file_name().to_string_lossy().into_owned();
+        let Some(pid) = n.strip_prefix(&prefix) else { continue };
+        if pid.chars().all(|c| c.is_ascii_digit()) && pid != std::process::id().to_string() && !process_alive(pid) {
+            removed += usize::from(std::fs::remove_file(e.path()).is_ok());
+        }
+    }
+    removed
+}
+
 impl AtomicWrite {
     /// Start writing `path`: refuses a folder or a path without a file name, creates the temporary file
-    /// (which proves the folder writable: callers make one before the work that fills it).
+    /// (which proves the folder writable: callers make one before the work that fills it). Temporary
+    /// siblings left by processes that no longer run are removed first.
     pub fn create(path: &Path) -> Result<Self, WriteError> {
         if path.file_name().is_none() || path.is_dir() {
             return Err(WriteError::Refused {
@@ -322,8 +395,13 @@ impl AtomicWrite {
                 message: "it is a folder, expected a file name".into(),
             });
         }
+        remove_stale_temporaries(path);
         let tmp = temporary_of(path);
-        File::create(&tmp).map_err(|source| WriteError::Io { path: path.to_path_buf(), source })?;
+        register_temporary(&tmp);
+        if let Err(source) = File::create(&tmp) {
+            unregister_temporary(&tmp);
+            return Err(WriteError::Io { path: path.to_path_buf(), source });
+        }
         Ok(Self { path: path.to_path_buf(), tmp, done: false })
     }
 
@@ -356,6 +434,7 @@ impl AtomicWrite {
         }
         std::fs::rename(&self.tmp, &self.path).map_err(|source| WriteError::Io { path: self.path.clone(), source })?;
         self.done = true;
+        unregister_temporary(&self.tmp);
         Ok(())
     }
 }
@@ -364,6 +443,7 @@ impl Drop for AtomicWrite {
     fn drop(&mut self) {
         if !self.done {
             let _ = std::fs::remove_file(&self.tmp);
+            unregister_temporary(&self.tmp);
         }
     }
 }
@@ -541,6 +621,31 @@ mod tests {
         // the temporary of a file with two extensions keeps its whole name (`.obj.json`, not `.obj.json.json`)
         let t = temporary_of(Path::new("out/x.obj.json"));
         assert_eq!(t, PathBuf::from(format!("out/.x.obj.json.tmp-{}", std::process::id())));
+        std::fs::remove_dir_all(&d).ok();
+    }
+
+    /// A temporary left by a process that no longer runs is removed by the next write of the same file;
+    /// one of a live process (this one's, or another's) is not; a live temporary is registered until it
+    /// is committed or dropped.
+    #[test]
+    fn stale_temporaries_are_removed_and_live_ones_registered() {
+        let d = scratch("stale");
+        let f = d.join("det.json");
+        // pid 0 is never a user process; this process's parent is alive
+        let dead = d.join(".det.json.tmp-0");
+        let parent = d.join(format!(".det.json.tmp-{}", std::os::unix::process::parent_id()));
+        let other = d.join(".other.json.tmp-0");
+        for p in [&dead, &parent, &other] {
+            std::fs::write(p, "left").expect("write");
+        }
+        let w = AtomicWrite::create(&f).expect("create");
+        let mine = w.temporary().to_path_buf();
+        assert!(temporaries().contains(&mine), "registered while it exists");
+        assert!(!dead.exists(), "a dead process's temporary is removed");
+        assert!(parent.exists() && other.exists(), "a live process's, and another file's, are kept");
+        w.write_all_with(|out| out.write_all(b"ok")).expect("write");
+        assert!(!temporaries().contains(&mine), "unregistered once in place");
+        assert_eq!(std::fs::read_to_string(&f).expect("read"), "ok");
         std::fs::remove_dir_all(&d).ok();
     }
 }

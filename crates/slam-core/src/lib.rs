@@ -5,14 +5,17 @@
 //! [`source::DetectionSource`], and the pipeline holds `Box<dyn …>` values chosen from configuration.
 //! The crate is deliberately small: typed ids, object classes, detections with optional instance masks,
 //! images, the association, detection and tracking contracts, and the rules every file reader and writer
-//! follows ([`files`]: regular files only, a size cap, atomic writes). Geometry comes from `slam-quadric`, re-exported as [`geometry`].
+//! follows ([`files`]: regular files only, a size cap, atomic writes), figures of sets that may be empty
+//! ([`figure`]: a dash, never NaN) and the memory a command may still take ([`memory`]). Geometry comes from `slam-quadric`, re-exported as [`geometry`].
 
 #![warn(missing_docs)]
 
 pub mod assoc;
 pub mod check;
 pub mod detection;
+pub mod figure;
 pub mod files;
+pub mod memory;
 pub mod rng;
 pub mod source;
 pub mod tracking;

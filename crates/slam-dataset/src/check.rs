@@ -45,7 +45,9 @@ pub fn count(what: &str, v: usize, lo: usize, hi: usize) -> Result<(), CheckErro
 
 /// Calibration sanity against the image it describes: focal lengths that give a field of view between
 /// 1° and 170° (a rectified pinhole image cannot show more; less is a telescope), pixels no more than
-/// twice as tall as wide, the principal point inside the image, a baseline in (0, 10] m.
+/// twice as tall as wide, the principal point inside the image and near its centre
+/// ([`PRINCIPAL_POINT_OFF_CENTRE`]: images of another size than the calibration's), a baseline in
+/// (0, 10] m.
 pub fn calibration(
     calib: &Path,
     intrinsics: [f64; 4],
@@ -69,8 +71,43 @@ pub fn calibration(
     number(&at("focal length fy"), fy, Range::closed(fx / 2.0, fx * 2.0), "px (within a factor 2 of fx)")?;
     number(&at("principal point cx"), cx, Range::open(0.0, w), &format!("px (inside the image: {img})"))?;
     number(&at("principal point cy"), cy, Range::open(0.0, h), &format!("px (inside the image: {img})"))?;
+    principal_point_near_centre(calib, [cx, cy], &img, (w, h))?;
     number(&at("baseline"), baseline, Range::above(0.0, 10.0), "m")?;
     Ok(())
+}
+
+/// Largest distance of the principal point from the image centre, as a share of the image's width
+/// (for `cx`) or height (for `cy`). A lens sits on the middle of its sensor to within a few per cent and
+/// rectification keeps the principal point near the middle of the common view (KITTI: 1 % on the
+/// odometry pair, 4 % vertically on the raw pair); 20 % still lets a user crop a few hundred pixels off
+/// one side, but images of half the calibrated size put the principal point at their corner (48 %)
+/// and images of twice the size at their first quarter (25 %).
+pub const PRINCIPAL_POINT_OFF_CENTRE: f64 = 0.2;
+
+/// The principal point must lie near the middle of the image ([`PRINCIPAL_POINT_OFF_CENTRE`]): a
+/// calibration of another image size, or of another camera, is refused naming both.
+fn principal_point_near_centre(
+    calib: &Path,
+    [cx, cy]: [f64; 2],
+    img: &str,
+    (w, h): (f64, f64),
+) -> Result<(), CheckError> {
+    let off = [(cx - w / 2.0).abs() / w, (cy - h / 2.0).abs() / h];
+    if off.iter().all(|&o| o <= PRINCIPAL_POINT_OFF_CENTRE) {
+        return Ok(());
+    }
+    bail!(
+        "{}: the principal point ({cx:.1}, {cy:.1}) px lies {:.0} % of the width and {:.0} % of the height from \
+         the centre of the image ({img}); a camera's principal point lies near the middle of its image (at \
+         most {:.0} % off): the images do not have the size this calibration was made for (it implies about \
+         {:.0}×{:.0}: half or twice the size?), or the calibration is another camera's",
+        calib.display(),
+        100.0 * off[0],
+        100.0 * off[1],
+        100.0 * PRINCIPAL_POINT_OFF_CENTRE,
+        2.0 * cx,
+        2.0 * cy
+    );
 }
 
 /// A raw drive's calibration declares each camera's rectified image size (`S_rect_0N`): the image must
@@ -161,6 +198,15 @@ mod tests {
         assert!(e.contains("baseline 0"), "{e}");
         let e = calibration(c, [718.0, 100.0, 600.0, 185.0], 0.5, i, size).expect_err("fy").to_string();
         assert!(e.contains("focal length fy 100"), "{e}");
+        // odometry 06's calibration with images half and twice its size (R01): the principal point sits
+        // in the corner, or in the first quarter; the image size of a crop of 100 px on the right passes
+        let k06 = [707.0912, 707.0912, 601.8873, 183.1104];
+        let e = calibration(c, k06, 0.537, i, (613, 185)).expect_err("half").to_string();
+        assert!(e.contains("principal point (601.9, 183.1) px lies 48 % of the width and 49 % of the height"), "{e}");
+        assert!(e.contains("000000.png is 613×185") && e.contains("implies about 1204×366"), "{e}");
+        let e = calibration(c, k06, 0.537, i, (2452, 740)).expect_err("double").to_string();
+        assert!(e.contains("25 % of the width"), "{e}");
+        calibration(c, k06, 0.537, i, (1126, 370)).expect("cropped on the right");
     }
 
     #[test]

@@ -16,7 +16,8 @@
 //!       ] } ] }
 //! ```
 //!
-//! * `class`: COCO-80 index (see [`crate::classes`]); `class_name` is informative only.
+//! * `class`: COCO-80 index (see [`crate::classes`]); `class_name` is informative, but one that names
+//!   another COCO class (COCO's name or Darknet's spelling of it) contradicts the index and is refused.
 //! * `box`: `[xmin, ymin, xmax, ymax]` in pixels of the left image; `score` in `[0, 1]`.
 //! * `mask` (optional): COCO-style uncompressed RLE over the whole image (`size` = `[height, width]`,
 //!   run lengths in column-major order starting with a run of 0s), or a polygon of pixel coordinates.
@@ -33,6 +34,24 @@ use crate::{classes, read_text, DatasetError};
 
 /// Current schema version.
 pub const SCHEMA_VERSION: u32 = 1;
+
+/// Whether `name` names COCO class `class`: COCO's own name or Darknet's `coco.names` spelling of it
+/// (`motorbike`, `aeroplane`, `sofa`, `pottedplant`, `diningtable`, `tvmonitor`), in any case, with
+/// spaces, underscores or hyphens alike.
+fn names_class(name: &str, class: u16) -> bool {
+    let norm = |s: &str| s.to_lowercase().replace(['_', '-'], " ");
+    let darknet = match class {
+        3 => "motorbike",
+        4 => "aeroplane",
+        57 => "sofa",
+        58 => "pottedplant",
+        60 => "diningtable",
+        62 => "tvmonitor",
+        _ => "",
+    };
+    let n = norm(name.trim());
+    n == norm(ClassId(class).name()) || (!darknet.is_empty() && n == darknet)
+}
 
 /// Number of COCO-80 class indices (`class` runs from 0 to 79).
 pub const COCO_CLASSES: usize = 80;
@@ -221,6 +240,18 @@ impl DetectionFile {
                         "{where_}: class {} is not a COCO class index (0-{})",
                         d.class,
                         COCO_CLASSES - 1
+                    )));
+                }
+                // a name of another COCO class contradicts the index; a name of none ("other") is a note
+                let other = d.class_name.as_deref().and_then(|n| {
+                    (0..COCO_CLASSES as u16).find(|&c| c != d.class && names_class(n, c)).map(|c| (n, c))
+                });
+                if let Some((name, c)) = other {
+                    return Err(invalid(format!(
+                        "{where_}: class {} is COCO's \"{}\" but class_name \"{name}\" names class {c}: the two \
+                         contradict each other (the class index is what is used; correct or drop class_name)",
+                        d.class,
+                        ClassId(d.class).name()
                     )));
                 }
                 let mask = match d.mask {
@@ -447,5 +478,23 @@ mod tests {
         let p = mask_from_polygon(&[[10.0, 10.0], [20.0, 10.0], [20.0, 20.0], [10.0, 20.0]]).expect("square");
         assert_eq!(p.area(), 100);
         assert!(mask_from_polygon(&[[0.0, 0.0], [1.0, f64::NAN], [2.0, 2.0]]).is_err());
+    }
+
+    /// R15: a class name that names another COCO class contradicts the index; COCO's or Darknet's name of
+    /// the same class, in any case, and a name of no class ("other", as older files wrote) are accepted.
+    #[test]
+    fn a_class_name_may_not_name_another_class() {
+        let file = |name: &str| {
+            format!(
+                r#"{{"version":1,"frames":[{{"frame":0,"detections":[{{"class":3,"class_name":"{name}","score":0.9,"box":[1,1,9,9]}}]}}]}}"#
+            )
+        };
+        let p = Path::new("d.json");
+        for ok in ["motorcycle", "Motorbike", "other"] {
+            DetectionFile::parse(p, &file(ok)).expect(ok);
+        }
+        let e = DetectionFile::parse(p, &file("banana")).expect_err("banana").to_string();
+        assert!(e.contains("d.json: frame 0 detection 0: class 3 is COCO's \"motorcycle\" but class_name \"banana\" names class 46"), "{e}");
+        assert!(names_class("dining_table", 60) && names_class("diningtable", 60) && !names_class("car", 60));
     }
 }

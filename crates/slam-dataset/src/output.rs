@@ -6,7 +6,10 @@
 //!   renaming the old folder to a backup (`.NAME.old-PID`), the new one into place, then removing the
 //!   backup. A run killed at any point leaves `NAME` as it was or as the finished run wrote it, never a
 //!   mixture; a finished run leaves no file of an earlier one.
-//! * [`write_file`] / [`AtomicFile`]: a single file is written beside its destination and renamed over it.
+//! * [`write_file`] / [`AtomicFile`]: a single file is written beside its destination and renamed over it;
+//!   folders made for it are removed again when it is not written.
+//! * [`FilesInto`]: files written into a folder that may hold others (`map --picture DIR`) replace only
+//!   files this program wrote there (the marker lists them), and are recorded in the marker.
 //!
 //! Folders are replaced as a whole, so a folder is only replaced when this program wrote it: it is empty,
 //! or every entry is one its marker file (`.slam-app-output`, written last) lists. Anything else (a folder
@@ -85,11 +88,7 @@ fn split(dir: &Path, option: &str) -> Result<(PathBuf, String)> {
 
 /// Whether process `pid` is alive (Linux: `/proc/PID`; elsewhere assumed alive, so nothing is removed).
 fn alive(pid: &str) -> bool {
-    if cfg!(target_os = "linux") {
-        Path::new("/proc").join(pid).exists()
-    } else {
-        true
-    }
+    slam_core::files::process_alive(pid)
 }
 
 /// A folder being written: files go into [`OutputDir::path`]; [`OutputDir::commit`] puts it in place.
@@ -111,8 +110,9 @@ impl OutputDir {
     /// a camera's image folder looks the same.
     pub fn create(dir: &Path, option: &str, command: &str) -> Result<Self> {
         let (parent, name) = split(dir, option)?;
-        std::fs::create_dir_all(&parent)
-            .with_context(|| format!("{option} {}: cannot create its parent folder", dir.display()))?;
+        create_folder(&parent).map_err(|e| {
+            OutputError::Refused(format!("{option} {}: cannot create its parent folder: {e}", dir.display()))
+        })?;
         let pid = std::process::id();
         // leftovers of runs that were killed: temporary folders, and a backup whose swap was cut short
         let partial = format!(".{name}.partial-");
@@ -194,9 +194,14 @@ impl OutputDir {
         }
         let tmp = parent.join(format!("{partial}{pid}"));
         let _ = std::fs::remove_dir_all(&tmp);
-        std::fs::create_dir(&tmp).with_context(|| {
-            format!("{option} {}: cannot write in {} (checked before starting)", dir.display(), parent.display())
-        })?;
+        // registered first: Ctrl-C removes it (`slam_core::files::remove_temporaries`)
+        slam_core::files::register_temporary(&tmp);
+        if let Err(e) = std::fs::create_dir(&tmp) {
+            slam_core::files::unregister_temporary(&tmp);
+            return Err::<Self, _>(e).with_context(|| {
+                format!("{option} {}: cannot write in {} (checked before starting)", dir.display(), parent.display())
+            });
+        }
         // from here on the temporary folder is this value's: dropped on an error, it is removed (a
         // full disk fails the probe below, and must not keep the folder)
         let out = Self { target: dir.to_path_buf(), tmp, parent, name, done: false };
@@ -247,6 +252,7 @@ impl OutputDir {
                 let _ = std::fs::remove_dir_all(&backup);
                 self.done = true;
                 sync_dir(&self.parent);
+                slam_core::files::unregister_temporary(&self.tmp);
                 return Ok(());
             }
             // the temporary path now holds the old folder
@@ -259,6 +265,7 @@ impl OutputDir {
         }
         self.done = true;
         sync_dir(&self.parent);
+        slam_core::files::unregister_temporary(&self.tmp);
         Ok(())
     }
 }
@@ -268,6 +275,7 @@ impl Drop for OutputDir {
         if !self.done {
             let _ = std::fs::remove_dir_all(&self.tmp);
         }
+        slam_core::files::unregister_temporary(&self.tmp);
     }
 }
 
@@ -300,15 +308,63 @@ fn sync_dir(dir: &Path) {
     }
 }
 
-/// Refuse a destination that is a folder or has no file name; create its parent folder.
-fn prepare_file(path: &Path) -> Result<()> {
+/// Create `dir` and its missing ancestors; returns the folders created, outermost first (so that a
+/// command that fails later can take them away again). A component that is a symbolic link which loops
+/// or leads nowhere is named as such (the system only says "File exists" or "Too many levels of
+/// symbolic links").
+pub fn create_folder(dir: &Path) -> std::result::Result<Vec<PathBuf>, String> {
+    let mut missing = Vec::new();
+    let mut at = Some(dir);
+    while let Some(d) = at.filter(|d| !d.as_os_str().is_empty()) {
+        match std::fs::symlink_metadata(d) {
+            Ok(m) if m.file_type().is_symlink() => {
+                if std::fs::metadata(d).is_err() {
+                    let to = std::fs::read_link(d).unwrap_or_default();
+                    return Err(format!(
+                        "{} is a symbolic link to {} that loops or leads nowhere",
+                        d.display(),
+                        to.display()
+                    ));
+                }
+                break;
+            }
+            Ok(_) => break,
+            Err(_) => missing.push(d.to_path_buf()),
+        }
+        at = d.parent();
+    }
+    missing.reverse();
+    for d in &missing {
+        match std::fs::create_dir(d) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && d.is_dir() => {}
+            Err(e) => {
+                remove_created(&missing);
+                return Err(format!("cannot create {}: {e}", d.display()));
+            }
+        }
+    }
+    Ok(missing)
+}
+
+/// Remove folders [`create_folder`] made (innermost first), those that are still empty.
+pub fn remove_created(folders: &[PathBuf]) {
+    for d in folders.iter().rev() {
+        let _ = std::fs::remove_dir(d);
+    }
+}
+
+/// Refuse a destination that is a folder or has no file name; create its parent folder (returning the
+/// folders created).
+fn prepare_file(path: &Path) -> Result<Vec<PathBuf>> {
     if path.file_name().is_none() || path.is_dir() {
         bail!("{}: is a folder, expected a file name", path.display());
     }
-    if let Some(p) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(p).with_context(|| format!("cannot create the folder of {}", path.display()))?;
+    match path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        Some(p) => create_folder(p)
+            .map_err(|e| OutputError::Refused(format!("cannot create the folder of {}: {e}", path.display()))),
+        None => Ok(Vec::new()),
     }
-    Ok(())
 }
 
 /// Write a whole file atomically ([`slam_core::files::write_atomic`]: a temporary file beside it, synced,
@@ -318,25 +374,46 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
 }
 
 /// A file written by someone else's writer (a library function taking a path) and put in place
-/// atomically ([`slam_core::files::AtomicWrite`]); dropped unfinished, its temporary file is removed.
-pub struct AtomicFile(slam_core::files::AtomicWrite);
+/// atomically ([`slam_core::files::AtomicWrite`]); dropped unfinished, its temporary file is removed, and
+/// so are the folders it created for it.
+pub struct AtomicFile {
+    write: Option<slam_core::files::AtomicWrite>,
+    created: Vec<PathBuf>,
+}
 
 impl AtomicFile {
     /// Check `path` can be written (its folder exists or is created, and a file can be made in it) before
     /// any work starts.
     pub fn new(path: &Path) -> Result<Self> {
-        prepare_file(path)?;
-        slam_core::files::AtomicWrite::create(path).map(Self).map_err(|e| OutputError::Refused(e.to_string()))
+        let created = prepare_file(path)?;
+        match slam_core::files::AtomicWrite::create(path) {
+            Ok(w) => Ok(Self { write: Some(w), created }),
+            Err(e) => {
+                remove_created(&created);
+                Err(OutputError::Refused(e.to_string()))
+            }
+        }
     }
 
     /// Let `write` write the temporary file, then rename it over the destination.
     pub fn write_with<E: Into<Box<dyn std::error::Error + Send + Sync>>>(
-        self,
+        mut self,
         write: impl FnOnce(&Path) -> std::result::Result<(), E>,
     ) -> Result<()> {
-        let context = || format!("cannot write {}", self.0.destination().display());
-        write(self.0.temporary()).map_err(|e| OutputError::Writer { context: context(), source: e.into() })?;
-        self.0.commit().map_err(|e| OutputError::Refused(e.to_string()))
+        let Some(w) = self.write.take() else { bail!("the file was already written") };
+        let context = || format!("cannot write {}", w.destination().display());
+        write(w.temporary()).map_err(|e| OutputError::Writer { context: context(), source: e.into() })?;
+        w.commit().map_err(|e| OutputError::Refused(e.to_string()))?;
+        self.created.clear();
+        Ok(())
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        // the temporary file goes first (its own drop), then the folders made for it, if still empty
+        drop(self.write.take());
+        remove_created(&self.created);
     }
 }
 
@@ -420,6 +497,7 @@ pub fn refuse_overwriting_inputs(inputs: &[(&str, &Path)], outputs: &[Written<'_
         }
     };
     let mut files: Vec<(&str, &Path, PathBuf)> = Vec::new();
+    let mut folders: Vec<(&str, &Path, PathBuf)> = Vec::new();
     for o in outputs {
         match *o {
             Written::File(option, path) => {
@@ -464,7 +542,19 @@ pub fn refuse_overwriting_inputs(inputs: &[(&str, &Path)], outputs: &[Written<'_
                         p.display()
                     );
                 }
+                folders.push((option, dir, r));
             }
+        }
+    }
+    // a file written into a folder that is itself replaced as a whole would be lost with it (and its
+    // temporary file would count as a foreign entry of the folder)
+    for (option, path, r) in &files {
+        if let Some((folder_option, dir, rd)) = folders.iter().find(|(_, _, rd)| r.starts_with(rd)) {
+            bail!(
+                "{option} {}: lies inside {folder_option} {}, a folder this command replaces as a whole; choose a file outside it",
+                shown(path, r),
+                shown(dir, rd)
+            );
         }
     }
     Ok(())
@@ -486,41 +576,118 @@ pub fn record_in_marker(dir: &Path, name: &str) -> Result<()> {
     write_file(&marker, format!("{first}\n{}\n", names.join("\n")).as_bytes())
 }
 
-/// Write files into `dir` (which may hold other files, e.g. `map --picture` into a run folder): `write`
-/// fills a temporary folder inside `dir`, then each file is renamed into place. Each file is whole; returns
-/// the final paths.
-pub fn write_files_into<E: Into<Box<dyn std::error::Error + Send + Sync>>>(
-    dir: &Path,
-    write: impl FnOnce(&Path) -> std::result::Result<(), E>,
-) -> Result<Vec<PathBuf>> {
-    if dir.is_file() {
-        bail!("{}: is a file, expected a folder", dir.display());
+/// The names `dir`'s marker lists, and whether it has one.
+fn marked_names(dir: &Path) -> (bool, Vec<String>) {
+    let marker = dir.join(MARKER);
+    match slam_core::files::read_text(&marker, &slam_core::files::SMALL) {
+        Ok(t) => (true, t.lines().skip(1).map(str::to_string).collect()),
+        Err(_) => (false, Vec::new()),
     }
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let tmp = dir.join(format!(".partial-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&tmp);
-    std::fs::create_dir(&tmp).with_context(|| format!("cannot write in {}", dir.display()))?;
-    struct Cleanup(PathBuf);
-    impl Drop for Cleanup {
-        fn drop(&mut self) {
-            let _ = std::fs::remove_dir_all(&self.0);
+}
+
+/// Files a command writes into a folder it does not replace as a whole (`map --picture DIR`, `eval RUN`'s
+/// `objects_score.json`): the folder may hold other files, but a file of the same name is replaced only
+/// when this program wrote it (the folder's marker lists it, as a run folder's lists its `map.png`).
+/// Checked when made (before any work); each file is written whole (a temporary folder inside `dir`,
+/// then renamed into place) and recorded in the marker, created if the folder has none, so that the
+/// next command may replace it again.
+pub struct FilesInto {
+    dir: PathBuf,
+    names: Vec<String>,
+    command: String,
+    created: Vec<PathBuf>,
+}
+
+impl FilesInto {
+    /// Check that `names` can be written into `dir` (named `option` in messages) by `slam-app
+    /// {command}`: `dir` is a folder or can be made one, and no file of those names is there that this
+    /// program did not write.
+    pub fn new(dir: &Path, names: &[&str], option: &str, command: &str) -> Result<Self> {
+        if dir.exists() && !dir.is_dir() {
+            bail!("{option} {}: is a file, expected a folder", dir.display());
         }
+        let (marked, listed) = marked_names(dir);
+        let foreign: Vec<&str> = names
+            .iter()
+            .copied()
+            .filter(|n| std::fs::symlink_metadata(dir.join(n)).is_ok() && !listed.iter().any(|l| l == n))
+            .collect();
+        if !foreign.is_empty() {
+            let why = if marked {
+                format!("its `{MARKER}` file does not list {}", if foreign.len() == 1 { "it" } else { "them" })
+            } else {
+                format!("the folder has no `{MARKER}` file")
+            };
+            bail!(
+                "{option} {}: holds {} that `slam-app {command}` did not write ({why}): it would be replaced; choose \
+                 another folder or move {} away",
+                dir.display(),
+                foreign.join(", "),
+                if foreign.len() == 1 { "it" } else { "them" }
+            );
+        }
+        let created =
+            create_folder(dir).map_err(|e| OutputError::Refused(format!("{option} {}: {e}", dir.display())))?;
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            names: names.iter().map(|n| n.to_string()).collect(),
+            command: command.to_string(),
+            created,
+        })
     }
-    let _cleanup = Cleanup(tmp.clone());
-    write(&tmp).map_err(|e| OutputError::Callback(e.into()))?;
-    let mut names: Vec<PathBuf> = std::fs::read_dir(&tmp)
-        .with_context(|| format!("cannot list {}", tmp.display()))?
-        .flatten()
-        .map(|e| e.path())
-        .collect();
-    names.sort();
-    let mut out = Vec::new();
-    for p in names {
-        let to = dir.join(p.file_name().unwrap_or_default());
-        std::fs::rename(&p, &to).with_context(|| format!("cannot write {}", to.display()))?;
-        out.push(to);
+
+    /// `write` fills a temporary folder with the files; each is renamed into place and recorded in the
+    /// marker. A file `write` makes that was not named when checked is an error (it was not checked).
+    /// Returns the final paths.
+    pub fn write_with<E: Into<Box<dyn std::error::Error + Send + Sync>>>(
+        mut self,
+        write: impl FnOnce(&Path) -> std::result::Result<(), E>,
+    ) -> Result<Vec<PathBuf>> {
+        let tmp = self.dir.join(format!(".partial-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&tmp);
+        slam_core::files::register_temporary(&tmp);
+        struct Cleanup(PathBuf);
+        impl Drop for Cleanup {
+            fn drop(&mut self) {
+                let _ = std::fs::remove_dir_all(&self.0);
+                slam_core::files::unregister_temporary(&self.0);
+            }
+        }
+        let _cleanup = Cleanup(tmp.clone());
+        std::fs::create_dir(&tmp).with_context(|| format!("cannot write in {}", self.dir.display()))?;
+        write(&tmp).map_err(|e| OutputError::Callback(e.into()))?;
+        let mut made: Vec<PathBuf> = std::fs::read_dir(&tmp)
+            .with_context(|| format!("cannot list {}", tmp.display()))?
+            .flatten()
+            .map(|e| e.path())
+            .collect();
+        made.sort();
+        let name_of = |p: &Path| p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        if let Some(p) = made.iter().find(|p| !self.names.contains(&name_of(p))) {
+            bail!("{}: {} was written but not checked beforehand", self.dir.display(), name_of(p));
+        }
+        let mut out = Vec::new();
+        for p in made {
+            let to = self.dir.join(name_of(&p));
+            std::fs::rename(&p, &to).with_context(|| format!("cannot write {}", to.display()))?;
+            out.push(to);
+        }
+        self.created.clear();
+        let (marked, _) = marked_names(&self.dir);
+        if !marked {
+            write_file(&self.dir.join(MARKER), format!("slam-app {}\n", self.command).as_bytes())?;
+        }
+        for n in &self.names {
+            record_in_marker(&self.dir, n)?;
+        }
+        Ok(out)
     }
-    Ok(out)
+}
+
+impl Drop for FilesInto {
+    fn drop(&mut self) {
+        remove_created(&self.created);
+    }
 }
 
 #[cfg(test)]
@@ -725,9 +892,15 @@ mod tests {
         assert!(e.to_string().contains("encoder broke"), "{e}");
         assert_eq!(std::fs::read_to_string(&f).expect("read"), "two");
         assert_eq!(listing(&root.join("sub")), ["x.json"]);
-        let files = write_files_into(&root.join("sub"), |t| std::fs::write(t.join("p.svg"), "s")).expect("into");
+        let into = FilesInto::new(&root.join("sub"), &["p.svg"], "--picture", "map").expect("into");
+        let files = into.write_with(|t| std::fs::write(t.join("p.svg"), "s")).expect("into");
         assert_eq!(files, [root.join("sub/p.svg")]);
-        assert_eq!(listing(&root.join("sub")), ["p.svg", "x.json"]);
+        assert_eq!(listing(&root.join("sub")), [MARKER, "p.svg", "x.json"]);
+        // written again: the marker lists it; a user's file of that name elsewhere is refused
+        FilesInto::new(&root.join("sub"), &["p.svg"], "--picture", "map").expect("ours to replace");
+        std::fs::write(root.join("mine.svg"), "mine").expect("write");
+        let e = FilesInto::new(&root, &["mine.svg"], "--picture", "map").err().expect("not ours").to_string();
+        assert!(e.contains("holds mine.svg that `slam-app map` did not write"), "{e}");
         std::fs::remove_dir_all(&root).ok();
     }
 }

@@ -13,7 +13,12 @@ use std::{
 };
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use slam_core::{geometry::BBox, rng::SimRng, Detection};
+use slam_core::{
+    figure::{cell, csv, mean, share},
+    geometry::BBox,
+    rng::SimRng,
+    Detection,
+};
 use slam_dataset::{
     classes,
     kitti::{calib::Calib, tracking::read_tracking_labels, tracking::TrackingLabel},
@@ -439,58 +444,65 @@ pub fn score_sequence(
 }
 
 impl Row {
-    /// Share of the vehicles found (NaN without vehicles).
-    pub fn success(&self) -> f64 {
-        if self.vehicles > 0 {
-            self.found as f64 / self.vehicles as f64
-        } else {
-            f64::NAN
-        }
+    /// Share of the vehicles found (`None` without vehicles).
+    pub fn success(&self) -> Option<f64> {
+        share(self.found, self.vehicles)
     }
 
-    /// Mean ray-triangulation error (NaN without rays).
-    pub fn e_ray_mean(&self) -> f64 {
-        if self.rays > 0 {
-            self.e_ray / self.rays as f64
-        } else {
-            f64::NAN
-        }
+    /// Mean ray-triangulation error (`None` without rays).
+    pub fn e_ray_mean(&self) -> Option<f64> {
+        mean(self.e_ray, self.rays)
     }
 
-    /// The sequence's line of the table ([`TABLE_HEADER`]'s columns).
+    /// The means over the found vehicles, in the table's order (IoU2D, box IoU2D, e_trans, e_axe,
+    /// e_yaw, share within 15°); `None` each when no vehicle was found (a mean of nothing is no figure).
+    fn found_means(&self) -> [Option<f64>; 6] {
+        let n = self.found;
+        [
+            mean(self.iou, n),
+            mean(self.box_iou, n),
+            mean(self.e_trans, n),
+            mean(self.e_axe, n),
+            mean(self.e_yaw, n),
+            share(self.yaw_within, n),
+        ]
+    }
+
+    /// The sequence's line of the table ([`table_header`]'s columns); a figure of no vehicle is a dash.
     pub fn table_line(&self, name: &str) -> String {
-        let f = self.found.max(1) as f64;
+        let [iou, box_iou, e_trans, e_axe, e_yaw, within] = self.found_means();
         format!(
-            "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3} {:>8.1} {:>7.2}",
+            "{:<6} {:>8} {:>8} {:>8} {:>8} {:>8} {:>9} {:>8} {:>8} {:>8} {:>7}",
             name,
             self.vehicles,
             self.found,
-            self.success(),
-            self.iou / f,
-            self.box_iou / f,
-            self.e_trans / f,
-            self.e_axe / f,
-            self.e_ray_mean(),
-            self.e_yaw / f,
-            self.yaw_within as f64 / f
+            cell(self.success(), 3),
+            cell(iou, 3),
+            cell(box_iou, 3),
+            cell(e_trans, 3),
+            cell(e_axe, 3),
+            cell(self.e_ray_mean(), 3),
+            cell(e_yaw, 1),
+            cell(within, 2)
         )
     }
 
-    /// The sequence's CSV record ([`CSV_COLUMNS`]' fields), for a `csv` writer.
+    /// The sequence's CSV record ([`CSV_COLUMNS`]' fields), for a `csv` writer; a figure of no vehicle is
+    /// an empty field.
     pub fn csv_record(&self, name: &str) -> [String; 11] {
-        let f = self.found.max(1) as f64;
+        let [iou, box_iou, e_trans, e_axe, e_yaw, within] = self.found_means();
         [
             name.to_string(),
             self.vehicles.to_string(),
             self.found.to_string(),
-            self.success().to_string(),
-            (self.iou / f).to_string(),
-            (self.box_iou / f).to_string(),
-            (self.e_trans / f).to_string(),
-            (self.e_axe / f).to_string(),
-            self.e_ray_mean().to_string(),
-            (self.e_yaw / f).to_string(),
-            (self.yaw_within as f64 / f).to_string(),
+            csv(self.success()),
+            csv(iou),
+            csv(box_iou),
+            csv(e_trans),
+            csv(e_axe),
+            csv(self.e_ray_mean()),
+            csv(e_yaw),
+            csv(within),
         ]
     }
 }
@@ -550,23 +562,22 @@ impl Study {
     /// Add a sequence.
     pub fn add(&mut self, s: &SequenceScore) {
         let row = &s.row;
-        let f = row.found.max(1) as f64;
-        if row.vehicles > 0 {
+        if let Some(success) = row.success() {
             self.n_seq += 1;
-            self.sum_success += row.success();
+            self.sum_success += success;
         }
-        if row.rays > 0 {
+        if let Some(e) = row.e_ray_mean() {
             self.n_ray_seq += 1;
-            self.sum_ray += row.e_ray_mean();
+            self.sum_ray += e;
         }
-        if row.found > 0 {
+        if let [Some(iou), Some(box_iou), Some(et), Some(ea), Some(yaw), Some(within)] = row.found_means() {
             self.n_found_seq += 1;
-            self.sum_iou += row.iou / f;
-            self.sum_box_iou += row.box_iou / f;
-            self.sum_et += row.e_trans / f;
-            self.sum_ea += row.e_axe / f;
-            self.sum_yaw += row.e_yaw / f;
-            self.sum_within += row.yaw_within as f64 / f;
+            self.sum_iou += iou;
+            self.sum_box_iou += box_iou;
+            self.sum_et += et;
+            self.sum_ea += ea;
+            self.sum_yaw += yaw;
+            self.sum_within += within;
         }
         let tot = &mut self.tot;
         tot.vehicles += row.vehicles;
@@ -592,40 +603,28 @@ impl Study {
     }
 
     /// The study's closing lines (the mean of the sequences, the pooled figures, the moving vehicles and
-    /// notes), each with a line end; `moving_m` is the criteria's, for the text.
+    /// notes), each with a line end; `moving_m` is the criteria's, for the text. A mean over no sequence
+    /// or no vehicle is a dash.
     pub fn report(&self, moving_m: f64) -> String {
         let tot = &self.tot;
-        let f = tot.found.max(1) as f64;
-        let m = self.n_found_seq.max(1) as f64;
+        let m = self.n_found_seq;
         let moving = self.moving;
         let mut s = format!(
-            "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3} {:>8.1} {:>7.2}   (mean of sequences)\n",
+            "{:<6} {:>8} {:>8} {:>8} {:>8} {:>8} {:>9} {:>8} {:>8} {:>8} {:>7}   (mean of sequences)\n",
             "avg",
             "",
             "",
-            self.sum_success / self.n_seq.max(1) as f64,
-            self.sum_iou / m,
-            self.sum_box_iou / m,
-            self.sum_et / m,
-            self.sum_ea / m,
-            self.sum_ray / self.n_ray_seq.max(1) as f64,
-            self.sum_yaw / m,
-            self.sum_within / m
+            cell(mean(self.sum_success, self.n_seq), 3),
+            cell(mean(self.sum_iou, m), 3),
+            cell(mean(self.sum_box_iou, m), 3),
+            cell(mean(self.sum_et, m), 3),
+            cell(mean(self.sum_ea, m), 3),
+            cell(mean(self.sum_ray, self.n_ray_seq), 3),
+            cell(mean(self.sum_yaw, m), 1),
+            cell(mean(self.sum_within, m), 2)
         );
-        s += &format!(
-            "{:<6} {:>8} {:>8} {:>8.3} {:>8.3} {:>8.3} {:>9.3} {:>8.3} {:>8.3} {:>8.1} {:>7.2}   (pooled over vehicles)\n",
-            "all",
-            tot.vehicles,
-            tot.found,
-            tot.found as f64 / tot.vehicles.max(1) as f64,
-            tot.iou / f,
-            tot.box_iou / f,
-            tot.e_trans / f,
-            tot.e_axe / f,
-            tot.e_ray / tot.rays.max(1) as f64,
-            tot.e_yaw / f,
-            tot.yaw_within as f64 / f
-        );
+        let pooled = tot.table_line("all");
+        s += &format!("{pooled}   (pooled over vehicles)\n");
         s += &format!(
             "moving vehicles (world centre moves more than {} m): {}; mapped as a static ellipsoid: {}, flagged \
              dynamic: {}, never fitted: {}\n",
@@ -637,11 +636,11 @@ impl Study {
         );
         s += &format!(
             "what the ground-truth ellipsoids (inscribed in the labels' 3-D boxes) score themselves over the same \
-             vehicles: IoU2D {:.3} (an inscribed ellipsoid projects to a box smaller than the labelled one), box \
-             IoU2D {:.3} (boxIoU: the ellipsoid's own 3-D box projected; the labels' 2-D boxes are drawn on the \
+             vehicles: IoU2D {} (an inscribed ellipsoid projects to a box smaller than the labelled one), box \
+             IoU2D {} (boxIoU: the ellipsoid's own 3-D box projected; the labels' 2-D boxes are drawn on the \
              image, not projected from their 3-D boxes)\n",
-            tot.iou_truth / f,
-            tot.box_iou_truth / f
+            cell(mean(tot.iou_truth, tot.found), 3),
+            cell(mean(tot.box_iou_truth, tot.found), 3)
         );
         s += "e_ray: e_trans of the point where rays from each labelled frame's camera (pose file) through the \
          label's own 3-D centre meet, over the same vehicles: what these poses allow a method that places \
@@ -677,8 +676,8 @@ mod tests {
         for row in [a, b, Row::default()] {
             study.add(&SequenceScore { row, moving: (1, 0, 1) });
         }
-        assert!(Row::default().success().is_nan() && Row::default().e_ray_mean().is_nan());
-        assert_eq!(a.success(), 0.5);
+        assert!(Row::default().success().is_none() && Row::default().e_ray_mean().is_none());
+        assert_eq!(a.success(), Some(0.5));
         let pooled = study.pooled();
         assert_eq!((pooled.vehicles, pooled.found), (5, 4));
         let report = study.report(3.0);
@@ -694,5 +693,17 @@ mod tests {
         assert!(report.contains("moving vehicles (world centre moves more than 3 m): 3; mapped as a static ellipsoid: 0, flagged dynamic: 3, never fitted: 0"), "{report}");
         assert_eq!(a.csv_record("0001").len(), CSV_COLUMNS.len());
         assert_eq!(a.table_line("0001").split_whitespace().count(), table_header().split_whitespace().count());
+        // R05: no vehicle, or none found: dashes and empty CSV fields, never 0.000 or NaN
+        let none = Row { vehicles: 2, ..Row::default() };
+        let line = none.table_line("0009");
+        assert_eq!(
+            line.split_whitespace().collect::<Vec<_>>(),
+            ["0009", "2", "0", "0.000", "–", "–", "–", "–", "–", "–", "–"]
+        );
+        assert_eq!(Row::default().csv_record("0009")[3..], [""; 8].map(String::from));
+        let mut empty = Study::default();
+        empty.add(&SequenceScore { row: Row::default(), moving: (0, 0, 0) });
+        let report = empty.report(3.0);
+        assert!(!report.contains("NaN") && !report.contains("0.000"), "{report}");
     }
 }

@@ -58,14 +58,15 @@ pub struct Counts {
 }
 
 impl Counts {
-    /// found / labels (NaN without labels).
-    pub fn recall(&self) -> f64 {
-        self.found as f64 / self.labels as f64
+    /// found / labels (`None` without labels).
+    pub fn recall(&self) -> Option<f64> {
+        slam_core::figure::share(self.found, self.labels)
     }
 
-    /// Right predictions over the counted ones (NaN without any): found / (predictions − in DontCare).
-    pub fn precision(&self) -> f64 {
-        self.found as f64 / (self.predictions - self.in_dont_care) as f64
+    /// Right predictions over the counted ones (`None` without any: a detector that found nothing has
+    /// no precision): found / (predictions − in DontCare).
+    pub fn precision(&self) -> Option<f64> {
+        slam_core::figure::share(self.found, self.predictions - self.in_dont_care)
     }
 
     /// Wrong predictions: neither a label's nor inside a DontCare region.
@@ -328,7 +329,8 @@ mod tests {
             ],
         );
         assert_eq!(c, Counts { labels: 1, found: 1, predictions: 4, in_dont_care: 1 });
-        assert_eq!((c.wrong(), c.recall(), c.precision()), (2, 1.0, 1.0 / 3.0));
+        assert_eq!((c.wrong(), c.recall(), c.precision()), (2, Some(1.0), Some(1.0 / 3.0)));
+        assert_eq!(Counts::default().precision(), None, "no prediction: no precision, not NaN");
     }
 
     #[test]

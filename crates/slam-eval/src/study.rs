@@ -75,11 +75,12 @@ pub fn score_run_folder(dir: &Path, labels: &Path, config: &ScoreConfig) -> Resu
 /// [`score_run_folder`], its score written to `dir/objects_score.json`; returns the printed report and
 /// the line naming the file.
 pub fn score_run_folder_to_file(dir: &Path, labels: &Path, config: &ScoreConfig) -> Result<String, EvalError> {
+    // checked first: a user's own objects_score.json in the folder is not replaced; a run writes this
+    // file too, so once written it is listed in the folder's marker and the folder stays the run's
+    let into = slam_dataset::output::FilesInto::new(dir, &["objects_score.json"], "the score", "eval")?;
     let score = score_run_folder(dir, labels, config)?;
     let out = dir.join("objects_score.json");
-    score.write_json(&out)?;
-    // a run writes this file too: listed in the folder's marker, the folder stays the run's to replace
-    slam_dataset::output::record_in_marker(dir, "objects_score.json")?;
+    into.write_with(|tmp| score.write_json(&tmp.join("objects_score.json")))?;
     Ok(format!("{}wrote {}", score.report(), out.display()))
 }
 

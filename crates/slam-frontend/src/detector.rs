@@ -202,6 +202,44 @@ fn decode_rows(
     Ok(dets)
 }
 
+/// The outputs of a network (their shapes, one per output) against what the decode of `config`'s family
+/// reads: YOLOX one `1 × cells × 85` output, `cells` the grid cells of strides 8, 16 and 32 of the
+/// input; rows 2-D outputs of 85 columns. 85 is 4 box values, the objectness and COCO's 80 class scores
+/// (a class index is a COCO class id). The message says both shapes.
+pub fn check_output_shapes(shapes: &[Vec<i32>], config: &DetectorConfig) -> Result<(), String> {
+    let row = 5 + crate::darknet::COCO_CLASSES as i32;
+    let text = |s: &[i32]| s.iter().map(i32::to_string).collect::<Vec<_>>().join("×");
+    let all = shapes.iter().map(|s| text(s)).collect::<Vec<_>>().join(", ");
+    let [w, h] = config.input;
+    match config.family {
+        ModelFamily::Yolox => {
+            let cells: i32 = YOLOX_STRIDES.iter().map(|s| (w / s) * (h / s)).sum();
+            let want = [1, cells, row];
+            if shapes.len() != 1
+                || shapes[0].iter().product::<i32>() != want.iter().product::<i32>()
+                || shapes[0].last() != Some(&row)
+            {
+                return Err(format!(
+                    "its output is {all}, but the YOLOX decode (--family yolox) of a {w}x{h} input reads one output of \
+                     {} (a row per grid cell of strides 8, 16 and 32: 4 box values, objectness, 80 COCO class \
+                     scores): not a YOLOX model of COCO's classes, or another --family",
+                    text(&want)
+                ));
+            }
+        }
+        ModelFamily::Rows => {
+            if shapes.is_empty() || shapes.iter().any(|s| s.len() != 2 || s[1] != row) {
+                return Err(format!(
+                    "its output is {all}, but the rows decode (Darknet's YOLO layers, --family rows) reads 2-D \
+                     outputs of {row} columns (4 box values, objectness, 80 COCO class scores): not a model of \
+                     YOLO rows over COCO's classes, or another --family"
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// A YOLO-style detector running in OpenCV's dnn module on the CPU.
 pub struct DnnDetector {
     net: dnn::Net,
@@ -209,6 +247,13 @@ pub struct DnnDetector {
     /// Settings.
     pub config: DetectorConfig,
 }
+
+/// Share of OpenCV's estimate of the layers' outputs (`Net::getMemoryConsumption`) that a forward pass
+/// takes: the estimate counts every layer's output as if all were held at once, while OpenCV reuses
+/// their buffers. Measured on the shipped YOLOX-nano at a 2048 × 2048 input: 3.2 GB estimated, the
+/// process grew by 0.6 GB (peak resident 0.70 GB against 0.10 GB at 736 × 224); a quarter keeps a
+/// margin above that.
+const BLOB_REUSE: f64 = 0.25;
 
 /// A model file OpenCV may open: a regular file (a pipe would block the loader, a device never end)
 /// of at most the model limit ([`slam_core::files::MODEL`]).
@@ -235,6 +280,9 @@ impl DnnDetector {
         for p in [cfg, weights] {
             model_file(p)?;
         }
+        // OpenCV reads as many numbers as the cfg's layers ask for, whatever the file holds
+        crate::darknet::check_weights(cfg, weights)
+            .map_err(|(path, message)| FrontendError::Model { path, message })?;
         let utf8 = |p: &Path| {
             p.to_str()
                 .map(str::to_string)
@@ -261,13 +309,34 @@ impl DnnDetector {
     }
 
     fn from_net(mut net: dnn::Net, config: DetectorConfig, path: &Path) -> Result<Self, FrontendError> {
+        let err = |message: String| FrontendError::Model { path: path.to_path_buf(), message };
         if net.empty()? {
-            return Err(FrontendError::Model { path: path.to_path_buf(), message: "empty network".into() });
+            return Err(err("empty network".into()));
         }
         net.set_preferable_backend(dnn::DNN_BACKEND_OPENCV)?;
         net.set_preferable_target(dnn::DNN_TARGET_CPU)?;
         let out_names = net.get_unconnected_out_layers_names()?;
-        Ok(Self { net, out_names, config })
+        let [w, h] = config.input;
+        // the memory a forward pass at this input size takes, against what this process can have; a
+        // model OpenCV cannot estimate is run as before
+        let shape = core::Vector::<i32>::from_slice(&[1, 3, h, w]);
+        let (mut weights, mut blobs) = (0, 0);
+        if net.get_memory_consumption_1(&shape, &mut weights, &mut blobs).is_ok() {
+            let need = weights as f64 + BLOB_REUSE * blobs as f64;
+            slam_core::memory::check_fits(&format!("the network at an input of {w}x{h}"), need)
+                .map_err(|m| err(format!("{m}: choose a smaller --input-size")))?;
+        }
+        let mut detector = Self { net, out_names, config };
+        // one pass on a blank input: the outputs must have the shape the decode reads
+        let blank = Mat::new_nd_with_default(&[1, 3, h, w], core::CV_32F, core::Scalar::all(0.0))?;
+        detector.net.set_input(&blank, "", 1.0, core::Scalar::default())?;
+        let mut outs: core::Vector<Mat> = core::Vector::new();
+        detector.net.forward(&mut outs, &detector.out_names).map_err(|e| {
+            err(format!("does not run on an input of {w}x{h} (its input size may be fixed; see --input-size): {e}"))
+        })?;
+        let shapes: Vec<Vec<i32>> = outs.iter().map(|o| o.mat_size().iter().copied().collect()).collect();
+        check_output_shapes(&shapes, &detector.config).map_err(err)?;
+        Ok(detector)
     }
 
     /// Run the network on one crop, letterboxed or squashed into the input; boxes in crop pixels,
@@ -483,5 +552,23 @@ mod tests {
         let nan = (5, [0.0, 0.0, f32::NAN, 0.0, 1.0, 0.9, 0.0, 0.0]);
         let nan_score = (6, [0.0, 0.0, 0.0, 0.0, f32::NAN, 0.9, 0.0, 0.0]);
         assert!(decode_yolox(&output(&[nan, nan_score]), 8, [64, 32], 0.4, &[]).expect("decodes").is_empty());
+    }
+
+    /// A network's outputs against its decode: YOLOX's one output of a row per grid cell, Darknet's
+    /// 2-D rows, each of 85 values; another count of cells (another input), another row length (other
+    /// classes) or a 3-D rows output is refused, naming both shapes.
+    #[test]
+    fn output_shapes_are_checked_against_the_decode() {
+        let yolox = DetectorConfig::yolox();
+        // 736 x 224: 92 x 28 + 46 x 14 + 23 x 7 = 3381 cells
+        check_output_shapes(&[vec![1, 3381, 85]], &yolox).expect("YOLOX-nano at 736x224");
+        let e = check_output_shapes(&[vec![1, 2100, 85]], &yolox).expect_err("another input").to_string();
+        assert!(e.contains("its output is 1×2100×85") && e.contains("reads one output of 1×3381×85"), "{e}");
+        assert!(check_output_shapes(&[vec![1, 3381, 8]], &yolox).is_err(), "3 classes");
+        assert!(check_output_shapes(&[vec![1, 3381, 85], vec![1, 3381, 85]], &yolox).is_err(), "two outputs");
+        let rows = DetectorConfig::yolo_fastest();
+        check_output_shapes(&[vec![1200, 85], vec![300, 85]], &rows).expect("two YOLO layers");
+        let e = check_output_shapes(&[vec![1, 3381, 85]], &rows).expect_err("3-D").to_string();
+        assert!(e.contains("reads 2-D outputs of 85 columns"), "{e}");
     }
 }

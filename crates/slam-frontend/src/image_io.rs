@@ -46,13 +46,17 @@ impl From<opencv::Error> for FrontendError {
     }
 }
 
-/// Read an image as BGR (colour files) or grey, into an owned [`Image`].
+/// Read an image as BGR (colour files) or grey, into an owned [`Image`]: a PNG or JPEG file whose header
+/// declares at most [`crate::image_size::MAX_PIXELS`] pixels.
 pub fn read_image(path: impl AsRef<Path>, colour: bool) -> Result<Image, FrontendError> {
     let path = path.as_ref();
     let err = |m: String| FrontendError::ImageRead { path: path.to_path_buf(), message: m };
     // a regular file of at most the image limit, read here and decoded from memory: a folder, a pipe, a
     // link that loops or a device is named as what it is, and nothing is read without end
     let bytes = slam_core::files::read_bytes(path, &slam_core::files::IMAGE).map_err(|e| err(image_reason(&e)))?;
+    // the size its header declares is checked before anything is decoded: a small file may declare a
+    // huge image (a decompression bomb)
+    crate::image_size::ImageHeader::parse(&mut std::io::Cursor::new(&bytes)).map_err(err)?;
     let flag = if colour { imgcodecs::IMREAD_COLOR } else { imgcodecs::IMREAD_GRAYSCALE };
     let m = imgcodecs::imdecode(&core::Vector::<u8>::from_slice(&bytes), flag).map_err(|e| err(e.to_string()))?;
     if m.empty() {

@@ -7,8 +7,10 @@
 #![warn(missing_docs)]
 
 pub mod batch;
+pub mod darknet;
 pub mod detector;
 pub mod detectors;
+pub mod diagnosis;
 pub mod disparity;
 pub use detector::{decode_yolox, nms, nms_by_group};
 pub use slam_map::hamming;
@@ -26,6 +28,6 @@ pub use detector::{DetectorConfig, DnnDetector, InputMode, ModelFamily};
 pub use image_io::{
     draw_detections, draw_overlay, ellipse_outline, encode_jpeg, read_image, write_image, FrontendError, Overlay,
 };
-pub use model::{parse_input_size, FamilyName, ModeName, ModelError, ModelSpec, ShippedModel};
+pub use model::{parse_input_size, FamilyName, InputSize, ModeName, ModelError, ModelSpec, ShippedModel};
 pub use odometry::Odometry;
 pub use stereo_vo::{StereoRig, StereoVo, VoConfig};

@@ -127,18 +127,50 @@ pub struct ModelSpec {
     pub tiles: Option<u32>,
     /// Network input `[width, height]`, multiples of 32 (default: 736 × 224 for YOLOX, 320 × 320 for
     /// rows).
-    pub input_size: Option<[i32; 2]>,
+    pub input_size: Option<InputSize>,
     /// Smallest score kept (default: 0.4 for YOLOX, 0.2 for rows).
     pub score: Option<f32>,
 }
 
+/// A network input size as the user wrote it: `W`x`H`, or one number for a square input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct InputSize {
+    /// `[width, height]`, pixels.
+    pub size: [i32; 2],
+    /// Written as one number (`320`) rather than as `WxH`.
+    pub square: bool,
+}
+
+impl InputSize {
+    /// A square input of `n` pixels a side, written `n`.
+    pub fn square(n: i32) -> Self {
+        Self { size: [n, n], square: true }
+    }
+
+    /// An input of `w × h` pixels, written `WxH`.
+    pub fn wide(w: i32, h: i32) -> Self {
+        Self { size: [w, h], square: false }
+    }
+}
+
+impl std::fmt::Display for InputSize {
+    /// As written: `320`, `736x224`, `0x0`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.square {
+            write!(f, "{}", self.size[0])
+        } else {
+            write!(f, "{}x{}", self.size[0], self.size[1])
+        }
+    }
+}
+
 /// Parse an input size: `W` x `H` (`736x224`) or one number for a square input (`320`).
-pub fn parse_input_size(s: &str) -> Result<[i32; 2], String> {
+pub fn parse_input_size(s: &str) -> Result<InputSize, String> {
     let num =
         |t: &str| t.trim().parse::<i32>().map_err(|_| format!("'{s}': expected WIDTHxHEIGHT (736x224) or N (320)"));
     match s.split_once(['x', 'X']) {
-        Some((w, h)) => Ok([num(w)?, num(h)?]),
-        None => num(s).map(|n| [n, n]),
+        Some((w, h)) => Ok(InputSize::wide(num(w)?, num(h)?)),
+        None => num(s).map(InputSize::square),
     }
 }
 
@@ -174,13 +206,13 @@ impl ModelSpec {
     /// The detector settings this specification describes.
     pub fn config(&self) -> Result<DetectorConfig, ModelError> {
         let base = self.base()?;
-        let input = self.input_size.unwrap_or(base.input);
+        let input = self.input_size.map_or(base.input, |s| s.size);
         for v in input {
             if !(32..=MAX_INPUT_SIZE).contains(&v) || v % 32 != 0 {
                 let valid =
                     format!("multiples of 32 in [32, {MAX_INPUT_SIZE}], each side (memory grows with the area)");
-                let value =
-                    if input[0] == input[1] { input[0].to_string() } else { format!("{}x{}", input[0], input[1]) };
+                // the value as written (`0x0` stays `0x0`)
+                let value = self.input_size.map_or_else(|| format!("{}x{}", input[0], input[1]), |s| s.to_string());
                 return Err(InvalidValue { key: "input_size".into(), value, valid }.into());
             }
         }
@@ -253,7 +285,7 @@ mod tests {
         let s = ModelSpec {
             model: Some(ShippedModel::YoloFastest),
             mode: Some(ModeName::Letterbox),
-            input_size: Some([416, 416]),
+            input_size: Some(InputSize::square(416)),
             score: Some(0.5),
             ..Default::default()
         };
@@ -265,11 +297,12 @@ mod tests {
         );
         for (bad, want) in [
             (
-                ModelSpec { input_size: Some([100, 100]), ..Default::default() },
+                ModelSpec { input_size: Some(InputSize::square(100)), ..Default::default() },
                 "input_size 100: must be multiples of 32",
             ),
-            (ModelSpec { input_size: Some([736, 230]), ..Default::default() }, "input_size 736x230"),
-            (ModelSpec { input_size: Some([4096, 4096]), ..Default::default() }, "input_size 4096"),
+            (ModelSpec { input_size: Some(InputSize::wide(736, 230)), ..Default::default() }, "input_size 736x230"),
+            (ModelSpec { input_size: Some(InputSize::square(4096)), ..Default::default() }, "input_size 4096"),
+            (ModelSpec { input_size: Some(InputSize::wide(0, 0)), ..Default::default() }, "input_size 0x0: must be"),
             (ModelSpec { tiles: Some(0), ..Default::default() }, "tiles 0: must be an integer in [1, 16]"),
             (ModelSpec { score: Some(f32::NAN), ..Default::default() }, "score NaN"),
             (ModelSpec { mode: Some(ModeName::Squash), tiles: Some(2), ..Default::default() }, "mode squash was given"),
@@ -292,9 +325,10 @@ mod tests {
 
     #[test]
     fn input_sizes_parse_as_width_by_height_or_one_side() {
-        assert_eq!(parse_input_size("736x224"), Ok([736, 224]));
-        assert_eq!(parse_input_size("320"), Ok([320, 320]));
-        assert_eq!(parse_input_size("640X192"), Ok([640, 192]));
+        assert_eq!(parse_input_size("736x224"), Ok(InputSize::wide(736, 224)));
+        assert_eq!(parse_input_size("320"), Ok(InputSize::square(320)));
+        assert_eq!(parse_input_size("640X192").map(|s| s.size), Ok([640, 192]));
+        assert_eq!(parse_input_size("0x0").map(|s| s.to_string()), Ok("0x0".to_string()));
         assert!(parse_input_size("736x").is_err() && parse_input_size("wide").is_err());
     }
 }

@@ -42,6 +42,10 @@ pub enum BenchError {
         /// The line read.
         line: String,
     },
+    /// A problem that cannot be solved here: its file is missing or too large, or a generated one needs
+    /// more memory than this process can have.
+    #[error("{0}")]
+    Refused(String),
     /// A child process of `--generated` could not be run or gave no result line.
     #[error("the {path} run gave no result: {message}")]
     Child {
@@ -218,6 +222,11 @@ pub fn anchor_table(
     reps: usize,
     print: &mut dyn FnMut(String),
 ) -> Result<(), BenchError> {
+    // every problem file is checked before the first solve (a missing last one is found at once)
+    for a in anchors {
+        slam_core::files::check_readable(&dir.join(a.file), &slam_core::files::PROBLEM)
+            .map_err(|e| BenchError::Refused(format!("--data {}: {e}", dir.display())))?;
+    }
     print(format!(
         "Optimiser benchmark, backend {:?}, on {} ({reps} timed runs each, median; single thread)",
         optimizer.name(),
@@ -245,9 +254,19 @@ pub fn generated_table(
     print(format!(
         "Generated stereo BA: {n} cameras (2 fixed), {GENERATED_POINTS_PER_CAMERA} points per camera seen by 4 cameras, seed {GENERATED_SEED}, {iterations} iterations, backend {backend:?}"
     ));
+    let (sparse_need, dense_need) = generated_memory(n);
+    slam_core::memory::check_fits(&format!("the generated BA of {n} cameras on the sparse path"), sparse_need)
+        .map_err(|m| BenchError::Refused(format!("--generated {n}: {m}")))?;
+    // the dense path's matrix grows with the square of the cameras: past what the machine has it is
+    // left out, saying why, and the sparse row still runs
+    let dense = slam_core::memory::check_fits(
+        &format!("the dense path's {0} × {0} reduced matrix", generated_unknowns(n)),
+        dense_need,
+    );
     print(generated_table_header());
     let mut finals = Vec::new();
-    for path in ["sparse", "dense"] {
+    let paths: &[&'static str] = if dense.is_ok() { &["sparse", "dense"] } else { &["sparse"] };
+    for &path in paths {
         let out = std::process::Command::new(exe)
             .args(child_args(path))
             .output()
@@ -263,6 +282,9 @@ pub fn generated_table(
     }
     if let [s, d] = finals[..] {
         print(format!("final costs: sparse vs dense differ by {:.2e} (relative)", (s - d).abs() / d.abs()));
+    }
+    if let Err(m) = dense {
+        print(format!("dense: not run: {m}"));
     }
     print("peak MiB: the process's peak resident memory (VmHWM); solver MiB: its growth during the solve.".into());
     Ok(())
@@ -294,6 +316,23 @@ pub fn run_anchor(
 
 fn cpu_seconds() -> f64 {
     process_cpu_seconds().unwrap_or(0.0)
+}
+
+/// Unknowns of the generated BA's reduced system with `n` cameras (two fixed, six each).
+pub fn generated_unknowns(n: usize) -> usize {
+    6 * n.saturating_sub(2)
+}
+
+/// Memory the generated BA of `n` cameras needs, bytes, on the sparse and on the dense path, from
+/// `--generated 2000` measured (docs/optimisation.md): the sparse process peaked at 131 MiB, about
+/// 69 kB per camera (the problem, its Jacobians and the sparse factor all grow with the cameras); the
+/// dense solve grew by 3 324 MiB for its 11 988² reduced matrix, 3 copies of 8-byte entries (the
+/// matrix, its damped copy and the factor).
+pub fn generated_memory(n: usize) -> (f64, f64) {
+    let per_camera = 131.0 * 1024.0 * 1024.0 / 2000.0;
+    let sparse = per_camera * n as f64;
+    let u = generated_unknowns(n) as f64;
+    (sparse, sparse + 3.0 * 8.0 * u * u)
 }
 
 /// Points per camera of the generated bundle adjustment of `optim-bench --generated`.
@@ -333,6 +372,13 @@ pub fn generated_solve(
     iterations: usize,
     dense: bool,
 ) -> Result<GeneratedRun, BenchError> {
+    let (sparse_need, dense_need) = generated_memory(n);
+    let (what, need) = if dense {
+        (format!("the dense path's {0} × {0} reduced matrix", generated_unknowns(n)), dense_need)
+    } else {
+        (format!("the generated BA of {n} cameras on the sparse path"), sparse_need)
+    };
+    slam_core::memory::check_fits(&what, need).map_err(|m| BenchError::Refused(format!("--generated {n}: {m}")))?;
     let (mut values, graph) = generated_ba(n, GENERATED_POINTS_PER_CAMERA, GENERATED_SEED);
     let mut options = Options::with_max_iterations(iterations);
     options.dense_limit = if dense { usize::MAX } else { 0 };
@@ -466,6 +512,38 @@ mod tests {
         let peak = status_kib("VmHWM").expect("VmHWM");
         assert!(peak >= now && now > 0, "peak {peak} KiB, now {now} KiB");
         assert_eq!(status_kib("NoSuchField"), None);
+    }
+
+    #[test]
+    fn the_generated_problem_is_sized_before_it_is_built() {
+        // --generated 2000 as measured; 100000 asks terabytes of the dense path, which is refused
+        let (sparse, dense) = generated_memory(2000);
+        assert!((sparse / 1048576.0 - 131.0).abs() < 1.0 && (dense / 1e9 - 3.58).abs() < 0.05, "{sparse} {dense}");
+        let (sparse, dense) = generated_memory(100_000);
+        assert!(sparse < 1e10 && dense > 8e12, "{sparse} {dense}");
+        /// Never reached: the size is refused before the problem is built.
+        #[derive(Debug)]
+        struct Unused;
+        impl Optimizer for Unused {
+            fn name(&self) -> &str {
+                "unused"
+            }
+            fn optimize(
+                &self,
+                _: &crate::Graph,
+                _: &mut Values,
+                _: &Options,
+                _: Option<&mut dyn crate::Observer>,
+            ) -> Result<crate::Summary, crate::OptimError> {
+                Err(crate::OptimError::NonFiniteCost)
+            }
+        }
+        let e = generated_solve(&Unused, 100_000, 1, true).expect_err("dense refused");
+        assert!(
+            e.to_string()
+                .contains("--generated 100000: the dense path's 599988 × 599988 reduced matrix needs about 8.6 TB"),
+            "{e}"
+        );
     }
 
     #[test]

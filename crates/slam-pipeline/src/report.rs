@@ -4,10 +4,11 @@
 use crate::system::{FrameRecord, FrameTimes, RunOutput};
 
 /// Frames per second from the median interval between consecutive tracked frames (start-up and the
-/// first frame excluded; unreadable frames are not timed, their interval 0, and would make it infinite).
-pub fn median_fps(out: &RunOutput) -> f64 {
+/// first frame excluded; unreadable frames are not timed, their interval 0, and would make it infinite);
+/// `None` with fewer than two such frames.
+pub fn median_fps(out: &RunOutput) -> Option<f64> {
     let mut v: Vec<f64> = out.frames.iter().filter(|f| f.state.is_some()).skip(1).map(|f| f.times.interval).collect();
-    1000.0 / median(&mut v)
+    slam_core::figure::median(&mut v).filter(|&m| m > 0.0).map(|m| 1000.0 / m)
 }
 
 /// The upper median (the element at `len / 2` after sorting); NaN for none. Sorts `v`.
@@ -68,7 +69,7 @@ impl StagesOn {
 /// Median per stage, over the frames where the stage ran (tracked frames, not unreadable ones; only
 /// keyframes for the stages that run on keyframes: local BA, objects): `(stage, median ms, frames)`,
 /// every stage in a fixed order; `on` leaves out the stages a run switched off.
-fn stage_rows(out: &RunOutput, on: Option<StagesOn>) -> Vec<(&'static str, f64, usize)> {
+fn stage_rows(out: &RunOutput, on: Option<StagesOn>) -> Vec<(&'static str, Option<f64>, usize)> {
     STAGES
         .iter()
         .filter(|(_, _, _, needs)| on.is_none_or(|on| on.has(*needs)))
@@ -80,21 +81,21 @@ fn stage_rows(out: &RunOutput, on: Option<StagesOn>) -> Vec<(&'static str, f64, 
                 .map(|r| time(&r.times))
                 .collect();
             let n = v.len();
-            (name, median(&mut v), n)
+            (name, slam_core::figure::median(&mut v), n)
         })
         .collect()
 }
 
 /// Median per stage, over the frames where the stage ran: `(stage, median ms, frames)`; the stages that
 /// run on keyframes only (local BA, objects) over keyframes. Every stage has a row, in a fixed order.
-pub fn stage_table(out: &RunOutput) -> Vec<(&'static str, f64, usize)> {
+pub fn stage_table(out: &RunOutput) -> Vec<(&'static str, Option<f64>, usize)> {
     stage_rows(out, None)
 }
 
 /// [`stage_table`] without the stages the run switched off (`on`): without a detection source the
 /// object stages, without bundle adjustment local BA (they still pass through the threads, in
 /// microseconds, so their times alone do not say so).
-pub fn stages_run(out: &RunOutput, on: StagesOn) -> Vec<(&'static str, f64, usize)> {
+pub fn stages_run(out: &RunOutput, on: StagesOn) -> Vec<(&'static str, Option<f64>, usize)> {
     stage_rows(out, Some(on))
 }
 
@@ -205,12 +206,12 @@ mod tests {
             counts: Default::default(),
         };
         // the first frame's interval (start-up) is left out: median of 50, 100, 100
-        assert!((median_fps(&out) - 10.0).abs() < 1e-12);
+        assert!((median_fps(&out).expect("three intervals") - 10.0).abs() < 1e-12);
         let table = stage_table(&out);
         let row = |name: &str| table.iter().find(|r| r.0.starts_with(name)).copied().expect("stage");
-        assert_eq!(row("ORB extraction"), ("ORB extraction", 2.0, 3));
+        assert_eq!(row("ORB extraction"), ("ORB extraction", Some(2.0), 3));
         // local BA: keyframes 0 and 2 only (0 and 20 ms): the upper median
-        assert_eq!(row("local BA"), ("local BA (keyframes, mapping thread)", 20.0, 2));
+        assert_eq!(row("local BA"), ("local BA (keyframes, mapping thread)", Some(20.0), 2));
         // a run without a detection source leaves out the object stages; without BA, local BA too
         let names = |on| stages_run(&out, on).iter().map(|r| r.0).collect::<Vec<_>>();
         let tracking = ["ORB extraction", "stereo matching", "tracking (local map + PnP + refinement)"];
@@ -228,7 +229,11 @@ mod tests {
                 .collect(),
             counts: Default::default(),
         };
-        assert!((median_fps(&alternating) - 12.5).abs() < 1e-12);
+        assert!((median_fps(&alternating).expect("tracked frames") - 12.5).abs() < 1e-12);
+        // one frame: no interval, no figure (a dash in the tables, not NaN)
+        let one = RunOutput { frames: out.frames[..1].to_vec(), ..alternating };
+        assert_eq!(median_fps(&one), None);
+        assert!(stage_table(&RunOutput { frames: Vec::new(), ..one }).iter().all(|r| r.1.is_none()));
         let csv = tracking_csv(&out).expect("csv");
         assert_eq!(csv.lines().count(), 5);
         assert!(csv.lines().nth(4).expect("row").starts_with("3,unreadable,0,7,,"), "{csv}");

@@ -18,6 +18,14 @@ pub enum SettingsError {
     /// The defaults could not be written as TOML.
     #[error(transparent)]
     Defaults(#[from] toml::ser::Error),
+    /// A finite number beyond what its (32-bit) setting can hold.
+    #[error("{key} = {value:e}: beyond the range of this setting (a 32-bit number: at most ±3.4e38)")]
+    Narrowed {
+        /// The key, `[table] key`.
+        key: String,
+        /// The number as written.
+        value: f64,
+    },
 }
 
 /// Settings from TOML text, overlaid key by key on `defaults`: a table that sets one key keeps the
@@ -28,8 +36,35 @@ where
 {
     toml::from_str::<T>(text)?;
     let mut merged = toml::Value::try_from(defaults)?;
-    overlay(&mut merged, toml::from_str::<toml::Value>(text)?);
-    Ok(merged.try_into()?)
+    let given = toml::from_str::<toml::Value>(text)?;
+    overlay(&mut merged, given.clone());
+    let value: T = merged.try_into()?;
+    // a 32-bit setting turns a finite number beyond its range (1e308) into infinity on the way in: say
+    // so with the number as written, not as "inf"
+    if let Some((key, v)) = narrowed(&given, &toml::Value::try_from(&value)?, "") {
+        return Err(SettingsError::Narrowed { key, value: v });
+    }
+    Ok(value)
+}
+
+/// The first finite number of `given` that reads back as a non-finite one in `read` (the same keys),
+/// with its key (`[tracking] ransac_px`).
+fn narrowed(given: &toml::Value, read: &toml::Value, table: &str) -> Option<(String, f64)> {
+    match (given, read) {
+        (toml::Value::Table(g), toml::Value::Table(r)) => g.iter().find_map(|(k, v)| {
+            let name = if table.is_empty() { k.clone() } else { format!("{table}.{k}") };
+            r.get(k).and_then(|rv| narrowed(v, rv, &name))
+        }),
+        (toml::Value::Array(g), toml::Value::Array(r)) => g.iter().zip(r).find_map(|(a, b)| narrowed(a, b, table)),
+        (toml::Value::Float(g), toml::Value::Float(r)) if g.is_finite() && !r.is_finite() => {
+            let key = match table.split_once('.') {
+                Some((t, k)) => format!("[{t}] {k}"),
+                None => table.to_string(),
+            };
+            Some((key, *g))
+        }
+        _ => None,
+    }
 }
 
 /// Put `over`'s keys onto `base`, table by table.

@@ -4,10 +4,11 @@
 
 use std::path::PathBuf;
 
+use slam_core::figure::{cell, median, DASH};
 use slam_dataset::{kitti::stereo::TruthSource, layout::Order};
 use slam_pipeline::{
     eval::trajectory_errors,
-    report::{median, median_fps, stage_table, state_counts, STATE_NAMES},
+    report::{median_fps, stage_table, state_counts, STATE_NAMES},
 };
 
 use crate::{
@@ -49,38 +50,39 @@ pub fn bench_configs(file: PathBuf, network: DetectorChoice) -> Vec<(&'static st
 /// The `run-bench` table's header (markdown).
 pub const RUN_BENCH_HEADER: &str = "| configuration | frames/s (median) | frames/s (overall) | detection | extraction | stereo | tracking | flow | association | local BA | objects | ATE m |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|";
 
-/// Medians of one `run-bench` configuration over its repeated runs.
+/// Medians of one `run-bench` configuration over its repeated runs; a figure of no value (no frame
+/// interval, a stage that never ran, no ground truth) is `None`, printed as a dash.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BenchRow {
     /// Configuration name.
     pub name: String,
     /// Median over runs of 1000 / median frame interval.
-    pub fps_median: f64,
+    pub fps_median: Option<f64>,
     /// Median over runs of frames / wall time.
-    pub fps_overall: f64,
+    pub fps_overall: Option<f64>,
     /// Median stage times, ms, in `stage_table` order.
-    pub stages: Vec<f64>,
-    /// Median ATE, m (NaN without ground truth).
-    pub ate: f64,
+    pub stages: Vec<Option<f64>>,
+    /// Median ATE, m.
+    pub ate: Option<f64>,
 }
 
 impl std::fmt::Display for BenchRow {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let cells: Vec<String> = self.stages.iter().map(|v| format!("{v:.1}")).collect();
+        let cells: Vec<String> = self.stages.iter().map(|v| cell(*v, 1)).collect();
         write!(
             f,
-            "| {} | {:.1} | {:.1} | {} | {:.3} |",
+            "| {} | {} | {} | {} | {} |",
             self.name,
-            self.fps_median,
-            self.fps_overall,
+            cell(self.fps_median, 1),
+            cell(self.fps_overall, 1),
             cells.join(" | "),
-            self.ate
+            cell(self.ate, 3)
         )
     }
 }
 
-/// Run `s` `repeat` times (at least once), each run followed by the observer `observe` makes, if any;
-/// `progress` gets a line after each run.
+/// Run `s` `repeat` times, each run followed by the observer `observe` makes, if any; `progress` gets a
+/// line after each run.
 pub fn bench_row(
     name: &str,
     s: &RunSettings,
@@ -88,18 +90,17 @@ pub fn bench_row(
     mut observe: Option<&mut ObserverFactory<'_>>,
     progress: &mut dyn FnMut(String),
 ) -> Result<BenchRow> {
-    let repeat = repeat.max(1);
     let (mut fps, mut fps_median, mut ate) = (Vec::new(), Vec::new(), Vec::new());
     let mut stages: Vec<Vec<f64>> = Vec::new();
     for r in 0..repeat {
         let o = run_quiet(s, observe.as_deref_mut())?;
         fps.push(o.out.counts.frames as f64 / o.elapsed);
-        fps_median.push(median_fps(&o.out));
+        fps_median.extend(median_fps(&o.out));
         for (k, (_, ms, _)) in stage_table(&o.out).into_iter().enumerate() {
             if stages.len() <= k {
                 stages.push(Vec::new());
             }
-            stages[k].push(ms);
+            stages[k].extend(ms);
         }
         let scored = o.seq.truth_from_first().map(|g| crate::report::Scored::of(&o.out, &g, &o.seq.ids));
         if let Some(e) = scored.and_then(|s| trajectory_errors(&s.est, &s.truth, &[])) {
@@ -118,14 +119,17 @@ pub fn bench_row(
 
 /// The note under the `run-bench` table, with the targets' figures (rows in [`bench_configs`] order).
 pub fn run_bench_footer(repeat: usize, rows: &[BenchRow]) -> String {
-    let fps = |i: usize| rows.get(i).map_or(f64::NAN, |r| r.fps_median);
+    let fps = |i: usize| cell(rows.get(i).and_then(|r| r.fps_median), 1);
     format!(
-        "\nmedians of {} runs each. frames/s (median): 1000 / median interval between consecutive frames; (overall): frames / wall time, start-up and drain included. Stage times: medians over frames (local BA and objects: over keyframes, on the mapping thread), ms. Targets (median): >= 30 frames/s with detections from a file ({:.1}), >= 10 with the detector ({:.1}).",
-        repeat.max(1),
+        "\nmedians of {repeat} runs each. frames/s (median): 1000 / median interval between consecutive frames; (overall): frames / wall time, start-up and drain included. Stage times: medians over frames (local BA and objects: over keyframes, on the mapping thread), ms. Targets (median): >= 30 frames/s with detections from a file ({}), >= 10 with the detector ({}).",
         fps(1),
         fps(2)
     )
 }
+
+/// Most runs per `run-bench` configuration: the median of 100 runs moves by well under the spread of
+/// one, and 100 runs of the three configurations on the shipped sequence take about half an hour.
+pub const MAX_REPEAT: usize = 100;
 
 /// The name of `run-bench`'s row with a recording.
 pub const RECORDED_ROW: &str = "shipped detector, every frame, recorded (--rerun)";
@@ -143,6 +147,7 @@ pub fn run_bench(
     print: &mut dyn FnMut(String),
     progress: &mut dyn FnMut(String),
 ) -> Result<()> {
+    slam_core::check::count("--repeat", repeat, 1, MAX_REPEAT).map_err(RunnerError::other)?;
     print(RUN_BENCH_HEADER.to_string());
     let mut rows = Vec::new();
     let configs = bench_configs(file, network);
@@ -171,7 +176,9 @@ pub fn run_bench(
 /// What following the runs (a recording) cost: the median frame time with and without, and the
 /// difference as a share of the time without.
 pub fn recording_cost(without: &BenchRow, with: &BenchRow) -> String {
-    let (a, b) = (1000.0 / without.fps_median, 1000.0 / with.fps_median);
+    let Some((a, b)) = without.fps_median.zip(with.fps_median).map(|(a, b)| (1000.0 / a, 1000.0 / b)) else {
+        return format!("recording: no median frame time (runs of fewer than two frames): {DASH}");
+    };
     format!(
         "recording: median frame time {b:.1} ms against {a:.1} ms without ({:+.1} %; target <= +10 %); runs made one configuration after the other: on a shared machine compare rows made back to back",
         100.0 * (b - a) / a
@@ -250,6 +257,11 @@ pub fn track_bench(
     if cases.is_empty() {
         return Err(RunnerError::Invalid("no cases: --only-cases needs at least one --case PATH[:STRIDE]".into()));
     }
+    // every case's sequence, calibration and image sizes are checked before the first frame of any
+    // (a typo in the last --case is found at once, not after the others ran)
+    for c in cases {
+        prepare(&case_settings(base, c, objects)).context_with(|| format!("case {}", c.name))?;
+    }
     print(if objects {
         "full system: detector on every frame, objects found moving masked out of tracking".to_string()
     } else {
@@ -285,15 +297,21 @@ pub struct TrackRow {
     pub notes: Vec<String>,
 }
 
-/// Run `case` with `base`'s settings (its path and stride replaced, or its layout made in a temporary
-/// folder and removed after; no detector unless `objects`).
-pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<TrackRow> {
+/// `base`'s settings for `case`: its path and stride; no detector unless `objects`.
+fn case_settings(base: &RunSettings, case: &TrackCase, objects: bool) -> RunSettings {
     let mut s = base.clone();
     s.path = case.path.clone();
     s.selection.stride = case.stride as usize;
     if !objects {
         s.detector = DetectorChoice::None;
     }
+    s
+}
+
+/// Run `case` with `base`'s settings (its path and stride replaced, or its layout made in a temporary
+/// folder and removed after; no detector unless `objects`).
+pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<TrackRow> {
+    let mut s = case_settings(base, case, objects);
     let layout = match case.order {
         Some(order) => {
             let folder =
@@ -320,7 +338,6 @@ pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<
     let errors = scored.as_ref().and_then(|s| trajectory_errors(&s.est, &s.truth, &[]));
     // only frames the tracker marked "tracked" (not initialised, lost, relocalised or any weaker state)
     let step = scored.as_ref().and_then(|s| s.largest_tracked_step_error());
-    let cell = |v: Option<f64>, digits: usize| v.map_or("–".to_string(), |v| format!("{v:.digits$}"));
     let states: Vec<String> = state_counts(&out.frames).iter().map(|n| n.to_string()).collect();
     let stats = out.map.stats();
     let mut ba: Vec<f64> = out
@@ -330,19 +347,19 @@ pub fn track_row(base: &RunSettings, case: &TrackCase, objects: bool) -> Result<
         .map(|r| r.times.bundle_adjustment)
         .collect();
     let line = format!(
-        "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} |",
+        "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
         case.name,
         out.frames.len(),
         cell(errors.as_ref().map(|e| e.ate_aligned_m), 3),
-        errors.as_ref().map_or("–".to_string(), |e| format!("{:+.2}", e.path_error_pct())),
+        errors.as_ref().map_or(DASH.to_string(), |e| format!("{:+.2}", e.path_error_pct())),
         cell(errors.as_ref().map(|e| e.end_drift_pct), 2),
-        step.map_or("–".to_string(), |(e, id)| format!("{e:.3} ({id})")),
+        step.map_or(DASH.to_string(), |(e, id)| format!("{e:.3} ({id})")),
         states.join(" | "),
         stats.keyframes,
         stats.points,
-        cell((!ba.is_empty()).then(|| median(&mut ba)), 1),
+        cell(median(&mut ba), 1),
         cell(errors.as_ref().map(|e| e.ate_m), 3),
-        median_fps(out)
+        cell(median_fps(out), 1)
     );
     let mut notes = Vec::new();
     if let Some(TruthSource::Oxts { median_pos_accuracy_m, path }) = seq.truth_source {
@@ -396,15 +413,26 @@ mod tests {
         let cols = lines.next().expect("head").matches('|').count();
         assert_eq!(lines.next().expect("rule").matches('|').count(), cols);
         assert_eq!(cols, 12 + STATE_NAMES.len());
-        let row =
-            BenchRow { name: "x".into(), fps_median: 30.04, fps_overall: 20.0, stages: vec![1.0; 8], ate: 0.1234 };
+        let row = BenchRow {
+            name: "x".into(),
+            fps_median: Some(30.04),
+            fps_overall: Some(20.0),
+            stages: vec![Some(1.0); 8],
+            ate: Some(0.1234),
+        };
         assert_eq!(
             row.to_string().matches('|').count(),
             RUN_BENCH_HEADER.lines().next().expect("head").matches('|').count()
         );
         assert!(row.to_string().starts_with("| x | 30.0 | 20.0 | 1.0 |") && row.to_string().ends_with("| 0.123 |"));
+        assert!(run_bench_footer(3, &[row.clone(), row.clone(), row.clone()])
+            .contains("(30.0), >= 10 with the detector (30.0)"));
+        // a run of one frame has no frame interval, a sequence without ground truth no ATE: dashes
+        let empty = BenchRow { fps_median: None, stages: vec![None; 8], ate: None, ..row };
         assert!(
-            run_bench_footer(3, &[row.clone(), row.clone(), row]).contains("(30.0), >= 10 with the detector (30.0)")
+            empty.to_string().starts_with("| x | – | 20.0 | – |") && empty.to_string().ends_with("| – |"),
+            "{empty}"
         );
+        assert!(!empty.to_string().contains("NaN"));
     }
 }

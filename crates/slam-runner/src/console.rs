@@ -1,7 +1,8 @@
 //! Terminal plumbing of a command-line program built on this crate (feature `console`):
 //! - [`progress`]: progress that shares stderr with the `tracing` logs (a bar on a terminal, plain lines
 //!   every few seconds elsewhere);
-//! - [`interrupt`]: Ctrl-C as a flag long commands poll, [`Interrupted`] as their error;
+//! - [`interrupt`]: Ctrl-C removes the temporaries and ends any command, or is a flag a long command
+//!   polls ([`Interrupted`] as its error);
 //! - [`stdout`]: stdout that ends the process quietly on a closed pipe (`… | head`);
 //! - [`error_text`]: an error and its causes on one line, for the final message.
 
@@ -9,7 +10,7 @@ pub mod interrupt;
 pub mod progress;
 pub mod stdout;
 
-pub use interrupt::{catch_interrupt, interrupted, Interrupted};
+pub use interrupt::{catch_interrupt, handle_interrupts, interrupted, Interrupted};
 pub use progress::{log_writer, Progress};
 
 /// An error and its whole cause chain on one line, without a backtrace (errors at the command line are

@@ -149,7 +149,11 @@ pub fn motion_check(
     (first, stride): (usize, usize),
     external: Option<&Path>,
 ) -> Result<DepthReport> {
+    if let Some(dir) = external.filter(|d| !d.is_dir()) {
+        return Err(RunnerError::Invalid(format!("--keypoints {}: not a folder", dir.display())));
+    }
     let seq = open_stereo(path)?;
+    crate::run::checked_size(&seq)?;
     let truth = seq.truth_from_first().ok_or_else(|| {
         RunnerError::Invalid(format!("{}: depth-check --motion needs ground-truth poses", path.display()))
     })?;
@@ -325,6 +329,7 @@ pub fn depth_check(path: &Path, tracking: &VoConfig) -> Result<DepthReport> {
             path.display()
         )));
     }
+    crate::run::checked_size(&seq)?;
     let date: PathBuf = seq.dir.parent().map(Path::to_path_buf).unwrap_or_default();
     let calib = RawCalib::read(&date)?;
     let [fx, fy, cx, cy] = seq.intrinsics;
@@ -335,6 +340,7 @@ pub fn depth_check(path: &Path, tracking: &VoConfig) -> Result<DepthReport> {
     // frames without a readable scan (none, or a scan that is no file: a link to /dev/zero) are
     // skipped, each logged with the reason and counted in the header
     let mut no_scan = Vec::new();
+    let mut in_image = 0usize;
     for (i, &id) in seq.ids.iter().enumerate() {
         let scan = seq.dir.join("velodyne_points").join("data").join(format!("{id:010}.bin"));
         if let Err(e) = slam_core::files::regular_file(&scan) {
@@ -347,6 +353,7 @@ pub fn depth_check(path: &Path, tracking: &VoConfig) -> Result<DepthReport> {
         let size = (left.width as f64, left.height as f64);
         let keypoints = stereo_keypoints(rig, tracking, &left, &right).map_err(RunnerError::other)?;
         let lidar = project_into_left(&read_scan(&scan)?, &calib, size, 1.0);
+        in_image += lidar.len();
         // bucket the lidar points by pixel column for the window queries
         let mut by_col: Vec<Vec<ProjectedPoint>> = vec![Vec::new(); size.0 as usize + 1];
         for p in &lidar {
@@ -377,6 +384,16 @@ pub fn depth_check(path: &Path, tracking: &VoConfig) -> Result<DepthReport> {
         return Err(RunnerError::Invalid(format!(
             "{}: no frame has a Velodyne scan (velodyne_points/data/NNNNNNNNNN.bin)",
             seq.dir.display()
+        )));
+    }
+    if samples.is_empty() {
+        // nothing to compare is no result: a table of dashes would read as one
+        return Err(RunnerError::Invalid(format!(
+            "{}: no stereo keypoint of the {} frames with a scan lies on a lidar plane ({in_image} lidar points fell \
+             inside the images in all): nothing to compare; check calib_velo_to_cam.txt (where the lidar is) and \
+             calib_cam_to_cam.txt",
+            seq.dir.display(),
+            frames.len()
         )));
     }
     if let Some(first) = no_scan.first() {

@@ -7,7 +7,7 @@ use std::{
     time::Instant,
 };
 
-use slam_core::DetectionSource;
+use slam_core::{figure::cell, DetectionSource};
 use slam_dataset::{
     detections::DetectionFile,
     output::{refuse_overwriting_inputs, AtomicFile, OutputDir, Written},
@@ -144,10 +144,15 @@ pub fn detector_recall(
                 times.push(start.elapsed().as_secs_f64() * 1000.0);
                 c += set.score(i, &d);
             }
-            row.push_str(&format!(" {}/{} | {:.3} | {:.3} |", c.found, c.labels, c.recall(), c.precision()));
+            row.push_str(&format!(
+                " {}/{} | {} | {} |",
+                c.found,
+                c.labels,
+                cell(c.recall(), 3),
+                cell(c.precision(), 3)
+            ));
         }
-        times.sort_by(f64::total_cmp);
-        row.push_str(&format!(" {:.0} |", times.get(times.len() / 2).copied().unwrap_or(f64::NAN)));
+        row.push_str(&format!(" {} |", cell(slam_core::figure::median(&mut times), 0)));
         print(row);
     }
     Ok(())

@@ -3,11 +3,14 @@
 
 use std::path::{Path, PathBuf};
 
-use slam_dataset::trajectory::write_kitti_poses;
+use slam_dataset::{
+    output::{AtomicFile, FilesInto},
+    trajectory::write_kitti_poses,
+};
 use slam_eval::trajectory::PoseFile;
 use slam_pipeline::map::Map;
 
-use crate::error::{Context, Result, RunnerError};
+use crate::error::{Result, RunnerError};
 
 /// RPE segment lengths of `trajectory-eval`, metres (KITTI's 100-800 m and shorter ones for excerpts).
 pub const RPE_LENGTHS_M: [f64; 7] = [10.0, 20.0, 40.0, 100.0, 200.0, 400.0, 800.0];
@@ -160,8 +163,10 @@ fn ground_truth_times(truth: &Path, ids: &[usize]) -> Result<(Vec<f64>, String)>
     match times_file {
         Some(p) => {
             let all = slam_dataset::kitti::frames::read_frame_times(&p).map_err(RunnerError::other)?;
+            // the ground truth's lines ask for these frames, not images (none is read)
+            let by = format!("the lines of the ground truth {}", truth.display());
             let times =
-                slam_dataset::kitti::frames::values_of_ids(&all, ids, &p, "times").map_err(RunnerError::other)?;
+                slam_dataset::kitti::frames::values_of_ids(&all, ids, &p, "times", &by).map_err(RunnerError::other)?;
             Ok((times, format!("the times of {}", p.display())))
         }
         None => Ok((
@@ -225,38 +230,59 @@ pub struct MapExports {
     pub picture: Option<PathBuf>,
 }
 
-fn parent_of(p: &Path) -> Result<()> {
-    if let Some(d) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(d).context_with(|| format!("cannot create {}", d.display()))?;
+/// The exports of a map with every destination checked (files writable, the picture folder holding no
+/// file of the picture's names that this program did not write), before the map is read.
+pub struct PreparedExports {
+    ply: Option<(PathBuf, AtomicFile)>,
+    scene: Option<(PathBuf, AtomicFile)>,
+    trajectory: Option<(PathBuf, AtomicFile)>,
+    picture: Option<FilesInto>,
+}
+
+impl MapExports {
+    /// Check every destination before any work (`map --ply/--scene/--trajectory/--picture`).
+    pub fn prepare(&self) -> Result<PreparedExports> {
+        let file = |p: &Option<PathBuf>| -> Result<Option<(PathBuf, AtomicFile)>> {
+            p.as_ref().map(|p| Ok((p.clone(), AtomicFile::new(p)?))).transpose()
+        };
+        Ok(PreparedExports {
+            ply: file(&self.ply)?,
+            scene: file(&self.scene)?,
+            trajectory: file(&self.trajectory)?,
+            picture: self
+                .picture
+                .as_deref()
+                .map(|d| FilesInto::new(d, &slam_viz::MAP_PICTURE_FILES, "--picture", "map"))
+                .transpose()?,
+        })
     }
-    Ok(())
 }
 
 /// Write the exports of `map` (loaded from `path`); `wrote` gets a line per file written, as it is.
-pub fn export_map(map: &Map, path: &Path, x: &MapExports, wrote: &mut dyn FnMut(String)) -> Result<()> {
-    if let Some(p) = &x.ply {
-        parent_of(p)?;
-        map.export_ply(p)?;
+pub fn export_map(map: &Map, path: &Path, x: PreparedExports, wrote: &mut dyn FnMut(String)) -> Result<()> {
+    if let Some((p, f)) = x.ply {
+        f.write_with(|tmp| map.export_ply(tmp))?;
         wrote(format!("wrote {}", p.display()));
     }
-    if let Some(p) = &x.scene {
-        parent_of(p)?;
-        let s = map.export_scene_ply(p)?;
-        wrote(format!(
-            "wrote {}: {} ellipsoids, {} camera frusta, {} trajectory vertices, {} points ({} vertices, {} faces, {} edges)",
-            p.display(),
-            s.ellipsoids,
-            s.cameras,
-            s.trajectory,
-            s.points,
-            s.vertices,
-            s.faces,
-            s.edges
-        ));
+    if let Some((p, f)) = x.scene {
+        let mut counts = None;
+        f.write_with(|tmp| map.export_scene_ply(tmp).map(|s| counts = Some(s)))?;
+        if let Some(s) = counts {
+            wrote(format!(
+                "wrote {}: {} ellipsoids, {} camera frusta, {} trajectory vertices, {} points ({} vertices, {} faces, {} edges)",
+                p.display(),
+                s.ellipsoids,
+                s.cameras,
+                s.trajectory,
+                s.points,
+                s.vertices,
+                s.faces,
+                s.edges
+            ));
+        }
     }
     let poses: Vec<nalgebra::Isometry3<f64>> = map.frame_poses().into_iter().flatten().collect();
-    if let Some(p) = &x.trajectory {
-        parent_of(p)?;
+    if let Some((p, f)) = x.trajectory {
         if poses.len() != map.trajectory.len() {
             return Err(RunnerError::Invalid(format!(
                 "{}: {} frames refer to missing keyframes",
@@ -264,14 +290,12 @@ pub fn export_map(map: &Map, path: &Path, x: &MapExports, wrote: &mut dyn FnMut(
                 map.trajectory.len() - poses.len()
             )));
         }
-        write_kitti_poses(p, &poses)?;
+        f.write_with(|tmp| write_kitti_poses(tmp, &poses))?;
         wrote(format!("wrote {}", p.display()));
     }
-    if let Some(dir) = &x.picture {
+    if let Some(into) = x.picture {
         // each picture is written whole (beside its final name, then renamed): the folder may hold other files
-        for f in slam_dataset::output::write_files_into(dir, |tmp| {
-            slam_viz::map_picture(map, &poses, None, tmp).map(|_| ())
-        })? {
+        for f in into.write_with(|tmp| slam_viz::map_picture(map, &poses, None, tmp).map(|_| ()))? {
             wrote(format!("wrote {}", f.display()));
         }
     }

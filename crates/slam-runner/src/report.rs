@@ -35,7 +35,74 @@ pub struct OverlayChoice {
     pub format: String,
 }
 
+/// Most frames after the first are not tracked when fewer than this share of them is (tracked, weak or
+/// relocalised): then the run looks at its images and says what it saw.
+pub const MOSTLY_LOST_SHARE: f64 = 0.5;
+
 impl Outcome {
+    /// Frames after the first readable one, and how many of them were tracked (tracked, weak or
+    /// relocalised; not lost, predicted or unreadable).
+    pub fn tracked_after_first(&self) -> (usize, usize) {
+        let c = self.out.counts;
+        (c.frames.saturating_sub(c.unreadable + 1), c.tracked + c.weak + c.relocalised)
+    }
+
+    /// When most frames after the first were not tracked ([`MOSTLY_LOST_SHARE`]): what the images show
+    /// (`slam_frontend::diagnosis`, over up to three readable pairs spread over the run), one sentence
+    /// each; empty when the run tracked most frames.
+    pub fn diagnosis(&self) -> Vec<String> {
+        let (after, tracked) = self.tracked_after_first();
+        if after == 0 || tracked as f64 >= MOSTLY_LOST_SHARE * after as f64 {
+            return Vec::new();
+        }
+        let n = self.seq.len();
+        let mut positions = vec![0, n / 2, n.saturating_sub(1)];
+        positions.dedup();
+        let looked: Vec<slam_frontend::diagnosis::PairDiagnosis> = positions
+            .into_iter()
+            .filter_map(|i| slam_frontend::diagnosis::diagnose_pair(&self.seq.left[i], &self.seq.right[i]).ok())
+            .collect();
+        let head = format!("most frames were not tracked ({tracked} of the {after} after the first)");
+        let Some(first) = looked.first().copied() else {
+            return vec![format!("{head}; no pair of images could be read to say why")];
+        };
+        // the evidence of every pair looked at: matches summed, the value range the widest seen
+        let all = looked.iter().skip(1).fold(first, |mut a, d| {
+            a.matches += d.matches;
+            a.negative += d.negative;
+            a.positive += d.positive;
+            a.percentiles = (a.percentiles.0.min(d.percentiles.0), a.percentiles.1.max(d.percentiles.1));
+            a
+        });
+        let findings = all.findings();
+        if findings.is_empty() {
+            return vec![format!(
+                "{head}; the images look usable ({} matches along the rows of {} pairs, {} at positive disparity; grey \
+                 values {}-{} of 255): check the calibration (focal length, baseline) and whether consecutive frames \
+                 overlap",
+                all.matches,
+                looked.len(),
+                all.positive,
+                all.percentiles.0,
+                all.percentiles.1
+            )];
+        }
+        findings.into_iter().map(|f| format!("{head}: {f}")).collect()
+    }
+
+    /// An error when frames after the first were played and none of them was tracked: the run's output is
+    /// written (tracking.csv shows every frame's state), but the run failed.
+    pub fn nothing_tracked(&self) -> Option<RunnerError> {
+        let (after, tracked) = self.tracked_after_first();
+        (after > 0 && tracked == 0).then(|| {
+            RunnerError::Invalid(format!(
+                "no frame after the first of {} was tracked ({after} lost, predicted or relocalising; the diagnosis \
+                 above says what the images show)",
+                self.seq.dir.display()
+            ))
+        })
+    }
+
     /// Write the trajectory (KITTI and TUM: one pose per played frame, TUM with the frames' own times),
     /// tracking.csv, map.json and objects.json into `dir`; `shown` is the folder's name in messages.
     pub fn write_files(&self, dir: &Path, shown: &Path) -> Result<()> {
@@ -63,8 +130,8 @@ impl Outcome {
                 self.elapsed,
                 c.frames as f64 / self.elapsed,
                 match median_fps(out) {
-                    f if f.is_finite() => format!("{f:.1} frames/s median"),
-                    _ => "no median frames/s (it needs two tracked frames)".to_string(),
+                    Some(f) => format!("{f:.1} frames/s median"),
+                    None => "no median frames/s (it needs two tracked frames)".to_string(),
                 }
             ),
             format!(
@@ -76,6 +143,13 @@ impl Outcome {
                 c.tracked, c.weak, c.relocalised, c.lost, c.predicted, c.unreadable
             ),
         ];
+        // what the images show, when most frames were not tracked, goes with the states it explains
+        for line in self.diagnosis() {
+            tracing::warn!("{line}");
+            if let Some(states) = lines.last_mut() {
+                states.push_str(&format!("; {line}"));
+            }
+        }
         let st = out.map.stats();
         let dets: usize = out.frames.iter().map(|f| f.detections.len()).sum();
         lines.push(format!(
@@ -88,14 +162,14 @@ impl Outcome {
         ));
         lines.push("\n| stage | median ms | frames |\n|---|---:|---:|".into());
         for (name, ms, count) in stages_run(out, self.stages) {
-            lines.push(format!("| {name} | {ms:.1} | {count} |"));
+            lines.push(format!("| {name} | {} | {count} |", slam_core::figure::cell(ms, 1)));
         }
         lines.extend(self.truth_lines());
         if let Some(d) = &self.detections {
             lines.push(d.summary(max_detections));
         }
         for note in &self.notes {
-            lines.push(format!("unused detections: {note}"));
+            lines.push(note.clone());
         }
         lines.join("\n")
     }
@@ -112,7 +186,14 @@ impl Outcome {
             return lines;
         };
         let s = Scored::of(&self.out, &gt, &self.seq.ids);
-        let Some(e) = trajectory_errors(&s.est, &s.truth, &[10.0, 20.0, 40.0]) else { return lines };
+        let Some(e) = trajectory_errors(&s.est, &s.truth, &[10.0, 20.0, 40.0]) else {
+            lines.push(format!(
+                "\nground truth: no ATE/RPE: {} frame(s) with an estimate to compare (it needs two: unreadable frames \
+                 and frames before tracking started are left out)",
+                s.est.len().min(s.truth.len())
+            ));
+            return lines;
+        };
         if let Some(TruthSource::Oxts { median_pos_accuracy_m, path }) = self.seq.truth_source {
             lines.push(format!(
                 "\nground truth from the drive's OXTS packets (differential GPS + IMU; median position accuracy {median_pos_accuracy_m:.2} m from the packets' pos_accuracy): position errors below that are not meaningful"
@@ -123,8 +204,11 @@ impl Outcome {
         }
         // drift needs a ground-truth path, the scale an estimate that moves too
         let drift = drift_text(e.end_drift_pct);
-        let scale =
-            if e.scale.is_finite() { format!("{:.4}", e.scale) } else { "– (a path does not move)".to_string() };
+        let scale = match e.scale {
+            x if x.is_finite() => format!("{x:.4}"),
+            _ if e.frames < 3 => format!("– (the alignment needs 3 poses, {} here)", e.frames),
+            _ => "– (a path does not move)".to_string(),
+        };
         lines.push(format!(
             "\nground truth: path {:.1} m over {} frames; ATE {:.3} m (aligned {:.3} m); end-point drift {drift}; scale {scale}",
             e.path_m, e.frames, e.ate_m, e.ate_aligned_m

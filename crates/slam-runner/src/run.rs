@@ -29,7 +29,7 @@ use slam_frontend::image_size::stereo_pair;
 
 use crate::{
     detector::DetectorChoice,
-    error::{Context, Result, RunnerError},
+    error::{Result, RunnerError},
 };
 
 /// A fresh optimiser backend for each run.
@@ -72,8 +72,10 @@ pub struct Prepared {
     pub k: Intrinsics,
     /// Whether the images are read in colour (every layout but odometry).
     pub colour: bool,
-    /// Image size of the first frame with both images (every frame's, or it is played as unreadable).
+    /// Image size most frames have (every frame's, or it is played as unreadable).
     pub image: ImageSize,
+    /// The same, with the frames of another size.
+    pub sizes: SequenceSize,
     selection: FrameSelection,
 }
 
@@ -129,14 +131,62 @@ pub fn prepare(s: &RunSettings) -> Result<Prepared> {
         }
         seq.truncate(n);
     }
-    let (l0, r0) = first_pair(&seq.left, &seq.right)?;
-    let size = stereo_pair(l0, r0)?;
-    calibration(&calibration_file(&seq), seq.intrinsics, seq.baseline, l0, size)?;
-    declared_size(&calibration_file(&seq), l0, size)?;
+    let sizes = checked_size(&seq)?;
     let [fx, fy, cx, cy] = seq.intrinsics;
     let colour = seq.layout != Layout::Odometry;
-    let image = ImageSize::new(f64::from(size.0), f64::from(size.1));
-    Ok(Prepared { seq, k: Intrinsics::new(fx, fy, cx, cy), colour, image, selection: s.selection })
+    let image = ImageSize::new(f64::from(sizes.size.0), f64::from(sizes.size.1));
+    Ok(Prepared { seq, k: Intrinsics::new(fx, fy, cx, cy), colour, image, sizes, selection: s.selection })
+}
+
+/// The image size of a sequence and the frames that do not have it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SequenceSize {
+    /// The size most frames have (width, height).
+    pub size: (u32, u32),
+    /// Frames (positions) whose images, read from their headers, have another size: played as
+    /// unreadable.
+    pub odd: Vec<usize>,
+}
+
+/// The image size of `seq`, checked before any frame is decoded: the first frame with both images must
+/// be a readable pair of one size ([`stereo_pair`]); the size is the one most frames' headers declare (a
+/// first frame of its own size, a crop, does not make every other frame unreadable); the calibration
+/// must fit it ([`calibration`]: focal length, principal point near the centre; a raw drive's declared
+/// `S_rect`). Every command that tracks a sequence (`run`, `track-bench`, `run-bench`, `stereo-check`,
+/// `depth-check`) checks it this way.
+pub fn checked_size(seq: &StereoSequence) -> Result<SequenceSize> {
+    let (l0, r0) = first_pair(&seq.left, &seq.right)?;
+    let first = stereo_pair(l0, r0)?;
+    let of = |p: &std::path::Path| slam_frontend::image_size::image_size(p).ok();
+    let frames: Vec<Option<(u32, u32)>> =
+        seq.left.iter().zip(&seq.right).map(|(l, r)| of(l).filter(|s| of(r) == Some(*s))).collect();
+    let mut counts: std::collections::BTreeMap<(u32, u32), usize> = std::collections::BTreeMap::new();
+    for s in frames.iter().flatten() {
+        *counts.entry(*s).or_default() += 1;
+    }
+    // the most common size; a tie goes to the first frame's
+    let most = counts.values().copied().max().unwrap_or(0);
+    let size = if counts.get(&first) == Some(&most) {
+        first
+    } else {
+        counts.iter().find(|(_, &n)| n == most).map_or(first, |(s, _)| *s)
+    };
+    let odd: Vec<usize> = (0..frames.len()).filter(|&i| frames[i].is_some_and(|s| s != size)).collect();
+    if let Some(&i) = odd.first() {
+        let (w, h) = frames[i].unwrap_or_default();
+        tracing::warn!(
+            "{} of {} frames have images of another size than the others' {}×{} (first: frame {}, {w}×{h}): played as unreadable",
+            odd.len(),
+            frames.len(),
+            size.0,
+            size.1,
+            seq.ids[i]
+        );
+    }
+    let reference = frames.iter().position(|s| *s == Some(size)).map_or(l0, |i| seq.left[i].as_path());
+    calibration(&calibration_file(seq), seq.intrinsics, seq.baseline, reference, size)?;
+    declared_size(&calibration_file(seq), reference, size)?;
+    Ok(SequenceSize { size, odd })
 }
 
 /// Which frames a run played, e.g. `frame ids 0..=50 every 2 ids`.
@@ -174,6 +224,15 @@ impl Prepared {
             s.names.0,
             s.names.1,
         );
+        if let Some(&i) = self.sizes.odd.first() {
+            text.push_str(&format!(
+                "\ninput: {} frame(s) of another image size than the others' {}×{} (first: frame {}), played as unreadable",
+                self.sizes.odd.len(),
+                self.sizes.size.0,
+                self.sizes.size.1,
+                seq.ids[i]
+            ));
+        }
         if !(seq.gaps.is_empty() && seq.one_camera.is_empty()) {
             text.push_str(&format!(
                 "\ninput: {} frame(s) missing in both cameras (skipped, ids kept), {} with one image missing (played as unreadable); see the warnings",
@@ -188,11 +247,7 @@ impl Prepared {
     /// recording); `stop` is polled before each frame is read (Ctrl-C: the input ends, the system
     /// finishes what it has).
     pub fn run(self, s: &RunSettings, on_frame: &mut dyn FnMut(&FrameView<'_>), stop: fn() -> bool) -> Result<Outcome> {
-        let Prepared { seq, k, colour, selection, .. } = self;
-        // the image size comes from the first frame whose left image exists
-        let first_left = seq.left.iter().find(|p| p.is_file()).unwrap_or(&seq.left[0]);
-        let first = read_image(first_left, colour).context_with(|| format!("first frame {}", first_left.display()))?;
-        let image = ImageSize::new(first.width as f64, first.height as f64);
+        let Prepared { seq, k, colour, selection, image, sizes, .. } = self;
         let mut tracking = s.tracking;
         if tracking.frame_period_s <= 0.0 {
             let n = seq.len().min(seq.times.len());
@@ -203,11 +258,26 @@ impl Prepared {
         let tracker = Box::new(StereoVo::new(StereoRig { k, baseline: seq.baseline }, tracking, optimizer.clone())?);
         let labels = run_labels(s, &seq, image)?;
         let mut notes = Vec::new();
-        let (det, detections) = guarded(s, &seq, image, labels.as_ref(), &mut notes)?;
+        // labels of frames the run does not play score nothing: said as unused detections are (with
+        // --detector labels they are those detections, reported below)
+        if let (Some(path), Some((l, _))) = (&s.labels, &labels) {
+            if !matches!(s.detector, DetectorChoice::Labels { .. }) {
+                let mut per_frame: std::collections::BTreeMap<usize, usize> = Default::default();
+                for label in l.iter().filter(|l| !l.is_dont_care()) {
+                    *per_frame.entry(label.frame).or_default() += 1;
+                }
+                let source = path.display().to_string();
+                let unused = slam_frontend::detectors::unused_frames(&source, per_frame.into_iter(), &seq.ids);
+                notes.extend(unused.map(|n| format!("unused labels: {}", n.replace(" boxes)", " labels)"))));
+            }
+        }
+        let mut unused_detections = Vec::new();
+        let (det, detections) = guarded(s, &seq, image, labels.as_ref(), &mut unused_detections)?;
+        notes.extend(unused_detections.into_iter().map(|n| format!("unused detections: {n}")));
         for note in &notes {
             tracing::warn!("{note}");
         }
-        let frames = frame_source(&seq, colour, (first.width, first.height), stop);
+        let frames = frame_source(&seq, colour, sizes, stop);
         let start = std::time::Instant::now();
         let mut sys = s.system;
         sys.objects.image = image;
@@ -270,12 +340,12 @@ fn guarded(
     Ok((det, counts))
 }
 
-/// Both images of a frame, of one size and of the sequence's first frame's size.
+/// Both images of a frame, of one size and of the size most of the sequence's frames have.
 fn read_pair(
     l: &std::path::Path,
     r: &std::path::Path,
     colour: bool,
-    first: (u32, u32),
+    first: &SequenceSize,
 ) -> std::result::Result<(Image, Image), String> {
     let (li, ri) =
         read_image(l, colour).and_then(|li| read_image(r, colour).map(|ri| (li, ri))).map_err(|e| e.to_string())?;
@@ -289,14 +359,15 @@ fn read_pair(
             ri.width,
             ri.height
         ))
-    } else if (li.width, li.height) != first {
+    } else if (li.width, li.height) != first.size {
         Err(format!(
-            "{} is {}×{}, the sequence's first frame {}×{}",
+            "{} is {}×{}, {} {}×{}",
             l.display(),
             li.width,
             li.height,
-            first.0,
-            first.1
+            if first.odd.first() == Some(&0) { "most of the sequence's frames" } else { "the sequence's first frame" },
+            first.size.0,
+            first.size.1
         ))
     } else {
         Ok((li, ri))
@@ -307,7 +378,7 @@ fn read_pair(
 fn frame_source(
     seq: &StereoSequence,
     colour: bool,
-    first: (u32, u32),
+    first: SequenceSize,
     stop: fn() -> bool,
 ) -> Box<dyn Iterator<Item = FrameInput> + Send> {
     let pairs: Vec<(usize, PathBuf, PathBuf)> =
@@ -316,6 +387,6 @@ fn frame_source(
         pairs
             .into_iter()
             .take_while(move |_| !stop())
-            .map(move |(i, l, r)| FrameInput { index: i, images: read_pair(&l, &r, colour, first) }),
+            .map(move |(i, l, r)| FrameInput { index: i, images: read_pair(&l, &r, colour, &first) }),
     )
 }

@@ -5,14 +5,9 @@
 
 use std::path::PathBuf;
 
-use slam_dataset::{
-    check::{calibration, calibration_file, first_pair},
-    kitti::stereo::{open_stereo, Layout, StereoSequence},
-};
+use slam_dataset::kitti::stereo::{open_stereo, Layout, StereoSequence};
 use slam_frontend::{disparity::OffsetEstimate, read_image, StereoRig, VoConfig};
 use slam_quadric::Intrinsics;
-
-use slam_frontend::image_size::stereo_pair;
 
 use crate::{
     error::{Context, Result, RunnerError},
@@ -75,9 +70,7 @@ pub struct StereoReport {
 /// images), the frames looked at, and how many of them repeated an earlier frame.
 fn open_checked(c: &StereoCheck) -> Result<(StereoSequence, StereoRig, Vec<usize>, usize, usize)> {
     let seq = open_stereo(&c.path)?;
-    let (l0, r0) = first_pair(&seq.left, &seq.right)?;
-    let size = stereo_pair(l0, r0)?;
-    calibration(&calibration_file(&seq), seq.intrinsics, seq.baseline, l0, size)?;
+    crate::run::checked_size(&seq)?;
     let [fx, fy, cx, cy] = seq.intrinsics;
     let rig = StereoRig { k: Intrinsics::new(fx, fy, cx, cy), baseline: seq.baseline };
     let n = c.frames.min(seq.len());

@@ -220,10 +220,28 @@ impl Calib {
     pub fn rigid(&self, rotation_key: &str, translation_key: &str) -> Result<Isometry3<f64>, DatasetError> {
         let r = self.rotation(rotation_key)?;
         let t = self.numbers(translation_key, Some(3))?;
+        // two sensors of one vehicle: no further apart than its size allows
+        let d = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
+        if d > MAX_SENSOR_OFFSET_M {
+            return Err(DatasetError::Parse {
+                path: self.path.clone(),
+                line: self.entries.get(translation_key).map_or(0, |e| e.0),
+                message: format!(
+                    "{translation_key} puts the two sensors {d:.3} m apart; sensors mounted on one vehicle are at most \
+                     {MAX_SENSOR_OFFSET_M} m apart (the diagonal of the largest road vehicle, 25.25 × 2.55 × 4 m; \
+                     KITTI's lidar is 0.27 m from its camera): a translation in other units, or another rig's"
+                ),
+            });
+        }
         let rot = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&r));
         Ok(Isometry3::from_parts(Translation3::from(Vector3::new(t[0], t[1], t[2])), rot))
     }
 }
+
+/// Largest distance between two sensors of one rig (`T` of `calib_velo_to_cam.txt`,
+/// `calib_imu_to_velo.txt`), metres: the diagonal of the largest road vehicle (25.25 × 2.55 × 4 m,
+/// EU 96/53/EC), about 25.7 m, rounded up.
+pub const MAX_SENSOR_OFFSET_M: f64 = 26.0;
 
 #[cfg(test)]
 mod tests {
@@ -271,5 +289,19 @@ mod tests {
         // swapped cameras: a negative baseline, and the message says what to check
         let e = rectified_pair(&m(P1), &m(P0), ("P0", "P1")).expect_err("swapped");
         assert!(e.contains("-0.5372 m") && e.contains("swapped"), "{e}");
+    }
+
+    /// A sensor-to-sensor translation beyond one vehicle (R13: the lidar 1 km from the camera) names the
+    /// key's line and both figures; KITTI's own is read.
+    #[test]
+    fn sensors_of_one_vehicle_are_near_each_other() {
+        let text = |t: &str| format!("calib_time: 15-Mar-2012 11:37:16\nR: 1 0 0 0 1 0 0 0 1\nT: {t}\n");
+        let path = Path::new("calib_velo_to_cam.txt");
+        let ok = Calib::parse(path, &text("-4.069766e-03 -7.631618e-02 -2.717806e-01")).expect("parses");
+        assert!((ok.rigid("R", "T").expect("KITTI's").translation.vector.z + 0.2717806).abs() < 1e-12);
+        let far = Calib::parse(path, &text("1000 0 0")).expect("parses");
+        let e = far.rigid("R", "T").expect_err("a kilometre").to_string();
+        assert!(e.starts_with("calib_velo_to_cam.txt:3: T puts the two sensors 1000.000 m apart"), "{e}");
+        assert!(e.contains("at most 26 m apart"), "{e}");
     }
 }

@@ -166,14 +166,20 @@ impl IdRuns {
 
 /// The values of the given frame ids from a per-frame file whose `k`-th value is frame `k` (KITTI's
 /// `times.txt`, `timestamps.txt`, `poses/NN.txt`). A file with more lines than frames is fine (an
-/// excerpt of a longer sequence); one that stops before the last frame id is an error naming the file
-/// and both counts.
-pub fn values_of_ids<T: Clone>(all: &[T], ids: &[usize], path: &Path, what: &str) -> Result<Vec<T>, DatasetError> {
+/// excerpt of a longer sequence); one that stops before the last frame id is an error naming the file,
+/// both counts and what asks for the frames (`by`: "the images", or a ground-truth file).
+pub fn values_of_ids<T: Clone>(
+    all: &[T],
+    ids: &[usize],
+    path: &Path,
+    what: &str,
+    by: &str,
+) -> Result<Vec<T>, DatasetError> {
     match ids.iter().max() {
         Some(&last) if last >= all.len() => Err(DatasetError::Invalid {
             path: path.to_path_buf(),
             message: format!(
-                "{} {what} but the images go up to frame {last}: line k of this file is frame k, so it needs at \
+                "{} {what} but {by} go up to frame {last}: line k of this file is frame k, so it needs at \
                  least {} lines",
                 all.len(),
                 // the largest id has no usize after it
@@ -292,9 +298,10 @@ mod tests {
 
     #[test]
     fn a_per_frame_file_shorter_than_the_largest_id_says_how_many_lines_without_overflow() {
-        let e = values_of_ids(&[1.0, 2.0], &[0, usize::MAX], Path::new("t.txt"), "times").expect_err("short");
+        let e =
+            values_of_ids(&[1.0, 2.0], &[0, usize::MAX], Path::new("t.txt"), "times", "the images").expect_err("short");
         assert!(e.to_string().contains("at least 18446744073709551616 lines"), "{e}");
-        assert_eq!(values_of_ids(&[1.0, 2.0], &[1], Path::new("t.txt"), "times").expect("fits"), [2.0]);
+        assert_eq!(values_of_ids(&[1.0, 2.0], &[1], Path::new("t.txt"), "times", "the images").expect("fits"), [2.0]);
     }
 
     #[test]

@@ -63,7 +63,7 @@ impl OdometrySequence {
         let times_path = dir.join("times.txt");
         let times = if times_path.exists() {
             let t = read_frame_times(&times_path)?;
-            values_of_ids(&t, &pairs.ids, &times_path, "times")?
+            values_of_ids(&t, &pairs.ids, &times_path, "times", "the images")?
         } else {
             warnings.push(nominal_times_note(&times_path));
             nominal_times(&pairs.ids)
@@ -74,13 +74,15 @@ impl OdometrySequence {
             .zip(dir.file_name())
             .map(|(root, name)| root.join("poses").join(format!("{}.txt", name.to_string_lossy())));
         let ground_truth = match gt_path {
-            Some(p) if p.exists() => match values_of_ids(&read_ground_truth_poses(&p)?, &pairs.ids, &p, "poses") {
-                Ok(g) => Some(g),
-                Err(e) => {
-                    warnings.push(no_truth(e));
-                    None
+            Some(p) if p.exists() => {
+                match values_of_ids(&read_ground_truth_poses(&p)?, &pairs.ids, &p, "poses", "the images") {
+                    Ok(g) => Some(g),
+                    Err(e) => {
+                        warnings.push(no_truth(e));
+                        None
+                    }
                 }
-            },
+            }
             Some(p) => {
                 warnings.push(no_truth(format_args!("{} not found (no ATE/RPE)", p.display())));
                 None

@@ -385,7 +385,7 @@ fn open_raw(dir: &Path) -> Result<StereoSequence, DatasetError> {
     let ts = dir.join(l).join("timestamps.txt");
     // a drive's timestamps.txt covers the whole drive: take the lines of the frames present
     let times = if ts.exists() {
-        values_of_ids(&read_timestamps(&ts)?, &pairs.ids, &ts, "timestamps")?
+        values_of_ids(&read_timestamps(&ts)?, &pairs.ids, &ts, "timestamps", "the images")?
     } else {
         warnings.push(nominal_times_note(&ts));
         nominal_times(&pairs.ids)

@@ -44,7 +44,8 @@ impl TrackingLabel {
     }
 }
 
-/// Read a tracking label file. Errors name the file and line.
+/// Read a tracking label file, in (frame, track) order whatever the order of its lines (a file out of
+/// order is said in the log). Errors name the file and line.
 pub fn read_tracking_labels(path: impl AsRef<Path>) -> Result<Vec<TrackingLabel>, DatasetError> {
     let path = path.as_ref();
     let text = read_text(path, &slam_core::files::TABLE)?;
@@ -102,6 +103,18 @@ pub fn parse_tracking_labels(path: &Path, text: &str) -> Result<Vec<TrackingLabe
                 )));
             }
         }
+        // occlusion is a level 0-3 (3: unknown) and alpha an angle of the circle, for every object
+        if kind != "DontCare" && !(0..=3).contains(&occluded) {
+            return Err(err(format!(
+                "occluded {occluded}: KITTI's occlusion levels are 0 (visible), 1 (partly), 2 (largely) and 3 (unknown)"
+            )));
+        }
+        for (name, a) in [("alpha", v[1]), ("rotation_y", v[12])] {
+            // written with 6 decimals: π rounds up by at most 5e-7
+            if kind != "DontCare" && a.abs() > std::f64::consts::PI + 1e-6 {
+                return Err(err(format!("{name} {a} rad: an angle in [-π, π] (KITTI's range)")));
+            }
+        }
         // KITTI numbers tracks from 0 and gives DontCare regions -1
         let valid_id = if kind == "DontCare" { track_id == -1 } else { track_id >= 0 };
         if !valid_id {
@@ -137,6 +150,19 @@ pub fn parse_tracking_labels(path: &Path, text: &str) -> Result<Vec<TrackingLabe
     }
     if out.is_empty() {
         return Err(DatasetError::Invalid { path: path.to_path_buf(), message: "no labels in the file".into() });
+    }
+    // every consumer walks labels by frame, and takes a track's first label as its reference: the file's
+    // line order must not matter, so the labels come in (frame, track) order, whatever the file's
+    if let Some(k) = out.windows(2).position(|w| (w[1].frame, w[1].track_id) < (w[0].frame, w[0].track_id)) {
+        tracing::warn!(
+            "{}: labels are not in frame order (line {}: frame {} after frame {} on line {}): read in frame order",
+            path.display(),
+            out[k + 1].line,
+            out[k + 1].frame,
+            out[k].frame,
+            out[k].line
+        );
+        out.sort_by_key(|l| (l.frame, l.track_id));
     }
     Ok(out)
 }
@@ -297,5 +323,34 @@ mod tests {
         assert!(e.contains("length 3.9 m for a Pedestrian"), "{e}");
         let tram = CAR.replacen("Car", "Tram", 1).replacen("1.5 1.6 3.9", "3.7 2.8 35.2", 1);
         parse_tracking_labels(p, &tram).expect("a long tram");
+    }
+
+    /// R04/R15: the same labels in any line order are read alike (frame order, tracks within a frame
+    /// in id order); an occlusion level or an angle outside KITTI's ranges is refused by line.
+    #[test]
+    fn line_order_does_not_matter_and_levels_and_angles_are_checked() {
+        let p = Path::new("label_02.txt");
+        let lines = [
+            "0 -1 DontCare -1 -1 -10 10 10 40 40 -1000 -1000 -1000 -10 -1 -1 -1".to_string(),
+            CAR.to_string(),
+            CAR.replacen("0 0 Car", "0 3 Car", 1),
+            CAR.replacen("0 0 Car", "1 0 Car", 1),
+            CAR.replacen("0 0 Car", "2 3 Car", 1),
+        ];
+        let forward = parse_tracking_labels(p, &(lines.join("\n") + "\n")).expect("forward");
+        let mut reversed = lines.to_vec();
+        reversed.reverse();
+        let back = parse_tracking_labels(p, &(reversed.join("\n") + "\n")).expect("reversed");
+        let key = |v: &[TrackingLabel]| v.iter().map(|l| (l.frame, l.track_id, l.kind.clone())).collect::<Vec<_>>();
+        assert_eq!(key(&forward), key(&back));
+        assert_eq!(back[1].line, 4, "each label keeps its own line for messages");
+        for (field, value, want) in
+            [(4, "9", "occluded 9"), (5, "100", "alpha 100 rad"), (16, "-7", "rotation_y -7 rad")]
+        {
+            let mut f: Vec<&str> = CAR.split_whitespace().collect();
+            f[field] = value;
+            let e = parse_tracking_labels(p, &f.join(" ")).expect_err(want).to_string();
+            assert!(e.contains("label_02.txt:1:") && e.contains(want), "{e}");
+        }
     }
 }

@@ -1,9 +1,13 @@
-//! Ctrl-C handling: the first Ctrl-C (SIGINT) sets a flag that long commands poll (they then discard
-//! their output); a second one ends the process at once.
+//! Ctrl-C handling of every command: a thread waits for SIGINT ([`handle_interrupts`], installed when a
+//! command starts). A command that stops by itself at Ctrl-C (`run`, after [`catch_interrupt`]) sees
+//! the first one as a flag it polls ([`interrupted`]) and discards its output; any other Ctrl-C (the
+//! first for every other command, a second one for `run`) removes the temporary files and folders the
+//! process is writing (`slam_core::files::remove_temporaries`: `.NAME.tmp-PID`, `.DIR.partial-PID`) and
+//! ends the process with status 130 and a message. Outputs keep their previous contents either way.
 
 use std::sync::{
     atomic::{AtomicBool, Ordering},
-    Arc, OnceLock,
+    OnceLock,
 };
 
 /// The run was stopped by Ctrl-C; a program's `main` turns it into exit status 130 (128 + SIGINT), as
@@ -28,26 +32,55 @@ impl Interrupted {
     }
 }
 
-static INTERRUPT: OnceLock<Arc<AtomicBool>> = OnceLock::new();
+/// Set by the first Ctrl-C of a command that polls it.
+static FLAG: AtomicBool = AtomicBool::new(false);
+/// Whether the running command polls [`FLAG`] (set by [`catch_interrupt`]).
+static POLLING: AtomicBool = AtomicBool::new(false);
+/// Whether the handler thread is installed.
+static INSTALLED: OnceLock<bool> = OnceLock::new();
 
-/// Install the Ctrl-C handler (once): the first SIGINT sets the flag [`interrupted`] reads, a second one
-/// exits at once with status 130. Without a handler (installation failed) Ctrl-C keeps its default
-/// action; the output folders stay consistent either way.
-pub fn catch_interrupt() {
-    INTERRUPT.get_or_init(|| {
-        let flag = Arc::new(AtomicBool::new(false));
-        // order matters: the conditional shutdown sees the flag before this SIGINT sets it
-        let installed =
-            signal_hook::flag::register_conditional_shutdown(signal_hook::consts::SIGINT, 130, flag.clone())
-                .and_then(|_| signal_hook::flag::register(signal_hook::consts::SIGINT, flag.clone()));
-        if let Err(e) = installed {
-            tracing::warn!("cannot catch Ctrl-C ({e}): it will end the run at once (output folders stay consistent)");
+/// Install the Ctrl-C handler (once; every command calls it first): Ctrl-C removes the process's
+/// temporary files and folders and ends it with status 130. Without a handler (installation failed)
+/// Ctrl-C keeps its default action; temporaries left then are removed by the next command writing the
+/// same output.
+pub fn handle_interrupts() {
+    INSTALLED.get_or_init(|| {
+        let signals = signal_hook::iterator::Signals::new([signal_hook::consts::SIGINT]);
+        match signals {
+            Ok(mut signals) => {
+                let spawned = std::thread::Builder::new().name("ctrl-c".into()).spawn(move || {
+                    for _ in signals.forever() {
+                        // a polling command's first Ctrl-C only asks it to stop
+                        if POLLING.load(Ordering::SeqCst) && !FLAG.swap(true, Ordering::SeqCst) {
+                            continue;
+                        }
+                        let removed = slam_core::files::remove_temporaries();
+                        eprintln!(
+                            "interrupted: Ctrl-C: stopped before the end; {} temporary file(s) or folder(s) removed, \
+                             every output keeps its previous contents",
+                            removed.len()
+                        );
+                        std::process::exit(130);
+                    }
+                });
+                spawned.is_ok()
+            }
+            Err(e) => {
+                tracing::warn!("cannot catch Ctrl-C ({e}): it will end the command at once");
+                false
+            }
         }
-        flag
     });
+}
+
+/// Install the handler for a command that polls [`interrupted`] and stops by itself: the first Ctrl-C
+/// sets the flag, a second one ends the process at once (removing its temporaries).
+pub fn catch_interrupt() {
+    POLLING.store(true, Ordering::SeqCst);
+    handle_interrupts();
 }
 
 /// Whether Ctrl-C was pressed since [`catch_interrupt`].
 pub fn interrupted() -> bool {
-    INTERRUPT.get().is_some_and(|f| f.load(Ordering::Relaxed))
+    FLAG.load(Ordering::SeqCst)
 }
