@@ -1,6 +1,8 @@
-//! An object detector on OpenCV's dnn module (Darknet cfg + weights, or ONNX), for two output layouts
-//! ([`ModelFamily`]): YOLOX's grid cells (the shipped YOLOX-nano, the default) and the normalised rows
-//! of Darknet's YOLO layers (the shipped Yolo-Fastest 1.1).
+//! An object detector for two output layouts ([`ModelFamily`]): YOLOX's grid cells (the shipped
+//! YOLOX-nano, the default) and the normalised rows of Darknet's YOLO layers (the shipped Yolo-Fastest
+//! 1.1). ONNX models run on ONNX Runtime ([`crate::onnx`]); Darknet models (cfg + weights) on OpenCV's dnn
+//! module, which is the only one of the two that reads them. Both share the frame feeding below and the
+//! decoding, and both time their forward passes ([`DnnDetector::forward_ms`]).
 //!
 //! KITTI frames are 3.3 : 1. A network that takes any input whose sides are multiples of 32 (YOLOX) is
 //! fed the whole frame letterboxed into a wide input (736 × 224 keeps the aspect ratio). A square-input
@@ -8,12 +10,15 @@
 //! offers tiling for it (overlapping near-square crops across the width, each letterboxed, plus the
 //! whole frame), with non-maximum suppression over all of them.
 
-use std::path::Path;
+use std::{path::Path, time::Instant};
 
 use opencv::{core, dnn, imgproc, prelude::*};
 use slam_core::{geometry::BBox, ClassId, DetectError, Detection, DetectionSource, Image};
 
-use crate::image_io::{image_to_mat, FrontendError};
+use crate::{
+    image_io::{image_to_mat, FrontendError},
+    onnx::{OnnxError, OnnxNet, RuntimeOptions},
+};
 
 /// How frames are fed to the network.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -169,21 +174,21 @@ pub fn decode_yolox(
     Ok(dets)
 }
 
-/// Decode Darknet YOLO rows (see [`ModelFamily::Rows`]) for an input of `width × height` pixels: one
-/// detection per row whose best class score reaches `score_threshold` (and whose class is in `classes`,
-/// when not empty), box in input pixels.
+/// Decode Darknet YOLO rows (see [`ModelFamily::Rows`]) for an input of `width × height` pixels: `out`
+/// holds rows of `row_len` values; one detection per row whose best class score reaches `score_threshold`
+/// (and whose class is in `classes`, when not empty), box in input pixels.
 fn decode_rows(
-    out: &Mat,
+    out: &[f32],
+    row_len: usize,
     [width, height]: [i32; 2],
     score_threshold: f32,
     classes: &[u16],
-) -> Result<Vec<Detection>, FrontendError> {
+) -> Vec<Detection> {
     let mut dets = Vec::new();
-    for r in 0..out.rows() {
-        let row = out.at_row::<f32>(r)?;
-        if row.len() < 6 {
-            continue;
-        }
+    if row_len < 6 {
+        return dets;
+    }
+    for row in out.chunks_exact(row_len) {
         let (best, score) =
             row[5..].iter().enumerate().fold((0usize, 0f32), |b, (i, &s)| if s > b.1 { (i, s) } else { b });
         if score < score_threshold || !score.is_finite() {
@@ -199,13 +204,38 @@ fn decode_rows(
             dets.push(Detection::new(ClassId(best as u16), score as f64, b));
         }
     }
-    Ok(dets)
+    dets
 }
 
-/// A YOLO-style detector running in OpenCV's dnn module on the CPU.
+/// Decode one output tensor of `family` (its values row-major, rows of its last dimension's length).
+fn decode(
+    family: ModelFamily,
+    shape: &[i64],
+    values: &[f32],
+    config: &DetectorConfig,
+) -> Result<Vec<Detection>, FrontendError> {
+    let row_len = shape.last().copied().unwrap_or(0).max(0) as usize;
+    let (threshold, classes) = (config.score_threshold, &config.classes);
+    match family {
+        ModelFamily::Rows => Ok(decode_rows(values, row_len, config.input, threshold, classes)),
+        ModelFamily::Yolox => decode_yolox(values, row_len, config.input, threshold, classes)
+            .map_err(|m| FrontendError::Network(format!("the network's output is not YOLOX's (--family yolox): {m}"))),
+    }
+}
+
+/// What runs the network.
+enum Backend {
+    /// OpenCV's dnn module (Darknet models), on the CPU.
+    OpenCv { net: dnn::Net, out_names: core::Vector<String> },
+    /// ONNX Runtime (ONNX models).
+    Onnx(OnnxNet),
+}
+
+/// A YOLO-style detector: an ONNX model on ONNX Runtime, or a Darknet model on OpenCV's dnn module.
 pub struct DnnDetector {
-    net: dnn::Net,
-    out_names: core::Vector<String>,
+    backend: Backend,
+    /// Milliseconds of forward passes in the last [`DnnDetector::detect_image`] (its tiles' passes summed).
+    last_forward_ms: Option<f64>,
     /// Settings.
     pub config: DetectorConfig,
 }
@@ -248,16 +278,20 @@ impl DnnDetector {
         Self::from_net(net, config, weights)
     }
 
-    /// Load an ONNX model.
-    pub fn from_onnx(model: impl AsRef<Path>, config: DetectorConfig) -> Result<Self, FrontendError> {
+    /// Load an ONNX model on ONNX Runtime (`runtime`: where its library is, the device, the threads).
+    pub fn from_onnx(
+        model: impl AsRef<Path>,
+        config: DetectorConfig,
+        runtime: &RuntimeOptions,
+    ) -> Result<Self, FrontendError> {
         let model = model.as_ref();
         model_file(model)?;
-        let s = model
-            .to_str()
-            .ok_or(FrontendError::Model { path: model.to_path_buf(), message: "path is not UTF-8".into() })?;
-        let net = dnn::read_net_from_onnx(s)
-            .map_err(|e| FrontendError::Model { path: model.to_path_buf(), message: e.to_string() })?;
-        Self::from_net(net, config, model)
+        let net = OnnxNet::load(model, runtime).map_err(|e| match e {
+            OnnxError::Model { path, message } => FrontendError::Model { path, message },
+            other => FrontendError::Onnx(other),
+        })?;
+        tracing::debug!(model = %model.display(), device = runtime.device.name(), threads = runtime.threads, "detector on ONNX Runtime");
+        Ok(Self { backend: Backend::Onnx(net), last_forward_ms: None, config })
     }
 
     fn from_net(mut net: dnn::Net, config: DetectorConfig, path: &Path) -> Result<Self, FrontendError> {
@@ -267,7 +301,18 @@ impl DnnDetector {
         net.set_preferable_backend(dnn::DNN_BACKEND_OPENCV)?;
         net.set_preferable_target(dnn::DNN_TARGET_CPU)?;
         let out_names = net.get_unconnected_out_layers_names()?;
-        Ok(Self { net, out_names, config })
+        Ok(Self { backend: Backend::OpenCv { net, out_names }, last_forward_ms: None, config })
+    }
+
+    /// Whether the network runs on ONNX Runtime (else on OpenCV's dnn module).
+    pub fn on_onnx_runtime(&self) -> bool {
+        matches!(self.backend, Backend::Onnx(_))
+    }
+
+    /// Milliseconds the network's forward passes took in the last [`DnnDetector::detect_image`] (all of its
+    /// passes: one per tile in mode tiles); the rest of that call is pre- and post-processing.
+    pub fn forward_ms(&self) -> Option<f64> {
+        self.last_forward_ms
     }
 
     /// Run the network on one crop, letterboxed or squashed into the input; boxes in crop pixels,
@@ -311,22 +356,27 @@ impl DnnDetector {
             false,
             core::CV_32F,
         )?;
-        self.net.set_input(&blob, "", 1.0, core::Scalar::default())?;
-        let mut outs: core::Vector<Mat> = core::Vector::new();
-        self.net.forward(&mut outs, &self.out_names)?;
-        let (threshold, classes) = (self.config.score_threshold, &self.config.classes);
+        let config = &self.config;
+        let (family, [nw, nh]) = (config.family, [nw_in as usize, nh_in as usize]);
         let mut dets = Vec::new();
-        for out in outs.iter() {
-            match self.config.family {
-                ModelFamily::Rows => dets.extend(decode_rows(&out, self.config.input, threshold, classes)?),
-                ModelFamily::Yolox => {
-                    let sizes = out.mat_size();
-                    let row_len = sizes.iter().last().copied().unwrap_or(0).max(0) as usize;
-                    let data = out.data_typed::<f32>()?;
-                    dets.extend(decode_yolox(data, row_len, self.config.input, threshold, classes).map_err(|m| {
-                        FrontendError::OpenCv(format!("the network's output is not YOLOX's (--family yolox): {m}"))
-                    })?);
+        match &mut self.backend {
+            Backend::OpenCv { net, out_names } => {
+                let start = Instant::now();
+                net.set_input(&blob, "", 1.0, core::Scalar::default())?;
+                let mut outs: core::Vector<Mat> = core::Vector::new();
+                net.forward(&mut outs, out_names)?;
+                *self.last_forward_ms.get_or_insert(0.0) += start.elapsed().as_secs_f64() * 1e3;
+                for out in outs.iter() {
+                    let shape: Vec<i64> = out.mat_size().iter().map(|&d| d as i64).collect();
+                    dets.extend(decode(family, &shape, out.data_typed::<f32>()?, config)?);
                 }
+            }
+            Backend::Onnx(net) => {
+                let found = net
+                    .forward(blob.data_typed::<f32>()?, [nw, nh], |shape, values| decode(family, shape, values, config))
+                    .map_err(FrontendError::Onnx)??;
+                *self.last_forward_ms.get_or_insert(0.0) += net.take_forward_ms();
+                dets.extend(found);
             }
         }
         // input pixels → crop pixels
@@ -347,6 +397,7 @@ impl DnnDetector {
 
     /// Detect objects in an image.
     pub fn detect_image(&mut self, image: &Image) -> Result<Vec<Detection>, FrontendError> {
+        self.last_forward_ms = None;
         let mut mat = image_to_mat(image)?;
         if mat.channels() == 1 {
             // grey sequences (KITTI odometry image_0/1): the network wants three channels
@@ -428,6 +479,10 @@ impl DetectionSource for DnnDetector {
     fn detect(&mut self, frame: usize, image: Option<&Image>) -> Result<Vec<Detection>, DetectError> {
         let image = image.ok_or(DetectError::NeedsImage(frame))?;
         self.detect_image(image).map_err(|e| DetectError::failed(frame, e))
+    }
+
+    fn forward_ms(&self) -> Option<f64> {
+        self.last_forward_ms
     }
 }
 

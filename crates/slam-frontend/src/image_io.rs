@@ -35,6 +35,12 @@ pub enum FrontendError {
     /// OpenCV failed while running.
     #[error("OpenCV: {0}")]
     OpenCv(String),
+    /// ONNX Runtime: not found, not loadable, or failed on a forward pass.
+    #[error(transparent)]
+    Onnx(#[from] crate::onnx::OnnxError),
+    /// A network's output is not what its family says.
+    #[error("{0}")]
+    Network(String),
 }
 
 impl From<opencv::Error> for FrontendError {
