@@ -223,6 +223,38 @@ fn decode(
     }
 }
 
+/// The network's input, `1 × 3 × height × width` floats row-major (`[width, height]` = `size`), from an
+/// 8-bit grey or BGR image already resized to fit (`image`, placed at the top left; the rest is the
+/// letterbox's grey 114): Darknet's rows family wants RGB in 0–1, YOLOX BGR (OpenCV's order) in 0–255; a
+/// grey image gives three equal channels. (What `cv::dnn::blobFromImage` gives for the padded 3-channel
+/// image, without making that image.)
+fn input_blob(image: &Mat, [width, height]: [usize; 2], family: ModelFamily) -> Result<Vec<f32>, FrontendError> {
+    let (scale, order) = match family {
+        ModelFamily::Rows => (1.0 / 255.0, [2, 1, 0]),
+        ModelFamily::Yolox => (1.0, [0, 1, 2]),
+    };
+    let (cols, rows, channels) = (image.cols() as usize, image.rows() as usize, image.channels() as usize);
+    if cols > width || rows > height || !matches!(channels, 1 | 3) || image.depth() != core::CV_8U {
+        return Err(FrontendError::OpenCv(format!(
+            "a {cols}x{rows} image of {channels} channels (depth {}) does not fit a {width}x{height} input",
+            image.depth()
+        )));
+    }
+    let mut blob = vec![114.0 * scale; 3 * width * height];
+    let pixels = image.data_bytes()?;
+    for (plane, &source) in order.iter().enumerate() {
+        let source = if channels == 1 { 0 } else { source };
+        for y in 0..rows {
+            let row = &pixels[y * cols * channels..(y + 1) * cols * channels];
+            let out = &mut blob[(plane * height + y) * width..][..cols];
+            for (o, px) in out.iter_mut().zip(row.chunks_exact(channels)) {
+                *o = f32::from(px[source]) * scale;
+            }
+        }
+    }
+    Ok(blob)
+}
+
 /// What runs the network.
 enum Backend {
     /// OpenCV's dnn module (Darknet models), on the CPU.
@@ -315,53 +347,29 @@ impl DnnDetector {
         self.last_forward_ms
     }
 
-    /// Run the network on one crop, letterboxed or squashed into the input; boxes in crop pixels,
-    /// clipped to the crop.
+    /// Run the network on one crop (grey or BGR), letterboxed or squashed into the input; boxes in crop
+    /// pixels, clipped to the crop.
     fn run_crop(&mut self, crop: &Mat, letterbox: bool) -> Result<Vec<Detection>, FrontendError> {
         let [nw_in, nh_in] = self.config.input;
         let (w, h) = (crop.cols() as f64, crop.rows() as f64);
-        let (sx, sy, input) = if letterbox {
+        let (sx, sy, size) = if letterbox {
             let s = (nw_in as f64 / w).min(nh_in as f64 / h);
             let (nw, nh) = (((w * s).round() as i32).clamp(1, nw_in), ((h * s).round() as i32).clamp(1, nh_in));
-            let mut resized = Mat::default();
-            imgproc::resize(crop, &mut resized, core::Size::new(nw, nh), 0.0, 0.0, imgproc::INTER_LINEAR)?;
-            let mut padded = Mat::default();
-            core::copy_make_border(
-                &resized,
-                &mut padded,
-                0,
-                nh_in - nh,
-                0,
-                nw_in - nw,
-                core::BORDER_CONSTANT,
-                core::Scalar::all(114.0),
-            )?;
-            (s, s, padded)
+            (s, s, core::Size::new(nw, nh))
         } else {
-            let mut resized = Mat::default();
-            imgproc::resize(crop, &mut resized, core::Size::new(nw_in, nh_in), 0.0, 0.0, imgproc::INTER_LINEAR)?;
-            (nw_in as f64 / w, nh_in as f64 / h, resized)
+            (nw_in as f64 / w, nh_in as f64 / h, core::Size::new(nw_in, nh_in))
         };
-        // Darknet wants RGB in 0..1, YOLOX BGR (OpenCV's order) in 0..255
-        let (scale, swap_rb) = match self.config.family {
-            ModelFamily::Rows => (1.0 / 255.0, true),
-            ModelFamily::Yolox => (1.0, false),
-        };
-        let blob = dnn::blob_from_image(
-            &input,
-            scale,
-            core::Size::new(nw_in, nh_in),
-            core::Scalar::default(),
-            swap_rb,
-            false,
-            core::CV_32F,
-        )?;
+        let mut resized = Mat::default();
+        imgproc::resize(crop, &mut resized, size, 0.0, 0.0, imgproc::INTER_LINEAR)?;
+        let blob = input_blob(&resized, [nw_in as usize, nh_in as usize], self.config.family)?;
         let config = &self.config;
         let (family, [nw, nh]) = (config.family, [nw_in as usize, nh_in as usize]);
         let mut dets = Vec::new();
         match &mut self.backend {
             Backend::OpenCv { net, out_names } => {
                 let start = Instant::now();
+                let flat = Mat::from_slice(&blob)?;
+                let blob = flat.reshape_nd(1, &[1, 3, nh_in, nw_in])?;
                 net.set_input(&blob, "", 1.0, core::Scalar::default())?;
                 let mut outs: core::Vector<Mat> = core::Vector::new();
                 net.forward(&mut outs, out_names)?;
@@ -373,7 +381,7 @@ impl DnnDetector {
             }
             Backend::Onnx(net) => {
                 let found = net
-                    .forward(blob.data_typed::<f32>()?, [nw, nh], |shape, values| decode(family, shape, values, config))
+                    .forward(&blob, [nw, nh], |shape, values| decode(family, shape, values, config))
                     .map_err(FrontendError::Onnx)??;
                 *self.last_forward_ms.get_or_insert(0.0) += net.take_forward_ms();
                 dets.extend(found);
@@ -398,13 +406,9 @@ impl DnnDetector {
     /// Detect objects in an image.
     pub fn detect_image(&mut self, image: &Image) -> Result<Vec<Detection>, FrontendError> {
         self.last_forward_ms = None;
-        let mut mat = image_to_mat(image)?;
-        if mat.channels() == 1 {
-            // grey sequences (KITTI odometry image_0/1): the network wants three channels
-            let mut bgr = Mat::default();
-            opencv::imgproc::cvt_color_def(&mat, &mut bgr, opencv::imgproc::COLOR_GRAY2BGR)?;
-            mat = bgr;
-        }
+        // a grey frame (KITTI's cameras 0 and 1) stays grey until the input blob, which repeats it in
+        // all three channels: resizing one channel instead of three equal ones gives the same values
+        let mat = image_to_mat(image)?;
         let (w, h) = (mat.cols(), mat.rows());
         let mut all = Vec::new();
         match self.config.mode {
@@ -526,6 +530,25 @@ mod tests {
         assert_eq!(decode_yolox(&out, 8, [64, 32], 0.3, &[]).expect("decodes").len(), 3);
         let only = decode_yolox(&out, 8, [64, 32], 0.3, &[2]).expect("decodes");
         assert!(only.len() == 1 && only[0].class == ClassId(2));
+    }
+
+    #[test]
+    fn the_input_blob_has_the_family_s_channel_order_and_scale_and_grey_padding() {
+        // a 2 x 1 BGR image into a 3 x 2 input: pixel (0, 0) = B 10, G 20, R 30; (1, 0) = 40, 50, 60
+        let bgr = Mat::from_slice(&[10u8, 20, 30, 40, 50, 60]).expect("mat");
+        let bgr = bgr.reshape(3, 1).expect("3 channels").try_clone().expect("owned");
+        let yolox = input_blob(&bgr, [3, 2], ModelFamily::Yolox).expect("fits");
+        let p = 114.0;
+        assert_eq!(yolox, [10.0, 40.0, p, p, p, p, 20.0, 50.0, p, p, p, p, 30.0, 60.0, p, p, p, p]);
+        let rows = input_blob(&bgr, [3, 2], ModelFamily::Rows).expect("fits");
+        assert_eq!(rows.len(), 18);
+        assert!((rows[0] - 30.0 / 255.0).abs() < 1e-7 && (rows[6] - 20.0 / 255.0).abs() < 1e-7, "RGB, 0-1");
+        assert!((rows[2] - 114.0 / 255.0).abs() < 1e-7);
+        // grey: the same value in all three planes
+        let grey = Mat::from_slice(&[7u8, 9]).expect("mat").try_clone().expect("owned");
+        let g = input_blob(&grey, [2, 1], ModelFamily::Yolox).expect("fits");
+        assert_eq!(g, [7.0, 9.0, 7.0, 9.0, 7.0, 9.0]);
+        assert!(input_blob(&bgr, [1, 1], ModelFamily::Yolox).is_err(), "larger than the input");
     }
 
     #[test]
