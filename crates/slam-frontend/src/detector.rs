@@ -223,10 +223,10 @@ fn decode(
     }
 }
 
-/// The network's input, `1 × 3 × height × width` floats row-major (`[width, height]` = `size`), from an
-/// 8-bit grey or BGR image already resized to fit (`image`, placed at the top left; the rest is the
-/// letterbox's grey 114): Darknet's rows family wants RGB in 0–1, YOLOX BGR (OpenCV's order) in 0–255; a
-/// grey image gives three equal channels. (What `cv::dnn::blobFromImage` gives for the padded 3-channel
+/// The network's input, `1 × 3 × height × width` floats row-major, from an 8-bit grey or BGR image
+/// already resized to fit (`image`, placed at the top left; the rest is the letterbox's grey 114):
+/// Darknet's rows family wants RGB in 0–1, YOLOX BGR (OpenCV's order) in 0–255; a grey image gives three
+/// equal channels. (What `cv::dnn::blobFromImage` gives for the padded 3-channel
 /// image, without making that image.)
 fn input_blob(image: &Mat, [width, height]: [usize; 2], family: ModelFamily) -> Result<Vec<f32>, FrontendError> {
     let (scale, order) = match family {
@@ -235,7 +235,7 @@ fn input_blob(image: &Mat, [width, height]: [usize; 2], family: ModelFamily) -> 
     };
     let (cols, rows, channels) = (image.cols() as usize, image.rows() as usize, image.channels() as usize);
     if cols > width || rows > height || !matches!(channels, 1 | 3) || image.depth() != core::CV_8U {
-        return Err(FrontendError::OpenCv(format!(
+        return Err(FrontendError::Network(format!(
             "a {cols}x{rows} image of {channels} channels (depth {}) does not fit a {width}x{height} input",
             image.depth()
         )));
