@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Layering checks (docs/architecture.md), on normal (not dev-) dependencies, from Cargo.lock alone:
 #  1. slam-quadric's normal dependencies are nalgebra only, plus serde behind its feature;
-#  2. nothing below the front end links OpenCV;
+#  2. nothing below the front end links OpenCV or ONNX Runtime (the `ort` crate);
 #  3. the seam crates (slam-map, slam-core, slam-optim) depend on no implementation crate;
 #  4. implementation crates depend on seams only (slam-quadric, slam-map, slam-core, slam-optim), never on
 #     each other.
@@ -28,14 +28,25 @@ if [ "$with_serde" != "nalgebra serde " ]; then
 fi
 echo "check-deps: slam-quadric depends on [ ${plain}] (+ serde with the serde feature): ok"
 
-# Nothing below the front end links OpenCV.
+# Nothing below the front end links OpenCV or ONNX Runtime: the detector's runtimes stay in slam-frontend.
 for crate in slam-quadric slam-map slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-eval; do
-  if cargo tree -q -p "$crate" --all-features -e normal --prefix none | grep -q '^opencv '; then
-    echo "check-deps: $crate must not depend on opencv" >&2
+  tree=$(cargo tree -q -p "$crate" --all-features -e normal --prefix none)
+  for lib in opencv ort; do
+    if echo "$tree" | grep -q "^$lib "; then
+      echo "check-deps: $crate must not depend on $lib" >&2
+      exit 1
+    fi
+  done
+done
+# and of the crates above it, only slam-frontend uses ort directly (default features: rerun's crates are
+# downloaded only where that feature was built)
+for crate in slam-viz slam-runner slam-rerun slam-app; do
+  if direct -p "$crate" | tr ' ' '\n' | grep -qx ort; then
+    echo "check-deps: $crate must not depend on ort directly (ONNX Runtime belongs to slam-frontend)" >&2
     exit 1
   fi
 done
-echo "check-deps: no OpenCV below slam-frontend (nor in slam-eval): ok"
+echo "check-deps: no OpenCV or ONNX Runtime below slam-frontend (nor in slam-eval), ort used by slam-frontend only: ok"
 
 # Workspace crates a crate depends on directly (normal dependencies, all features).
 workspace_deps() { direct -p "$1" --all-features | tr ' ' '\n' | grep '^slam-' | tr '\n' ' ' || true; }

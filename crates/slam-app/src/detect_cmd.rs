@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use clap::Args;
 use slam_core::DetectionSource;
 use slam_frontend::{
-    parse_input_size, DnnDetector, FamilyName, InputSize, ModeName, ModelError, ModelSpec, ShippedModel,
+    parse_input_size, Device, DnnDetector, FamilyName, InputSize, ModeName, ModelError, ModelSpec, ShippedModel,
 };
 
 #[derive(Args, Debug, Clone, Default)]
@@ -40,12 +40,33 @@ pub struct ModelArgs {
     /// Smallest score kept (default: 0.4 for YOLOX, 0.2 for rows)
     #[arg(long)]
     score: Option<f32>,
+    /// Where ONNX Runtime runs an ONNX model: cpu (default) or cuda (the onnxruntime-gpu runtime, which
+    /// tools/setup.sh installs where nvidia-smi lists a GPU, and an NVIDIA GPU)
+    #[arg(long, value_enum)]
+    device: Option<Device>,
+    /// ONNX Runtime's intra-op threads on the CPU (default 1: on two cores tracking needs the other one;
+    /// docs/detections.md, "Thread budget")
+    #[arg(long)]
+    detector_threads: Option<usize>,
 }
 
 impl ModelArgs {
     pub(crate) fn spec(&self) -> ModelSpec {
-        let ModelArgs { model, cfg, weights, onnx, family, mode, tiles, input_size, score } = self.clone();
-        ModelSpec { model, cfg, weights, onnx, family, mode, tiles, input_size, score }
+        let ModelArgs { model, cfg, weights, onnx, family, mode, tiles, input_size, score, device, detector_threads } =
+            self.clone();
+        ModelSpec {
+            model,
+            cfg,
+            weights,
+            onnx,
+            family,
+            mode,
+            tiles,
+            input_size,
+            score,
+            device,
+            threads: detector_threads,
+        }
     }
 
     /// Range checks of the model options (before any model is loaded).
@@ -73,13 +94,15 @@ impl ModelArgs {
             (self.tiles.is_some(), "--tiles"),
             (self.input_size.is_some(), "--input-size"),
             (self.score.is_some(), "--score"),
+            (self.device.is_some(), "--device"),
+            (self.detector_threads.is_some(), "--detector-threads"),
         ]
         .into_iter()
         .find_map(|(given, flag)| given.then_some(flag))
     }
 
     pub(crate) fn load(&self) -> anyhow::Result<DnnDetector> {
-        self.spec().load(&crate::fixture("")).map_err(model_error)
+        self.spec().load(&crate::fixture(""), &crate::ort_setup()).map_err(model_error)
     }
 }
 
@@ -102,6 +125,10 @@ fn model_error(e: ModelError) -> anyhow::Error {
         ModelError::ModelWithFiles => {
             anyhow::anyhow!("--model names a shipped model: give it without --onnx/--cfg/--weights")
         }
+        ModelError::RuntimeWithDarknet(key) => anyhow::anyhow!(
+            "--{} is an option of ONNX models (ONNX Runtime); a Darknet model runs on OpenCV's CPU backend",
+            key.replace('_', "-")
+        ),
         ModelError::Load(e) => e.into(),
     }
 }
@@ -172,7 +199,7 @@ pub fn recall(a: &RecallArgs) -> anyhow::Result<()> {
         .map(|spec| {
             let name = spec.describe().map_err(model_error)?;
             let load: Loader = Box::new(move || {
-                let d = spec.load(&crate::fixture("")).map_err(slam_runner::RunnerError::other)?;
+                let d = spec.load(&crate::fixture(""), &crate::ort_setup()).map_err(slam_runner::RunnerError::other)?;
                 Ok(Box::new(d) as Box<dyn DetectionSource>)
             });
             Ok((name, load))

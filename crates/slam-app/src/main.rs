@@ -98,11 +98,22 @@ pub(crate) const HIGHWAY: &str = "kitti_odom_01/sequences/01";
 /// A path inside the repository's `fixtures/`: relative to the working directory if it exists there,
 /// else relative to this source tree.
 pub(crate) fn fixture(rel: &str) -> PathBuf {
-    let local = PathBuf::from("fixtures").join(rel);
+    in_repository("fixtures").join(rel)
+}
+
+/// The folder where tools/setup.sh records ONNX Runtime's library (`.ort/` at the repository's root).
+pub(crate) fn ort_setup() -> PathBuf {
+    in_repository(".ort")
+}
+
+/// A folder at the repository's root: relative to the working directory if it exists there, else relative
+/// to this source tree.
+fn in_repository(folder: &str) -> PathBuf {
+    let local = PathBuf::from(folder);
     if local.exists() {
         return local;
     }
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures").join(rel)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..").join(folder)
 }
 
 fn main() -> std::process::ExitCode {

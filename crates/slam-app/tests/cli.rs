@@ -1274,3 +1274,58 @@ fn a_saved_map_refers_only_to_points_it_holds() {
     assert!(held.iter().all(|p| points.contains_key(p)), "every object point is in the map");
     std::fs::remove_dir_all(&out).ok();
 }
+
+/// `detect` on the four shipped frames of drive 0052 with `env` added: exit status and stderr.
+fn detect_with(env: &[(&str, &std::ffi::OsStr)], args: &[&str]) -> (bool, String) {
+    let out = std::env::temp_dir().join(format!("slam-app-ort-{}-{}.json", std::process::id(), args.len()));
+    let mut c = app();
+    c.args(["detect", "fixtures/kitti_raw_0052/2011_09_26/2011_09_26_drive_0052_sync", "--out"]).arg(&out).args(args);
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    let o = c.output().expect("runs");
+    std::fs::remove_file(&out).ok();
+    (o.status.success(), String::from_utf8_lossy(&o.stderr).to_string())
+}
+
+#[test]
+fn a_missing_or_broken_onnx_runtime_is_a_clear_error() {
+    // a wrong path in ORT_DYLIB_PATH: named, with how to install the runtime; no panic
+    let (ok, err) = detect_with(&[("ORT_DYLIB_PATH", "/no/such/libonnxruntime.so".as_ref())], &[]);
+    assert!(!ok, "{err}");
+    assert!(err.contains("/no/such/libonnxruntime.so (from ORT_DYLIB_PATH) does not exist"), "{err}");
+    assert!(err.contains("bash tools/setup.sh") && !err.contains("panicked"), "{err}");
+    // a file that is no library
+    let junk = std::env::temp_dir().join(format!("libonnxruntime-junk-{}.so", std::process::id()));
+    std::fs::write(&junk, b"not a shared library").expect("write");
+    let (ok, err) = detect_with(&[("ORT_DYLIB_PATH", junk.as_os_str())], &[]);
+    assert!(!ok && err.contains("does not load") && err.contains(&junk.display().to_string()), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    std::fs::remove_file(&junk).ok();
+    // the Darknet model runs on OpenCV: no runtime needed, and no runtime option taken
+    let none = [("ORT_DYLIB_PATH", "/no/such/libonnxruntime.so".as_ref())];
+    let (ok, err) = detect_with(&none, &["--model", "yolo-fastest"]);
+    assert!(ok, "{err}");
+    let (ok, err) = detect_with(&[], &["--model", "yolo-fastest", "--device", "cuda"]);
+    assert!(!ok && err.contains("--device is an option of ONNX models"), "{err}");
+    let (ok, err) = detect_with(&[], &["--detector-threads", "0"]);
+    assert!(!ok && err.contains("--detector-threads 0: must be an integer in [1, 64]"), "{err}");
+}
+
+/// Whether this machine has an NVIDIA GPU (the driver lists one).
+fn gpu_found() -> bool {
+    std::fs::read_dir("/proc/driver/nvidia/gpus").is_ok_and(|mut d| d.next().is_some())
+}
+
+#[test]
+fn device_cuda_without_a_gpu_runtime_or_gpu_is_a_clear_error() {
+    if gpu_found() {
+        // the CUDA run itself is slam-frontend's test `cuda_finds_the_van` (tools/test.sh runs it there)
+        eprintln!("skipped: this machine has a GPU, so --device cuda may rightly succeed");
+        return;
+    }
+    let (ok, err) = detect_with(&[], &["--device", "cuda"]);
+    assert!(!ok && !err.contains("panicked"), "{err}");
+    // without the GPU runtime: how to get it; with one (ORT_DYLIB_PATH, or SLAM_ORT_GPU=1): no GPU
+    assert!(err.contains("onnxruntime-gpu") || err.contains("CUDA execution provider"), "{err}");
+}

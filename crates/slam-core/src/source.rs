@@ -64,4 +64,9 @@ pub trait DetectionSource: Send {
     fn needs_image(&self) -> bool;
     /// Detections of one frame.
     fn detect(&mut self, frame: usize, image: Option<&Image>) -> Result<Vec<Detection>, DetectError>;
+    /// Milliseconds the network's forward passes took in the last [`DetectionSource::detect`], for a source
+    /// that runs one (the rest of that call is its pre- and post-processing); `None` for the others.
+    fn forward_ms(&self) -> Option<f64> {
+        None
+    }
 }

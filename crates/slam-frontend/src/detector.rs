@@ -1,6 +1,8 @@
-//! An object detector on OpenCV's dnn module (Darknet cfg + weights, or ONNX), for two output layouts
-//! ([`ModelFamily`]): YOLOX's grid cells (the shipped YOLOX-nano, the default) and the normalised rows
-//! of Darknet's YOLO layers (the shipped Yolo-Fastest 1.1).
+//! An object detector for two output layouts ([`ModelFamily`]): YOLOX's grid cells (the shipped
+//! YOLOX-nano, the default) and the normalised rows of Darknet's YOLO layers (the shipped Yolo-Fastest
+//! 1.1). ONNX models run on ONNX Runtime ([`crate::onnx`]); Darknet models (cfg + weights) on OpenCV's dnn
+//! module, which is the only one of the two that reads them. Both share the frame feeding below and the
+//! decoding, and both time their forward passes ([`DnnDetector::forward_ms`]).
 //!
 //! KITTI frames are 3.3 : 1. A network that takes any input whose sides are multiples of 32 (YOLOX) is
 //! fed the whole frame letterboxed into a wide input (736 × 224 keeps the aspect ratio). A square-input
@@ -8,12 +10,15 @@
 //! offers tiling for it (overlapping near-square crops across the width, each letterboxed, plus the
 //! whole frame), with non-maximum suppression over all of them.
 
-use std::path::Path;
+use std::{path::Path, time::Instant};
 
 use opencv::{core, dnn, imgproc, prelude::*};
 use slam_core::{geometry::BBox, ClassId, DetectError, Detection, DetectionSource, Image};
 
-use crate::image_io::{image_to_mat, FrontendError};
+use crate::{
+    image_io::{image_to_mat, FrontendError},
+    onnx::{OnnxError, OnnxNet, RuntimeOptions},
+};
 
 /// How frames are fed to the network.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -169,21 +174,21 @@ pub fn decode_yolox(
     Ok(dets)
 }
 
-/// Decode Darknet YOLO rows (see [`ModelFamily::Rows`]) for an input of `width × height` pixels: one
-/// detection per row whose best class score reaches `score_threshold` (and whose class is in `classes`,
-/// when not empty), box in input pixels.
+/// Decode Darknet YOLO rows (see [`ModelFamily::Rows`]) for an input of `width × height` pixels: `out`
+/// holds rows of `row_len` values; one detection per row whose best class score reaches `score_threshold`
+/// (and whose class is in `classes`, when not empty), box in input pixels.
 fn decode_rows(
-    out: &Mat,
+    out: &[f32],
+    row_len: usize,
     [width, height]: [i32; 2],
     score_threshold: f32,
     classes: &[u16],
-) -> Result<Vec<Detection>, FrontendError> {
+) -> Vec<Detection> {
     let mut dets = Vec::new();
-    for r in 0..out.rows() {
-        let row = out.at_row::<f32>(r)?;
-        if row.len() < 6 {
-            continue;
-        }
+    if row_len < 6 {
+        return dets;
+    }
+    for row in out.chunks_exact(row_len) {
         let (best, score) =
             row[5..].iter().enumerate().fold((0usize, 0f32), |b, (i, &s)| if s > b.1 { (i, s) } else { b });
         if score < score_threshold || !score.is_finite() {
@@ -199,7 +204,7 @@ fn decode_rows(
             dets.push(Detection::new(ClassId(best as u16), score as f64, b));
         }
     }
-    Ok(dets)
+    dets
 }
 
 /// The outputs of a network (their shapes, one per output) against what the decode of `config`'s family
@@ -240,10 +245,67 @@ pub fn check_output_shapes(shapes: &[Vec<i32>], config: &DetectorConfig) -> Resu
     Ok(())
 }
 
-/// A YOLO-style detector running in OpenCV's dnn module on the CPU.
+/// Decode one output tensor of `family` (its values row-major, rows of its last dimension's length).
+fn decode(
+    family: ModelFamily,
+    shape: &[i64],
+    values: &[f32],
+    config: &DetectorConfig,
+) -> Result<Vec<Detection>, FrontendError> {
+    let row_len = shape.last().copied().unwrap_or(0).max(0) as usize;
+    let (threshold, classes) = (config.score_threshold, &config.classes);
+    match family {
+        ModelFamily::Rows => Ok(decode_rows(values, row_len, config.input, threshold, classes)),
+        ModelFamily::Yolox => decode_yolox(values, row_len, config.input, threshold, classes)
+            .map_err(|m| FrontendError::Network(format!("the network's output is not YOLOX's (--family yolox): {m}"))),
+    }
+}
+
+/// The network's input, `1 × 3 × height × width` floats row-major, from an 8-bit grey or BGR image
+/// already resized to fit (`image`, placed at the top left; the rest is the letterbox's grey 114):
+/// Darknet's rows family wants RGB in 0–1, YOLOX BGR (OpenCV's order) in 0–255; a grey image gives three
+/// equal channels. (What `cv::dnn::blobFromImage` gives for the padded 3-channel
+/// image, without making that image.)
+fn input_blob(image: &Mat, [width, height]: [usize; 2], family: ModelFamily) -> Result<Vec<f32>, FrontendError> {
+    let (scale, order) = match family {
+        ModelFamily::Rows => (1.0 / 255.0, [2, 1, 0]),
+        ModelFamily::Yolox => (1.0, [0, 1, 2]),
+    };
+    let (cols, rows, channels) = (image.cols() as usize, image.rows() as usize, image.channels() as usize);
+    if cols > width || rows > height || !matches!(channels, 1 | 3) || image.depth() != core::CV_8U {
+        return Err(FrontendError::Network(format!(
+            "a {cols}x{rows} image of {channels} channels (depth {}) does not fit a {width}x{height} input",
+            image.depth()
+        )));
+    }
+    let mut blob = vec![114.0 * scale; 3 * width * height];
+    let pixels = image.data_bytes()?;
+    for (plane, &source) in order.iter().enumerate() {
+        let source = if channels == 1 { 0 } else { source };
+        for y in 0..rows {
+            let row = &pixels[y * cols * channels..(y + 1) * cols * channels];
+            let out = &mut blob[(plane * height + y) * width..][..cols];
+            for (o, px) in out.iter_mut().zip(row.chunks_exact(channels)) {
+                *o = f32::from(px[source]) * scale;
+            }
+        }
+    }
+    Ok(blob)
+}
+
+/// What runs the network.
+enum Backend {
+    /// OpenCV's dnn module (Darknet models), on the CPU.
+    OpenCv { net: dnn::Net, out_names: core::Vector<String> },
+    /// ONNX Runtime (ONNX models).
+    Onnx(OnnxNet),
+}
+
+/// A YOLO-style detector: an ONNX model on ONNX Runtime, or a Darknet model on OpenCV's dnn module.
 pub struct DnnDetector {
-    net: dnn::Net,
-    out_names: core::Vector<String>,
+    backend: Backend,
+    /// Milliseconds of forward passes in the last [`DnnDetector::detect_image`] (its tiles' passes summed).
+    last_forward_ms: Option<f64>,
     /// Settings.
     pub config: DetectorConfig,
 }
@@ -296,16 +358,30 @@ impl DnnDetector {
         Self::from_net(net, config, weights)
     }
 
-    /// Load an ONNX model.
-    pub fn from_onnx(model: impl AsRef<Path>, config: DetectorConfig) -> Result<Self, FrontendError> {
+    /// Load an ONNX model on ONNX Runtime (`runtime`: where its library is, the device, the threads).
+    pub fn from_onnx(
+        model: impl AsRef<Path>,
+        config: DetectorConfig,
+        runtime: &RuntimeOptions,
+    ) -> Result<Self, FrontendError> {
         let model = model.as_ref();
         model_file(model)?;
-        let s = model
-            .to_str()
-            .ok_or(FrontendError::Model { path: model.to_path_buf(), message: "path is not UTF-8".into() })?;
-        let net = dnn::read_net_from_onnx(s)
-            .map_err(|e| FrontendError::Model { path: model.to_path_buf(), message: e.to_string() })?;
-        Self::from_net(net, config, model)
+        let net = OnnxNet::load(model, runtime).map_err(|e| match e {
+            OnnxError::Model { path, message } => FrontendError::Model { path, message },
+            other => FrontendError::Onnx(other),
+        })?;
+        tracing::debug!(model = %model.display(), device = runtime.device.name(), threads = runtime.threads, "detector on ONNX Runtime");
+        let mut net = net;
+        // one pass on a blank input: the output must have the shape the decode reads
+        let [w, h] = config.input;
+        let err = |message: String| FrontendError::Model { path: model.to_path_buf(), message };
+        let blank = vec![0f32; 3 * w as usize * h as usize];
+        let shape = net
+            .forward(&blank, [w as usize, h as usize], |shape, _| shape.iter().map(|&d| d as i32).collect::<Vec<i32>>())
+            .map_err(|e| err(format!("does not run on an input of {w}x{h} (see --input-size): {e}")))?;
+        net.take_forward_ms();
+        check_output_shapes(&[shape], &config).map_err(err)?;
+        Ok(Self { backend: Backend::Onnx(net), last_forward_ms: None, config })
     }
 
     fn from_net(mut net: dnn::Net, config: DetectorConfig, path: &Path) -> Result<Self, FrontendError> {
@@ -326,76 +402,67 @@ impl DnnDetector {
             slam_core::memory::check_fits(&format!("the network at an input of {w}x{h}"), need)
                 .map_err(|m| err(format!("{m}: choose a smaller --input-size")))?;
         }
-        let mut detector = Self { net, out_names, config };
         // one pass on a blank input: the outputs must have the shape the decode reads
         let blank = Mat::new_nd_with_default(&[1, 3, h, w], core::CV_32F, core::Scalar::all(0.0))?;
-        detector.net.set_input(&blank, "", 1.0, core::Scalar::default())?;
+        net.set_input(&blank, "", 1.0, core::Scalar::default())?;
         let mut outs: core::Vector<Mat> = core::Vector::new();
-        detector.net.forward(&mut outs, &detector.out_names).map_err(|e| {
+        net.forward(&mut outs, &out_names).map_err(|e| {
             err(format!("does not run on an input of {w}x{h} (its input size may be fixed; see --input-size): {e}"))
         })?;
         let shapes: Vec<Vec<i32>> = outs.iter().map(|o| o.mat_size().iter().copied().collect()).collect();
-        check_output_shapes(&shapes, &detector.config).map_err(err)?;
-        Ok(detector)
+        check_output_shapes(&shapes, &config).map_err(err)?;
+        Ok(Self { backend: Backend::OpenCv { net, out_names }, last_forward_ms: None, config })
     }
 
-    /// Run the network on one crop, letterboxed or squashed into the input; boxes in crop pixels,
-    /// clipped to the crop.
+    /// Whether the network runs on ONNX Runtime (else on OpenCV's dnn module).
+    pub fn on_onnx_runtime(&self) -> bool {
+        matches!(self.backend, Backend::Onnx(_))
+    }
+
+    /// Milliseconds the network's forward passes took in the last [`DnnDetector::detect_image`] (all of its
+    /// passes: one per tile in mode tiles); the rest of that call is pre- and post-processing.
+    pub fn forward_ms(&self) -> Option<f64> {
+        self.last_forward_ms
+    }
+
+    /// Run the network on one crop (grey or BGR), letterboxed or squashed into the input; boxes in crop
+    /// pixels, clipped to the crop.
     fn run_crop(&mut self, crop: &Mat, letterbox: bool) -> Result<Vec<Detection>, FrontendError> {
         let [nw_in, nh_in] = self.config.input;
         let (w, h) = (crop.cols() as f64, crop.rows() as f64);
-        let (sx, sy, input) = if letterbox {
+        let (sx, sy, size) = if letterbox {
             let s = (nw_in as f64 / w).min(nh_in as f64 / h);
             let (nw, nh) = (((w * s).round() as i32).clamp(1, nw_in), ((h * s).round() as i32).clamp(1, nh_in));
-            let mut resized = Mat::default();
-            imgproc::resize(crop, &mut resized, core::Size::new(nw, nh), 0.0, 0.0, imgproc::INTER_LINEAR)?;
-            let mut padded = Mat::default();
-            core::copy_make_border(
-                &resized,
-                &mut padded,
-                0,
-                nh_in - nh,
-                0,
-                nw_in - nw,
-                core::BORDER_CONSTANT,
-                core::Scalar::all(114.0),
-            )?;
-            (s, s, padded)
+            (s, s, core::Size::new(nw, nh))
         } else {
-            let mut resized = Mat::default();
-            imgproc::resize(crop, &mut resized, core::Size::new(nw_in, nh_in), 0.0, 0.0, imgproc::INTER_LINEAR)?;
-            (nw_in as f64 / w, nh_in as f64 / h, resized)
+            (nw_in as f64 / w, nh_in as f64 / h, core::Size::new(nw_in, nh_in))
         };
-        // Darknet wants RGB in 0..1, YOLOX BGR (OpenCV's order) in 0..255
-        let (scale, swap_rb) = match self.config.family {
-            ModelFamily::Rows => (1.0 / 255.0, true),
-            ModelFamily::Yolox => (1.0, false),
-        };
-        let blob = dnn::blob_from_image(
-            &input,
-            scale,
-            core::Size::new(nw_in, nh_in),
-            core::Scalar::default(),
-            swap_rb,
-            false,
-            core::CV_32F,
-        )?;
-        self.net.set_input(&blob, "", 1.0, core::Scalar::default())?;
-        let mut outs: core::Vector<Mat> = core::Vector::new();
-        self.net.forward(&mut outs, &self.out_names)?;
-        let (threshold, classes) = (self.config.score_threshold, &self.config.classes);
+        let mut resized = Mat::default();
+        imgproc::resize(crop, &mut resized, size, 0.0, 0.0, imgproc::INTER_LINEAR)?;
+        let blob = input_blob(&resized, [nw_in as usize, nh_in as usize], self.config.family)?;
+        let config = &self.config;
+        let (family, [nw, nh]) = (config.family, [nw_in as usize, nh_in as usize]);
         let mut dets = Vec::new();
-        for out in outs.iter() {
-            match self.config.family {
-                ModelFamily::Rows => dets.extend(decode_rows(&out, self.config.input, threshold, classes)?),
-                ModelFamily::Yolox => {
-                    let sizes = out.mat_size();
-                    let row_len = sizes.iter().last().copied().unwrap_or(0).max(0) as usize;
-                    let data = out.data_typed::<f32>()?;
-                    dets.extend(decode_yolox(data, row_len, self.config.input, threshold, classes).map_err(|m| {
-                        FrontendError::OpenCv(format!("the network's output is not YOLOX's (--family yolox): {m}"))
-                    })?);
+        match &mut self.backend {
+            Backend::OpenCv { net, out_names } => {
+                let start = Instant::now();
+                let flat = Mat::from_slice(&blob)?;
+                let blob = flat.reshape_nd(1, &[1, 3, nh_in, nw_in])?;
+                net.set_input(&blob, "", 1.0, core::Scalar::default())?;
+                let mut outs: core::Vector<Mat> = core::Vector::new();
+                net.forward(&mut outs, out_names)?;
+                *self.last_forward_ms.get_or_insert(0.0) += start.elapsed().as_secs_f64() * 1e3;
+                for out in outs.iter() {
+                    let shape: Vec<i64> = out.mat_size().iter().map(|&d| d as i64).collect();
+                    dets.extend(decode(family, &shape, out.data_typed::<f32>()?, config)?);
                 }
+            }
+            Backend::Onnx(net) => {
+                let found = net
+                    .forward(&blob, [nw, nh], |shape, values| decode(family, shape, values, config))
+                    .map_err(FrontendError::Onnx)??;
+                *self.last_forward_ms.get_or_insert(0.0) += net.take_forward_ms();
+                dets.extend(found);
             }
         }
         // input pixels → crop pixels
@@ -416,13 +483,10 @@ impl DnnDetector {
 
     /// Detect objects in an image.
     pub fn detect_image(&mut self, image: &Image) -> Result<Vec<Detection>, FrontendError> {
-        let mut mat = image_to_mat(image)?;
-        if mat.channels() == 1 {
-            // grey sequences (KITTI odometry image_0/1): the network wants three channels
-            let mut bgr = Mat::default();
-            opencv::imgproc::cvt_color_def(&mat, &mut bgr, opencv::imgproc::COLOR_GRAY2BGR)?;
-            mat = bgr;
-        }
+        self.last_forward_ms = None;
+        // a grey frame (KITTI's cameras 0 and 1) stays grey until the input blob, which repeats it in
+        // all three channels: resizing one channel instead of three equal ones gives the same values
+        let mat = image_to_mat(image)?;
         let (w, h) = (mat.cols(), mat.rows());
         let mut all = Vec::new();
         match self.config.mode {
@@ -498,6 +562,10 @@ impl DetectionSource for DnnDetector {
         let image = image.ok_or(DetectError::NeedsImage(frame))?;
         self.detect_image(image).map_err(|e| DetectError::failed(frame, e))
     }
+
+    fn forward_ms(&self) -> Option<f64> {
+        self.last_forward_ms
+    }
 }
 
 #[cfg(test)]
@@ -540,6 +608,25 @@ mod tests {
         assert_eq!(decode_yolox(&out, 8, [64, 32], 0.3, &[]).expect("decodes").len(), 3);
         let only = decode_yolox(&out, 8, [64, 32], 0.3, &[2]).expect("decodes");
         assert!(only.len() == 1 && only[0].class == ClassId(2));
+    }
+
+    #[test]
+    fn the_input_blob_has_the_family_s_channel_order_and_scale_and_grey_padding() {
+        // a 2 x 1 BGR image into a 3 x 2 input: pixel (0, 0) = B 10, G 20, R 30; (1, 0) = 40, 50, 60
+        let bgr = Mat::from_slice(&[10u8, 20, 30, 40, 50, 60]).expect("mat");
+        let bgr = bgr.reshape(3, 1).expect("3 channels").try_clone().expect("owned");
+        let yolox = input_blob(&bgr, [3, 2], ModelFamily::Yolox).expect("fits");
+        let p = 114.0;
+        assert_eq!(yolox, [10.0, 40.0, p, p, p, p, 20.0, 50.0, p, p, p, p, 30.0, 60.0, p, p, p, p]);
+        let rows = input_blob(&bgr, [3, 2], ModelFamily::Rows).expect("fits");
+        assert_eq!(rows.len(), 18);
+        assert!((rows[0] - 30.0 / 255.0).abs() < 1e-7 && (rows[6] - 20.0 / 255.0).abs() < 1e-7, "RGB, 0-1");
+        assert!((rows[2] - 114.0 / 255.0).abs() < 1e-7);
+        // grey: the same value in all three planes
+        let grey = Mat::from_slice(&[7u8, 9]).expect("mat").try_clone().expect("owned");
+        let g = input_blob(&grey, [2, 1], ModelFamily::Yolox).expect("fits");
+        assert_eq!(g, [7.0, 9.0, 7.0, 9.0, 7.0, 9.0]);
+        assert!(input_blob(&bgr, [1, 1], ModelFamily::Yolox).is_err(), "larger than the input");
     }
 
     #[test]

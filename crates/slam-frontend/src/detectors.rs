@@ -99,6 +99,9 @@ impl DetectionSource for ClassFilter {
         d.retain(mapped);
         Ok(d)
     }
+    fn forward_ms(&self) -> Option<f64> {
+        self.0.forward_ms()
+    }
 }
 
 /// A detection source with its output bounded (see the module).
@@ -151,6 +154,9 @@ impl DetectionSource for DetectionGuard {
         self.counts.over_limit.fetch_add(dropped, Ordering::Relaxed);
         self.counts.frames_limited.fetch_add((dropped > 0) as usize, Ordering::Relaxed);
         Ok(dets)
+    }
+    fn forward_ms(&self) -> Option<f64> {
+        self.inner.forward_ms()
     }
 }
 
@@ -283,6 +289,33 @@ mod tests {
         let kept: Vec<u16> = f.detect(0, None).expect("detects").iter().map(|d| d.class.0).collect();
         assert_eq!(kept, [0, 2, 7], "person, car, truck kept; traffic light (9) and chair (56) dropped");
         assert_eq!(f.name(), "fixed");
+    }
+
+    /// A source that says its network took 7.5 ms.
+    struct Timed;
+    impl DetectionSource for Timed {
+        fn name(&self) -> &str {
+            "timed"
+        }
+        fn needs_image(&self) -> bool {
+            false
+        }
+        fn detect(&mut self, _: usize, _: Option<&Image>) -> Result<Vec<Detection>, DetectError> {
+            Ok(vec![det(0.9, [0.0, 0.0, 10.0, 10.0])])
+        }
+        fn forward_ms(&self) -> Option<f64> {
+            Some(7.5)
+        }
+    }
+
+    #[test]
+    fn the_wrappers_pass_the_forward_time_on() {
+        let mut filter = ClassFilter(Box::new(Timed));
+        filter.detect(0, None).expect("detects");
+        assert_eq!(filter.forward_ms(), Some(7.5));
+        let (guard, _) = DetectionGuard::new(Box::new(filter), [100.0, 100.0], 10);
+        assert_eq!(guard.forward_ms(), Some(7.5));
+        assert_eq!(ClassFilter(Box::new(Fixed(Vec::new()))).forward_ms(), None, "no network, no time");
     }
 
     #[test]

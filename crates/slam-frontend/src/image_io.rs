@@ -38,6 +38,12 @@ pub enum FrontendError {
     /// A worker thread of the front end stopped without an answer (it panicked).
     #[error("the {0} thread stopped without an answer")]
     Thread(&'static str),
+    /// ONNX Runtime: not found, not loadable, or failed on a forward pass.
+    #[error(transparent)]
+    Onnx(#[from] crate::onnx::OnnxError),
+    /// A network's output is not what its family says.
+    #[error("{0}")]
+    Network(String),
 }
 
 impl From<opencv::Error> for FrontendError {

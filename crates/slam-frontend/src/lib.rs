@@ -1,8 +1,10 @@
 //! The OpenCV side of quadric SLAM: stereo visual odometry ([`StereoVo`], a `slam_core::StereoTracker`),
-//! image I/O and overlays, and an object detector on OpenCV's dnn module.
+//! image I/O and overlays, and an object detector (ONNX models on ONNX Runtime, [`onnx`]; Darknet models
+//! on OpenCV's dnn module).
 //!
-//! This is the only crate (with `slam-app`) that links OpenCV; OpenCV types never cross its public
-//! API: images are `slam_core::Image`, detections `slam_core::Detection`.
+//! This is the only crate (with `slam-app`) that links OpenCV, and the only one that uses ONNX Runtime;
+//! neither's types cross its public API: images are `slam_core::Image`, detections
+//! `slam_core::Detection`.
 
 #![warn(missing_docs)]
 
@@ -20,6 +22,7 @@ mod keyframe_index;
 mod keyframe_motion;
 pub mod model;
 pub mod odometry;
+pub mod onnx;
 mod pose_only;
 mod settings;
 pub mod stereo_vo;
@@ -30,4 +33,5 @@ pub use image_io::{
 };
 pub use model::{parse_input_size, FamilyName, InputSize, ModeName, ModelError, ModelSpec, ShippedModel};
 pub use odometry::Odometry;
+pub use onnx::{Device, OnnxError, RuntimeOptions};
 pub use stereo_vo::{StereoRig, StereoVo, VoConfig};

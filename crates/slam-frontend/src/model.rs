@@ -1,12 +1,16 @@
 //! A detector model as a user names it ([`ModelSpec`]): a shipped model by name (default: YOLOX-nano),
-//! or model files with their family, and how to feed it, every field optional. [`ModelSpec::check`]
-//! range-checks the settings before anything is loaded; [`ModelSpec::load`] builds the [`DnnDetector`].
+//! or model files with their family, how to feed it and (ONNX models) where ONNX Runtime runs it, every
+//! field optional. [`ModelSpec::check`] range-checks the settings before anything is loaded;
+//! [`ModelSpec::load`] builds the [`DnnDetector`].
 
 use std::path::{Path, PathBuf};
 
 use slam_core::check::{count, number, InvalidValue, Range};
 
-use crate::{DetectorConfig, DnnDetector, FrontendError, InputMode, ModelFamily};
+use crate::{
+    onnx::{Device, RuntimeOptions, DEFAULT_THREADS, MAX_THREADS},
+    DetectorConfig, DnnDetector, FrontendError, InputMode, ModelFamily,
+};
 
 /// Largest network input side accepted, pixels. Memory and time grow with the input's area (the input
 /// blob and every activation map): 2048 keeps a CPU forward pass within a few hundred megabytes; an
@@ -103,6 +107,9 @@ pub enum ModelError {
     /// A shipped model named together with model files.
     #[error("model names a shipped model; with model files (onnx, or cfg and weights) give no model")]
     ModelWithFiles,
+    /// A runtime setting (`device`, `detector_threads`) given for a Darknet model, which runs on OpenCV's CPU backend.
+    #[error("{0} is a setting of ONNX models (ONNX Runtime); a Darknet model (cfg and weights) runs on OpenCV's dnn module on the CPU")]
+    RuntimeWithDarknet(&'static str),
     /// The model files could not be loaded.
     #[error(transparent)]
     Load(#[from] FrontendError),
@@ -130,6 +137,10 @@ pub struct ModelSpec {
     pub input_size: Option<InputSize>,
     /// Smallest score kept (default: 0.4 for YOLOX, 0.2 for rows).
     pub score: Option<f32>,
+    /// Where ONNX Runtime runs an ONNX model (default: the CPU).
+    pub device: Option<Device>,
+    /// ONNX Runtime's intra-op threads on the CPU (default [`DEFAULT_THREADS`]).
+    pub threads: Option<usize>,
 }
 
 /// A network input size as the user wrote it: `W`x`H`, or one number for a square input.
@@ -217,6 +228,15 @@ impl ModelSpec {
             }
         }
         count("tiles", self.tiles.unwrap_or(3) as usize, 1, MAX_TILES as usize)?;
+        count("detector_threads", self.threads.unwrap_or(DEFAULT_THREADS), 1, MAX_THREADS)?;
+        if !self.on_onnx_runtime() {
+            if self.device.is_some() {
+                return Err(ModelError::RuntimeWithDarknet("device"));
+            }
+            if self.threads.is_some() {
+                return Err(ModelError::RuntimeWithDarknet("detector_threads"));
+            }
+        }
         let score = self.score.unwrap_or(base.score_threshold);
         number("score", score as f64, Range::closed(0.0, 1.0), "")?;
         let mode = match (self.mode, self.tiles) {
@@ -227,6 +247,25 @@ impl ModelSpec {
             (Some(ModeName::Letterbox), None) => InputMode::Letterbox,
         };
         Ok(DetectorConfig { input, mode, score_threshold: score, ..base })
+    }
+
+    /// Whether the model is an ONNX model (run on ONNX Runtime), not a Darknet one (run on OpenCV).
+    pub fn on_onnx_runtime(&self) -> bool {
+        match (&self.onnx, &self.cfg, &self.weights) {
+            (Some(_), _, _) => true,
+            (None, Some(_), _) | (None, _, Some(_)) => false,
+            (None, None, None) => self.model.unwrap_or_default() == ShippedModel::YoloxNano,
+        }
+    }
+
+    /// How ONNX Runtime runs the model: the device and threads given (or their defaults), the runtime
+    /// library recorded in `setup_dir` (unless `ORT_DYLIB_PATH` names one).
+    pub fn runtime(&self, setup_dir: &Path) -> RuntimeOptions {
+        RuntimeOptions {
+            device: self.device.unwrap_or_default(),
+            threads: self.threads.unwrap_or(DEFAULT_THREADS),
+            setup_dir: setup_dir.to_path_buf(),
+        }
     }
 
     /// A short description: the model and its settings (`yolox-nano, letterbox 736x224, score 0.4`).
@@ -242,13 +281,24 @@ impl ModelSpec {
             InputMode::Letterbox => "letterbox".to_string(),
             InputMode::Tiles(n) => format!("whole frame + {n} tiles"),
         };
-        Ok(format!("{name}, {mode} {}x{}, score {}", c.input[0], c.input[1], c.score_threshold))
+        let runtime = match (self.on_onnx_runtime(), self.device.unwrap_or_default()) {
+            (false, _) => String::new(),
+            (true, Device::Cpu) => format!(
+                ", cpu {} thread{}",
+                self.threads.unwrap_or(DEFAULT_THREADS),
+                if self.threads.unwrap_or(DEFAULT_THREADS) == 1 { "" } else { "s" }
+            ),
+            (true, Device::Cuda) => ", cuda".to_string(),
+        };
+        Ok(format!("{name}, {mode} {}x{}, score {}{runtime}", c.input[0], c.input[1], c.score_threshold))
     }
 
     /// Load the network; `fixtures` is the folder holding the shipped models (`yolox_nano/` and
-    /// `detector/`), used for a shipped model and for whichever Darknet file is not given.
-    pub fn load(&self, fixtures: &Path) -> Result<DnnDetector, ModelError> {
+    /// `detector/`), used for a shipped model and for whichever Darknet file is not given; `setup_dir` the
+    /// folder where `tools/setup.sh` records ONNX Runtime's library ([`RuntimeOptions::setup_dir`]).
+    pub fn load(&self, fixtures: &Path, setup_dir: &Path) -> Result<DnnDetector, ModelError> {
         let config = self.config()?;
+        let runtime = self.runtime(setup_dir);
         let darknet = |cfg: &Option<PathBuf>, weights: &Option<PathBuf>, config| {
             let shipped = fixtures.join("detector");
             let cfg = cfg.clone().unwrap_or_else(|| shipped.join("yolo-fastest-1.1.cfg"));
@@ -256,10 +306,12 @@ impl ModelSpec {
             DnnDetector::from_darknet(cfg, weights, config)
         };
         Ok(match (&self.onnx, &self.cfg, &self.weights) {
-            (Some(m), _, _) => DnnDetector::from_onnx(m, config)?,
+            (Some(m), _, _) => DnnDetector::from_onnx(m, config, &runtime)?,
             (None, Some(_), _) | (None, _, Some(_)) => darknet(&self.cfg, &self.weights, config)?,
             (None, None, None) => match self.model.unwrap_or_default() {
-                ShippedModel::YoloxNano => DnnDetector::from_onnx(fixtures.join("yolox_nano/yolox_nano.onnx"), config)?,
+                ShippedModel::YoloxNano => {
+                    DnnDetector::from_onnx(fixtures.join("yolox_nano/yolox_nano.onnx"), config, &runtime)?
+                }
                 ShippedModel::YoloFastest => darknet(&None, &None, config)?,
             },
         })
@@ -319,8 +371,34 @@ mod tests {
             assert!(e.contains(want), "{e}");
         }
         let missing = ModelSpec { onnx: Some("/nonexistent/model.onnx".into()), ..Default::default() };
-        assert!(matches!(missing.load(Path::new("/nonexistent")), Err(ModelError::Load(_))));
-        assert_eq!(ModelSpec::default().describe().expect("valid"), "yolox-nano, letterbox 736x224, score 0.4");
+        assert!(matches!(missing.load(Path::new("/nonexistent"), Path::new("/nonexistent")), Err(ModelError::Load(_))));
+        assert_eq!(
+            ModelSpec::default().describe().expect("valid"),
+            "yolox-nano, letterbox 736x224, score 0.4, cpu 1 thread"
+        );
+        let two = ModelSpec { threads: Some(2), ..Default::default() };
+        assert_eq!(two.describe().expect("valid"), "yolox-nano, letterbox 736x224, score 0.4, cpu 2 threads");
+        let cuda = ModelSpec { device: Some(Device::Cuda), ..Default::default() };
+        assert!(cuda.describe().expect("valid").ends_with(", cuda"));
+        let fastest = ModelSpec::shipped(ShippedModel::YoloFastest).describe().expect("valid");
+        assert_eq!(fastest, "yolo-fastest, whole frame + 3 tiles 320x320, score 0.2", "OpenCV: no runtime settings");
+        // the runtime's settings are an ONNX model's; a thread count is range-checked
+        for (bad, want) in [
+            (
+                ModelSpec { model: Some(ShippedModel::YoloFastest), device: Some(Device::Cuda), ..Default::default() },
+                "device is a setting of ONNX models",
+            ),
+            (
+                ModelSpec { cfg: Some("m.cfg".into()), threads: Some(2), ..Default::default() },
+                "detector_threads is a setting",
+            ),
+            (ModelSpec { threads: Some(0), ..Default::default() }, "detector_threads 0: must be an integer in [1, 64]"),
+        ] {
+            let e = bad.check().expect_err(want).to_string();
+            assert!(e.contains(want), "{e}");
+        }
+        let rt = ModelSpec { threads: Some(2), ..Default::default() }.runtime(Path::new("/setup"));
+        assert_eq!((rt.device, rt.threads, rt.setup_dir), (Device::Cpu, 2, PathBuf::from("/setup")));
     }
 
     #[test]

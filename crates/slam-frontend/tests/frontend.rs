@@ -5,11 +5,16 @@ use std::path::PathBuf;
 use slam_core::{geometry::BBox, ClassId, Detection, DetectionSource, Image};
 use slam_frontend::{
     detector::{nms, nms_by_group},
-    read_image, write_image, DetectorConfig, DnnDetector, FrontendError, InputMode,
+    read_image, write_image, DetectorConfig, DnnDetector, FrontendError, InputMode, RuntimeOptions,
 };
 
 fn fixture(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures").join(rel)
+}
+
+/// ONNX Runtime as `tools/setup.sh` installs it (the CPU, one thread).
+fn runtime() -> RuntimeOptions {
+    RuntimeOptions::cpu(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../.ort"))
 }
 
 fn frame7() -> PathBuf {
@@ -58,16 +63,22 @@ fn detector_finds_the_car_ahead() {
     assert!(det.detect(1, Some(&black)).expect("runs").iter().all(|x| x.score < 0.5));
 }
 
-/// The shipped YOLOX-nano on drive 0005's grey frame 50 (camera 0) finds the parked van, labelled at
-/// [844, 151, 990, 225] in camera 2 (1.8 px further right than in camera 0 at its 25 m).
+/// The shipped YOLOX-nano on ONNX Runtime, on drive 0005's grey frame 50 (camera 0), finds the parked van,
+/// labelled at [844, 151, 990, 225] in camera 2 (1.8 px further right than in camera 0 at its 25 m).
 #[test]
 fn yolox_finds_the_parked_van_on_a_grey_frame() {
     let frame = fixture("kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync/image_00/data/0000000050.png");
     let img = read_image(frame, false).expect("reads");
     assert_eq!(img.channels, 1, "the grey camera");
-    let mut det =
-        DnnDetector::from_onnx(fixture("yolox_nano/yolox_nano.onnx"), DetectorConfig::yolox()).expect("loads");
+    let model = fixture("yolox_nano/yolox_nano.onnx");
+    let mut det = DnnDetector::from_onnx(model, DetectorConfig::yolox(), &runtime()).expect("loads");
+    assert!(det.on_onnx_runtime() && det.forward_ms().is_none());
+    let start = std::time::Instant::now();
     let d = det.detect(50, Some(&img)).expect("runs");
+    let whole = start.elapsed().as_secs_f64() * 1e3;
+    // the forward pass is timed apart from the pre- and post-processing around it
+    let forward = det.forward_ms().expect("timed");
+    assert!(forward > 0.0 && forward < whole, "forward {forward} ms of {whole} ms");
     let van = BBox::new(844.1 - 1.8, 150.9, 990.2 - 1.8, 225.0);
     let found: Vec<&Detection> = d.iter().filter(|x| x.bbox.iou(&van) > 0.8).collect();
     assert!(found.len() == 1 && found[0].class.group() == 2 && found[0].score > 0.6, "{d:?}");
@@ -81,10 +92,12 @@ fn missing_models_are_errors() {
         .err()
         .expect("missing");
     assert!(e.to_string().contains("/no/model.cfg"));
-    assert!(DnnDetector::from_onnx("/no/model.onnx", DetectorConfig::default()).is_err());
+    let missing = DnnDetector::from_onnx("/no/model.onnx", DetectorConfig::default(), &runtime()).err();
+    assert!(missing.expect("missing").to_string().contains("/no/model.onnx"));
     let junk = std::env::temp_dir().join(format!("junk-{}.onnx", std::process::id()));
     std::fs::write(&junk, b"not a model").expect("write");
-    assert!(matches!(DnnDetector::from_onnx(&junk, DetectorConfig::default()), Err(FrontendError::Model { .. })));
+    let e = DnnDetector::from_onnx(&junk, DetectorConfig::default(), &runtime()).err().expect("junk");
+    assert!(matches!(&e, FrontendError::Model { path, .. } if *path == junk), "{e}");
 }
 
 #[test]

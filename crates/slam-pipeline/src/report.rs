@@ -28,6 +28,8 @@ enum Needs {
     Nothing,
     /// A detection source (the object stages idle, and are timed near 0, without boxes).
     Objects,
+    /// A detection source that runs a network (one that times forward passes: the run's frames show it).
+    Network,
     /// Local bundle adjustment switched on.
     BundleAdjustment,
 }
@@ -36,8 +38,9 @@ enum Needs {
 type Stage = (&'static str, fn(&FrameTimes) -> f64, bool, Needs);
 
 /// The stages timed per frame, in table order.
-const STAGES: [Stage; 8] = [
+const STAGES: [Stage; 9] = [
     ("detection (own thread)", |t| t.detection, false, Needs::Objects),
+    ("of which the network's forward pass", |t| t.detector_forward, false, Needs::Network),
     ("ORB extraction", |t| t.extraction, false, Needs::Nothing),
     ("stereo matching", |t| t.stereo, false, Needs::Nothing),
     ("tracking (local map + PnP + refinement)", |t| t.tracking, false, Needs::Nothing),
@@ -57,10 +60,11 @@ pub struct StagesOn {
 }
 
 impl StagesOn {
-    fn has(&self, needs: Needs) -> bool {
+    fn has(&self, needs: Needs, out: &RunOutput) -> bool {
         match needs {
             Needs::Nothing => true,
             Needs::Objects => self.objects,
+            Needs::Network => self.objects && out.frames.iter().any(|r| r.times.detector_forward > 0.0),
             Needs::BundleAdjustment => self.bundle_adjustment,
         }
     }
@@ -72,7 +76,7 @@ impl StagesOn {
 fn stage_rows(out: &RunOutput, on: Option<StagesOn>) -> Vec<(&'static str, Option<f64>, usize)> {
     STAGES
         .iter()
-        .filter(|(_, _, _, needs)| on.is_none_or(|on| on.has(*needs)))
+        .filter(|(_, _, _, needs)| on.is_none_or(|on| on.has(*needs, out)))
         .map(|&(name, time, keyframes_only, _)| {
             let mut v: Vec<f64> = out
                 .frames
@@ -94,7 +98,8 @@ pub fn stage_table(out: &RunOutput) -> Vec<(&'static str, Option<f64>, usize)> {
 
 /// [`stage_table`] without the stages the run switched off (`on`): without a detection source the
 /// object stages, without bundle adjustment local BA (they still pass through the threads, in
-/// microseconds, so their times alone do not say so).
+/// microseconds, so their times alone do not say so), and the network's forward pass when the source
+/// runs none (detections from a file, labels).
 pub fn stages_run(out: &RunOutput, on: StagesOn) -> Vec<(&'static str, Option<f64>, usize)> {
     stage_rows(out, Some(on))
 }
@@ -218,7 +223,19 @@ mod tests {
         let ba = "local BA (keyframes, mapping thread)";
         assert_eq!(names(StagesOn { objects: false, bundle_adjustment: true }), [&tracking[..], &[ba]].concat());
         assert_eq!(names(StagesOn { objects: false, bundle_adjustment: false }), tracking);
-        assert_eq!(names(StagesOn { objects: true, bundle_adjustment: true }).len(), 8);
+        let all = StagesOn { objects: true, bundle_adjustment: true };
+        assert_eq!(names(all).len(), 8, "no forward pass timed: a source without a network");
+        let mut frames = out.frames.clone();
+        frames[1].times.detector_forward = 3.0;
+        let network = RunOutput {
+            map: crate::map::Map::default(),
+            poses: Vec::new(),
+            objects: Vec::new(),
+            frames,
+            counts: Default::default(),
+        };
+        assert_eq!(names(all).len() + 1, stages_run(&network, all).len());
+        assert_eq!(stage_table(&network)[1], ("of which the network's forward pass", Some(0.0), 3), "median of 0, 3, 0");
         // every other frame unreadable (interval 0): the median is over the frames tracked
         let alternating = RunOutput {
             map: crate::map::Map::default(),

@@ -184,6 +184,8 @@ pub struct FrameTimes {
     pub interval: f64,
     /// Detection (its own thread).
     pub detection: f64,
+    /// The detector network's forward passes, part of `detection` (0 for a source that runs no network).
+    pub detector_forward: f64,
     /// Feature extraction.
     pub extraction: f64,
     /// Stereo matching.

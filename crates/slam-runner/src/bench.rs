@@ -48,7 +48,7 @@ pub fn bench_configs(file: PathBuf, network: DetectorChoice) -> Vec<(&'static st
 }
 
 /// The `run-bench` table's header (markdown).
-pub const RUN_BENCH_HEADER: &str = "| configuration | frames/s (median) | frames/s (overall) | detection | extraction | stereo | tracking | flow | association | local BA | objects | ATE m |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|";
+pub const RUN_BENCH_HEADER: &str = "| configuration | frames/s (median) | frames/s (overall) | detection | of which forward pass | extraction | stereo | tracking | flow | association | local BA | objects | ATE m |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|";
 
 /// Medians of one `run-bench` configuration over its repeated runs; a figure of no value (no frame
 /// interval, a stage that never ran, no ground truth) is `None`, printed as a dash.
@@ -120,11 +120,31 @@ pub fn bench_row(
 /// The note under the `run-bench` table, with the targets' figures (rows in [`bench_configs`] order).
 pub fn run_bench_footer(repeat: usize, rows: &[BenchRow]) -> String {
     let fps = |i: usize| cell(rows.get(i).and_then(|r| r.fps_median), 1);
-    format!(
-        "\nmedians of {repeat} runs each. frames/s (median): 1000 / median interval between consecutive frames; (overall): frames / wall time, start-up and drain included. Stage times: medians over frames (local BA and objects: over keyframes, on the mapping thread), ms. Targets (median): >= 30 frames/s with detections from a file ({}), >= 10 with the detector ({}).",
+    let mut text = format!(
+        "\nmedians of {repeat} runs each. frames/s (median): 1000 / median interval between consecutive frames; (overall): frames / wall time, start-up and drain included. Stage times: medians over frames (local BA and objects: over keyframes, on the mapping thread), ms; the forward pass is the network's own time within detection. Targets (median): >= 30 frames/s with detections from a file ({}), >= 10 with the detector ({}).",
         fps(1),
         fps(2)
-    )
+    );
+    if let Some(line) = rows.get(2).and_then(processing_line) {
+        text.push('\n');
+        text.push_str(&line);
+    }
+    text
+}
+
+/// What the detector adds to its network's forward pass on a row (`None` when the row runs no network):
+/// the detection stage's median, the forward pass's, and their difference (pre- and post-processing: the
+/// letterbox, the input blob, decoding, non-maximum suppression) as a share of the forward pass.
+pub fn processing_line(row: &BenchRow) -> Option<String> {
+    let (Some(&Some(detection)), Some(&Some(forward))) = (row.stages.first(), row.stages.get(1)) else { return None };
+    (forward > 0.0).then(|| {
+        format!(
+            "{}: detection {detection:.1} ms, of which the forward pass {forward:.1} ms: pre- and post-processing {:.1} ms, {:.0} % of the forward pass (target <= 30 %)",
+            row.name,
+            detection - forward,
+            100.0 * (detection - forward) / forward
+        )
+    })
 }
 
 /// Most runs per `run-bench` configuration: the median of 100 runs moves by well under the spread of
@@ -417,7 +437,7 @@ mod tests {
             name: "x".into(),
             fps_median: Some(30.04),
             fps_overall: Some(20.0),
-            stages: vec![Some(1.0); 8],
+            stages: vec![Some(1.0); 9],
             ate: Some(0.1234),
         };
         assert_eq!(
@@ -427,8 +447,17 @@ mod tests {
         assert!(row.to_string().starts_with("| x | 30.0 | 20.0 | 1.0 |") && row.to_string().ends_with("| 0.123 |"));
         assert!(run_bench_footer(3, &[row.clone(), row.clone(), row.clone()])
             .contains("(30.0), >= 10 with the detector (30.0)"));
+        // detection 12 ms of which 10 ms forward: 2 ms of pre- and post-processing, 20 % of the forward pass
+        let network =
+            BenchRow { stages: [Some(12.0), Some(10.0)].into_iter().chain([Some(1.0); 7]).collect(), ..row.clone() };
+        let line = processing_line(&network).expect("a network");
+        assert!(line.contains("pre- and post-processing 2.0 ms, 20 % of the forward pass"), "{line}");
+        assert!(run_bench_footer(1, &[row.clone(), row.clone(), network]).ends_with("(target <= 30 %)"));
+        let file =
+            BenchRow { stages: [Some(0.4), Some(0.0)].into_iter().chain([Some(1.0); 7]).collect(), ..row.clone() };
+        assert_eq!(processing_line(&file), None, "no network, no line");
         // a run of one frame has no frame interval, a sequence without ground truth no ATE: dashes
-        let empty = BenchRow { fps_median: None, stages: vec![None; 8], ate: None, ..row };
+        let empty = BenchRow { fps_median: None, stages: vec![None; 9], ate: None, ..row };
         assert!(
             empty.to_string().starts_with("| x | – | 20.0 | – |") && empty.to_string().ends_with("| – |"),
             "{empty}"

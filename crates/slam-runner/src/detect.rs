@@ -102,8 +102,8 @@ pub fn recall_sets(fixtures: &Path) -> Result<Vec<(String, RecallSet)>> {
 pub type DetectorLoader = Box<dyn FnMut() -> Result<Box<dyn DetectionSource>>>;
 
 /// Run each detector (`name`, loader) over every frame of each set and give `print` the table: the
-/// protocol, then one row per detector with found / labels, recall and precision per set, and the
-/// median milliseconds per frame over all frames.
+/// protocol, then one row per detector with found / labels, recall and precision per set, the median
+/// milliseconds per frame over all frames, and the median of the network's forward passes in them.
 pub fn detector_recall(
     sets: &[(String, RecallSet)],
     detectors: &mut [(String, DetectorLoader)],
@@ -122,26 +122,27 @@ pub fn detector_recall(
     for (k, (name, _)) in sets.iter().enumerate() {
         print(format!("set {}: {name}", k + 1));
     }
-    let mut header = format!("| {:<52} |", "detector");
-    let mut rule = format!("|{}|", "-".repeat(54));
+    let mut header = format!("| {:<56} |", "detector");
+    let mut rule = format!("|{}|", "-".repeat(58));
     for k in 1..=sets.len() {
         header.push_str(&format!(" set {k}: found | recall | precision |"));
         rule.push_str("---:|---:|---:|");
     }
-    header.push_str(" ms / frame (median) |");
-    rule.push_str("---:|");
+    header.push_str(" ms / frame (median) | of which forward pass |");
+    rule.push_str("---:|---:|");
     print(header);
     print(rule);
     for (name, load) in detectors.iter_mut() {
         let mut det = load()?;
-        let mut row = format!("| {name:<52} |");
-        let mut times = Vec::new();
+        let mut row = format!("| {name:<56} |");
+        let (mut times, mut forward) = (Vec::new(), Vec::new());
         for ((_, set), imgs) in sets.iter().zip(&images) {
             let mut c = Counts::default();
             for (i, img) in imgs.iter().enumerate() {
                 let start = Instant::now();
                 let d = det.detect(set.frame_ids[i], Some(img)).map_err(crate::RunnerError::other)?;
                 times.push(start.elapsed().as_secs_f64() * 1000.0);
+                forward.extend(det.forward_ms());
                 c += set.score(i, &d);
             }
             row.push_str(&format!(
@@ -152,7 +153,11 @@ pub fn detector_recall(
                 cell(c.precision(), 3)
             ));
         }
-        row.push_str(&format!(" {} |", cell(slam_core::figure::median(&mut times), 0)));
+        row.push_str(&format!(
+            " {} | {} |",
+            cell(slam_core::figure::median(&mut times), 0),
+            cell(slam_core::figure::median(&mut forward), 0)
+        ));
         print(row);
     }
     Ok(())

@@ -192,8 +192,8 @@ impl System {
             return Err(SystemError::Thread("detection"));
         };
         frames.send(frame).map_err(|_| SystemError::Thread("detection"))?;
-        let (input, dets, det_ms) = detected.recv().map_err(|_| SystemError::Thread("detection"))?;
-        self.tracking.step(&input, dets, det_ms)
+        let (input, dets, det) = detected.recv().map_err(|_| SystemError::Thread("detection"))?;
+        self.tracking.step(&input, dets, det)
     }
 
     /// The tracking state so far (records, counts, objects).
@@ -218,8 +218,8 @@ impl System {
                 }
             });
             // on an error the receiver is dropped on return, which stops detection and the reader
-            for (input, dets, det_ms) in detected {
-                tracking.step(&input, dets, det_ms)?;
+            for (input, dets, det) in detected {
+                tracking.step(&input, dets, det)?;
                 if let Some(view) = tracking.view(&input) {
                     on_frame(&view);
                 }

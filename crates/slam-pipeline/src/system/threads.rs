@@ -16,8 +16,17 @@ use crate::{
 };
 
 /// A frame after the detection thread: its input, its detections (or why there are none) and the
-/// detector's time, milliseconds.
-pub(crate) type Detected = (FrameInput, Result<Vec<Detection>, DetectError>, f64);
+/// detector's times.
+pub(crate) type Detected = (FrameInput, Result<Vec<Detection>, DetectError>, DetectTimes);
+
+/// The detector's times on one frame, milliseconds.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct DetectTimes {
+    /// The whole detection call.
+    pub(crate) whole: f64,
+    /// The network's forward passes within it (0 for a source that runs none).
+    pub(crate) forward: f64,
+}
 
 /// Requests to the local-mapping thread.
 pub enum MapperRequest {
@@ -47,15 +56,18 @@ pub(crate) fn detection_thread(
     let detect_every = detect_every.max(1);
     for (played, f) in frames.into_iter().enumerate() {
         let t = Instant::now();
+        let mut forward = 0.0;
         let dets = match (&mut detector, &f.images) {
             (Some(d), Ok((left, _))) if played % detect_every == 0 => {
                 let img = d.needs_image().then_some(left);
-                d.detect(f.index, img)
+                let dets = d.detect(f.index, img);
+                forward = d.forward_ms().unwrap_or(0.0);
+                dets
             }
             _ => Ok(Vec::new()),
         };
-        let ms = t.elapsed().as_secs_f64() * 1e3;
-        if detected.send((f, dets, ms)).is_err() {
+        let times = DetectTimes { whole: t.elapsed().as_secs_f64() * 1e3, forward };
+        if detected.send((f, dets, times)).is_err() {
             break;
         }
     }

@@ -12,7 +12,7 @@ use slam_core::{
 };
 
 use super::{
-    threads::{MapperReply, MapperRequest},
+    threads::{DetectTimes, MapperReply, MapperRequest},
     FrameInput, FrameRecord, FrameTimes, FrameView, RunCounts, SystemConfig, SystemError,
 };
 use crate::{
@@ -132,14 +132,14 @@ impl Tracking {
         &mut self,
         input: &FrameInput,
         dets: Result<Vec<Detection>, DetectError>,
-        det_ms: f64,
+        det: DetectTimes,
     ) -> Result<&FrameRecord, SystemError> {
         let i = input.index;
         self.applied.clear();
         self.apply_due_replies()?;
         self.counts.frames += 1;
         let detections = self.accept_detections(i, dets);
-        let times = FrameTimes { detection: det_ms, ..FrameTimes::default() };
+        let times = FrameTimes { detection: det.whole, detector_forward: det.forward, ..FrameTimes::default() };
         let record = match &input.images {
             Ok((left, right)) => self.track_pair(i, left, right, detections, times)?,
             Err(why) => self.unreadable(i, why, times),
