@@ -95,8 +95,8 @@ for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg sl
   fi
 done
 # (it names the implementations behind the seams, `wiring`: the backends and associators it may build)
-check_only slam-runner slam-quadric slam-core slam-optim slam-dataset slam-frontend slam-pipeline slam-eval slam-viz \
-  slam-assoc slam-lm slam-dogleg
+check_only slam-runner slam-quadric slam-map slam-core slam-optim slam-dataset slam-frontend slam-pipeline slam-eval slam-viz \
+  slam-sim slam-assoc slam-lm slam-dogleg
 echo "check-deps: slam-runner depends on [ $(workspace_deps slam-runner)] and only slam-app depends on it: ok"
 
 # slam-rerun (recordings) sits directly under the app, beside slam-runner: no library crate depends on it,

@@ -49,15 +49,6 @@ impl FrameRange {
     }
 }
 
-/// A finite number at least 0 (a tolerance, a time difference).
-pub fn non_negative(text: &str) -> Result<f64, String> {
-    match text.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
-        Ok(v) => Err(format!("{v} is not a finite number at least 0")),
-        Err(e) => Err(format!("'{text}': {e}")),
-    }
-}
-
 impl SequenceArgs {
     /// The frame selection of --frames and --stride.
     pub fn selection(&self) -> FrameSelection {

@@ -84,21 +84,7 @@ impl ModelArgs {
 
     /// The first of these options given on the command line (they only make sense with the network).
     pub(crate) fn given(&self) -> Option<&'static str> {
-        [
-            (self.model.is_some(), "--model"),
-            (self.cfg.is_some(), "--cfg"),
-            (self.weights.is_some(), "--weights"),
-            (self.onnx.is_some(), "--onnx"),
-            (self.family.is_some(), "--family"),
-            (self.mode.is_some(), "--mode"),
-            (self.tiles.is_some(), "--tiles"),
-            (self.input_size.is_some(), "--input-size"),
-            (self.score.is_some(), "--score"),
-            (self.device.is_some(), "--device"),
-            (self.detector_threads.is_some(), "--detector-threads"),
-        ]
-        .into_iter()
-        .find_map(|(given, flag)| given.then_some(flag))
+        self.spec().first_given()
     }
 
     pub(crate) fn load(&self) -> anyhow::Result<DnnDetector> {
@@ -116,21 +102,7 @@ impl ModelArgs {
 
 /// A model error under the options' names.
 fn model_error(e: ModelError) -> anyhow::Error {
-    match e {
-        ModelError::Invalid(v) => v.as_flag().into(),
-        ModelError::TilesWithoutTiling(m) => {
-            anyhow::anyhow!("--tiles is an option of --mode tiles, but --mode {m} was given")
-        }
-        ModelError::FamilyWithoutOnnx => anyhow::anyhow!("--family is an option of --onnx"),
-        ModelError::ModelWithFiles => {
-            anyhow::anyhow!("--model names a shipped model: give it without --onnx/--cfg/--weights")
-        }
-        ModelError::RuntimeWithDarknet(key) => anyhow::anyhow!(
-            "--{} is an option of ONNX models (ONNX Runtime); a Darknet model runs on OpenCV's CPU backend",
-            key.replace('_', "-")
-        ),
-        ModelError::Load(e) => e.into(),
-    }
+    e.as_options().into()
 }
 
 #[derive(Args, Debug)]
@@ -180,18 +152,7 @@ pub fn recall(a: &RecallArgs) -> anyhow::Result<()> {
         a.model.check()?;
         vec![a.model.spec()]
     } else {
-        let (yolox, fastest) = (ShippedModel::YoloxNano, ShippedModel::YoloFastest);
-        let mut v = vec![ModelSpec::shipped(yolox), ModelSpec::shipped(fastest)];
-        if a.all {
-            let with = |model, mode, tiles| ModelSpec { mode: Some(mode), tiles, ..ModelSpec::shipped(model) };
-            v.extend([
-                with(yolox, ModeName::Tiles, Some(3)),
-                with(yolox, ModeName::Squash, None),
-                with(fastest, ModeName::Squash, None),
-                with(fastest, ModeName::Letterbox, None),
-            ]);
-        }
-        v
+        ModelSpec::recall_candidates(a.all)
     };
     use slam_runner::detect::DetectorLoader as Loader;
     let mut detectors: Vec<(String, Loader)> = specs

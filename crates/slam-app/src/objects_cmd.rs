@@ -112,10 +112,6 @@ pub fn objects(a: &ObjectsArgs) -> anyhow::Result<()> {
     let file = |given: &Option<PathBuf>, name: &str| given.clone().unwrap_or_else(|| a.dir.join(name));
     let (labels, poses, calib) =
         (file(&a.labels, "label_02.txt"), file(&a.poses, "poses_orbslam3.txt"), file(&a.calib, "calib.txt"));
-    slam_dataset::output::refuse_overwriting_inputs(
-        &[("the labels", &labels), ("the poses", &poses), ("the calibration", &calib)],
-        &[slam_dataset::output::Written::File("--out", &a.out)],
-    )?;
     let files = (labels.as_path(), poses.as_path(), calib.as_path());
     println!("{}", map_to_file(files, &a.input.noise(), mapper(&a.input), &a.out)?);
     Ok(())
@@ -149,14 +145,9 @@ pub struct EvalArgs {
 /// `slam-app eval <run folder> --labels <label_02.txt>`: score a finished run's object map.
 fn eval_run_folder(dir: &std::path::Path, a: &EvalArgs) -> anyhow::Result<()> {
     let labels = a.labels.as_ref().context("scoring a run folder needs --labels <label_02.txt>")?;
-    let score = dir.join("objects_score.json");
-    let read: Vec<PathBuf> = slam_eval::study::RUN_FOLDER_FILES.iter().map(|f| dir.join(f)).collect();
-    let mut inputs: Vec<(&str, &std::path::Path)> = read.iter().map(|f| ("the run's", f.as_path())).collect();
-    inputs.push(("--labels", labels));
     if a.csv.is_some() {
         bail!("--csv writes the table of a study over sequence folders; scoring a run folder writes objects_score.json into it");
     }
-    slam_dataset::output::refuse_overwriting_inputs(&inputs, &[Written::File("the score", &score)])?;
     let config = slam_eval::ScoreConfig {
         min_frames: a.min_frames,
         static_m: a.static_m,
@@ -180,20 +171,8 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         r => r.map_err(InvalidValue::as_flag)?,
     }
     let dir = a.dir.clone().unwrap_or_else(|| crate::fixture("kitti_tracking"));
-    if dir.join("objects.json").is_file() && dir.join("trajectory.kitti.txt").is_file() {
+    if slam_eval::study::is_run_folder(&dir)? {
         return eval_run_folder(&dir, a);
-    }
-    // a run folder missing one of the files scoring reads: say which
-    let run_files = ["objects.json", "trajectory.kitti.txt", "camera.json"];
-    let present: Vec<&str> = run_files.iter().copied().filter(|f| dir.join(f).is_file()).collect();
-    if !present.is_empty() && !dir.join("label_02.txt").is_file() {
-        let missing: Vec<&str> = run_files.iter().copied().filter(|f| !present.contains(f)).collect();
-        bail!(
-            "{}: looks like the output of `slam-app run` ({} present) but {} missing: scoring a run needs objects.json, trajectory.kitti.txt and camera.json",
-            dir.display(),
-            present.join(", "),
-            if missing.len() == 1 { format!("{} is", missing[0]) } else { format!("{} are", missing.join(", ")) }
-        );
     }
     let seqs = slam_dataset::folders::tracking_sequences(&dir)?;
     let files: Vec<PathBuf> =

@@ -21,14 +21,7 @@ pub fn check(path: Option<&Path>, out: Option<&Path>) -> anyhow::Result<()> {
         anyhow::bail!("--rerun {}: {BUILD_WITH_RERUN}", path.display());
     }
     if let Some(out) = out {
-        let (file, dir) = (slam_dataset::output::resolve(path), slam_dataset::output::resolve(out));
-        if file.starts_with(&dir) {
-            anyhow::bail!(
-                "--rerun {} lies inside --out {}, which the run replaces as a whole when it ends: give a path outside it",
-                path.display(),
-                out.display()
-            );
-        }
+        slam_dataset::output::refuse_inside_replaced("--rerun", path, "--out", out)?;
     }
     Ok(())
 }
@@ -67,31 +60,17 @@ impl RunObserver for Recording {
 
     fn finish(self: Box<Self>, o: &slam_runner::Outcome) -> slam_runner::Result<String> {
         let stats = self.recorder.finish(&o.out.poses, &o.out.objects).map_err(slam_runner::RunnerError::other)?;
-        Ok(wrote(&self.path, &stats))
+        Ok(stats.summary(&self.path))
     }
 }
 
 /// The line saying what a recording holds.
-#[cfg(feature = "rerun")]
-fn wrote(path: &Path, s: &slam_rerun::RecordingStats) -> String {
-    format!(
-        "wrote {}: rerun recording, {} frames, {} images, {} map points, {} objects, {:.1} MB (open it with `rerun {}`, from `pip install rerun-sdk==0.36.3`)",
-        path.display(),
-        s.frames,
-        s.images,
-        s.points,
-        s.objects,
-        s.bytes as f64 / 1e6,
-        path.display()
-    )
-}
-
 /// Write a saved map as a recording; returns the line saying what it holds.
 pub fn record_map(map: &Map, path: &Path) -> anyhow::Result<String> {
     #[cfg(feature = "rerun")]
     {
         let stats = slam_rerun::record_map(map, path)?;
-        Ok(wrote(path, &stats))
+        Ok(stats.summary(path))
     }
     #[cfg(not(feature = "rerun"))]
     {

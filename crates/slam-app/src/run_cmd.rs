@@ -194,7 +194,7 @@ pub struct TrajEvalArgs {
     /// two KITTI files pose i with pose i
     ground_truth: PathBuf,
     /// Largest time difference of a TUM match, seconds
-    #[arg(long, default_value_t = 0.01, value_parser = crate::args::non_negative)]
+    #[arg(long, default_value_t = 0.01, value_parser = slam_core::check::non_negative_text)]
     max_diff: f64,
     /// Compare with these ground-truth lines only, line k being frame id k (A..B, A..=B, A.., ..B): for
     /// a run of a subset of frames matched by line, give the run's own --frames (and --stride). Pairs
@@ -298,11 +298,7 @@ pub fn depth_check(a: &DepthCheckArgs) -> anyhow::Result<()> {
     } else {
         slam_runner::depth::depth_check(&path, &cfg.tracking)?
     };
-    println!("{}", report.header);
-    let what = if a.motion { "with a motion-triangulated depth" } else { "on a lidar plane" };
-    for (id, keypoints, compared) in &report.frames {
-        println!("frame {id}: {keypoints} stereo keypoints, {compared} {what}");
-    }
+    println!("{}", report.frames_text(a.motion));
     println!("{}", report.tables());
     Ok(())
 }
@@ -334,22 +330,14 @@ pub struct MapArgs {
 /// `slam-app map`: a saved map's counts and objects, and its exports.
 pub fn map(a: &MapArgs) -> anyhow::Result<()> {
     crate::recording::check(a.rerun.as_deref(), None)?;
-    let pictures: Vec<PathBuf> =
-        a.picture.iter().flat_map(|d| slam_viz::MAP_PICTURE_FILES.map(|n| d.join(n))).collect();
-    let mut outputs: Vec<Written> = [("--ply", &a.ply), ("--scene", &a.scene), ("--trajectory", &a.trajectory)]
-        .into_iter()
-        .filter_map(|(option, p)| p.as_deref().map(|p| Written::File(option, p)))
-        .collect();
-    outputs.extend(pictures.iter().map(|p| Written::File("--picture", p)));
-    outputs.extend(a.rerun.as_deref().map(|p| Written::File("--rerun", p)));
-    refuse_overwriting_inputs(&[("the map", &a.map)], &outputs)?;
     let exports = inspect::MapExports {
         ply: a.ply.clone(),
         scene: a.scene.clone(),
         trajectory: a.trajectory.clone(),
         picture: a.picture.clone(),
-    }
-    .prepare()?;
+    };
+    exports.refuse_overwriting(&a.map, a.rerun.as_deref())?;
+    let exports = exports.prepare()?;
     let map = Map::load(&a.map)?;
     println!("{}", inspect::map_summary(&map, &a.map));
     inspect::export_map(&map, &a.map, exports, &mut |line| println!("{line}"))?;

@@ -86,6 +86,16 @@ impl std::fmt::Display for Range {
     }
 }
 
+/// A command-line value that must be a finite number of at least 0 (a `clap` value parser's shape:
+/// the message names the text and what is wrong with it).
+pub fn non_negative_text(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        Ok(v) => Err(format!("{v} is not a finite number at least 0")),
+        Err(e) => Err(format!("'{text}': {e}")),
+    }
+}
+
 /// `key` must be a finite number in `range`; `unit` is appended to the range in the message.
 pub fn number(key: &str, v: f64, range: Range, unit: &str) -> Result<(), InvalidValue> {
     if range.contains(v) {
@@ -106,6 +116,15 @@ pub fn count(key: &str, v: usize, lo: usize, hi: usize) -> Result<(), InvalidVal
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn non_negative_text_takes_finite_numbers_from_zero() {
+        assert_eq!(non_negative_text(" 0.25 "), Ok(0.25));
+        assert_eq!(non_negative_text("0"), Ok(0.0));
+        assert!(non_negative_text("-0.1").unwrap_err().contains("not a finite number at least 0"));
+        assert!(non_negative_text("inf").unwrap_err().contains("not a finite number"));
+        assert!(non_negative_text("ten").unwrap_err().starts_with("'ten'"));
+    }
     use super::*;
 
     #[test]

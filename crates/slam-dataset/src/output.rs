@@ -482,6 +482,19 @@ fn same_file(a: &Path, b: &Path) -> bool {
     resolve(a) == resolve(b)
 }
 
+/// Refuse a file (`option` at `file`) that lies inside a folder an output replaces as a whole when it
+/// ends (`folder_option` at `folder`): it would be lost with the old folder.
+pub fn refuse_inside_replaced(option: &str, file: &Path, folder_option: &str, folder: &Path) -> Result<()> {
+    if resolve(file).starts_with(resolve(folder)) {
+        return Err(OutputError::Refused(format!(
+            "{option} {} lies inside {folder_option} {}, which the run replaces as a whole when it ends: give a path outside it",
+            file.display(),
+            folder.display()
+        )));
+    }
+    Ok(())
+}
+
 /// Refuse, before anything is read, an output that is (or resolves to, through symbolic links, `.`,
 /// `..` or a hard link) one of the command's inputs, an output folder that holds an input (it is
 /// replaced as a whole), and two outputs that are one file. `inputs` are `(what, path)` pairs, files or

@@ -47,6 +47,30 @@ pub fn played_frame_ids(path: &Path, poses: usize) -> Result<Vec<usize>, EvalErr
 /// The files of a run's output folder that scoring reads.
 pub const RUN_FOLDER_FILES: [&str; 4] = ["trajectory.kitti.txt", "camera.json", "objects.json", "tracking.csv"];
 
+/// Whether `dir` is the output folder of a run (`objects.json` and `trajectory.kitti.txt` in it) rather
+/// than sequence folders for a study; an error naming what is missing when it holds part of a run's
+/// files (`objects.json`, `trajectory.kitti.txt`, `camera.json`) and no labels of its own.
+pub fn is_run_folder(dir: &Path) -> Result<bool, EvalError> {
+    if dir.join("objects.json").is_file() && dir.join("trajectory.kitti.txt").is_file() {
+        return Ok(true);
+    }
+    let run_files = ["objects.json", "trajectory.kitti.txt", "camera.json"];
+    let present: Vec<&str> = run_files.iter().copied().filter(|f| dir.join(f).is_file()).collect();
+    if present.is_empty() || dir.join("label_02.txt").is_file() {
+        return Ok(false);
+    }
+    let missing: Vec<&str> = run_files.iter().copied().filter(|f| !present.contains(f)).collect();
+    let missing = match missing.as_slice() {
+        [one] => format!("{one} is"),
+        more => format!("{} are", more.join(", ")),
+    };
+    Err(EvalError::Invalid(format!(
+        "{}: looks like the output of `slam-app run` ({} present) but {missing} missing: scoring a run needs objects.json, trajectory.kitti.txt and camera.json",
+        dir.display(),
+        present.join(", "),
+    )))
+}
+
 /// Score the output folder of a run (`trajectory.kitti.txt`, `camera.json`, `objects.json`,
 /// `tracking.csv`) against the tracking labels at `labels`.
 pub fn score_run_folder(dir: &Path, labels: &Path, config: &ScoreConfig) -> Result<RunScore, EvalError> {
@@ -75,6 +99,15 @@ pub fn score_run_folder(dir: &Path, labels: &Path, config: &ScoreConfig) -> Resu
 /// [`score_run_folder`], its score written to `dir/objects_score.json`; returns the printed report and
 /// the line naming the file.
 pub fn score_run_folder_to_file(dir: &Path, labels: &Path, config: &ScoreConfig) -> Result<String, EvalError> {
+    // nothing the score reads may be the file it writes
+    let read: Vec<PathBuf> = RUN_FOLDER_FILES.iter().map(|f| dir.join(f)).collect();
+    let mut inputs: Vec<(&str, &Path)> = read.iter().map(|f| ("the run's", f.as_path())).collect();
+    inputs.push(("--labels", labels));
+    let score_file = dir.join("objects_score.json");
+    slam_dataset::output::refuse_overwriting_inputs(
+        &inputs,
+        &[slam_dataset::output::Written::File("the score", &score_file)],
+    )?;
     // checked first: a user's own objects_score.json in the folder is not replaced; a run writes this
     // file too, so once written it is listed in the folder's marker and the folder stays the run's
     let into = slam_dataset::output::FilesInto::new(dir, &["objects_score.json"], "the score", "eval")?;
@@ -101,14 +134,18 @@ pub fn eval_sequence(
 }
 
 /// `slam-app objects`: the image-free sequence of `labels`, `poses` and `calib` played through `mapper`
-/// (label boxes perturbed by `noise`), its object map written to `out` (checked writable first, put in
-/// place whole); returns the summary line.
+/// (label boxes perturbed by `noise`), its object map written to `out` (checked writable first, never
+/// over one of the inputs, put in place whole); returns the summary line.
 pub fn map_to_file(
     (labels, poses, calib): (&Path, &Path, &Path),
     noise: &LabelNoise,
     mapper: ObjectMapper,
     out: &Path,
 ) -> Result<String, EvalError> {
+    slam_dataset::output::refuse_overwriting_inputs(
+        &[("the labels", labels), ("the poses", poses), ("the calibration", calib)],
+        &[slam_dataset::output::Written::File("--out", out)],
+    )?;
     let file = slam_dataset::output::AtomicFile::new(out)?;
     let seq = LabelledSequence::load(labels, poses, calib)?;
     let (mapper, _) = run_mapper(&seq, noise, mapper);

@@ -31,7 +31,7 @@ pub use detector::{DetectorConfig, DnnDetector, InputMode, ModelFamily};
 pub use image_io::{
     draw_detections, draw_overlay, ellipse_outline, encode_jpeg, read_image, write_image, FrontendError, Overlay,
 };
-pub use model::{parse_input_size, FamilyName, InputSize, ModeName, ModelError, ModelSpec, ShippedModel};
+pub use model::{parse_input_size, FamilyName, InputSize, ModeName, ModelError, ModelSpec, OptionError, ShippedModel};
 pub use odometry::Odometry;
 pub use onnx::{Device, OnnxError, RuntimeOptions};
 pub use stereo_vo::{StereoRig, StereoVo, VoConfig};

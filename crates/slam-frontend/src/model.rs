@@ -115,6 +115,43 @@ pub enum ModelError {
     Load(#[from] FrontendError),
 }
 
+/// A [`ModelError`] in a command line's words, where each setting is an option (`tiles` is `--tiles`,
+/// `threads` is `--detector-threads`): what `slam-app detect`, `run` and `detect-recall` print.
+#[derive(Debug, thiserror::Error)]
+pub enum OptionError {
+    /// An option out of its range, named as an option.
+    #[error(transparent)]
+    Invalid(InvalidValue),
+    /// Options that do not go together.
+    #[error("{0}")]
+    Conflict(String),
+    /// The model files could not be loaded.
+    #[error(transparent)]
+    Load(FrontendError),
+}
+
+impl ModelError {
+    /// The error with the settings named as command-line options.
+    pub fn as_options(self) -> OptionError {
+        let conflict = |s: String| OptionError::Conflict(s);
+        match self {
+            ModelError::Invalid(v) => OptionError::Invalid(v.as_flag()),
+            ModelError::TilesWithoutTiling(m) => {
+                conflict(format!("--tiles is an option of --mode tiles, but --mode {m} was given"))
+            }
+            ModelError::FamilyWithoutOnnx => conflict("--family is an option of --onnx".into()),
+            ModelError::ModelWithFiles => {
+                conflict("--model names a shipped model: give it without --onnx/--cfg/--weights".into())
+            }
+            ModelError::RuntimeWithDarknet(key) => conflict(format!(
+                "--{} is an option of ONNX models (ONNX Runtime); a Darknet model runs on OpenCV's CPU backend",
+                key.replace('_', "-")
+            )),
+            ModelError::Load(e) => OptionError::Load(e),
+        }
+    }
+}
+
 /// A detector model and its settings; `None` fields take the defaults of the model's family.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ModelSpec {
@@ -189,6 +226,44 @@ impl ModelSpec {
     /// A shipped model with its own settings.
     pub fn shipped(model: ShippedModel) -> Self {
         Self { model: Some(model), ..Self::default() }
+    }
+
+    /// The first setting given, as its command-line option (`--model`, …, `--detector-threads`): these
+    /// options only make sense with a network.
+    pub fn first_given(&self) -> Option<&'static str> {
+        [
+            (self.model.is_some(), "--model"),
+            (self.cfg.is_some(), "--cfg"),
+            (self.weights.is_some(), "--weights"),
+            (self.onnx.is_some(), "--onnx"),
+            (self.family.is_some(), "--family"),
+            (self.mode.is_some(), "--mode"),
+            (self.tiles.is_some(), "--tiles"),
+            (self.input_size.is_some(), "--input-size"),
+            (self.score.is_some(), "--score"),
+            (self.device.is_some(), "--device"),
+            (self.threads.is_some(), "--detector-threads"),
+        ]
+        .into_iter()
+        .find_map(|(given, flag)| given.then_some(flag))
+    }
+
+    /// The detectors `slam-app detect-recall` compares by default: both shipped models with their own
+    /// settings; with `all`, also their other input modes (YOLOX-nano in 3 tiles and squashed,
+    /// Yolo-Fastest squashed and letterboxed).
+    pub fn recall_candidates(all: bool) -> Vec<ModelSpec> {
+        let (yolox, fastest) = (ShippedModel::YoloxNano, ShippedModel::YoloFastest);
+        let mut v = vec![ModelSpec::shipped(yolox), ModelSpec::shipped(fastest)];
+        if all {
+            let with = |model, mode, tiles| ModelSpec { mode: Some(mode), tiles, ..ModelSpec::shipped(model) };
+            v.extend([
+                with(yolox, ModeName::Tiles, Some(3)),
+                with(yolox, ModeName::Squash, None),
+                with(fastest, ModeName::Squash, None),
+                with(fastest, ModeName::Letterbox, None),
+            ]);
+        }
+        v
     }
 
     /// Range checks and the settings' consistency (before any model is loaded).

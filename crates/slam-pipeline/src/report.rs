@@ -235,7 +235,11 @@ mod tests {
             counts: Default::default(),
         };
         assert_eq!(names(all).len() + 1, stages_run(&network, all).len());
-        assert_eq!(stage_table(&network)[1], ("of which the network's forward pass", Some(0.0), 3), "median of 0, 3, 0");
+        assert_eq!(
+            stage_table(&network)[1],
+            ("of which the network's forward pass", Some(0.0), 3),
+            "median of 0, 3, 0"
+        );
         // every other frame unreadable (interval 0): the median is over the frames tracked
         let alternating = RunOutput {
             map: crate::map::Map::default(),

@@ -85,6 +85,22 @@ pub struct RecordingStats {
     pub bytes: u64,
 }
 
+impl RecordingStats {
+    /// The line a command prints for a recording written to `path`.
+    pub fn summary(&self, path: &std::path::Path) -> String {
+        format!(
+            "wrote {}: rerun recording, {} frames, {} images, {} map points, {} objects, {:.1} MB (open it with `rerun {}`, from `pip install rerun-sdk==0.36.3`)",
+            path.display(),
+            self.frames,
+            self.images,
+            self.points,
+            self.objects,
+            self.bytes as f64 / 1e6,
+            path.display()
+        )
+    }
+}
+
 /// What the recorder's thread is sent.
 enum Message {
     Frame(Box<FrameScene>),

@@ -416,6 +416,17 @@ impl DepthReport {
         }
     }
 
+    /// The header and a line per frame compared: its stereo keypoints and how many were compared with
+    /// the reference (`motion`: a motion-triangulated depth, else a lidar plane).
+    pub fn frames_text(&self, motion: bool) -> String {
+        let what = if motion { "with a motion-triangulated depth" } else { "on a lidar plane" };
+        let mut out = self.header.clone();
+        for (id, keypoints, compared) in &self.frames {
+            out.push_str(&format!("\nframe {id}: {keypoints} stereo keypoints, {compared} {what}"));
+        }
+        out
+    }
+
     /// The tables: by depth bin and pyramid level (median of our disparity − the lidar's, px, and the
     /// count), then by depth bin with the robust σ, each image half, and the relative depth error.
     pub fn tables(&self) -> String {

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use slam_dataset::{
-    output::{AtomicFile, FilesInto},
+    output::{refuse_overwriting_inputs, AtomicFile, FilesInto, Written},
     trajectory::write_kitti_poses,
 };
 use slam_eval::trajectory::PoseFile;
@@ -240,6 +240,21 @@ pub struct PreparedExports {
 }
 
 impl MapExports {
+    /// Refuse destinations (these exports and a recording at `rerun`) that would overwrite the map at
+    /// `map`, each named by its option.
+    pub fn refuse_overwriting(&self, map: &Path, rerun: Option<&Path>) -> Result<()> {
+        let pictures: Vec<PathBuf> =
+            self.picture.iter().flat_map(|d| slam_viz::MAP_PICTURE_FILES.map(|n| d.join(n))).collect();
+        let mut outputs: Vec<Written> =
+            [("--ply", &self.ply), ("--scene", &self.scene), ("--trajectory", &self.trajectory)]
+                .into_iter()
+                .filter_map(|(option, p)| p.as_deref().map(|p| Written::File(option, p)))
+                .collect();
+        outputs.extend(pictures.iter().map(|p| Written::File("--picture", p)));
+        outputs.extend(rerun.map(|p| Written::File("--rerun", p)));
+        Ok(refuse_overwriting_inputs(&[("the map", map)], &outputs)?)
+    }
+
     /// Check every destination before any work (`map --ply/--scene/--trajectory/--picture`).
     pub fn prepare(&self) -> Result<PreparedExports> {
         let file = |p: &Option<PathBuf>| -> Result<Option<(PathBuf, AtomicFile)>> {

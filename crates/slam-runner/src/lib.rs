@@ -11,6 +11,7 @@
 //! - [`inspect`]: `map` (a saved map's summary and exports) and `trajectory-eval`;
 //! - [`detect`]: `detect` (a detector over a folder into a detection file) and `detect-recall`;
 //! - [`settings`]: the run's settings from TOML over the libraries' defaults ([`RunConfig`]);
+//! - [`simulation`]: `sim`, the paper's simulation sweep into an output folder;
 //! - [`console`] (feature `console`): progress, Ctrl-C and stdout of a command-line program;
 //! - [`wiring`]: the implementations behind each seam by name ([`Wiring`]; `ValueEnum`s with `clap`).
 //!
@@ -27,6 +28,7 @@ pub mod inspect;
 pub mod report;
 pub mod run;
 pub mod settings;
+pub mod simulation;
 pub mod stereo;
 pub mod wiring;
 
