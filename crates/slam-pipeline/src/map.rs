@@ -762,7 +762,13 @@ mod tests {
         // frame 1 = keyframe 1 ∘ keyframe-1-from-frame-1 = identity
         let p1 = poses[1].expect("pose");
         assert!(p1.translation.vector.norm() < 1e-12 && p1.rotation.angle() < 1e-12);
+        // keyframe 1 was culled: the statistics count the keyframes in the map only
         let s = back.stats();
+        assert_eq!((s.keyframes, s.segments, s.points, s.observations, s.frames), (1, 1, 1, 1, 2));
+        assert_eq!(s.keyframe_path_m, 0.0);
+        let mut kept = back.clone();
+        kept.keyframes.get_mut(&1).expect("keyframe 1").culled = false;
+        let s = kept.stats();
         assert_eq!((s.keyframes, s.segments, s.points, s.observations, s.frames), (2, 1, 1, 1, 2));
         assert!((s.keyframe_path_m - 14f64.sqrt()).abs() < 1e-12);
         m.export_ply(&dir.join("points.ply")).expect("ply");

@@ -368,6 +368,56 @@ mod tests {
         assert!(by_score[..100].iter().all(|&i| i < 100));
     }
 
+    /// A grey image of `w` × `h` pixels whose value at (x, y) is `f(x, y)`.
+    fn image(w: i32, h: i32, f: impl Fn(i32, i32) -> u8) -> Mat {
+        let data: Vec<u8> = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| f(x, y)).collect();
+        Mat::new_rows_cols_with_data(h, w, &data).expect("image").try_clone().expect("owned")
+    }
+
+    /// The orientation points from the keypoint to the brighter side of its patch: along +x for a
+    /// brightness that grows with x, +y (down the image) for one that grows with y, and so on round.
+    #[test]
+    fn orientation_points_to_the_brighter_side() {
+        for (want, f) in [
+            (0.0, (|x, _| 60 + x) as fn(i32, i32) -> i32),
+            (90.0, |_, y| 60 + y),
+            (180.0, |x, _| 200 - x),
+            (270.0, |_, y| 200 - y),
+            (45.0, |x, y| 60 + (x + y) / 2),
+        ] {
+            let img = image(100, 100, |x, y| f(x, y).clamp(0, 255) as u8);
+            let grey = super::super::frame::GreyView::of(&img).expect("view");
+            let a = orientation(&grey, 50, 50) as f64;
+            let off = (a - want + 540.0).rem_euclid(360.0) - 180.0;
+            assert!(off.abs() < 1.0, "want {want}°, got {a}°");
+        }
+    }
+
+    /// Dots of 12 grey levels of contrast (below ORB's FAST threshold of 20, above the low one of 7) on
+    /// the right half of a flat image, dots of 100 on the left half: the low-contrast dots are still
+    /// found, by the second pass in their empty cells, and the flat grey between them gives no corner.
+    /// (Single-pixel dots: each is a FAST corner of its own, with no equal-scored neighbour for the
+    /// non-maximum suppression to cancel it against.)
+    #[test]
+    fn a_low_contrast_cell_still_offers_corners() {
+        let dots: Vec<(i32, i32, u8)> = (0..6)
+            .flat_map(|i| (0..3).map(move |j| (50 + 40 * i, 50 + 40 * j)))
+            .map(|(x, y)| (x, y, if x < 150 { 228 } else { 140 }))
+            .collect();
+        let img = image(300, 200, |x, y| dots.iter().find(|d| d.0 == x && d.1 == y).map_or(128, |d| d.2));
+        let corners = detect_level(&img).expect("FAST");
+        for &(x, y, v) in &dots {
+            let found = corners.iter().any(|((cx, cy), _)| (cx - x as f64).hypot(cy - y as f64) < 1.0);
+            assert!(found, "dot of contrast {} at ({x}, {y}) not found: {corners:?}", v - 128);
+        }
+        assert_eq!(corners.len(), dots.len(), "corners on flat grey: {corners:?}");
+        // ORB's threshold alone finds the high-contrast dots only
+        let mut high = core::Vector::<core::KeyPoint>::new();
+        features2d::fast(&img, &mut high, FAST_THRESHOLD, true).expect("FAST");
+        assert_eq!(high.len(), 9, "threshold 20: {:?}", high.iter().map(|k| k.pt()).collect::<Vec<_>>());
+        assert!(high.iter().all(|k| k.pt().x < 150.0));
+    }
+
     /// Levels are spread separately, each within its quota, and a level without candidates takes none.
     #[test]
     fn each_level_keeps_its_own_quota() {
