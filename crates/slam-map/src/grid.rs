@@ -20,7 +20,13 @@ impl KeypointGrid {
 
     /// The grid of `points` (pixels; negative coordinates count in the first cell).
     pub fn new(points: &[(f64, f64)]) -> Self {
-        let cell = Self::CELL;
+        Self::with_cell(points, Self::CELL)
+    }
+
+    /// The grid of `points` in cells of `cell` pixels (a narrow search, such as an epipolar band, reads
+    /// fewer keypoints from smaller cells).
+    pub fn with_cell(points: &[(f64, f64)], cell: f64) -> Self {
+        let cell = if cell.is_finite() && cell > 0.0 { cell } else { Self::CELL };
         let cols = points.iter().map(|p| Self::coord(p.0, cell)).max().unwrap_or(0) + 1;
         let rows = points.iter().map(|p| Self::coord(p.1, cell)).max().unwrap_or(0) + 1;
         let mut start = vec![0u32; cols * rows + 1];
@@ -68,6 +74,62 @@ impl KeypointGrid {
             }
         }
     }
+
+    /// Calls `visit` once with every keypoint index in the cells within `radius` of the segment from
+    /// `a` to `b` (a superset of the keypoints within `radius` of it: the caller tests the exact
+    /// distance), in no particular order. The segment is clipped to the grid's extent widened by
+    /// `radius` (an epipolar segment may start far outside the image) and sampled a cell apart, each
+    /// sample covering the cells within half a cell plus `radius` of it; a cell met twice is visited once.
+    pub fn for_each_near_segment(&self, a: (f64, f64), b: (f64, f64), radius: f64, mut visit: impl FnMut(usize)) {
+        if self.items.is_empty() || ![a.0, a.1, b.0, b.1, radius].iter().all(|x| x.is_finite()) {
+            return;
+        }
+        let (w, h) = (self.cols as f64 * self.cell, self.rows as f64 * self.cell);
+        let Some((a, b)) = clip_segment(a, b, (-radius, -radius), (w + radius, h + radius)) else { return };
+        let steps = ((b.0 - a.0).hypot(b.1 - a.1) / self.cell).ceil().max(1.0) as usize;
+        let r = ((0.5 * self.cell + radius) / self.cell).ceil() as i64;
+        let mut seen = vec![false; self.cols * self.rows];
+        for k in 0..=steps {
+            let t = k as f64 / steps as f64;
+            let (u, v) = (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
+            let (gx, gy) = ((u / self.cell).floor() as i64, (v / self.cell).floor() as i64);
+            for x in (gx - r).max(0)..=(gx + r).min(self.cols as i64 - 1) {
+                for y in (gy - r).max(0)..=(gy + r).min(self.rows as i64 - 1) {
+                    let c = y as usize * self.cols + x as usize;
+                    if std::mem::replace(&mut seen[c], true) {
+                        continue;
+                    }
+                    for &i in &self.items[self.start[c] as usize..self.start[c + 1] as usize] {
+                        visit(i as usize);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The part of the segment `a`–`b` inside the box from `lo` to `hi` (Liang–Barsky), if any.
+fn clip_segment(a: (f64, f64), b: (f64, f64), lo: (f64, f64), hi: (f64, f64)) -> Option<((f64, f64), (f64, f64))> {
+    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for (p, q) in [(-dx, a.0 - lo.0), (dx, hi.0 - a.0), (-dy, a.1 - lo.1), (dy, hi.1 - a.1)] {
+        if p == 0.0 {
+            if q < 0.0 {
+                return None;
+            }
+            continue;
+        }
+        let r = q / p;
+        if p < 0.0 {
+            t0 = t0.max(r);
+        } else {
+            t1 = t1.min(r);
+        }
+        if t0 > t1 {
+            return None;
+        }
+    }
+    Some(((a.0 + t0 * dx, a.1 + t0 * dy), (a.0 + t1 * dx, a.1 + t1 * dy)))
 }
 
 #[cfg(test)]
@@ -98,6 +160,36 @@ mod tests {
         }
         let mut none = 0;
         KeypointGrid::new(&[]).for_each_near((10.0, 10.0), 50.0, |_| none += 1);
+        KeypointGrid::new(&[]).for_each_near_segment((0.0, 0.0), (100.0, 100.0), 5.0, |_| none += 1);
         assert_eq!(none, 0);
+    }
+
+    /// The segment query finds every keypoint a full scan finds within the radius of the segment, for
+    /// segments inside the image, crossing it, starting thousands of pixels outside it (an epipolar
+    /// segment's near end) and missing it.
+    #[test]
+    fn segment_query_finds_every_keypoint_a_full_scan_finds() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let points: Vec<(f64, f64)> =
+            (0..1500).map(|_| (rng.random_range(0.0..1241.0), rng.random_range(0.0..376.0))).collect();
+        let grid = KeypointGrid::with_cell(&points, 16.0);
+        let distance = |p: (f64, f64), a: (f64, f64), b: (f64, f64)| {
+            let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+            let t = (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / (dx * dx + dy * dy).max(1e-12)).clamp(0.0, 1.0);
+            (p.0 - a.0 - t * dx).hypot(p.1 - a.1 - t * dy)
+        };
+        for n in 0..400 {
+            let spread = if n % 4 == 0 { 20000.0 } else { 1500.0 };
+            let a = (rng.random_range(-spread..spread), rng.random_range(-spread..spread));
+            let b = (rng.random_range(-100.0..1340.0), rng.random_range(-100.0..480.0));
+            let radius = rng.random_range(0.5..12.0);
+            let scan: Vec<usize> = (0..points.len()).filter(|&i| distance(points[i], a, b) <= radius).collect();
+            let mut found = Vec::new();
+            grid.for_each_near_segment(a, b, radius, |i| found.push(i));
+            found.sort_unstable();
+            assert!(found.windows(2).all(|w| w[0] < w[1]), "each keypoint visited once");
+            let within: Vec<usize> = found.iter().copied().filter(|&i| distance(points[i], a, b) <= radius).collect();
+            assert_eq!(within, scan, "segment {a:?}-{b:?} radius {radius}");
+        }
     }
 }

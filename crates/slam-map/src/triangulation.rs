@@ -123,6 +123,15 @@ impl Map {
         // x_bᵀ F x_a = 0 with F = K⁻ᵀ [t]× R K⁻¹
         let f = kinv.transpose() * t.cross_matrix() * r * kinv;
         let free_b: Vec<usize> = (0..kb.points.len()).filter(|&j| kb.points[j].is_none()).collect();
+        // cells of about twice the widest band: a band's cells hold few keypoints beside it
+        let grid = crate::KeypointGrid::with_cell(
+            &free_b.iter().map(|&j| (kb.features.keypoints[j].u, kb.features.keypoints[j].v)).collect::<Vec<_>>(),
+            16.0,
+        );
+        // each level's band, and the widest of any candidate: every candidate lies within it of the segment
+        let bands: Vec<f64> = (0..=u8::MAX).map(|l| (config.epipolar_chi2 * pyr.scale(l).powi(2)).sqrt()).collect();
+        let band_of = |level: u8| bands[level as usize];
+        let widest = free_b.iter().map(|&j| band_of(kb.features.keypoints[j].level)).fold(0.0, f64::max);
         let near = 1.0f64.max(cam.baseline);
         let mut found: Vec<(u32, usize, usize)> = Vec::new();
         for i in (0..ka.points.len()).filter(|&i| ka.points[i].is_none()) {
@@ -146,18 +155,20 @@ impl Map {
             let (lo_v, hi_v) = (ends[0].1.min(ends[1].1), ends[0].1.max(ends[1].1));
             let d = &ka.features.descriptors[i];
             let mut two = BestTwo::new();
-            for &j in &free_b {
+            // the order of the offers does not matter: ties fail the ratio test whichever comes first
+            grid.for_each_near_segment(ends[0], ends[1], widest, |c| {
+                let j = free_b[c];
                 let q = &kb.features.keypoints[j];
-                let band = (config.epipolar_chi2 * pyr.scale(q.level).powi(2)).sqrt();
+                let band = band_of(q.level);
                 if q.u < lo_u - band || q.u > hi_u + band || q.v < lo_v - band || q.v > hi_v + band {
-                    continue;
+                    return;
                 }
                 let dist = (line.x * q.u + line.y * q.v + line.z).abs() / norm;
                 if dist > band {
-                    continue;
+                    return;
                 }
                 two.offer(hamming(d, &kb.features.descriptors[j]), j);
-            }
+            });
             if let Some(j) = two.winner(config.max_hamming, false) {
                 found.push((two.best, i, j));
             }
