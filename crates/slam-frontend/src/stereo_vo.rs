@@ -756,4 +756,36 @@ mod tests {
             assert!(at.abs_diff(i) <= 4, "frame {i}: best keyframe at frame {at}: {best:?}");
         }
     }
+
+    /// Extracting the two images on two threads changes nothing: over odometry 06 frames 0-7 the poses,
+    /// stereo points and tracked map points equal those of extracting them one after the other.
+    #[test]
+    fn parallel_extraction_tracks_exactly_as_serial_extraction() {
+        let root =
+            std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06/sequences/06"));
+        let read = |cam: &str, i: usize| {
+            crate::read_image(root.join(cam).join(format!("{i:06}.png")), false).expect("fixture image")
+        };
+        let k = Intrinsics::new(707.0912, 707.0912, 601.8873, 183.1104);
+        let rig = StereoRig { k, baseline: 379.8145 / 707.0912 };
+        let run = |parallel_extraction: bool| {
+            let config = VoConfig { parallel_extraction, ..VoConfig::default() };
+            let mut odo =
+                crate::Odometry::new(rig, config, std::sync::Arc::new(slam_lm::LevenbergMarquardt::default()))
+                    .expect("ORB");
+            (0..8)
+                .map(|i| {
+                    let t = odo.track(i, &read("image_0", i), &read("image_1", i), &[]).expect("tracks");
+                    (t.world_from_camera.to_homogeneous(), t.stereo_points, t.tracked_map_points, t.keyframe.is_some())
+                })
+                .collect::<Vec<_>>()
+        };
+        let (serial, parallel) = (run(false), run(true));
+        assert!(
+            serial.iter().all(|f| f.1 > 300),
+            "frames with stereo points: {:?}",
+            serial.iter().map(|f| f.1).collect::<Vec<_>>()
+        );
+        assert_eq!(serial, parallel);
+    }
 }

@@ -46,6 +46,9 @@ pub struct MappingConfig {
     pub iterations: usize,
     /// Run bundle adjustment at all (off: keyframes are only inserted). Default on.
     pub bundle_adjustment: bool,
+    /// Weight each observation by its keypoint's pyramid level: σ = the level's scale (1.2^level) in
+    /// the adjustment and in the cull after it.
+    pub level_sigma: bool,
     /// Far stereo keypoints (beyond the near bound) of a new keyframe become points at once too. Their
     /// disparity is never a measurement (tracking and bundle adjustment use their observations left
     /// only), so their depth comes from the keyframes' parallax as they are seen again; what they give
@@ -81,6 +84,7 @@ impl Default for MappingConfig {
             cull_chi2_mono: 5.991,
             iterations: 10,
             bundle_adjustment: true,
+            level_sigma: false,
             make_far_points: true,
             min_new_points: 100,
             triangulate: true,
@@ -281,6 +285,15 @@ impl LocalMapper {
         ((free_set.len(), fixed.len()), culled)
     }
 
+    /// The image noise σ (px) of a keypoint at pyramid `level`.
+    fn sigma(&self, map: &Map, level: u8) -> f64 {
+        if self.config.level_sigma {
+            map.pyramid().scale(level)
+        } else {
+            1.0
+        }
+    }
+
     /// An observation as the adjustment uses it: without its right column when there is none or its
     /// disparity is below the near bound's.
     fn usable(&self, map: &Map, o: [f64; 3]) -> [f64; 3] {
@@ -333,7 +346,8 @@ impl LocalMapper {
                     continue;
                 }
                 let o = self.usable(map, k.features.keypoints[kp].observation());
-                let (noise, huber) = (NoiseModel::Isotropic(1.0), Huber(self.config.huber_px));
+                let sigma = self.sigma(map, k.features.keypoints[kp].level);
+                let (noise, huber) = (NoiseModel::Isotropic(sigma), Huber(self.config.huber_px));
                 let added = if o[2].is_nan() {
                     p.graph.add(MonoReprojection::new(pk, xk, cam.k, [o[0], o[1]]), noise, huber)
                 } else {
@@ -357,7 +371,8 @@ impl LocalMapper {
             let Some(k) = map.keyframe(*kid) else { continue };
             for (kp, pid) in k.observations() {
                 let o = self.usable(map, k.features.keypoints[kp].observation());
-                if !self.agrees(map, &k.pose, pid, &o) {
+                let sigma = self.sigma(map, k.features.keypoints[kp].level);
+                if !self.agrees(map, &k.pose, pid, &o, sigma) {
                     doomed.push((pid, *kid));
                 }
             }
@@ -397,18 +412,19 @@ impl LocalMapper {
 
     /// Whether observation `o` (stereo, or left-only with a NaN right x) of point `pid` from a keyframe
     /// at `pose` is within the χ² bound of its kind.
-    fn agrees(&self, map: &Map, pose: &Isometry3<f64>, pid: PointId, o: &[f64; 3]) -> bool {
+    fn agrees(&self, map: &Map, pose: &Isometry3<f64>, pid: PointId, o: &[f64; 3], sigma: f64) -> bool {
         let Some(x) = map.position(pid) else { return false };
         let c: Vector3<f64> = (pose.inverse() * Point3::from(x)).coords;
         if c.z <= MIN_DEPTH_M {
             return false;
         }
         let p = map.camera().observe(&c);
-        let left = (p[0] - o[0]).powi(2) + (p[1] - o[1]).powi(2);
+        let s2 = sigma * sigma;
+        let left = ((p[0] - o[0]).powi(2) + (p[1] - o[1]).powi(2)) / s2;
         if o[2].is_nan() {
             left <= self.config.cull_chi2_mono
         } else {
-            left + (p[2] - o[2]).powi(2) <= self.config.cull_chi2
+            left + (p[2] - o[2]).powi(2) / s2 <= self.config.cull_chi2
         }
     }
 }
@@ -555,6 +571,28 @@ mod tests {
             .map(|(i, t)| (map.keyframe_pose(i as u64).expect("kf").translation.vector - t.translation.vector).norm())
             .sum();
         assert!(err_after < 0.2 * err_before, "BA error {err_after:.3} vs tracker error {err_before:.3}");
+    }
+
+    /// With `level_sigma` an observation's error is measured in its level's σ: 3 px off in u and in v
+    /// is an outlier at level 0 and within the 95 % bound at level 6 (σ = 1.2⁶ ≈ 2.99 px); without it,
+    /// an outlier at every level.
+    #[test]
+    fn level_sigma_measures_the_error_in_the_keypoints_level_sigma() {
+        let mut rng = slam_core::rng::SimRng::new(5);
+        let points = vec![Vector3::new(1.0, 0.5, 10.0), Vector3::new(-2.0, 0.3, 12.0)];
+        let mut map = Map::new(camera(), ScalePyramid::default());
+        let at = Isometry3::identity();
+        let (kf, _) = keyframe(&map, at, &at, &points, &HashMap::new(), &mut rng, 0.0, None);
+        map.insert_keyframe(kf, &MappingConfig::default().creation_policy()).expect("insert");
+        let (_, pid) = map.keyframe(0).expect("kf").observations().next().expect("a point");
+        let exact = camera().observe(&map.position(pid).expect("point"));
+        let off = [exact[0] + 3.0, exact[1] + 3.0, f64::NAN];
+        let plain = LocalMapper::new(MappingConfig::default(), lm());
+        let levelled = LocalMapper::new(MappingConfig { level_sigma: true, ..MappingConfig::default() }, lm());
+        assert!(plain.agrees(&map, &at, pid, &exact, plain.sigma(&map, 0)), "the exact observation agrees");
+        assert!(!plain.agrees(&map, &at, pid, &off, plain.sigma(&map, 6)));
+        assert!(levelled.agrees(&map, &at, pid, &off, levelled.sigma(&map, 6)));
+        assert!(!levelled.agrees(&map, &at, pid, &off, levelled.sigma(&map, 0)));
     }
 
     /// Forty keyframes at one place, all seeing the same points (a car standing still, or a road driven
