@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Run every test of the workspace on a fresh machine: installs what is missing, checks the crate
-# layering, then runs the whole test suite in release mode (faer/nalgebra are ~100x slower in debug).
+# layering and that the front end's and the map's files import each other without circles, then runs
+# the whole test suite in release mode (faer/nalgebra are ~100x slower in debug).
 # The suite is built with slam-app's feature `rerun`, so that the rerun recording test (a recording of
 # the shipped excerpt read back with rerun's own decoder) runs in CI too; rerun's SDK adds about 12-17
 # minutes to a first build on 2 cores (README, "A run in 3-D"). SLAM_TEST_RERUN=0 leaves it out (the
@@ -12,6 +13,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/setup.sh
 bash tools/check-deps.sh
+# no import circle among the files of the front end and the map (issue 40; tools/module-cycles.py)
+python3 tools/module-cycles.py crates/slam-frontend/src crates/slam-map/src
 features=slam-quadric/serde
 if [ "${SLAM_TEST_RERUN:-1}" != 0 ]; then
   features="$features,slam-app/rerun"

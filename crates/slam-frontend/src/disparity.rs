@@ -12,7 +12,7 @@
 use nalgebra::Isometry3;
 use slam_optim::{factors::StereoReprojection, Graph, Huber, NoiseModel, Optimizer, Options, Values, Var};
 
-use crate::stereo_vo::StereoRig;
+use slam_map::StereoCamera as StereoRig;
 
 /// Stereo observations `[u_l, v, u_r]` of the same points in a keyframe and a later frame, with the
 /// frame's pose relative to the keyframe from tracking (the starting point of each re-solve).

@@ -2,9 +2,10 @@
 //! corner on a moving car, a T-junction of two surfaces at different depths, a reflection or a stereo
 //! mismatch gives a keypoint that looks like a point in one keyframe but is not found again where the
 //! geometry says it must be. A point on probation is culled when tracking found it in fewer than a
-//! quarter of the frames whose view it lay in, or when, two keyframes after it was made, fewer than
-//! two keyframes observe it (with a stereo observation counting as two views: the keyframe that made
-//! a stereo point and one more). After three keyframes it is established.
+//! quarter of the frames whose view it lay in, or when, two keyframes after it was made, it has fewer
+//! than four views, a stereo observation counting as two (the keyframe that made a stereo point and a
+//! second stereo observation, or two more left-only ones; ORB-SLAM2's bound). After three keyframes it
+//! is established.
 
 use crate::{map::Map, PointId};
 
@@ -16,8 +17,10 @@ pub struct PointCulling {
     /// three of four is no longer chance.
     pub min_found_ratio: f64,
     /// Least views (a stereo observation counts two, a left-only one one) a point needs once
-    /// `observed_after` keyframes have been made since it was: two keyframes that saw it, one of them in
-    /// stereo. Keyframes overlap by about three quarters, so a real point is seen by the next ones.
+    /// `observed_after` keyframes have been made since it was: 4, two stereo observations or one and two
+    /// left-only ones. Keyframes overlap by about three quarters, so a real point is seen by the next
+    /// ones. (3, one more keyframe beside the one that made it, keeps a third more points and meets the
+    /// there-and-back keyframe target, but is mixed on the dev drives: docs/system.md.)
     pub min_views: usize,
     /// Keyframes after which the view count is checked.
     pub observed_after: u64,

@@ -130,7 +130,7 @@ impl Extractor {
                 candidates.iter().map(|&(at, score)| Candidate { at, level: level as i32, score }).collect();
             let mut quota_here = [0usize; LEVELS];
             quota_here[level] = quota;
-            let grey = super::frame::GreyView::of(&level_img)?;
+            let grey = super::grey::GreyView::of(&level_img)?;
             let scale = SCALE.powi(level as i32);
             for i in spread_per_level(&all, quota_here, (w, h)) {
                 let (x, y) = all[i].at;
@@ -208,7 +208,7 @@ fn detect_level(img: &Mat) -> Result<Vec<Corner>, FrontendError> {
 /// the keypoint to the intensity centroid of the disc of radius [`PATCH_RADIUS`] around it (Rosin's
 /// moments, as ORB measures it), so that the descriptor can be taken in a frame that turns with the
 /// image.
-pub(crate) fn orientation(grey: &super::frame::GreyView<'_>, x: i64, y: i64) -> f32 {
+pub(crate) fn orientation(grey: &super::grey::GreyView<'_>, x: i64, y: i64) -> f32 {
     let (mut m10, mut m01) = (0i64, 0i64);
     let r = PATCH_RADIUS as i64;
     let (width, height) = grey.size();
@@ -386,7 +386,7 @@ mod tests {
             (45.0, |x, y| 60 + (x + y) / 2),
         ] {
             let img = image(100, 100, |x, y| f(x, y).clamp(0, 255) as u8);
-            let grey = super::super::frame::GreyView::of(&img).expect("view");
+            let grey = super::super::grey::GreyView::of(&img).expect("view");
             let a = orientation(&grey, 50, 50) as f64;
             let off = (a - want + 540.0).rem_euclid(360.0) - 180.0;
             assert!(off.abs() < 1.0, "want {want}°, got {a}°");
