@@ -2,8 +2,8 @@
 """Import circles between the files of a crate: `python3 tools/module-cycles.py crates/NAME/src ...`.
 
 Each .rs file is a module (`a.rs` or `a/mod.rs` is `a`, `a/b.rs` is `a::b`). A file's non-test code
-(everything before its first `#[cfg(test)]`) names other modules through `crate::...`, `super::...` and
-`self::...` paths, `use` groups included. A reference between a module and one of its ancestors is the
+(everything before its first `#[cfg(test)]`, comments left out: a doc link is no import) names other
+modules through `crate::...`, `super::...` and `self::...` paths, `use` groups included. A reference between a module and one of its ancestors is the
 module tree itself (a parent declares and re-exports its children; a child may use its parent's items)
 and is not counted; every other reference is an edge. A circle of edges is printed with the files on it
 and the exit status is 1; without one the script prints one line per crate and exits 0.
@@ -51,6 +51,8 @@ def group_heads(text: str, start: int) -> list:
 def references(module: tuple, text: str, known: set) -> set:
     """The modules `module`'s code names."""
     code = text.split("#[cfg(test)]")[0]
+    # comments (doc links included) name modules without importing them
+    code = "\n".join(line.split("//")[0] for line in code.splitlines())
     targets = set()
     for m in PATH.finditer(code):
         root, rest, group = m.group(1), m.group(2), m.group(3)

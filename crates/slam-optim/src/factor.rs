@@ -4,16 +4,7 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::values::{Key, Values};
 
-/// Why a factor could not be evaluated.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum FactorError {
-    /// A key is missing or holds a variable of the wrong kind.
-    #[error("variable {0:?} missing or of the wrong kind")]
-    WrongVariable(Key),
-    /// The measurement model is undefined here (e.g. point behind the camera, ellipsoid not visible).
-    #[error("measurement model undefined: {0}")]
-    Undefined(String),
-}
+pub use crate::error::FactorError;
 
 /// A measurement: keys, residual dimension, residual and Jacobians.
 ///

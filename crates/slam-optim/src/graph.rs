@@ -6,9 +6,9 @@ use std::collections::BTreeSet;
 use nalgebra::DVector;
 
 use crate::{
-    factor::{Factor, FactorError},
+    error::{FactorError, OptimError},
+    factor::Factor,
     noise::NoiseModel,
-    optimizer::OptimError,
     robust::{RobustKernel, L2},
     values::{Key, Values},
 };

@@ -25,10 +25,12 @@
 
 pub mod bench;
 pub mod conformance;
+mod error;
 pub mod factor;
 pub mod factors;
 pub mod graph;
 pub mod io;
+mod key;
 pub mod lie;
 pub mod linear;
 pub mod noise;

@@ -8,43 +8,9 @@
 
 use std::{sync::Arc, time::Duration};
 
-use crate::{factor::FactorError, graph::Graph, values::Values};
+use crate::{graph::Graph, values::Values};
 
-/// Errors of graph building and solving.
-#[derive(Debug, thiserror::Error)]
-pub enum OptimError {
-    /// A factor failed at the starting point.
-    #[error("factor {factor} cannot be evaluated at the initial values: {source}")]
-    InitialEvaluation {
-        /// Index of the factor in the graph.
-        factor: usize,
-        /// Why.
-        source: FactorError,
-    },
-    /// The noise model does not fit the factor.
-    #[error("factor {factor}: noise model does not fit a residual of dimension {dim}")]
-    BadNoise {
-        /// Index of the factor.
-        factor: usize,
-        /// Residual dimension.
-        dim: usize,
-    },
-    /// A factor joins two variables marked for elimination.
-    #[error("factor {factor} joins two eliminated variables; Schur elimination needs at most one per factor")]
-    Elimination {
-        /// Index of the factor.
-        factor: usize,
-    },
-    /// The cost is not finite at the starting point.
-    #[error("the initial cost is not finite")]
-    NonFiniteCost,
-    /// The sparse symbolic analysis of the reduced system failed.
-    #[error("symbolic analysis of the reduced system failed")]
-    Symbolic,
-    /// No optimiser of that name.
-    #[error("unknown optimiser {0:?}")]
-    UnknownOptimizer(String),
-}
+pub use crate::error::OptimError;
 
 /// Options every backend honours (backend-specific settings belong to the backend's constructor).
 #[derive(Debug, Clone, Copy, PartialEq)]

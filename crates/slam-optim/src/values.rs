@@ -3,11 +3,9 @@
 use nalgebra::{DVector, Isometry3, Vector3, Vector6};
 use slam_quadric::{Ellipsoid, Tangent9};
 
-use crate::{factor::FactorError, lie};
+use crate::{error::FactorError, lie};
 
-/// Index of a variable in [`Values`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub struct Key(pub usize);
+pub use crate::key::Key;
 
 /// A BAL camera: angle-axis rotation `r`, translation `t`, focal `f`, radial `k1`, `k2`
 /// (`[r0, r1, r2, t0, t1, t2, f, k1, k2]`), world to camera `P = R(r) X + t`. Updated additively, as in

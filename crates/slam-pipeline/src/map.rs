@@ -460,10 +460,14 @@ impl Map {
                 return Err((format!("trajectory[{i}].keyframe"), format!("keyframe {} does not exist", f.keyframe)));
             }
             pose(format!("trajectory[{i}].relative"), &f.relative)?;
-            if !crate::report::STATE_NAMES.contains(&f.state.as_str()) {
+            if !crate::tracking_states::STATE_NAMES.contains(&f.state.as_str()) {
                 return Err((
                     format!("trajectory[{i}].state"),
-                    format!("'{}' is not a tracking state ({})", f.state, crate::report::STATE_NAMES.join(", ")),
+                    format!(
+                        "'{}' is not a tracking state ({})",
+                        f.state,
+                        crate::tracking_states::STATE_NAMES.join(", ")
+                    ),
                 ));
             }
             if last.is_some_and(|l| f.frame <= l) {

@@ -142,8 +142,7 @@ pub fn tracking_csv(out: &RunOutput) -> Result<String, csv::Error> {
     Ok(String::from_utf8_lossy(&bytes).into_owned())
 }
 
-/// Every state a frame's row of `tracking.csv` can name, in the order of `track-bench`'s columns.
-pub const STATE_NAMES: [&str; 7] = ["initialised", "tracked", "weak", "relocalised", "predicted", "lost", "unreadable"];
+pub use crate::tracking_states::STATE_NAMES;
 
 /// The state of a frame as `tracking.csv` names it ("unreadable": the images could not be read).
 pub fn state_name(r: &FrameRecord) -> &'static str {

@@ -95,7 +95,7 @@ pub struct SystemConfig {
     pub suppress_duplicates: bool,
     /// ODA gate: a detection is never given to an object whose projected ellipsoid overlaps it by less
     /// than this IoU. Default `Some(0.1)`; `None` (0 in a settings file) is the paper's cost alone.
-    #[serde(with = "crate::settings::zero_is_off")]
+    #[serde(with = "crate::serde_forms::zero_is_off")]
     pub projected_gate: Option<f64>,
     /// Most detections kept per frame (the highest scores; the rest are dropped and counted). The busiest
     /// labelled frame of the KITTI tracking fixtures has 25 boxes; association cost grows with the cube of

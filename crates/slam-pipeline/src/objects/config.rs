@@ -14,7 +14,7 @@ pub struct MapperConfig {
     /// What a box bounds in the object optimisation: "ellipse" (the ellipsoid's projected ellipse, the
     /// paper's model, default), "cuboid" (its circumscribed cuboid) or "two-stage" (yaw from the cuboid
     /// model, then the ellipse model with that yaw held); docs/objects.md.
-    #[serde(with = "crate::settings::box_shape")]
+    #[serde(with = "crate::serde_forms::box_shape")]
     pub box_shape: BoxShape,
     /// Image size (for clipped bounds and the border test).
     #[serde(skip)]
@@ -27,7 +27,7 @@ pub struct MapperConfig {
     /// the class's size prior) once it has this many border-free boxes. Default `None` (the paper's
     /// rule: no fit without parallax; 0 in a settings file); docs/objects.md has what `Some(10)` does on
     /// KITTI.
-    #[serde(with = "crate::settings::zero_is_off_usize")]
+    #[serde(with = "crate::serde_forms::zero_is_off_usize")]
     pub min_views_without_parallax: Option<usize>,
     /// Boxes within this many pixels of the border are not used for fitting (the paper's rule). Default 5.
     pub border_margin_px: f64,
@@ -43,7 +43,7 @@ pub struct MapperConfig {
     /// in prior standard deviations (Mahalanobis), is flagged dynamic: fitted as static, a moving object
     /// needs a size its class does not have. `None` (0 in a settings file) turns the test off. Default 6
     /// (docs/objects.md).
-    #[serde(with = "crate::settings::zero_is_off")]
+    #[serde(with = "crate::serde_forms::zero_is_off")]
     pub dynamic_prior_sigmas: Option<f64>,
     /// Standard deviations beyond which the stereo cues call an object moving or misplaced: the robust
     /// trend of its stereo-point centroids (one per measured frame, the last 30) moving farther than
@@ -63,7 +63,7 @@ pub struct MapperConfig {
     /// was not in this many frames in a row is removed (refitted when boxes come again). Default 5: a
     /// detector that finds a visible car 3 times in 4 misses it 5 times running about once in a
     /// thousand. `None`: off.
-    #[serde(with = "crate::settings::zero_is_off_usize")]
+    #[serde(with = "crate::serde_forms::zero_is_off_usize")]
     pub max_misses: Option<usize>,
     /// Depth within which a mapped object is expected to be detected, metres. Default 40 (a car's box
     /// is then at least 27 px tall at KITTI's focal length).
@@ -74,7 +74,7 @@ pub struct MapperConfig {
     /// more than their depth noise (3 σ) and the object's own size ([`ObjectMapper::check_free_space`]).
     /// Default 5, as `max_misses`: half a second of KITTI. `None` (0 in a settings file): off. No effect
     /// without stereo points (the image-free mode).
-    #[serde(with = "crate::settings::zero_is_off_usize")]
+    #[serde(with = "crate::serde_forms::zero_is_off_usize")]
     pub free_space_frames: Option<usize>,
     /// An ellipsoid is accepted only where the object's stereo points put it: it must lie within
     /// `dynamic_motion_sigmas` σ (depth noise and surface spread, as in the motion test) of the median
