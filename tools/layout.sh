@@ -9,6 +9,13 @@
 # there-and-back SEQUENCE OUT [LEGS]: the frames forwards, backwards, forwards, ... (LEGS legs, default 5;
 # a reversal does not repeat its end frame). standstill SEQUENCE OUT FRAME EXTRA: frame FRAME shown
 # EXTRA more times. OUT must not exist or be empty.
+# SEQUENCE and OUT are read from the folder the script is called from.
 set -euo pipefail
+args=("$@")
+for i in 1 2; do
+  if [ "$#" -gt "$i" ]; then
+    args[i]=$(realpath -m -- "${args[i]}")
+  fi
+done
 cd "$(dirname "$0")/.."
-exec cargo run --quiet --release -p slam-dataset --example layout -- "$@"
+exec cargo run --quiet --release -p slam-dataset --example layout -- "${args[@]}"

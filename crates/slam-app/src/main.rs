@@ -49,9 +49,11 @@ enum Command {
     /// objects, with detections from a file, and with the shipped detector.
     RunBench(run_cmd::RunBenchArgs),
     /// Tracking accuracy on every dev case in one table (odometry 06 at strides 1-4, odometry 01 (the
-    /// highway on-ramp), raw drive 0005 against OXTS at strides 1, 4 and 8, and any --case
-    /// PATH[:STRIDE]), without objects (with --objects: the full system): aligned ATE, path error,
-    /// drift, largest step error of tracked frames, frames per tracking state, raw ATE, median frames/s.
+    /// highway on-ramp), raw drive 0005 against OXTS at strides 1, 4 and 8, odometry 06 driven there and
+    /// back (5 legs) and with frame 20 shown 2, 30 and 200 more times, and any --case PATH[:STRIDE]),
+    /// without objects (with --objects: the full system): aligned ATE, path error, drift, largest step
+    /// error of tracked frames, frames per tracking state, keyframes, map points, local BA median, raw
+    /// ATE, median frames/s.
     TrackBench(run_cmd::TrackBenchArgs),
     /// ATE, drift and RPE of a trajectory file (KITTI or TUM) against ground truth.
     TrajectoryEval(run_cmd::TrajEvalArgs),
