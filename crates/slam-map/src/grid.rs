@@ -77,32 +77,43 @@ impl KeypointGrid {
 
     /// Calls `visit` once with every keypoint index in the cells within `radius` of the segment from
     /// `a` to `b` (a superset of the keypoints within `radius` of it: the caller tests the exact
-    /// distance), in no particular order. The segment is clipped to the grid's extent widened by
-    /// `radius` (an epipolar segment may start far outside the image) and sampled a cell apart, each
-    /// sample covering the cells within half a cell plus `radius` of it; a cell met twice is visited once.
+    /// distance), row of cells by row of cells. The segment is clipped to the grid's extent widened by
+    /// `radius` (an epipolar segment may start far outside the image); in each row of cells, the cells
+    /// visited are those within `radius` across of the part of the segment within `radius` of the row,
+    /// so that a keypoint within `radius` of the segment is in one of them and no cell is met twice.
     pub fn for_each_near_segment(&self, a: (f64, f64), b: (f64, f64), radius: f64, mut visit: impl FnMut(usize)) {
         if self.items.is_empty() || ![a.0, a.1, b.0, b.1, radius].iter().all(|x| x.is_finite()) {
             return;
         }
         let (w, h) = (self.cols as f64 * self.cell, self.rows as f64 * self.cell);
         let Some((a, b)) = clip_segment(a, b, (-radius, -radius), (w + radius, h + radius)) else { return };
-        let steps = ((b.0 - a.0).hypot(b.1 - a.1) / self.cell).ceil().max(1.0) as usize;
-        let r = ((0.5 * self.cell + radius) / self.cell).ceil() as i64;
-        let mut seen = vec![false; self.cols * self.rows];
-        for k in 0..=steps {
-            let t = k as f64 / steps as f64;
-            let (u, v) = (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
-            let (gx, gy) = ((u / self.cell).floor() as i64, (v / self.cell).floor() as i64);
-            for x in (gx - r).max(0)..=(gx + r).min(self.cols as i64 - 1) {
-                for y in (gy - r).max(0)..=(gy + r).min(self.rows as i64 - 1) {
-                    let c = y as usize * self.cols + x as usize;
-                    if std::mem::replace(&mut seen[c], true) {
-                        continue;
-                    }
-                    for &i in &self.items[self.start[c] as usize..self.start[c + 1] as usize] {
-                        visit(i as usize);
-                    }
+        let cell_of = |x: f64, n: usize| ((x / self.cell).floor().max(0.0) as usize).min(n - 1);
+        let (lo_v, hi_v) = (a.1.min(b.1), a.1.max(b.1));
+        for y in cell_of(lo_v - radius, self.rows)..=cell_of(hi_v + radius, self.rows) {
+            // the part of the segment whose v lies within `radius` of this row of cells
+            let (band_lo, band_hi) = (y as f64 * self.cell - radius, (y + 1) as f64 * self.cell + radius);
+            let dv = b.1 - a.1;
+            let (t0, t1) = if dv == 0.0 {
+                if a.1 < band_lo || a.1 > band_hi {
+                    continue;
                 }
+                (0.0, 1.0)
+            } else {
+                let (ta, tb) = ((band_lo - a.1) / dv, (band_hi - a.1) / dv);
+                (ta.min(tb).max(0.0), ta.max(tb).min(1.0))
+            };
+            if t0 > t1 {
+                continue;
+            }
+            let (u0, u1) = (a.0 + t0 * (b.0 - a.0), a.0 + t1 * (b.0 - a.0));
+            let (lo_u, hi_u) = (u0.min(u1) - radius, u0.max(u1) + radius);
+            if hi_u < 0.0 || lo_u >= w {
+                continue;
+            }
+            let row = y * self.cols;
+            let (x0, x1) = (cell_of(lo_u, self.cols), cell_of(hi_u, self.cols));
+            for &i in &self.items[self.start[row + x0] as usize..self.start[row + x1 + 1] as usize] {
+                visit(i as usize);
             }
         }
     }
