@@ -13,9 +13,9 @@
 set -euo pipefail
 args=("$@")
 for i in 1 2; do
-  if [ "$#" -gt "$i" ]; then
+  if [ "$#" -gt "$i" ] && [ -n "${args[i]}" ]; then
     args[i]=$(realpath -m -- "${args[i]}")
   fi
 done
 cd "$(dirname "$0")/.."
-exec cargo run --quiet --release -p slam-dataset --example layout -- "${args[@]}"
+exec cargo run --quiet --release -p slam-dataset --example layout -- ${args[@]+"${args[@]}"}

@@ -1,18 +1,28 @@
 #!/usr/bin/env python3
 """Import circles between the files of a crate: `python3 tools/module-cycles.py crates/NAME/src ...`.
 
-Each .rs file is a module (`a.rs` or `a/mod.rs` is `a`, `a/b.rs` is `a::b`). A file's non-test code
-(everything before its first `#[cfg(test)]`, comments left out: a doc link is no import) names other
-modules through `crate::...`, `super::...` and `self::...` paths, `use` groups included. A reference between a module and one of its ancestors is the
-module tree itself (a parent declares and re-exports its children; a child may use its parent's items)
-and is not counted; every other reference is an edge. A circle of edges is printed with the files on it
-and the exit status is 1; without one the script prints one line per crate and exits 0.
+Each .rs file is a module (`a.rs` or `a/mod.rs` is `a`, `a/b.rs` is `a::b`). A file's code, without its
+comments, string and character literals and test-only items (an item under `#[cfg(test)]` or
+`#[cfg(all(test, ...))]`), names other modules through `crate::...`, `super::...` and `self::...` paths,
+`use` trees with nested groups included. A name a module re-exports (`pub use x::Name`, any visibility)
+is followed to the module that defines it, so `use crate::Name` counts as an import of that module. A
+reference between a module and one of its ancestors is the module tree itself (a parent declares and
+re-exports its children; a child may use its parent's own items) and is not counted; every other
+reference is an edge. A circle of edges is printed with the files on it and the exit status is 1;
+without one the script prints one line per crate and exits 0.
 """
 import re
 import sys
 from pathlib import Path
 
-PATH = re.compile(r"\b(crate|super|self)((?:::(?:super|[A-Za-z_][A-Za-z0-9_]*))*)(::\{)?")
+# comments, raw strings, strings and character literals, in one pass so that each hides the others
+LEXEMES = re.compile(
+    r'/\*.*?\*/|//[^\n]*|r(#*)".*?"\1|b?"(?:\\.|[^"\\])*"|b?\'(?:\\.|[^\'\\])\'',
+    re.DOTALL,
+)
+TEST_ATTR = re.compile(r"#\[cfg\((?:test|all\(\s*test\b[^\]]*)\)\]")
+ROOT = re.compile(r"\b(crate|super|self)\s*::")
+IDENT = re.compile(r"\s*([A-Za-z_][A-Za-z0-9_]*|\*)")
 
 
 def modules(src: Path) -> dict:
@@ -28,54 +38,113 @@ def modules(src: Path) -> dict:
     return found
 
 
-def group_heads(text: str, start: int) -> list:
-    """The first path segment of each item in the `{...}` group opening at `start`, nested groups skipped."""
-    depth, item, heads = 1, "", []
-    i = start
-    while i < len(text) and depth:
-        c = text[i]
-        if c == "{":
-            depth += 1
-        elif c == "}":
-            depth -= 1
-        if depth == 1 and c == ",":
-            heads.append(item)
-            item = ""
-        elif depth == 1 and c not in "{}":
-            item += c
-        i += 1
-    heads.append(item)
-    return [h.strip().split("::")[0].split(" ")[0] for h in heads if h.strip()]
-
-
-def references(module: tuple, text: str, known: set) -> set:
-    """The modules `module`'s code names."""
-    code = text.split("#[cfg(test)]")[0]
-    # comments (doc links included) name modules without importing them
-    code = "\n".join(line.split("//")[0] for line in code.splitlines())
-    targets = set()
-    for m in PATH.finditer(code):
-        root, rest, group = m.group(1), m.group(2), m.group(3)
-        segments = [s for s in rest.split("::") if s]
-        if root == "crate":
-            base = []
-        elif root == "self":
-            base = list(module)
+def code_of(text: str) -> str:
+    """The text without comments, literals and test-only items."""
+    text = LEXEMES.sub(lambda m: " " if not m.group(0).startswith("//") else "", text)
+    while True:
+        m = TEST_ATTR.search(text)
+        if not m:
+            return text
+        i = m.end()
+        semi, brace = text.find(";", i), text.find("{", i)
+        if brace == -1 or (semi != -1 and semi < brace):
+            end = semi + 1 if semi != -1 else len(text)
         else:
-            base = list(module[:-1])
-        while segments and segments[0] == "super":
-            base = base[:-1]
-            segments = segments[1:]
-        heads = [segments] if not group else [segments + [h] for h in group_heads(code, m.end())]
-        for path in heads:
-            target = tuple(base)
-            for s in path:
-                if target + (s,) in known:
-                    target = target + (s,)
-                else:
+            depth, end = 0, brace
+            while end < len(text):
+                depth += {"{": 1, "}": -1}.get(text[end], 0)
+                end += 1
+                if depth == 0:
                     break
-            targets.add(target)
-    return targets
+        text = text[: m.start()] + text[end:]
+
+
+def use_tree(code: str, i: int, prefix: list, out: list) -> int:
+    """Parse a path tree at `i` (segments, `::`, `{...}` groups, `as` aliases); append each full path
+    with its alias (or last segment) to `out`; return the index after it."""
+    path = list(prefix)
+    while True:
+        if code.startswith("{", i := len(code) - len(code[i:].lstrip())):
+            i += 1
+            while True:
+                i = len(code) - len(code[i:].lstrip())
+                if code.startswith("}", i):
+                    return i + 1
+                i = use_tree(code, i, path, out)
+                i = len(code) - len(code[i:].lstrip())
+                if code.startswith(",", i):
+                    i += 1
+        m = IDENT.match(code, i)
+        if not m:
+            if path != prefix:
+                out.append((path, path[-1]))
+            return i
+        path.append(m.group(1))
+        i = m.end()
+        rest = code[i:]
+        stripped = rest.lstrip()
+        if stripped.startswith("::"):
+            i = len(code) - len(stripped) + 2
+            continue
+        alias = re.match(r"\s+as\s+([A-Za-z_][A-Za-z0-9_]*)", rest)
+        if alias:
+            i += alias.end()
+        out.append((path, alias.group(1) if alias else path[-1]))
+        return i
+
+
+def paths(module: tuple, code: str) -> list:
+    """Every `crate::`/`super::`/`self::` path in the code, as (absolute segments, exported name)."""
+    found = []
+    for m in ROOT.finditer(code):
+        base = [] if m.group(1) == "crate" else list(module) if m.group(1) == "self" else list(module[:-1])
+        raw = []
+        use_tree(code, m.end(), [], raw)
+        for segs, name in raw:
+            b = list(base)
+            while segs and segs[0] == "super":
+                b, segs = b[:-1], segs[1:]
+            if segs and segs[0] == "self":
+                segs = segs[1:]
+            found.append((b + segs, name))
+    return found
+
+
+def reexports(module: tuple, code: str, known: set) -> dict:
+    """The names a module re-exports, with the absolute path they come from."""
+    out = {}
+    for m in re.finditer(r"\bpub(?:\s*\([^)]*\))?\s+use\s+", code):
+        raw = []
+        use_tree(code, m.end(), [], raw)
+        for segs, name in raw:
+            if not segs:
+                continue
+            if segs[0] == "crate":
+                b, segs = [], segs[1:]
+            elif segs[0] in ("self", "super"):
+                b = list(module) if segs[0] == "self" else list(module[:-1])
+                segs = segs[1:]
+                while segs and segs[0] == "super":
+                    b, segs = b[:-1], segs[1:]
+            elif tuple(module) + (segs[0],) in known:
+                b = list(module)
+            else:
+                continue  # another crate's item
+            out[name] = b + segs
+    return out
+
+
+def resolve(path: list, known: set, exported: dict, depth: int = 0) -> tuple:
+    """The module an absolute path lands in, following re-exports."""
+    target = ()
+    for s in path:
+        if target + (s,) in known:
+            target = target + (s,)
+        elif s in exported.get(target, {}) and depth < 16:
+            return resolve(exported[target][s], known, exported, depth + 1)
+        else:
+            break
+    return target
 
 
 def ancestor(a: tuple, b: tuple) -> bool:
@@ -85,10 +154,12 @@ def ancestor(a: tuple, b: tuple) -> bool:
 def cycles(src: Path) -> list:
     mods = modules(src)
     known = set(mods)
-    edges = {
-        m: sorted(t for t in references(m, f.read_text(encoding="utf-8"), known) if t in known and not ancestor(m, t))
-        for m, f in mods.items()
-    }
+    codes = {m: code_of(f.read_text(encoding="utf-8")) for m, f in mods.items()}
+    exported = {m: reexports(m, c, known) for m, c in codes.items()}
+    edges = {}
+    for m, code in codes.items():
+        targets = {resolve(p, known, exported) for p, _ in paths(m, code)}
+        edges[m] = sorted(t for t in targets if not ancestor(m, t))
     found, state, stack = [], {}, []
 
     def visit(m):
@@ -113,11 +184,10 @@ def main() -> int:
     for arg in sys.argv[1:]:
         src = Path(arg)
         found = cycles(src)
-        name = "::".join
         if found:
             status = 1
             for c in found:
-                print(f"module-cycles: {src}: " + " -> ".join(name(m) or "(root)" for m in c), file=sys.stderr)
+                print(f"module-cycles: {src}: " + " -> ".join("::".join(m) or "(root)" for m in c), file=sys.stderr)
         else:
             print(f"module-cycles: {src}: no import circle among its {len(modules(src))} files: ok")
     return status

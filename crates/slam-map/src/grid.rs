@@ -26,7 +26,8 @@ impl KeypointGrid {
     /// The grid of `points` in cells of `cell` pixels (a narrow search, such as an epipolar band, reads
     /// fewer keypoints from smaller cells).
     pub fn with_cell(points: &[(f64, f64)], cell: f64) -> Self {
-        let cell = if cell.is_finite() && cell > 0.0 { cell } else { Self::CELL };
+        // below a pixel a cell holds no more than one keypoint and the grid's size grows without bound
+        let cell = if cell.is_finite() && cell >= 1.0 { cell } else { Self::CELL };
         let cols = points.iter().map(|p| Self::coord(p.0, cell)).max().unwrap_or(0) + 1;
         let rows = points.iter().map(|p| Self::coord(p.1, cell)).max().unwrap_or(0) + 1;
         let mut start = vec![0u32; cols * rows + 1];
@@ -75,14 +76,15 @@ impl KeypointGrid {
         }
     }
 
-    /// Calls `visit` once with every keypoint index in the cells within `radius` of the segment from
-    /// `a` to `b` (a superset of the keypoints within `radius` of it: the caller tests the exact
-    /// distance), row of cells by row of cells. The segment is clipped to the grid's extent widened by
+    /// Calls `visit` once with every keypoint index in the cells near the segment from `a` to `b`: a
+    /// superset of the keypoints whose offsets in u and in v from some point of the segment are both at
+    /// most `radius` (a square neighbourhood, which holds the round one; the caller tests its own
+    /// bound), row of cells by row of cells. The segment is clipped to the grid's extent widened by
     /// `radius` (an epipolar segment may start far outside the image); in each row of cells, the cells
     /// visited are those within `radius` across of the part of the segment within `radius` of the row,
-    /// so that a keypoint within `radius` of the segment is in one of them and no cell is met twice.
+    /// so that no cell is met twice. Nothing is visited for a negative or non-finite input.
     pub fn for_each_near_segment(&self, a: (f64, f64), b: (f64, f64), radius: f64, mut visit: impl FnMut(usize)) {
-        if self.items.is_empty() || ![a.0, a.1, b.0, b.1, radius].iter().all(|x| x.is_finite()) {
+        if self.items.is_empty() || ![a.0, a.1, b.0, b.1, radius].iter().all(|x| x.is_finite()) || radius < 0.0 {
             return;
         }
         let (w, h) = (self.cols as f64 * self.cell, self.rows as f64 * self.cell);
@@ -189,11 +191,18 @@ mod tests {
             let t = (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / (dx * dx + dy * dy).max(1e-12)).clamp(0.0, 1.0);
             (p.0 - a.0 - t * dx).hypot(p.1 - a.1 - t * dy)
         };
-        for n in 0..400 {
+        for n in 0..500 {
             let spread = if n % 4 == 0 { 20000.0 } else { 1500.0 };
-            let a = (rng.random_range(-spread..spread), rng.random_range(-spread..spread));
-            let b = (rng.random_range(-100.0..1340.0), rng.random_range(-100.0..480.0));
-            let radius = rng.random_range(0.5..12.0);
+            let a: (f64, f64) = (rng.random_range(-spread..spread), rng.random_range(-spread..spread));
+            let b: (f64, f64) = (rng.random_range(-100.0..1340.0), rng.random_range(-100.0..480.0));
+            // every tenth a row (the epipolar line of a rectified pair), a column or a single point
+            let a = match n % 10 {
+                1 => (a.0, b.1),
+                2 => (b.0, a.1),
+                3 => b,
+                _ => a,
+            };
+            let radius = if n % 25 == 0 { 0.0 } else { rng.random_range(0.5..12.0) };
             let scan: Vec<usize> = (0..points.len()).filter(|&i| distance(points[i], a, b) <= radius).collect();
             let mut found = Vec::new();
             grid.for_each_near_segment(a, b, radius, |i| found.push(i));
@@ -201,6 +210,29 @@ mod tests {
             assert!(found.windows(2).all(|w| w[0] < w[1]), "each keypoint visited once");
             let within: Vec<usize> = found.iter().copied().filter(|&i| distance(points[i], a, b) <= radius).collect();
             assert_eq!(within, scan, "segment {a:?}-{b:?} radius {radius}");
+            // the square neighbourhood too: offsets in u and v from the segment's nearest point in that
+            // sense (a convex function of the position along the segment, minimised by ternary search)
+            let square = |p: (f64, f64)| {
+                let at = |t: f64| (p.0 - a.0 - t * (b.0 - a.0)).abs().max((p.1 - a.1 - t * (b.1 - a.1)).abs());
+                let (mut lo, mut hi) = (0.0f64, 1.0f64);
+                for _ in 0..100 {
+                    let (m1, m2) = (lo + (hi - lo) / 3.0, hi - (hi - lo) / 3.0);
+                    if at(m1) <= at(m2) {
+                        hi = m2;
+                    } else {
+                        lo = m1;
+                    }
+                }
+                at(0.5 * (lo + hi))
+            };
+            let in_square: Vec<usize> = (0..points.len()).filter(|&i| square(points[i]) <= radius - 1e-9).collect();
+            assert!(in_square.iter().all(|i| found.binary_search(i).is_ok()), "square: {a:?}-{b:?} radius {radius}");
         }
+        let mut none = 0;
+        grid.for_each_near_segment((0.0, 0.0), (1000.0, 300.0), -20.0, |_| none += 1);
+        grid.for_each_near_segment((0.0, f64::NAN), (1000.0, 300.0), 5.0, |_| none += 1);
+        assert_eq!(none, 0, "a negative radius or a NaN end visits nothing");
+        // a cell below a pixel falls back to the default size
+        assert_eq!(KeypointGrid::with_cell(&points, 1e-9).cell, KeypointGrid::CELL);
     }
 }

@@ -128,7 +128,9 @@ impl Map {
             &free_b.iter().map(|&j| (kb.features.keypoints[j].u, kb.features.keypoints[j].v)).collect::<Vec<_>>(),
             16.0,
         );
-        // each level's band, and the widest of any candidate: every candidate lies within it of the segment
+        // each level's band, and the widest of any candidate: a candidate passes the box test below (within
+        // its band of the segment's bounding box) and the line test, so its offsets in u and in v from some
+        // point of the segment are both within the widest band: the grid's square neighbourhood holds it
         let bands: Vec<f64> = (0..=u8::MAX).map(|l| (config.epipolar_chi2 * pyr.scale(l).powi(2)).sqrt()).collect();
         let band_of = |level: u8| bands[level as usize];
         let widest = free_b.iter().map(|&j| band_of(kb.features.keypoints[j].level)).fold(0.0, f64::max);

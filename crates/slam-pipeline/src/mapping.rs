@@ -471,6 +471,22 @@ mod tests {
         sigma: f64,
         outlier: Option<usize>,
     ) -> (NewKeyframe, Vec<usize>) {
+        keyframe_at_level(map, pose, truth, points, ids, rng, (sigma, 0), outlier)
+    }
+
+    /// [`keyframe`] with every keypoint at one pyramid level (`noise.1`; `noise.0` is the noise, px).
+    #[allow(clippy::too_many_arguments)]
+    fn keyframe_at_level(
+        map: &Map,
+        pose: Isometry3<f64>,
+        truth: &Isometry3<f64>,
+        points: &[Vector3<f64>],
+        ids: &HashMap<usize, PointId>,
+        rng: &mut slam_core::rng::SimRng,
+        noise: (f64, u8),
+        outlier: Option<usize>,
+    ) -> (NewKeyframe, Vec<usize>) {
+        let (sigma, level) = noise;
         let cam = camera();
         let (mut kps, mut desc, mut seen) = (Vec::new(), Vec::new(), Vec::new());
         for (i, x) in points.iter().enumerate() {
@@ -488,7 +504,7 @@ mod tests {
                 u: o[0] + n(rng),
                 v: o[1] + n(rng),
                 u_right: if c.z < 35.0 { o[2] + n(rng) - mismatch } else { f64::NAN },
-                level: 0,
+                level,
                 angle: 0.0,
             });
             desc.push([i as u8; 32]);
@@ -593,6 +609,48 @@ mod tests {
         assert!(!plain.agrees(&map, &at, pid, &off, plain.sigma(&map, 6)));
         assert!(levelled.agrees(&map, &at, pid, &off, levelled.sigma(&map, 6)));
         assert!(!levelled.agrees(&map, &at, pid, &off, levelled.sigma(&map, 0)));
+    }
+
+    /// With `level_sigma` the adjustment weighs each observation by its keypoint's level: on two
+    /// keyframes whose keypoints are all at level 6, every factor's whitened residual is the plain one
+    /// over 1.2⁶, the same factors in the same order.
+    #[test]
+    fn level_sigma_weighs_the_adjustments_observations_by_their_level() {
+        let mut rng = slam_core::rng::SimRng::new(9);
+        let points: Vec<Vector3<f64>> = (0..80)
+            .map(|_| Vector3::new(rng.uniform(-8.0, 8.0), rng.uniform(-2.0, 2.0), rng.uniform(6.0, 15.0)))
+            .collect();
+        let mut map = Map::new(camera(), ScalePyramid::default());
+        let mut ids = HashMap::new();
+        let policy = MappingConfig::default().creation_policy();
+        for i in 0..2 {
+            let t = Isometry3::translation(0.0, 0.0, 1.0 * i as f64);
+            let (kf, seen) = keyframe_at_level(&map, t, &t, &points, &ids, &mut rng, (0.5, 6), None);
+            let id = kf.id;
+            map.insert_keyframe(kf, &policy).expect("insert");
+            for (kp, p) in map.keyframe(id).expect("kf").observations() {
+                ids.entry(seen[kp]).or_insert(p);
+            }
+        }
+        let local: BTreeSet<PointId> =
+            map.points().filter(|(_, p)| p.observations.len() == 2).map(|(id, _)| id).collect();
+        assert!(local.len() > 30, "{} points seen twice", local.len());
+        let (free, fixed) = (BTreeSet::from([1]), BTreeSet::from([0]));
+        let plain = LocalMapper::new(MappingConfig::default(), lm()).problem(&map, &free, &fixed, &local);
+        let levelled = LocalMapper::new(MappingConfig { level_sigma: true, ..MappingConfig::default() }, lm())
+            .problem(&map, &free, &fixed, &local);
+        assert_eq!(plain.graph.len(), levelled.graph.len());
+        assert!(plain.graph.len() >= 2 * local.len());
+        let scale = ScalePyramid::default().scale(6);
+        let mut nonzero = 0;
+        for f in 0..plain.graph.len() {
+            let a = plain.graph.whitened_residual(f, &plain.values).expect("factor").expect("residual");
+            let b = levelled.graph.whitened_residual(f, &levelled.values).expect("factor").expect("residual");
+            nonzero += usize::from(a.norm() > 1e-6);
+            assert!((&a / scale - &b).norm() <= 1e-12 * a.norm(), "factor {f}: {a} vs {b}");
+        }
+        // the second keyframe's noisy observations miss the points the first one made
+        assert!(nonzero >= local.len(), "{nonzero} factors with a residual");
     }
 
     /// Forty keyframes at one place, all seeing the same points (a car standing still, or a road driven

@@ -7,6 +7,8 @@
 
 use slam_core::check::{count, number, InvalidValue, Range};
 
+/// The settings-file forms of some settings, where they were before they moved to [`crate::serde_forms`].
+pub use crate::serde_forms::{box_shape, zero_is_off, zero_is_off_usize};
 use crate::{mapping::MappingConfig, objects::MapperConfig, system::SystemConfig, texture::TextureConfig};
 
 /// Errors of reading settings from TOML.
