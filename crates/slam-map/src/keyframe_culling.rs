@@ -1,6 +1,7 @@
 //! Redundant keyframes. A keyframe whose near points are nearly all seen by at least three other
-//! keyframes, at the same scale or a finer one, adds no constraint those keyframes do not: it is
-//! culled (kept as an anchor for the frames tracked against it). Driving the same road again or
+//! keyframes, at the same scale, a finer one or one level coarser (a factor of 1.2, within what a
+//! descriptor matches across), adds no constraint those keyframes do not: it is culled (kept as an
+//! anchor for the frames tracked against it). Driving the same road again or
 //! standing still makes such keyframes; culling them keeps the map in proportion to the places seen,
 //! not to the time spent there.
 
@@ -12,8 +13,9 @@ pub struct KeyframeCulling {
     /// Share of its near points that must be seen elsewhere: nine in ten. A keyframe that alone sees one
     /// point in ten of its view still holds part of the map.
     pub redundant_share: f64,
-    /// Other keyframes that must see such a point at the same or a finer level: three, so that the
-    /// point stays triangulated and constrained from several views when this one is gone.
+    /// Other keyframes that must see such a point at the same level, a finer one or one coarser:
+    /// three, so that the point stays triangulated and constrained from several views when this one is
+    /// gone.
     pub observers: usize,
     /// Only stereo points nearer than this many baselines count (the front end's `far_baselines`): a
     /// far point constrains the pose little whoever sees it.
