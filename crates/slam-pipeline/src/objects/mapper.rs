@@ -6,7 +6,7 @@ use slam_assoc::ObjectTracker;
 use slam_core::{Associator, TrackId};
 use slam_optim::SharedOptimizer;
 
-use super::{FitMethod, MappedObject, MapperConfig};
+use super::{method::FitMethod, MappedObject, MapperConfig};
 
 /// The object mapper.
 pub struct ObjectMapper {

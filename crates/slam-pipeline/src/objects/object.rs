@@ -5,7 +5,7 @@ use nalgebra::Vector3;
 use slam_core::{geometry::BBox, ClassId, KeyframeId, PointId, TrackId};
 use slam_quadric::{Camera, Ellipsoid};
 
-use super::SceneFlow;
+use super::flow::SceneFlow;
 
 /// Where an object's stereo points put it in one frame (its box's depth cluster of that frame's stereo
 /// points, or of a keyframe's): the median world position of its points and the standard deviation of
