@@ -3,7 +3,7 @@
 //! the first one as a flag it polls ([`interrupted`]) and discards its output; any other Ctrl-C (the
 //! first for every other command, a second one for `run`) removes the temporary files and folders the
 //! process is writing (`slam_core::files::remove_temporaries`: `.NAME.tmp-PID`, `.DIR.partial-PID`) and
-//! ends the process with status 130 and a message. Outputs keep their previous contents either way.
+//! ends the process at once (`_exit`) with status 130 and a message. Outputs keep their previous contents either way.
 
 use std::sync::{
     atomic::{AtomicBool, Ordering},
@@ -60,7 +60,12 @@ pub fn handle_interrupts() {
                              every output keeps its previous contents",
                             removed.len()
                         );
-                        std::process::exit(130);
+                        // _exit, not exit: the other threads are still running (the detector inside ONNX
+                        // Runtime or OpenCV), and the C++ libraries' exit-time destructors would pull their
+                        // state from under them: the process then died of a signal instead of ending with
+                        // 130. Nothing is left to flush: the message went to unbuffered stderr and the
+                        // outputs are kept as they were.
+                        signal_hook::low_level::exit(130);
                     }
                 });
                 spawned.is_ok()
