@@ -725,18 +725,24 @@ mod tests {
         }
     }
 
+    /// Image `i` of camera `cam` (`image_0`, `image_1`) of the shipped odometry 06 excerpt.
+    fn odometry_06_image(cam: &str, i: usize) -> slam_core::Image {
+        let root =
+            std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06/sequences/06"));
+        crate::read_image(root.join(cam).join(format!("{i:06}.png")), false).expect("fixture image")
+    }
+
+    /// The excerpt's rig (its calib.txt's P0 and P1).
+    fn odometry_06_rig() -> StereoRig {
+        StereoRig { k: Intrinsics::new(707.0912, 707.0912, 601.8873, 183.1104), baseline: 379.8145 / 707.0912 }
+    }
+
     /// The keyframe index on real frames: after tracking odometry 06 frames 0-30, every frame's own
     /// descriptors (keyframe or not) retrieve, as the best candidate, a keyframe taken within a few
     /// frames of it, never one of the far end of the run.
     #[test]
     fn the_index_retrieves_a_nearby_keyframe_for_real_frames() {
-        let root =
-            std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06/sequences/06"));
-        let read = |cam: &str, i: usize| {
-            crate::read_image(root.join(cam).join(format!("{i:06}.png")), false).expect("fixture image")
-        };
-        let k = Intrinsics::new(707.0912, 707.0912, 601.8873, 183.1104);
-        let rig = StereoRig { k, baseline: 379.8145 / 707.0912 };
+        let (read, rig) = (odometry_06_image, odometry_06_rig());
         let mut odo =
             crate::Odometry::new(rig, VoConfig::default(), std::sync::Arc::new(slam_lm::LevenbergMarquardt::default()))
                 .expect("ORB");
@@ -763,13 +769,7 @@ mod tests {
     /// stereo points and tracked map points equal those of extracting them one after the other.
     #[test]
     fn parallel_extraction_tracks_exactly_as_serial_extraction() {
-        let root =
-            std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06/sequences/06"));
-        let read = |cam: &str, i: usize| {
-            crate::read_image(root.join(cam).join(format!("{i:06}.png")), false).expect("fixture image")
-        };
-        let k = Intrinsics::new(707.0912, 707.0912, 601.8873, 183.1104);
-        let rig = StereoRig { k, baseline: 379.8145 / 707.0912 };
+        let (read, rig) = (odometry_06_image, odometry_06_rig());
         let run = |parallel_extraction: bool| {
             let config = VoConfig { parallel_extraction, ..VoConfig::default() };
             let mut odo =

@@ -457,26 +457,11 @@ mod tests {
     }
 
     /// A keyframe at `pose` (the tracker's belief) seeing `points` from `truth` with stereo noise
-    /// `sigma` px (the keypoint of point `outlier`, if any, with a 25 px stereo mismatch; points beyond
-    /// 35 m without a stereo match, as stereo matching loses most of them), matched to the map points
-    /// `ids` knows.
+    /// `noise.0` px, every keypoint at pyramid level `noise.1` (the keypoint of point `outlier`, if any,
+    /// with a 25 px stereo mismatch; points beyond 35 m without a stereo match, as stereo matching loses
+    /// most of them), matched to the map points `ids` knows.
     #[allow(clippy::too_many_arguments)]
     fn keyframe(
-        map: &Map,
-        pose: Isometry3<f64>,
-        truth: &Isometry3<f64>,
-        points: &[Vector3<f64>],
-        ids: &HashMap<usize, PointId>,
-        rng: &mut slam_core::rng::SimRng,
-        sigma: f64,
-        outlier: Option<usize>,
-    ) -> (NewKeyframe, Vec<usize>) {
-        keyframe_at_level(map, pose, truth, points, ids, rng, (sigma, 0), outlier)
-    }
-
-    /// [`keyframe`] with every keypoint at one pyramid level (`noise.1`; `noise.0` is the noise, px).
-    #[allow(clippy::too_many_arguments)]
-    fn keyframe_at_level(
         map: &Map,
         pose: Isometry3<f64>,
         truth: &Isometry3<f64>,
@@ -572,7 +557,7 @@ mod tests {
             let noisy = Isometry3::translation(0.03 * i as f64, -0.02 * i as f64, 0.04 * i as f64) * t;
             err_before += (noisy.translation.vector - t.translation.vector).norm();
             let outlier = (i == 5).then_some(wrong);
-            let (kf, seen) = keyframe(&map, noisy, t, &points, &ids, &mut rng, 0.3, outlier);
+            let (kf, seen) = keyframe(&map, noisy, t, &points, &ids, &mut rng, (0.3, 0), outlier);
             culled += map_keyframe(&mut map, &mapper, kf, &seen, &mut ids).culled_observations;
         }
         assert!(culled >= 1, "the mismatch is culled");
@@ -598,7 +583,7 @@ mod tests {
         let points = vec![Vector3::new(1.0, 0.5, 10.0), Vector3::new(-2.0, 0.3, 12.0)];
         let mut map = Map::new(camera(), ScalePyramid::default());
         let at = Isometry3::identity();
-        let (kf, _) = keyframe(&map, at, &at, &points, &HashMap::new(), &mut rng, 0.0, None);
+        let (kf, _) = keyframe(&map, at, &at, &points, &HashMap::new(), &mut rng, (0.0, 0), None);
         map.insert_keyframe(kf, &MappingConfig::default().creation_policy()).expect("insert");
         let (_, pid) = map.keyframe(0).expect("kf").observations().next().expect("a point");
         let exact = camera().observe(&map.position(pid).expect("point"));
@@ -625,7 +610,7 @@ mod tests {
         let policy = MappingConfig::default().creation_policy();
         for i in 0..2 {
             let t = Isometry3::translation(0.0, 0.0, 1.0 * i as f64);
-            let (kf, seen) = keyframe_at_level(&map, t, &t, &points, &ids, &mut rng, (0.5, 6), None);
+            let (kf, seen) = keyframe(&map, t, &t, &points, &ids, &mut rng, (0.5, 6), None);
             let id = kf.id;
             map.insert_keyframe(kf, &policy).expect("insert");
             for (kp, p) in map.keyframe(id).expect("kf").observations() {
@@ -669,7 +654,7 @@ mod tests {
         let mut fixed = Vec::new();
         for _ in 0..40 {
             let (kf, seen) =
-                keyframe(&map, Isometry3::identity(), &Isometry3::identity(), &points, &ids, &mut rng, 0.0, None);
+                keyframe(&map, Isometry3::identity(), &Isometry3::identity(), &points, &ids, &mut rng, (0.0, 0), None);
             fixed.push(map_keyframe(&mut map, &mapper, kf, &seen, &mut ids).window.1);
         }
         let cap = FIXED_PER_WINDOW * 3;
@@ -693,7 +678,7 @@ mod tests {
         let mut made = 0;
         for i in 0..8 {
             let t = Isometry3::translation(0.0, 0.0, 2.0 * i as f64);
-            let (kf, seen) = keyframe(&map, t, &t, &points, &ids, &mut rng, 0.2, None);
+            let (kf, seen) = keyframe(&map, t, &t, &points, &ids, &mut rng, (0.2, 0), None);
             made += map_keyframe(&mut map, &mapper, kf, &seen, &mut ids).points.1;
         }
         assert!(made > 50, "{made} points triangulated");
