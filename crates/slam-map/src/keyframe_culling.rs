@@ -87,12 +87,7 @@ mod tests {
         let policy = CreationPolicy::default();
         let mut of = std::collections::BTreeMap::new();
         for (n, z) in [0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 16.0].into_iter().enumerate() {
-            let (kf, index) = street.keyframe(&map, n, z, &|i| of.get(&i).copied());
-            let id = kf.id;
-            map.insert_keyframe(kf, &policy).expect("insert");
-            for (kp, p) in map.keyframe(id).expect("kf").observations() {
-                of.entry(index[kp]).or_insert(p);
-            }
+            street.insert(&mut map, (n, z), &policy, &mut of);
         }
         let all: Vec<u64> = map.keyframes().map(|k| k.id).collect();
         let culled = map.cull_redundant_keyframes(&all, 6, &KeyframeCulling::default());

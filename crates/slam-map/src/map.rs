@@ -587,12 +587,7 @@ mod tests {
         let policy = CreationPolicy::default();
         let mut of = BTreeMap::new();
         for (n, z) in [0.0, 2.0, 4.0, 6.0].into_iter().enumerate() {
-            let (kf, index) = street.keyframe(&live, n, z, &|i| of.get(&i).copied());
-            let id = kf.id;
-            live.insert_keyframe(kf, &policy).expect("insert");
-            for (kp, p) in live.keyframe(id).expect("kf").observations() {
-                of.entry(index[kp]).or_insert(p);
-            }
+            street.insert(&mut live, (n, z), &policy, &mut of);
         }
         let work = |m: &mut Map| {
             m.triangulate_new_points(3, &[2, 1], &Triangulation::default());

@@ -97,11 +97,9 @@ mod tests {
         let mut street = synthetic::Street::new(1, 300);
         let mut map = synthetic::map();
         let policy = CreationPolicy::default();
-        let (kf, index) = street.keyframe(&map, 0, 0.0, &|_| None);
-        let inserted = map.insert_keyframe(kf, &policy).expect("insert");
         // world index → map point of the first keyframe
-        let of: std::collections::BTreeMap<usize, u64> =
-            map.keyframe(0).expect("kf").observations().map(|(kp, p)| (index[kp], p)).collect();
+        let mut of = std::collections::BTreeMap::new();
+        let (inserted, _) = street.insert(&mut map, (0, 0.0), &policy, &mut of);
         assert_eq!(inserted.created.len(), of.len());
         let (&lonely_world, &lonely) = of.iter().next().expect("a point");
         // the next keyframes match every point but one

@@ -2,7 +2,7 @@
 //! them with exact projections, stereo where the point is near enough, and each point's descriptor
 //! seen with a few bits flipped per view.
 
-use std::sync::Arc;
+use std::{collections::BTreeMap, sync::Arc};
 
 use nalgebra::{Isometry3, Point3, Vector3};
 use rand::{rngs::ChaCha8Rng, RngExt, SeedableRng};
@@ -11,6 +11,7 @@ use slam_quadric::Intrinsics;
 use crate::{
     camera::{ScalePyramid, StereoCamera},
     descriptor::Descriptor,
+    insert::{CreationPolicy, Inserted},
     keyframe::{Features, Keypoint},
     NewKeyframe, PointId,
 };
@@ -95,5 +96,24 @@ impl Street {
             features: Arc::new(features),
         };
         (kf, index)
+    }
+
+    /// Insert the view at `z` as a keyframe, its keypoints matched to the points `seen` holds for their
+    /// world indices; `seen` then holds the points it made too. What the insertion made, and the world
+    /// index of each keypoint.
+    pub(crate) fn insert(
+        &mut self,
+        map: &mut crate::Map,
+        (frame, z): (usize, f64),
+        policy: &CreationPolicy,
+        seen: &mut BTreeMap<usize, PointId>,
+    ) -> (Inserted, Vec<usize>) {
+        let (kf, index) = self.keyframe(map, frame, z, &|i| seen.get(&i).copied());
+        let id = kf.id;
+        let inserted = map.insert_keyframe(kf, policy).expect("insert");
+        for (kp, p) in map.keyframe(id).expect("kf").observations() {
+            seen.entry(index[kp]).or_insert(p);
+        }
+        (inserted, index)
     }
 }

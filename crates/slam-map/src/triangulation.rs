@@ -255,10 +255,8 @@ mod tests {
         let mut street = synthetic::Street::new(5, 600);
         let mut map = synthetic::map();
         let policy = CreationPolicy { near_baselines: 40.0, min_points: 0 };
-        let (a, ia) = street.keyframe(&map, 0, 0.0, &|_| None);
-        map.insert_keyframe(a, &policy).expect("insert");
-        let made: std::collections::BTreeMap<usize, u64> =
-            map.keyframe(0).expect("kf").observations().map(|(kp, p)| (ia[kp], p)).collect();
+        let mut made = std::collections::BTreeMap::new();
+        street.insert(&mut map, (0, 0.0), &policy, &mut made);
         let (b, ib) = street.keyframe(&map, 1, 3.0, &|w| made.get(&w).copied());
         map.insert_keyframe(b, &policy).expect("insert");
         let before = map.point_count();
