@@ -5,10 +5,13 @@
 #
 #   bash tools/layout.sh there-and-back fixtures/kitti_odom_06/sequences/06 out/tab5 5
 #   bash tools/layout.sh standstill fixtures/kitti_odom_06/sequences/06 out/still30 20 30
+#   bash tools/layout.sh reversed fixtures/kitti_odom_06/sequences/06 out/back
 #
 # there-and-back SEQUENCE OUT [LEGS]: the frames forwards, backwards, forwards, ... (LEGS legs, default 5;
 # a reversal does not repeat its end frame). standstill SEQUENCE OUT FRAME EXTRA: frame FRAME shown
-# EXTRA more times. OUT must not exist or be empty.
+# EXTRA more times. reversed SEQUENCE OUT: the frames from the last to the first (the street driven the
+# other way: `slam-app run OUT/sequences/NN --map` in the forward drive's map). OUT must not exist or be
+# empty.
 # SEQUENCE and OUT are read from the folder the script is called from.
 set -euo pipefail
 args=("$@")

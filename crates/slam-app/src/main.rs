@@ -27,7 +27,7 @@ mod recording;
 mod run_cmd;
 mod sim_cmd;
 
-use std::{io::IsTerminal, path::PathBuf};
+use std::path::PathBuf;
 
 use clap::{Parser, Subcommand};
 
@@ -133,14 +133,7 @@ fn main() -> std::process::ExitCode {
 }
 
 fn run() -> anyhow::Result<()> {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .with_ansi(std::io::stderr().is_terminal())
-        .with_writer(slam_runner::console::log_writer)
-        .init();
+    slam_runner::console::init_logs();
     let cli = Cli::parse();
     // Ctrl-C removes this process's temporary files and folders (`run` polls it instead and stops)
     slam_runner::console::handle_interrupts();

@@ -25,6 +25,15 @@ pub struct RunArgs {
     /// needs slam-app built with the feature `rerun`. Open it with `rerun FILE.rrd`
     #[arg(long, value_name = "FILE.rrd")]
     rerun: Option<PathBuf>,
+    /// Start from the map of an earlier run (its map.json, with map.features beside it): localise in
+    /// it by keyframe retrieval, then track against it; frames not yet placed in it are `lost` and get
+    /// no pose. What this run adds extends it (the new map.json holds both), poses are in its frame,
+    /// and its objects keep their ids. The camera must be the one it was made with
+    #[arg(long, value_name = "MAP.json")]
+    map: Option<PathBuf>,
+    /// With --map: localise only, add nothing to the map (no keyframes, points or objects)
+    #[arg(long, requires = "map")]
+    localise_only: bool,
     #[command(flatten)]
     settings: SettingsArgs,
     #[command(flatten)]
@@ -84,6 +93,7 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     let seq = a.seq.path();
     let mut inputs = vec![("the sequence", seq.as_path())];
     inputs.extend(a.settings.config.as_deref().map(|p| ("--config", p)));
+    inputs.extend(a.map.as_deref().map(|p| ("--map", p)));
     inputs.extend(a.detector.detections.as_deref().map(|p| ("--detections", p)));
     inputs.extend(a.detector.labels.as_deref().map(|p| ("--labels", p)));
     inputs.extend(a.detector.model.files());
@@ -91,7 +101,8 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     outputs.extend(a.rerun.as_deref().map(|p| Written::File("--rerun", p)));
     refuse_overwriting_inputs(&inputs, &outputs)?;
     let dir = slam_dataset::output::OutputDir::create(out, "--out", "run")?;
-    let s = a.seq.run_settings(&cfg, &a.wiring, a.detector.choice()?, a.detector.labels.clone());
+    let mut s = a.seq.run_settings(&cfg, &a.wiring, a.detector.choice()?, a.detector.labels.clone());
+    (s.map, s.localise_only) = (a.map.clone(), a.localise_only);
     let played = run_with_progress(&s, a.rerun.as_deref());
     let stop = |done: usize| Interrupted::nothing_written(done, out, dir.target().exists());
     if interrupted() {
@@ -171,7 +182,7 @@ pub struct TrackBenchArgs {
 pub fn track_bench(b: &TrackBenchArgs) -> anyhow::Result<()> {
     let (odometry, highway, raw) =
         (crate::fixture(crate::SHIPPED), crate::fixture(crate::HIGHWAY), crate::fixture(crate::RAW_0005));
-    let dev = (!b.only_cases).then(|| bench::TrackCase::dev_cases(odometry, highway, raw));
+    let dev = (!b.only_cases).then(|| bench::TrackCase::dev_cases(odometry.clone(), highway.clone(), raw));
     let mut cases = dev.unwrap_or_default();
     cases.extend(b.cases.iter().map(|c| bench::TrackCase::parse(c)).collect::<Result<Vec<_>, _>>()?);
     let mut base =
@@ -180,6 +191,10 @@ pub fn track_bench(b: &TrackBenchArgs) -> anyhow::Result<()> {
         base.detector = slam_runner::DetectorChoice::Network(crate::detect_cmd::ModelArgs::default().loader());
     }
     bench::track_bench(&base, &cases, b.objects, &mut |l| println!("{l}"))?;
+    // the saved-map cases (issue 38) go with the dev cases
+    if !b.only_cases {
+        slam_runner::map_bench::map_bench(&base, &odometry, &highway, &mut |l| println!("{l}"))?;
+    }
     Ok(())
 }
 

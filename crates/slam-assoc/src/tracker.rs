@@ -106,6 +106,25 @@ impl ObjectTracker {
         &self.tracks
     }
 
+    /// New tracks take ids from `next` on at least (ids below it belong to objects made before, e.g.
+    /// of a map loaded from an earlier run).
+    pub fn reserve_ids(&mut self, next: u64) {
+        self.next_id = self.next_id.max(next);
+    }
+
+    /// Bring back a known object as a live track with its id (no-op when a live track has it), its
+    /// box filter started at `bbox` (where its map ellipsoid projects) and no match yet: an object
+    /// mapped before that comes into view again is associated like a tracked one.
+    pub fn recall(&mut self, id: TrackId, class: ClassId, bbox: &BBox) {
+        if self.tracks.iter().any(|t| t.id == id) || !bbox.to_array().iter().all(|v| v.is_finite()) {
+            return;
+        }
+        self.next_id = self.next_id.max(id.0 + 1);
+        let at = self.tracks.partition_point(|t| t.id < id);
+        let track = Track { id, class, filter: KalmanBoxFilter::new(bbox), last: *bbox, missed: 0, hits: 0, reference: None };
+        self.tracks.insert(at, track);
+    }
+
     /// Process one frame.
     pub fn step(&mut self, input: &TrackerInput<'_>) -> TrackerOutput {
         let predicted: Vec<BBox> = self.tracks.iter_mut().map(|t| t.filter.predict()).collect();

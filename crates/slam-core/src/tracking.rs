@@ -155,6 +155,11 @@ pub struct TrackedFrame {
     pub sightings: Sightings,
     /// Stage timings.
     pub times: StageTimes,
+    /// The frame has a pose in the map. False only in a map loaded from an earlier run until the
+    /// frame is placed there (relocalised with a verified pose): its `world_from_camera` and
+    /// `reference` are then not a pose, and the frame is written without one (its state is
+    /// [`TrackState::Lost`]).
+    pub placed: bool,
 }
 
 /// The map points a frame's view held and those it found ([`TrackedFrame::sightings`]).
@@ -233,6 +238,14 @@ pub trait StereoTracker: Send {
     fn stereo_flow(&mut self, regions: &[BBox]) -> Result<Vec<PointPair>, TrackError> {
         let _ = regions;
         Ok(Vec::new())
+    }
+
+    /// The run starts in `map`, loaded from an earlier run: get ready to localise in it before the
+    /// first frame (e.g. index its keyframes for retrieval), so that loading, not the first frame,
+    /// pays for it. Called once, before [`StereoTracker::track`]; trackers that need nothing do
+    /// nothing (the default).
+    fn load_map(&mut self, map: &Map) {
+        let _ = map;
     }
 }
 

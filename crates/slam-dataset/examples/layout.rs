@@ -5,6 +5,7 @@
 //! ```text
 //! cargo run --release -p slam-dataset --example layout -- there-and-back SEQUENCE OUT [LEGS]
 //! cargo run --release -p slam-dataset --example layout -- standstill SEQUENCE OUT FRAME EXTRA
+//! cargo run --release -p slam-dataset --example layout -- reversed SEQUENCE OUT
 //! ```
 //! `SEQUENCE` is an odometry `sequences/NN` folder; the new sequence is `OUT/sequences/NN` (its poses in
 //! `OUT/poses/NN.txt`). `tools/layout.sh` runs this.
@@ -15,7 +16,7 @@ use slam_dataset::layout::{write_layout, Order};
 
 fn usage() -> ExitCode {
     eprintln!(
-        "usage: layout there-and-back SEQUENCE OUT [LEGS (default 5)]\n       layout standstill SEQUENCE OUT FRAME EXTRA"
+        "usage: layout there-and-back SEQUENCE OUT [LEGS (default 5)]\n       layout standstill SEQUENCE OUT FRAME EXTRA\n       layout reversed SEQUENCE OUT"
     );
     ExitCode::from(2)
 }
@@ -29,6 +30,7 @@ fn main() -> ExitCode {
     let order = match (args.first().map(String::as_str), args.len()) {
         (Some("there-and-back"), 3) => Ok(Order::ThereAndBack { legs: 5 }),
         (Some("there-and-back"), 4) => number("LEGS", &args[3]).map(|legs| Order::ThereAndBack { legs }),
+        (Some("reversed"), 3) => Ok(Order::Reversed),
         (Some("standstill"), 5) => number("FRAME", &args[3])
             .and_then(|at| number("EXTRA", &args[4]).map(|extra| Order::Standstill { at, extra })),
         _ => return usage(),

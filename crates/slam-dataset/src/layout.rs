@@ -2,8 +2,10 @@
 //! own (the images linked, not copied; the calibration linked; the frame times at the sequence's frame
 //! period; the ground-truth poses in the same order). Two orders test what a drive over mapped road
 //! does: **there and back** (the frames forwards, then backwards, then forwards again ..., each reversal
-//! sharing its end frame: a car driving the same street to and fro, reversing without turning) and a
-//! **standstill** (one frame repeated: a car waiting at a light).
+//! sharing its end frame: a car driving the same street to and fro, reversing without turning), a
+//! **standstill** (one frame repeated: a car waiting at a light) and **reversed** (the frames from the
+//! last to the first: the same street driven the other way, for a run in the map of the forward
+//! drive).
 
 use std::path::{Path, PathBuf};
 
@@ -25,6 +27,8 @@ pub enum Order {
         /// Extra copies.
         extra: usize,
     },
+    /// The frames from the last to the first.
+    Reversed,
 }
 
 /// Most frames a derived layout may have: a day of driving at 10 Hz. Beyond it a typo (a number of
@@ -44,6 +48,7 @@ impl Order {
                 return Err(format!("frame {at} is not one of the sequence's {n} frames (0 to {})", n - 1))
             }
             Order::Standstill { extra, .. } => n.saturating_add(extra),
+            Order::Reversed => n,
         };
         if total > MAX_FRAMES {
             return Err(format!("{total} frames: a derived layout has at most {MAX_FRAMES} (a day at 10 Hz)"));
@@ -63,6 +68,7 @@ impl Order {
             Order::Standstill { at, extra } => {
                 (0..=at).chain(std::iter::repeat_n(at, extra)).chain(at + 1..n).collect()
             }
+            Order::Reversed => (0..n).rev().collect(),
         })
     }
 }
@@ -136,8 +142,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn orders_give_the_frames_of_a_drive_there_and_back_and_of_a_standstill() {
+    fn orders_give_the_frames_of_a_drive_there_and_back_of_a_standstill_and_reversed() {
         assert_eq!(Order::ThereAndBack { legs: 1 }.frames(3), Ok(vec![0, 1, 2]));
+        assert_eq!(Order::Reversed.frames(4), Ok(vec![3, 2, 1, 0]));
+        assert!(Order::Reversed.frames(0).is_err());
         assert_eq!(Order::ThereAndBack { legs: 3 }.frames(3), Ok(vec![0, 1, 2, 1, 0, 1, 2]));
         assert_eq!(Order::ThereAndBack { legs: 5 }.frames(51).map(|f| f.len()), Ok(251));
         assert_eq!(Order::Standstill { at: 1, extra: 2 }.frames(4), Ok(vec![0, 1, 1, 1, 2, 3]));

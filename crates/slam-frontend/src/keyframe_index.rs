@@ -62,6 +62,11 @@ impl KeyframeIndex {
         self.entries.len()
     }
 
+    /// Whether no keyframe is indexed.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+
     /// Add a keyframe under `key` with its descriptors.
     pub(crate) fn insert(&mut self, key: u64, descriptors: &[Descriptor]) {
         if self.heads.is_empty() {

@@ -91,6 +91,11 @@ pub struct StereoVo {
     flow: FlowHistory,
     /// Stereo correspondences of tracked frames with their keyframe (up to `keep_disparity_pairs`).
     pairs: Vec<DisparityPair>,
+    /// This tracker placed a frame in the map or made a keyframe: until then a map that holds
+    /// keyframes was loaded from an earlier run, and each frame is localised in it by retrieval.
+    started: bool,
+    /// The first frame not placed in a loaded map, while none has been.
+    unplaced_since: Option<usize>,
 }
 
 /// What [`StereoVo::prepare`] makes of a stereo pair: the frame, its stereo points, the stereo points
@@ -128,6 +133,8 @@ impl StereoVo {
             relocaliser: Relocaliser::default(),
             flow: FlowHistory::default(),
             pairs: Vec::new(),
+            started: false,
+            unplaced_since: None,
         })
     }
 
@@ -214,7 +221,11 @@ impl StereoVo {
         let times = |t3: Instant| StageTimes { extraction, stereo, tracking: (t3 - t2).as_secs_f64() * 1e3 };
         let stereo_points = frame.points.len();
         let Some(reference) = self.reference.filter(|r| map.keyframe_pose(*r).is_some()) else {
-            let mut tf = self.initialise(frame, frame_index, map);
+            let mut tf = if !self.started && map.keyframe_count() > 0 {
+                self.localise(frame, frame_index, map)?
+            } else {
+                self.initialise(frame, frame_index, map)
+            };
             tf.times = times(Instant::now());
             tf.points = points;
             tf.masked_points = masked_points;
@@ -283,7 +294,8 @@ impl StereoVo {
         let since_measured = self.motion.since_measured;
         let view = View { frame: &frame, map: &local, refined: refined.as_ref(), seen: &seen };
         let rig = self.tracker.rig;
-        let wants = self.policy.wants(&self.tracker.config, &rig, state, &view, map, since_measured);
+        let wants = !self.config().localise_only
+            && self.policy.wants(&self.tracker.config, &rig, state, &view, map, since_measured);
         let keyframe = if wants {
             // a frame lost for too long starts a new map segment: no parent, no matched points, at the
             // first unverified candidate pose when there was one, else at the motion prediction
@@ -324,6 +336,7 @@ impl StereoVo {
             keyframe,
             sightings,
             times: times(Instant::now()),
+            placed: true,
         })
     }
 
@@ -420,7 +433,73 @@ impl StereoVo {
             keyframe: Some(kf),
             sightings: Sightings::default(),
             times: StageTimes::default(),
+            placed: true,
         }
+    }
+
+    /// A frame in a map loaded from an earlier run, before any frame was placed there: the map's
+    /// keyframes are indexed for retrieval (once), and the frame is placed by retrieval alone
+    /// ([`Relocaliser::retrieve`]: PnP RANSAC on the descriptor matches of a retrieved keyframe's
+    /// local map, a second search at the pose found, the refinement, full support). Placed, it is
+    /// relocalised and tracking goes on from that keyframe; not placed, it is lost without a pose
+    /// ([`TrackedFrame::placed`] false) until `max_lost_s` has passed, after which a run that may
+    /// extend the map starts a new map segment (its own frame) at this frame.
+    fn localise(&mut self, frame: Frame, frame_index: usize, map: &Map) -> Result<TrackedFrame, FrontendError> {
+        if self.relocaliser.index.is_empty() {
+            self.index_map(map);
+        }
+        let cx = Context { tracker: &self.tracker, motion: &self.motion, map };
+        let Some((r, ransac, id, local)) = self.relocaliser.retrieve(&cx, &frame)? else {
+            let since = *self.unplaced_since.get_or_insert(frame_index);
+            let waited = (frame_index - since + 1) as f64 * self.config().period();
+            if !self.config().localise_only && waited > self.config().max_lost_s {
+                tracing::warn!(frame = frame_index, "not placed in the loaded map: new map segment from this frame");
+                return Ok(self.initialise(frame, frame_index, map));
+            }
+            tracing::info!(frame = frame_index, "not placed in the loaded map");
+            return Ok(TrackedFrame {
+                world_from_camera: Isometry3::identity(),
+                reference: (0, Isometry3::identity()),
+                state: TrackState::Lost,
+                stereo_points: frame.points.len(),
+                points: Vec::new(),
+                masked_points: Vec::new(),
+                tracked_map_points: 0,
+                reprojection_rms_px: f64::NAN,
+                keyframe: None,
+                sightings: Sightings::default(),
+                times: StageTimes::default(),
+                placed: false,
+            });
+        };
+        tracing::info!(frame = frame_index, keyframe = id, inliers = r.inliers.len(), "placed in the loaded map");
+        self.started = true;
+        self.reference = Some(id);
+        let kf_from_curr = r.pose.inverse();
+        self.motion.start(frame_index);
+        (self.motion.kf_from_last, self.motion.kf_from_measured) = (kf_from_curr, kf_from_curr);
+        self.policy.reset();
+        self.last_matched = r.inliers.iter().map(|&(i, _)| local.ids[i]).collect();
+        let seen = self.in_view(&local, &r.pose);
+        let sightings = Sightings {
+            visible: local.ids.iter().zip(&seen).filter(|(_, s)| s.is_some()).map(|(id, _)| *id).collect(),
+            found: self.last_matched.clone(),
+        };
+        let world_from_kf = map.keyframe_pose(id).unwrap_or_else(Isometry3::identity);
+        Ok(TrackedFrame {
+            world_from_camera: world_from_kf * kf_from_curr,
+            reference: (id, kf_from_curr),
+            state: TrackState::Relocalised { inliers: ransac },
+            stereo_points: frame.points.len(),
+            points: Vec::new(),
+            masked_points: Vec::new(),
+            tracked_map_points: r.inliers.len(),
+            reprojection_rms_px: r.rms,
+            keyframe: None,
+            sightings,
+            times: StageTimes::default(),
+            placed: true,
+        })
     }
 
     /// The frame's pose: 1. the local map searched from the constant-velocity prediction
@@ -547,6 +626,7 @@ impl StereoVo {
     /// now on, its descriptors go into the retrieval index, and the motion model and the keyframe
     /// policy start from it.
     fn take_keyframe(&mut self, kf: &slam_core::NewKeyframe, frame_index: usize, segment: bool) {
+        self.started = true;
         self.reference = Some(kf.id);
         self.relocaliser.index(kf.id, &kf.features.descriptors);
         if segment {
@@ -555,6 +635,39 @@ impl StereoVo {
         }
         self.motion.rebase();
         self.policy.reset();
+    }
+
+    /// Place one rectified stereo pair in `map` from scratch, as a run in a loaded map places its first
+    /// frame ([`StereoVo::localise`]: retrieval, PnP RANSAC, the search at the pose found, the
+    /// refinement, full support), without changing what the tracker follows: the keyframe it was
+    /// placed against, its pose (world from camera) and the refinement's inliers; `None` when it is
+    /// not placed. The map's keyframes are indexed on the first call.
+    pub fn place(
+        &mut self,
+        left: &Image,
+        right: &Image,
+        map: &Map,
+    ) -> Result<Option<(KeyframeId, Isometry3<f64>, usize)>, FrontendError> {
+        if self.relocaliser.index.is_empty() {
+            self.index_map(map);
+        }
+        let (frame, ..) = self.prepare(left, right, &[])?;
+        let motion = MotionModel::default();
+        let cx = Context { tracker: &self.tracker, motion: &motion, map };
+        Ok(self.relocaliser.retrieve(&cx, &frame)?.and_then(|(r, _, id, _)| {
+            let world_from_kf = map.keyframe_pose(id)?;
+            Some((id, world_from_kf * r.pose.inverse(), r.inliers.len()))
+        }))
+    }
+
+    /// Index every keyframe of a loaded map for retrieval.
+    fn index_map(&mut self, map: &Map) {
+        let t0 = Instant::now();
+        for k in map.keyframes() {
+            self.relocaliser.index.insert(k.id, &k.features.descriptors);
+        }
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        tracing::info!(keyframes = map.keyframe_count(), ms, "loaded map's keyframes indexed for retrieval");
     }
 
     /// Whether a refined pose found by `route` is accepted ([`checks`]).
@@ -589,6 +702,12 @@ impl StereoTracker for StereoVo {
 
     fn stereo_flow(&mut self, regions: &[BBox]) -> Result<Vec<PointPair>, TrackError> {
         self.optical_flow(regions, true).map_err(TrackError::backend)
+    }
+
+    fn load_map(&mut self, map: &Map) {
+        if self.relocaliser.index.is_empty() {
+            self.index_map(map);
+        }
     }
 }
 

@@ -10,7 +10,7 @@
 //!   stereo points), [`local`] (the keyframes around a view: tracking's local map, local mapping's
 //!   window), [`triangulation`] (new points between covisible keyframes), [`fusion`] (a point found
 //!   twice made one), [`point_culling`] (young points that are not found again), [`keyframe_culling`]
-//!   (keyframes whose points others see).
+//!   (keyframes whose points others see); [`restore`]: a map rebuilt from what a map file keeps.
 //!
 //! No OpenCV and no optimiser: local bundle adjustment works on a snapshot elsewhere
 //! (`slam-pipeline`) and hands its result back as edits.
@@ -30,6 +30,7 @@ pub mod local;
 mod map;
 pub mod point;
 pub mod point_culling;
+pub mod restore;
 pub mod triangulation;
 
 #[cfg(test)]
@@ -50,3 +51,4 @@ pub use insert::{CreationPolicy, Inserted, NewKeyframe};
 pub use keyframe::{Features, Keyframe, Keypoint};
 pub use map::{Map, MapError, Retired};
 pub use point::{MapPoint, Observation};
+pub use restore::{RestoreError, SavedPoint};

@@ -192,6 +192,22 @@ impl Map {
         Ok(())
     }
 
+    /// Restoring a map: the next keyframe inserted takes id `id` (never lower than the next one).
+    pub(crate) fn set_next_keyframe(&mut self, id: KeyframeId) {
+        self.next_keyframe = self.next_keyframe.max(id);
+    }
+
+    /// Restoring a map: point `id` as saved, observed by nobody yet.
+    pub(crate) fn insert_point(&mut self, id: PointId, point: MapPoint) {
+        self.next_point = self.next_point.max(id + 1);
+        self.points.insert(id, point);
+    }
+
+    /// Restoring a map: a point nobody observes left out.
+    pub(crate) fn drop_point(&mut self, id: PointId) {
+        self.points.remove(&id);
+    }
+
     // ---- the primitives (recorded in a snapshot) ----
 
     fn record(&mut self, e: Edit) {

@@ -205,6 +205,7 @@ mod tests {
         let out = RunOutput {
             map: crate::map::Map::default(),
             poses: Vec::new(),
+            placed: Vec::new(),
             objects: Vec::new(),
             frames,
             counts: Default::default(),
@@ -229,6 +230,7 @@ mod tests {
         let network = RunOutput {
             map: crate::map::Map::default(),
             poses: Vec::new(),
+            placed: Vec::new(),
             objects: Vec::new(),
             frames,
             counts: Default::default(),
@@ -243,6 +245,7 @@ mod tests {
         let alternating = RunOutput {
             map: crate::map::Map::default(),
             poses: Vec::new(),
+            placed: Vec::new(),
             objects: Vec::new(),
             frames: (0..30)
                 .map(|i| if i % 2 == 0 { record(i, 80.0, false, tracked) } else { record(i, 0.0, false, None) })

@@ -97,6 +97,10 @@ pub struct SystemConfig {
     /// than this IoU. Default `Some(0.1)`; `None` (0 in a settings file) is the paper's cost alone.
     #[serde(with = "crate::serde_forms::zero_is_off")]
     pub projected_gate: Option<f64>,
+    /// Localise only in a loaded map (`slam-app run --map FILE --localise-only`): no object is added
+    /// or refined (the tracker makes no keyframe). Not a settings-file key.
+    #[serde(skip)]
+    pub localise_only: bool,
     /// Most detections kept per frame (the highest scores; the rest are dropped and counted). The busiest
     /// labelled frame of the KITTI tracking fixtures has 25 boxes; association cost grows with the cube of
     /// the count (1,000 boxes per frame once took 297 s for 51 frames). Default 100.
@@ -122,6 +126,7 @@ impl Default for SystemConfig {
             suppress_duplicates: true,
             projected_gate: Some(0.1),
             max_detections: 100,
+            localise_only: false,
         }
     }
 }
@@ -252,8 +257,12 @@ pub struct RunCounts {
 pub struct RunOutput {
     /// The map: keyframes, points, objects, per-frame trajectory.
     pub map: Map,
-    /// Pose of every input frame (left camera, world from camera), following the refined keyframes.
+    /// Pose of every input frame (left camera, world from camera), following the refined keyframes
+    /// (the identity for a frame not placed in a loaded map: see `placed`).
     pub poses: Vec<Isometry3<f64>>,
+    /// Whether each frame has a pose in the map: false only for frames before the first one placed in
+    /// a map loaded from an earlier run.
+    pub placed: Vec<bool>,
     /// The objects with their observations.
     pub objects: Vec<MappedObject>,
     /// Per-frame records.

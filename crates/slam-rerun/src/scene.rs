@@ -599,6 +599,8 @@ mod tests {
             dynamic: true,
             moving: false,
             points: vec![],
+            views: vec![],
+            earlier_views: 0,
         };
         let shape = ObjectShape::of_map(&o);
         let [x, y, z, w] = shape.quaternion;
@@ -626,7 +628,7 @@ mod tests {
         }
         for (frame, kf, state) in [(0, 0, "initialised"), (1, 0, "tracked"), (2, 1, "tracked"), (3, 1, "lost")] {
             let relative = pose_to_array(&Isometry3::translation(0.0, 0.0, if frame % 2 == 1 { 1.0 } else { 0.0 }));
-            map.trajectory.push(FramePose { frame, keyframe: kf, relative, state: state.into() });
+            map.trajectory.push(FramePose { frame, keyframe: Some(kf), relative, state: state.into() });
         }
         map.objects.push(MapObject {
             id: 3,
@@ -639,6 +641,8 @@ mod tests {
             dynamic: false,
             moving: false,
             points: vec![],
+            views: vec![],
+            earlier_views: 0,
         });
         let frames: Vec<FrameScene> = FrameScene::of_map(&map).collect();
         assert_eq!(frames.iter().map(|f| f.frame).collect::<Vec<_>>(), [0, 1, 2, 3]);

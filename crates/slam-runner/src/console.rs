@@ -4,7 +4,8 @@
 //! - [`interrupt`]: Ctrl-C removes the temporaries and ends any command, or is a flag a long command
 //!   polls ([`Interrupted`] as its error);
 //! - [`stdout`]: stdout that ends the process quietly on a closed pipe (`… | head`);
-//! - [`error_text`]: an error and its causes on one line, for the final message.
+//! - [`error_text`]: an error and its causes on one line, for the final message;
+//! - [`init_logs`]: the `tracing` logs on stderr, beside the progress.
 
 pub mod interrupt;
 pub mod progress;
@@ -12,6 +13,19 @@ pub mod stdout;
 
 pub use interrupt::{catch_interrupt, handle_interrupts, interrupted, Interrupted};
 pub use progress::{log_writer, Progress};
+
+/// Send the `tracing` logs to stderr (through [`log_writer`], so they share it with the progress),
+/// filtered by `RUST_LOG` (default `info`), coloured on a terminal only. Once, at the program's start.
+pub fn init_logs() {
+    use std::io::IsTerminal;
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_ansi(std::io::stderr().is_terminal())
+        .with_writer(log_writer)
+        .init();
+}
 
 /// An error and its whole cause chain on one line, without a backtrace (errors at the command line are
 /// about the user's input); a cause that its parent's message already quotes is not repeated.

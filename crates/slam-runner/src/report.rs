@@ -50,9 +50,11 @@ impl Outcome {
     /// When most frames after the first were not tracked ([`MOSTLY_LOST_SHARE`]): what the images show
     /// (`slam_frontend::diagnosis`, over up to three readable pairs spread over the run), one sentence
     /// each; empty when the run tracked most frames.
+    /// In a loaded map frames not placed are the map's answer (another place), not a fault of the
+    /// images: nothing to diagnose.
     pub fn diagnosis(&self) -> Vec<String> {
         let (after, tracked) = self.tracked_after_first();
-        if after == 0 || tracked as f64 >= MOSTLY_LOST_SHARE * after as f64 {
+        if after == 0 || self.loaded.is_some() || tracked as f64 >= MOSTLY_LOST_SHARE * after as f64 {
             return Vec::new();
         }
         let n = self.seq.len();
@@ -91,10 +93,11 @@ impl Outcome {
     }
 
     /// An error when frames after the first were played and none of them was tracked: the run's output is
-    /// written (tracking.csv shows every frame's state), but the run failed.
+    /// written (tracking.csv shows every frame's state), but the run failed. Not for a run in a loaded
+    /// map: frames it cannot place there are its answer (the summary says so).
     pub fn nothing_tracked(&self) -> Option<RunnerError> {
         let (after, tracked) = self.tracked_after_first();
-        (after > 0 && tracked == 0).then(|| {
+        (after > 0 && tracked == 0 && self.loaded.is_none()).then(|| {
             RunnerError::Invalid(format!(
                 "no frame after the first of {} was tracked ({after} lost, predicted or relocalising; the diagnosis \
                  above says what the images show)",
@@ -107,8 +110,13 @@ impl Outcome {
     /// tracking.csv, map.json and objects.json into `dir`; `shown` is the folder's name in messages.
     pub fn write_files(&self, dir: &Path, shown: &Path) -> Result<()> {
         let out = &self.out;
-        write_kitti_poses(dir.join("trajectory.kitti.txt"), &out.poses)?;
-        write_tum(dir.join("trajectory.tum.txt"), &self.seq.times, &out.poses)?;
+        // a frame not placed in a loaded map has no pose: left out of both files
+        let placed = |k: &usize| out.placed.get(*k).copied().unwrap_or(true);
+        let keep: Vec<usize> = (0..out.poses.len()).filter(placed).collect();
+        let poses: Vec<Isometry3<f64>> = keep.iter().map(|&k| out.poses[k]).collect();
+        let times: Vec<f64> = keep.iter().filter_map(|&k| self.seq.times.get(k).copied()).collect();
+        write_kitti_poses(dir.join("trajectory.kitti.txt"), &poses)?;
+        write_tum(dir.join("trajectory.tum.txt"), if times.len() == poses.len() { &times } else { &self.seq.times }, &poses)?;
         let csv = tracking_csv(out).map_err(RunnerError::other)?;
         std::fs::write(dir.join("tracking.csv"), csv)
             .context_with(|| format!("writing {}", dir.join("tracking.csv").display()))?;
@@ -164,7 +172,11 @@ impl Outcome {
         for (name, ms, count) in stages_run(out, self.stages) {
             lines.push(format!("| {name} | {} | {count} |", slam_core::figure::cell(ms, 1)));
         }
-        lines.extend(self.truth_lines());
+        if self.loaded.is_some() {
+            lines.extend(self.map_lines());
+        } else {
+            lines.extend(self.truth_lines());
+        }
         if let Some(d) = &self.detections {
             lines.push(d.summary(max_detections));
         }
@@ -321,8 +333,10 @@ impl Outcome {
     /// The last line of a run: what was written where, and which frames.
     pub fn wrote_line(&self, shown: &Path, scored: bool, pictures: &str) -> String {
         format!(
-            "\nwrote {}: trajectory.kitti.txt (one line per played frame), trajectory.tum.txt (frame times), tracking.csv (one row per played frame), map.json, objects.json, camera.json, {}{pictures}; {}",
+            "\nwrote {}: trajectory.kitti.txt (one line per {}), trajectory.tum.txt (frame times), tracking.csv (one row per played frame), map.json, {}objects.json, camera.json, {}{pictures}; {}",
             shown.display(),
+            if self.out.placed.iter().all(|p| *p) { "played frame" } else { "frame placed in the map" },
+            if self.out.map.keyframe_features.is_empty() { "" } else { "map.features, " },
             if scored { "objects_score.json, " } else { "" },
             played_ids(&self.seq, &self.selection)
         )

@@ -62,6 +62,54 @@ pub struct RunSettings {
     pub detector: DetectorChoice,
     /// KITTI tracking labels to score the run against (else the tracking layout's own, if any).
     pub labels: Option<PathBuf>,
+    /// A map file of an earlier run to localise in and extend (`run --map`).
+    pub map: Option<PathBuf>,
+    /// With `map`: localise only, add nothing (`run --localise-only`).
+    pub localise_only: bool,
+}
+
+/// The map a run started from: its file, what it held, and how long loading it took.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapLoad {
+    /// The map file.
+    pub path: PathBuf,
+    /// Keyframes, points and objects loaded.
+    pub counts: (usize, usize, usize),
+    /// Reading, checking and rebuilding it, seconds.
+    pub seconds: f64,
+    /// Its keyframes were re-expressed in the run's camera (another calibration, localising only).
+    pub reexpressed: bool,
+    /// Localising only.
+    pub localise_only: bool,
+}
+
+/// Read a map file and rebuild it as the live map of a run with `rig` and images of `image` size;
+/// a map made with another camera is refused unless `localise_only` (then re-expressed, logged).
+pub fn load_map(
+    path: &std::path::Path,
+    rig: &StereoRig,
+    image: ImageSize,
+    localise_only: bool,
+) -> Result<(slam_pipeline::map::LoadedMap, MapLoad)> {
+    let t0 = std::time::Instant::now();
+    let file = slam_pipeline::map::Map::load(path)?;
+    let camera = slam_pipeline::map::MapCamera::of(rig, (image.width, image.height));
+    let loaded = file.to_live(&camera, localise_only).map_err(|e| {
+        let hint = if matches!(e, slam_pipeline::map::ToLiveError::Camera(_)) {
+            " (a map is extended only with the camera it was made with; --localise-only re-expresses its keyframes in this camera)"
+        } else {
+            ""
+        };
+        RunnerError::Invalid(format!("{}: {e}{hint}", path.display()))
+    })?;
+    if loaded.reexpressed {
+        tracing::warn!("{}: made with another camera; its keyframes re-expressed in this run's camera", path.display());
+    }
+    let counts = (loaded.map.keyframe_count(), loaded.map.point_count(), loaded.objects.len());
+    let seconds = t0.elapsed().as_secs_f64();
+    tracing::info!(keyframes = counts.0, points = counts.1, objects = counts.2, seconds, "map loaded");
+    let info = MapLoad { path: path.to_path_buf(), counts, seconds, reexpressed: loaded.reexpressed, localise_only };
+    Ok((loaded, info))
 }
 
 /// A sequence checked and ready to play: the frames, calibration and image size.
@@ -114,6 +162,8 @@ pub struct Outcome {
     pub selection: FrameSelection,
     /// The optional stages the run switched on (for the timing table).
     pub stages: slam_pipeline::report::StagesOn,
+    /// The map the run started from (`run --map`).
+    pub loaded: Option<MapLoad>,
 }
 
 /// Open the sequence, apply the selection and `max_frames`, and check image sizes and calibration before
@@ -255,7 +305,16 @@ impl Prepared {
             tracking.frame_period_s = frame_period(&stamped);
         }
         let optimizer = (s.optimizer)();
-        let tracker = Box::new(StereoVo::new(StereoRig { k, baseline: seq.baseline }, tracking, optimizer.clone())?);
+        let rig = StereoRig { k, baseline: seq.baseline };
+        let (map, loaded) = match &s.map {
+            Some(path) => {
+                let (m, info) = load_map(path, &rig, image, s.localise_only)?;
+                (Some(m), Some(info))
+            }
+            None => (None, None),
+        };
+        tracking.localise_only = s.localise_only;
+        let tracker = Box::new(StereoVo::new(rig, tracking, optimizer.clone())?);
         let labels = run_labels(s, &seq, image)?;
         let mut notes = Vec::new();
         // labels of frames the run does not play score nothing: said as unused detections are (with
@@ -283,7 +342,9 @@ impl Prepared {
         sys.objects.image = image;
         // the map makes points and local BA weighs disparities by the tracker's near bound
         sys.mapping.near_baselines = tracking.far_baselines;
+        sys.localise_only = s.localise_only;
         let out = SystemBuilder::new(k, seq.baseline)
+            .map(map)
             .config(sys)
             .source(frames)
             .tracker(tracker)
@@ -298,7 +359,7 @@ impl Prepared {
             objects: detections.is_some(),
             bundle_adjustment: sys.mapping.bundle_adjustment,
         };
-        Ok(Outcome { out, labels, seq, elapsed, k, image, colour, detections, notes, selection, stages })
+        Ok(Outcome { out, labels, seq, elapsed, k, image, colour, detections, notes, selection, stages, loaded })
     }
 }
 

@@ -156,6 +156,8 @@ impl RunSettings {
             names: (associator.name().to_string(), method.fit().name().to_string()),
             detector,
             labels,
+            map: None,
+            localise_only: false,
         }
     }
 

@@ -20,6 +20,8 @@ fn settings(frames: usize, stride: usize) -> RunSettings {
         names: ("IoU".into(), "Tri+Yaw+refine".into()),
         detector: DetectorChoice::None,
         labels: None,
+        map: None,
+        localise_only: false,
     }
 }
 

@@ -78,6 +78,8 @@ mod tests {
             dynamic: false,
             moving: false,
             points: Vec::new(),
+            views: Vec::new(),
+            earlier_views: 0,
         });
         // turned 90° about y: the length (2 m) now runs along z, the width (1 m) along x
         let (xs, zs): (Vec<f64>, Vec<f64>) = f.iter().map(|p| (p[0], p[1])).unzip();

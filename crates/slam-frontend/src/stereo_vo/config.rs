@@ -65,7 +65,9 @@ pub struct VoConfig {
     /// also where ORB-SLAM2 stops making map points from stereo depth (35–40 baselines). ∞: every
     /// disparity used.
     pub far_baselines: f64,
-    /// Lost for longer than this (seconds): a new map segment starts.
+    /// Lost for longer than this (seconds): a new map segment starts. In a map loaded from an earlier
+    /// run, frames not yet placed in it count as lost: a run that may extend the map starts a new
+    /// segment after this long without being placed.
     pub max_lost_s: f64,
     /// A new keyframe is made when fewer than this share of the reference keyframe's established points
     /// (those seen by at least three keyframes, two while the map has two or fewer) lie in the frame's
@@ -114,6 +116,10 @@ pub struct VoConfig {
     /// Camera above the rear axle, metres: KITTI's cameras are 1.65 m above the road, the axle one wheel
     /// radius (about 0.32 m) above it.
     pub vehicle_height_m: f64,
+    /// Localise only (`slam-app run --map FILE --localise-only`): no keyframe is made, so nothing is
+    /// added to the map and no new segment is started. Not a settings-file key.
+    #[serde(skip)]
+    pub localise_only: bool,
     /// Frame pairs kept for [`StereoVo::disparity_pairs`](super::StereoVo::disparity_pairs) (offset self-calibration); 0 keeps none.
     /// Not a settings-file key: `slam-app stereo-check` sets it.
     #[serde(skip)]
@@ -174,6 +180,7 @@ impl Default for VoConfig {
             vehicle_lever_m: (1.35, 0.78),
             vehicle_height_m: 1.33,
             keep_disparity_pairs: 0,
+            localise_only: false,
         }
     }
 }

@@ -86,6 +86,13 @@ impl ObjectMapper {
                 Some((o.id, b))
             })
             .collect();
+        // a loaded map's objects in view come back as tracks (their projected box as the prediction)
+        for id in &self.loaded {
+            let (Some(b), Some(o)) = (projected.get(id), self.objects.get(id)) else { continue };
+            if !o.moving && !self.tracker.tracks().iter().any(|t| t.id == *id) {
+                self.tracker.recall(*id, o.class, b);
+            }
+        }
         let out = self.tracker.step(&TrackerInput { detections, projected: &projected, flow, keyframe: true });
         self.count_misses(camera, &projected, detections, &out.tracks);
         for (k, (t, d)) in out.tracks.iter().zip(detections).enumerate() {

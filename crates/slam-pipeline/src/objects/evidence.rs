@@ -42,8 +42,13 @@ impl ObjectMapper {
                 continue;
             }
             let depth = (from_world * nalgebra::Point3::from(e.centre())).z;
-            let in_view =
-                depth > 0.0 && depth < cfg.visible_depth_m && !b.touches_border(&cfg.image, cfg.border_margin_px);
+            // expected only at a size the detector has found it at: a car's box shrinks with distance
+            // and a small detector's recall with it, so its own smallest detected box is the bound
+            let smallest = o.observations.iter().map(|x| x.bbox.height()).fold(f64::INFINITY, f64::min);
+            let in_view = depth > 0.0
+                && depth < cfg.visible_depth_m
+                && b.height() >= smallest
+                && !b.touches_border(&cfg.image, cfg.border_margin_px);
             let covered = detections.iter().any(|d| d.bbox.intersection(b).is_some_and(|x| x.area() >= 0.3 * b.area()));
             if !in_view || covered {
                 continue;

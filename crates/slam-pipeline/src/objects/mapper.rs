@@ -20,6 +20,9 @@ pub struct ObjectMapper {
     pub(super) free_space_removed: usize,
     pub(super) optimizer: SharedOptimizer,
     pub(super) method: FitMethod,
+    /// Objects of a loaded map ([`ObjectMapper::restore`]): each re-enters association as a track
+    /// when its ellipsoid projects into the view and no live track holds it.
+    pub(super) loaded: std::collections::BTreeSet<TrackId>,
 }
 
 impl ObjectMapper {
@@ -35,6 +38,7 @@ impl ObjectMapper {
             free_space_removed: 0,
             optimizer,
             method: FitMethod::default(),
+            loaded: Default::default(),
         }
     }
 

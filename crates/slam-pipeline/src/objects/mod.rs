@@ -13,8 +13,8 @@
 //! The parts, each in its module: settings ([`config`]), class knowledge ([`classes`]), the record
 //! of an object and its observations ([`object`]), association glue ([`association`]), motion
 //! evidence from the stereo points ([`motion`]), evidence for and against a static ellipsoid
-//! ([`evidence`]), fitting ([`fitting`]), the mapper's bookkeeping ([`mapper`]) and the object map
-//! file ([`output`]).
+//! ([`evidence`]), fitting ([`fitting`]), the mapper's bookkeeping ([`mapper`]), the object map
+//! file ([`output`]) and the objects of a loaded map ([`restore`]).
 
 pub mod association;
 pub mod classes;
@@ -27,6 +27,7 @@ pub mod method;
 pub mod motion;
 pub mod object;
 pub mod output;
+pub mod restore;
 
 pub use association::suppress_duplicate_boxes;
 pub use classes::{class_prior, physical_limits, physically_plausible, PhysicalLimits};

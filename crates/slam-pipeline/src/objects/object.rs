@@ -74,6 +74,8 @@ pub struct MappedObject {
     /// Set when the centroid trend flagged it moving: what the trend read, so that its own scene flow
     /// can refute it afterwards ([`ObjectMapper::add_flow`]).
     pub(super) trend_flag: Option<TrendFlag>,
+    /// How many of its observations come from a map loaded from an earlier run (the first ones).
+    pub earlier: usize,
     /// How many times its observations were dropped (a refuted trend flag): a fit job made before
     /// that, answered after, is discarded.
     pub(super) generation: u32,
@@ -121,6 +123,7 @@ impl MappedObject {
             misses: 0,
             free_frames: 0,
             trend_flag: None,
+            earlier: 0,
             generation: 0,
         }
     }

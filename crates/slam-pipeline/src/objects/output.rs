@@ -4,7 +4,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use super::MappedObject;
+use super::{MappedObject, Observation};
 
 /// Version of the object-map JSON.
 pub const OBJECT_MAP_VERSION: u32 = 1;
@@ -43,10 +43,12 @@ impl MappedObject {
             center: [e.centre().x, e.centre().y, e.centre().z],
             semi_axes: [e.semi_axes.x, e.semi_axes.y, e.semi_axes.z],
             rotation: std::array::from_fn(|k| r[(k / 3, k % 3)]),
-            frames: self.observations.iter().map(|x| x.frame).collect(),
+            frames: self.observations[self.earlier.min(self.observations.len())..].iter().map(|x| x.frame).collect(),
             dynamic: self.dynamic,
             moving: self.moving,
             points: self.points.iter().copied().collect(),
+            views: self.observations.iter().map(Observation::to_view).collect(),
+            earlier_views: self.earlier,
         })
     }
 }

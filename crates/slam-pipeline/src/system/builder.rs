@@ -14,7 +14,7 @@ use super::{
     FrameInput, FrameRecord, FrameView, RunOutput, SystemConfig, SystemError,
 };
 use crate::{
-    map::Map,
+    map::{LoadedMap, Map},
     mapping::LocalMapper,
     objects::{FitMethod, MappedObject, ObjectMapper},
 };
@@ -75,6 +75,7 @@ pub struct SystemBuilder {
     associator: Option<Box<dyn Associator>>,
     optimizer: Option<SharedOptimizer>,
     method: FitMethod,
+    loaded: Option<LoadedMap>,
 }
 
 impl SystemBuilder {
@@ -90,7 +91,16 @@ impl SystemBuilder {
             associator: None,
             optimizer: None,
             method: FitMethod::default(),
+            loaded: None,
         }
+    }
+
+    /// Start from a map loaded from an earlier run ([`Map::to_live`]): its keyframes, points and
+    /// objects; the tracker localises in it before it tracks, and what the run adds extends it
+    /// (nothing with [`SystemConfig::localise_only`]).
+    pub fn map(mut self, loaded: Option<LoadedMap>) -> Self {
+        self.loaded = loaded;
+        self
     }
 
     /// Settings.
@@ -163,9 +173,21 @@ impl SystemBuilder {
                 ..slam_assoc::OdaConfig::default()
             }))
         });
-        let objects = ObjectMapper::new(associator, config.objects, optimizer).with_method(self.method);
-        let camera = slam_core::map::StereoCamera { k: self.intrinsics, baseline: self.baseline };
-        let map = slam_core::Map::new(camera, slam_core::map::ScalePyramid::default());
+        let mut objects = ObjectMapper::new(associator, config.objects, optimizer).with_method(self.method);
+        let map = match self.loaded {
+            Some(loaded) => {
+                objects.restore(&loaded.objects, self.intrinsics);
+                loaded.map
+            }
+            None => {
+                let camera = slam_core::map::StereoCamera { k: self.intrinsics, baseline: self.baseline };
+                slam_core::Map::new(camera, slam_core::map::ScalePyramid::default())
+            }
+        };
+        let mut tracker = tracker;
+        if map.keyframe_count() > 0 {
+            tracker.load_map(&map);
+        }
         let tracking = Tracking::new(tracker, map, objects, config, req_tx, reply_rx);
         Ok(System { source: self.source, frames: Some(frame_tx), detected: Some(det_rx), detection, mapping, tracking })
     }
@@ -246,10 +268,12 @@ impl System {
         for o in &mut map.objects {
             o.points.retain(|p| map.points.contains_key(p));
         }
+        let placed = map.trajectory.iter().map(|f| f.keyframe.is_some()).collect();
         let poses = map.frame_poses().into_iter().map(|p| p.unwrap_or_else(Isometry3::identity)).collect();
         Ok(RunOutput {
             map,
             poses,
+            placed,
             objects: tracking.objects.objects().cloned().collect(),
             frames: tracking.records,
             counts: tracking.counts,

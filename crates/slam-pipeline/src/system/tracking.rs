@@ -53,6 +53,9 @@ pub struct Tracking {
     /// The keyframes whose local mapping was applied before the last frame was tracked (kept for
     /// [`FrameView`]).
     applied: Vec<KeyframeId>,
+    /// The map was loaded from an earlier run: a frame is written without a pose until one is placed
+    /// in it.
+    loaded: bool,
 }
 
 impl Tracking {
@@ -65,7 +68,9 @@ impl Tracking {
         requests: Sender<MapperRequest>,
         replies: Receiver<MapperReply>,
     ) -> Self {
+        let loaded = map.keyframe_count() > 0;
         Self {
+            loaded,
             tracker,
             map,
             objects,
@@ -223,7 +228,11 @@ impl Tracking {
         self.counts.unreadable += 1;
         self.last_pose = None;
         tracing::warn!(frame = i, "unreadable: {why}; pose held");
-        let (kf, rel) = self.last_reference.unwrap_or((0, Isometry3::identity()));
+        // in a loaded map, a frame before the first placed one has no pose to hold
+        let (kf, rel) = match self.last_reference {
+            Some((k, rel)) => (Some(k), rel),
+            None => ((!self.loaded).then_some(0), Isometry3::identity()),
+        };
         self.trajectory.push(FramePose {
             frame: i,
             keyframe: kf,
@@ -261,7 +270,7 @@ impl Tracking {
         times.extraction = tf.times.extraction;
         times.stereo = tf.times.stereo;
         times.tracking = tf.times.tracking;
-        self.last_pose = Some(tf.world_from_camera);
+        self.last_pose = tf.placed.then_some(tf.world_from_camera);
         self.count_state(i, &tf);
         self.map.count_sightings(&tf.sightings.visible, &tf.sightings.found);
         let keyframe = match &tf.keyframe {
@@ -269,11 +278,20 @@ impl Tracking {
             None => None,
         };
         let keyframe_points = keyframe.map(|id| self.keyframe_points(id));
-        let tracks = self.map_boxes(i, &tf, keyframe_points.as_ref(), &detections, &mut times);
-        self.last_reference = Some(tf.reference);
+        // objects need a pose in the map; localising only adds none
+        let tracks = if tf.placed && !self.config.localise_only {
+            self.map_boxes(i, &tf, keyframe_points.as_ref(), &detections, &mut times)
+        } else {
+            self.prev_boxes.clear();
+            self.prev_points = None;
+            vec![None; detections.len()]
+        };
+        if tf.placed {
+            self.last_reference = Some(tf.reference);
+        }
         self.trajectory.push(FramePose {
             frame: i,
-            keyframe: tf.reference.0,
+            keyframe: tf.placed.then_some(tf.reference.0),
             relative: pose_to_array(&tf.reference.1),
             state: tf.state.name().into(),
         });

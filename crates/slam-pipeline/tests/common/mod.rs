@@ -200,6 +200,7 @@ impl StereoTracker for ScriptedTracker {
             keyframe,
             sightings: Sightings::default(),
             times: StageTimes::default(),
+            placed: true,
         })
     }
 

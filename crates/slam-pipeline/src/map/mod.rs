@@ -14,6 +14,12 @@ use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 use slam_core::{KeyframeId, PointId};
 
+pub mod features;
+mod live;
+
+pub use features::{FeaturesRef, SavedFeatures};
+pub use live::{CameraMismatch, LoadedMap, MapCamera, ToLiveError};
+
 /// Format name written into every map file.
 pub const MAP_FORMAT: &str = "quadric-slam-map";
 /// The world frame of a map written by the running system (docs/system.md, "Conventions").
@@ -21,8 +27,12 @@ pub const MAP_WORLD: &str =
     "world = the left camera of the first frame: x right, y down, z forward, metres; poses world from camera";
 /// Version of the map file format. Version 2 added left-only observations (`u_right` written as
 /// `null`) of triangulated points; version 3 the keyframes culled from the map (`culled`, kept with their
-/// pose as anchors of the frames tracked against them). Versions 1 and 2 read unchanged.
-pub const MAP_VERSION: u32 = 3;
+/// pose as anchors of the frames tracked against them); version 4 the camera the map was made with
+/// (`camera`), the keyframes' features in a binary file beside it (`features`: keypoints, descriptors
+/// and which point each keypoint observes, [`features`]) and frames without a pose in the map
+/// (`trajectory[i].keyframe` `null`). Earlier versions read unchanged (without features: inspected,
+/// exported, not tracked against).
+pub const MAP_VERSION: u32 = 4;
 
 /// A pose as stored: quaternion `[qx, qy, qz, qw]` then translation `[tx, ty, tz]`, world from camera.
 pub type PoseArray = [f64; 7];
@@ -119,6 +129,36 @@ pub struct MapObject {
     pub moving: bool,
     /// Map points on the object (used for its texture planes).
     pub points: Vec<PointId>,
+    /// Its detections (earlier runs' first), so that a run that loads the map fits it from both runs'
+    /// boxes. Absent in files before version 4.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub views: Vec<ObjectView>,
+    /// How many of `views` come from runs before the one that wrote the file (their frames are not in
+    /// its trajectory; `frames` lists only that run's).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub earlier_views: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
+}
+
+/// One detection of an object as stored: the frame, the camera's pose (world from camera), the box
+/// `[xmin, ymin, xmax, ymax]` in pixels, the detected class, and the frame's reference keyframe with
+/// the frame's pose in it (the fit follows that keyframe's refinement).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectView {
+    /// Frame id.
+    pub frame: usize,
+    /// Camera pose, world from camera.
+    pub pose: PoseArray,
+    /// The box, pixels.
+    pub bbox: [f64; 4],
+    /// Detected class (COCO index).
+    pub class: u16,
+    /// Reference keyframe and the frame's pose in it.
+    pub reference: Option<(KeyframeId, PoseArray)>,
 }
 
 /// The pose of one input frame, relative to a keyframe (so it follows the keyframe's refinement).
@@ -127,9 +167,10 @@ pub struct MapObject {
 pub struct FramePose {
     /// Frame index.
     pub frame: usize,
-    /// Reference keyframe.
-    pub keyframe: KeyframeId,
-    /// Pose of the frame in the keyframe (keyframe from frame).
+    /// Reference keyframe; `None` for a frame not placed in the map (a run in a loaded map before it
+    /// localised there: no pose is guessed).
+    pub keyframe: Option<KeyframeId>,
+    /// Pose of the frame in the keyframe (keyframe from frame; the identity when not placed).
     pub relative: PoseArray,
     /// Tracking state as text (`tracked`, `lost`, `relocalised`, `initialised`, `unreadable`).
     pub state: String,
@@ -154,6 +195,15 @@ pub struct Map {
     pub objects: Vec<MapObject>,
     /// One entry per input frame, in order.
     pub trajectory: Vec<FramePose>,
+    /// The stereo camera the map was made with (absent in files before version 4).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<MapCamera>,
+    /// The keyframes' features file beside this one (absent before version 4, or without keyframes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub features: Option<FeaturesRef>,
+    /// The keyframes' features (from the features file; written there by [`Map::save`]).
+    #[serde(skip)]
+    pub keyframe_features: BTreeMap<KeyframeId, SavedFeatures>,
 }
 
 impl Default for Map {
@@ -166,6 +216,9 @@ impl Default for Map {
             points: BTreeMap::new(),
             objects: Vec::new(),
             trajectory: Vec::new(),
+            camera: None,
+            features: None,
+            keyframe_features: BTreeMap::new(),
         }
     }
 }
@@ -238,41 +291,6 @@ pub struct MapStats {
 }
 
 impl Map {
-    /// The database of a run's live map (`slam_core::Map`): its keyframes with their observations, the
-    /// keyframes culled from it (at their poses, without observations, marked culled), its points; no
-    /// objects and no trajectory yet.
-    pub fn from_live(live: &slam_core::Map) -> Self {
-        let mut m = Map::default();
-        for k in live.keyframes() {
-            let observations = k.observations().map(|(kp, p)| (p, k.features.keypoints[kp].observation())).collect();
-            let stored = MapKeyframe {
-                frame: k.frame,
-                pose: pose_to_array(&k.pose),
-                parent: k.parent,
-                observations,
-                culled: false,
-            };
-            m.keyframes.insert(k.id, stored);
-        }
-        for (&id, r) in live.retired() {
-            let pose = live.keyframe_pose(id).unwrap_or_else(Isometry3::identity);
-            let stored = MapKeyframe {
-                frame: r.frame,
-                pose: pose_to_array(&pose),
-                parent: Some(r.parent),
-                observations: Vec::new(),
-                culled: true,
-            };
-            m.keyframes.insert(id, stored);
-        }
-        for (id, p) in live.points() {
-            let observed_by: Vec<KeyframeId> =
-                p.observations.iter().map(|o| o.keyframe).filter(|k| live.keyframe(*k).is_some()).collect();
-            m.points.insert(id, MapPoint { position: [p.position.x, p.position.y, p.position.z], observed_by });
-        }
-        m
-    }
-
     /// Pose of a keyframe.
     pub fn keyframe_pose(&self, id: KeyframeId) -> Option<Isometry3<f64>> {
         self.keyframes.get(&id).map(|k| pose_from_array(&k.pose))
@@ -288,7 +306,7 @@ impl Map {
     pub fn frame_poses(&self) -> Vec<Option<Isometry3<f64>>> {
         self.trajectory
             .iter()
-            .map(|f| self.keyframe_pose(f.keyframe).map(|k| k * pose_from_array(&f.relative)))
+            .map(|f| f.keyframe.and_then(|k| self.keyframe_pose(k)).map(|k| k * pose_from_array(&f.relative)))
             .collect()
     }
 
@@ -309,9 +327,26 @@ impl Map {
     }
 
     /// Write the map as JSON, atomically (a temporary file beside it, then a rename).
+    /// The keyframes' features go to a binary file beside it first ([`features`], `map.features` for
+    /// `map.json`), also atomically; the JSON then names that file with its length and checksum, so a
+    /// run stopped between the two leaves a pair that [`Map::load`] refuses rather than mixes.
     pub fn save(&self, path: &Path) -> Result<(), MapError> {
-        let text = serde_json::to_string(self)
-            .map_err(|e| MapError::Format { path: path.to_path_buf(), message: e.to_string() })?;
+        let side = if self.keyframe_features.is_empty() {
+            None
+        } else {
+            let bytes = features::encode(&self.keyframe_features);
+            let side = features_path(path);
+            slam_core::files::write_atomic(&side, &bytes)?;
+            let file = side.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+            Some(FeaturesRef { file, bytes: bytes.len() as u64, fnv1a64: format!("{:016x}", features::fnv1a64(&bytes)) })
+        };
+        let fmt = |e: serde_json::Error| MapError::Format { path: path.to_path_buf(), message: e.to_string() };
+        let text = if side == self.features {
+            serde_json::to_string(self).map_err(fmt)?
+        } else {
+            let head = Map { features: side, keyframe_features: BTreeMap::new(), ..self.clone() };
+            serde_json::to_string(&head).map_err(fmt)?
+        };
         Ok(slam_core::files::write_atomic(path, text.as_bytes())?)
     }
 
@@ -355,8 +390,30 @@ impl Map {
             return Err(MapError::Version { path: path.to_path_buf(), found: header.version });
         }
         let map: Self = serde_json::from_str(&text).map_err(fmt)?;
+        let mut map = map;
         map.check().map_err(|(field, message)| MapError::Invalid { path: path.to_path_buf(), field, message })?;
+        if let Some(r) = &map.features {
+            map.keyframe_features = read_features(path, r)?;
+            map.check_features()
+                .map_err(|(field, message)| MapError::Invalid { path: path.to_path_buf(), field, message })?;
+        }
         Ok(map)
+    }
+
+    /// The features refer to keyframes of the map that are not culled, and to points that exist.
+    fn check_features(&self) -> Result<(), (String, String)> {
+        for (id, f) in &self.keyframe_features {
+            let field = || format!("features (keyframe {id})");
+            match self.keyframes.get(id) {
+                Some(k) if !k.culled => {}
+                Some(_) => return Err((field(), "a culled keyframe has no features".into())),
+                None => return Err((field(), "no such keyframe in the map".into())),
+            }
+            if let Some((k, p)) = f.observations.iter().find(|(_, p)| !self.points.contains_key(p)) {
+                return Err((field(), format!("keypoint {k} observes point {p}, which does not exist")));
+            }
+        }
+        Ok(())
     }
 
     /// Consistency of a map: every number finite (a right column may be absent), quaternions of unit
@@ -456,8 +513,8 @@ impl Map {
         }
         let mut last = None;
         for (i, f) in self.trajectory.iter().enumerate() {
-            if !self.keyframes.contains_key(&f.keyframe) {
-                return Err((format!("trajectory[{i}].keyframe"), format!("keyframe {} does not exist", f.keyframe)));
+            if let Some(k) = f.keyframe.filter(|k| !self.keyframes.contains_key(k)) {
+                return Err((format!("trajectory[{i}].keyframe"), format!("keyframe {k} does not exist")));
             }
             pose(format!("trajectory[{i}].relative"), &f.relative)?;
             if !crate::tracking_states::STATE_NAMES.contains(&f.state.as_str()) {
@@ -503,6 +560,37 @@ impl Map {
         }
         Ok(slam_core::files::write_atomic(path, s.as_bytes())?)
     }
+}
+
+/// The features file of a map file: `map.features` beside `map.json`.
+pub fn features_path(map: &Path) -> PathBuf {
+    map.with_extension("features")
+}
+
+/// Read the features file a map file names, checking its length and checksum.
+fn read_features(path: &Path, r: &FeaturesRef) -> Result<BTreeMap<KeyframeId, SavedFeatures>, MapError> {
+    let invalid = |message: String| MapError::Invalid { path: path.to_path_buf(), field: "features".into(), message };
+    // a bare file name, in the map file's folder: a map never points elsewhere
+    if Path::new(&r.file).file_name().map(|n| n.to_string_lossy()) != Some(r.file.as_str().into()) {
+        return Err(invalid(format!("{:?} is not a file name", r.file)));
+    }
+    let side = path.parent().unwrap_or(Path::new(".")).join(&r.file);
+    let bytes = slam_core::files::read_bytes(&side, &slam_core::files::DOCUMENT).map_err(|e| match e {
+        slam_core::files::ReadError::Io { path, source } => MapError::Io { path, source },
+        other => MapError::Read(other),
+    })?;
+    let sum = format!("{:016x}", features::fnv1a64(&bytes));
+    if bytes.len() as u64 != r.bytes || sum != r.fnv1a64 {
+        return Err(invalid(format!(
+            "{} is {} bytes with checksum {sum}, the map was written with {} bytes and checksum {}: \
+             damaged, or not the features file of this map",
+            side.display(),
+            bytes.len(),
+            r.bytes,
+            r.fnv1a64
+        )));
+    }
+    features::decode(&bytes).map_err(|m| invalid(format!("{}: {m}", side.display())))
 }
 
 /// Largest coordinate a map may hold, metres: the Earth's diameter (1.3e7 m), the bound the dataset
@@ -699,13 +787,13 @@ mod tests {
         m.points.insert(7, MapPoint { position: [0.5, 0.1, 9.0], observed_by: vec![0] });
         m.trajectory.push(FramePose {
             frame: 0,
-            keyframe: 0,
+            keyframe: Some(0),
             relative: pose_to_array(&Isometry3::identity()),
             state: "initialised".into(),
         });
         m.trajectory.push(FramePose {
             frame: 1,
-            keyframe: 1,
+            keyframe: Some(1),
             relative: pose_to_array(&pose.inverse()),
             state: "tracked".into(),
         });
@@ -791,6 +879,8 @@ mod tests {
             dynamic: false,
             moving: false,
             points: vec![],
+            views: vec![],
+            earlier_views: 0,
         };
         m.objects.push(object.clone());
         m.objects.push(MapObject { id: 5, moving: true, dynamic: true, ..object });
@@ -899,6 +989,8 @@ mod tests {
             dynamic: false,
             moving: false,
             points: vec![7],
+            views: vec![],
+            earlier_views: 0,
         });
         m.check().expect("the sample is consistent");
         m
@@ -978,7 +1070,7 @@ mod tests {
             &[
                 (
                     "trajectory-keyframe",
-                    |m| m.trajectory[1].keyframe = 4,
+                    |m| m.trajectory[1].keyframe = Some(4),
                     "trajectory[1].keyframe",
                     "keyframe 4 does not exist",
                 ),
