@@ -645,6 +645,14 @@ fn files_of_every_command() {
             1,
             &["cannot load detector model", "x.cfg", "no such file"],
         ),
+        case("run --map missing", &[&"run", &"--map", &d.join("none.json"), &"--out", &d.join("o")], 1, &["none.json"]),
+        case("run --localise-only without --map", &[&"run", &"--localise-only"], 2, &["--map"]),
+        case(
+            "run --map of a map without features",
+            &[&"run", &"--map", &ok, &"--out", &d.join("o")],
+            1,
+            &["no keyframe features to track against", "version 2"],
+        ),
         case("map: missing", &[&"map", &d.join("none.json")], 1, &["none.json"]),
         case("map: zero quaternion", &[&"map", &zero_q], 1, &["zero.json: keyframes.0.pose: zero quaternion"]),
         case(

@@ -121,7 +121,8 @@ impl ObjectTracker {
         }
         self.next_id = self.next_id.max(id.0 + 1);
         let at = self.tracks.partition_point(|t| t.id < id);
-        let track = Track { id, class, filter: KalmanBoxFilter::new(bbox), last: *bbox, missed: 0, hits: 0, reference: None };
+        let track =
+            Track { id, class, filter: KalmanBoxFilter::new(bbox), last: *bbox, missed: 0, hits: 0, reference: None };
         self.tracks.insert(at, track);
     }
 
@@ -203,5 +204,40 @@ fn region_of(d: &Detection) -> OwnedRegion {
     match &d.mask {
         Some(m) => OwnedRegion::Mask(m.clone()),
         None => OwnedRegion::Box(d.bbox),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::BTreeMap;
+
+    use super::*;
+    use crate::IouAssociator;
+
+    /// A known object recalled at its projected box is matched by the detection there and keeps its
+    /// id; recalling it again while it lives changes nothing; new tracks take ids past the reserved
+    /// ones; a recalled track that is never matched retires like any other.
+    #[test]
+    fn a_recalled_object_keeps_its_id_and_new_ones_come_after_the_reserved_ids() {
+        let mut t = ObjectTracker::new(Box::new(IouAssociator::default()), TrackerConfig { max_missed: 2 });
+        t.reserve_ids(10);
+        let at = BBox::new(100.0, 100.0, 200.0, 160.0);
+        t.recall(TrackId(4), ClassId(2), &at);
+        t.recall(TrackId(4), ClassId(2), &at);
+        t.recall(TrackId(2), ClassId(2), &BBox::new(500.0, 100.0, 560.0, 140.0));
+        t.recall(TrackId(3), ClassId(2), &BBox::new(f64::NAN, 0.0, 1.0, 1.0));
+        assert_eq!(t.tracks().iter().map(|x| x.id.0).collect::<Vec<_>>(), [2, 4], "in id order, once each, finite");
+        let dets = [
+            Detection::new(ClassId(2), 0.9, BBox::new(104.0, 102.0, 203.0, 161.0)),
+            Detection::new(ClassId(2), 0.9, BBox::new(800.0, 100.0, 900.0, 170.0)),
+        ];
+        let projected = BTreeMap::new();
+        let input = TrackerInput { detections: &dets, projected: &projected, flow: &[], keyframe: true };
+        let out = t.step(&input);
+        assert_eq!(out.tracks, [Some(TrackId(4)), Some(TrackId(10))]);
+        for _ in 0..3 {
+            t.step(&TrackerInput { detections: &dets[..1], ..input });
+        }
+        assert!(t.tracks().iter().all(|x| x.id != TrackId(2)), "never matched: retired");
     }
 }

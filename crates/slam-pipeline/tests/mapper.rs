@@ -288,3 +288,50 @@ fn scene_flow_that_excludes_the_trend_lifts_its_moving_flag() {
     }
     assert!(moving(&m, id), "readings with 3 m of noise cannot exclude 1 m per frame");
 }
+
+/// A parked car mapped in one run and saved keeps its id in the next run that loads the map: its
+/// boxes join it from the first frame it projects into (it comes back as a track), no second object
+/// is made for it, a car the first run never saw gets a new id, and the next fit uses both runs' boxes.
+#[test]
+fn a_car_of_a_loaded_map_keeps_its_id_and_is_refined_by_both_runs() {
+    let parked = car(5.0, 30.0);
+    let mut first = ObjectMapper::new(Box::new(Oda::default()), MapperConfig::default(), lm());
+    let drive = |mapper: &mut ObjectMapper, frames: std::ops::Range<usize>, extra: Option<&Ellipsoid>| {
+        let mut ids = Vec::new();
+        for f in frames {
+            let cam = Camera::new(K, Isometry3::translation(0.0, 0.0, (f % 100) as f64));
+            let dets: Vec<Detection> = std::iter::once(&parked)
+                .chain(extra)
+                .filter_map(|e| project(e, &cam).and_then(|c| c.clipped_bounds(&IMAGE)).ok())
+                .map(|b| Detection::new(ClassId(2), 1.0, b))
+                .collect();
+            ids.push(mapper.step(f, &cam, &dets));
+        }
+        ids
+    };
+    drive(&mut first, 0..22, None);
+    let saved: Vec<_> = first.objects().filter_map(|o| o.to_map_object()).collect();
+    assert_eq!(saved.len(), 1, "one car mapped");
+    let (id, views) = (saved[0].id, saved[0].views.len());
+    assert!(views >= 10, "{views} views saved");
+
+    let mut second = ObjectMapper::new(Box::new(Oda::default()), MapperConfig::default(), lm());
+    assert_eq!(second.restore(&saved, K), 1);
+    // the same road again (frame ids 100-121), with a car parked on the other side this time
+    let other = car(-5.0, 34.0);
+    let ids = drive(&mut second, 100..122, Some(&other));
+    let parked_ids: Vec<u64> = ids.iter().filter_map(|f| f.first().copied().flatten()).map(|t| t.0).collect();
+    assert_eq!(parked_ids.len(), 22);
+    assert!(parked_ids.iter().all(|&t| t == id), "the loaded car's id every frame: {parked_ids:?}");
+    let new_ids: Vec<u64> = ids.iter().filter_map(|f| f.get(1).copied().flatten()).map(|t| t.0).collect();
+    assert!(!new_ids.is_empty() && new_ids.iter().all(|&t| t > id), "a new car gets a new id: {new_ids:?}");
+    let back = second.object(slam_core::TrackId(id)).expect("kept").to_map_object().expect("ellipsoid");
+    assert_eq!((back.earlier_views, back.views.len()), (views, views + 22));
+    assert_eq!(back.frames, (100..122).collect::<Vec<_>>(), "frames: this run's only");
+    let e = second.object(slam_core::TrackId(id)).and_then(|o| o.ellipsoid).expect("ellipsoid");
+    assert!(metrics::e_trans(&e, &parked) < 0.05, "{}", metrics::e_trans(&e, &parked));
+    let cars = second
+        .objects()
+        .filter(|o| o.ellipsoid.is_some() && (o.ellipsoid.expect("e").centre() - parked.centre()).norm() < 3.0);
+    assert_eq!(cars.count(), 1, "no second object for the loaded car");
+}

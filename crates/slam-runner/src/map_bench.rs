@@ -72,7 +72,9 @@ fn cases(
     let seq06 = slam_dataset::layout::write_layout(odometry, Order::Reversed, &back)?;
     print("\n**Saved map** (06 frames 0-50, then runs that start from it: `run --map`)\n".into());
     print("| case | frames | placed | first placed | ATE in the map's frame m | the map run's, same frames m | keyframes added | objects kept / added |\n|---|---:|---:|---:|---:|---:|---:|---:|".into());
-    let cases: [(&str, PathBuf, Option<(usize, usize)>, bool); 3] = [
+    // name, sequence, frame ids (all: None), localising only
+    type Case<'a> = (&'a str, PathBuf, Option<(usize, usize)>, bool);
+    let cases: [Case<'_>; 3] = [
         ("06 frames 20-50 again", odometry.to_path_buf(), Some((20, 51)), false),
         ("06 driven back, 50 down to 0", seq06, None, false),
         ("01 (another road), localising only", highway.to_path_buf(), Some((0, 51)), true),

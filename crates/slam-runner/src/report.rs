@@ -116,7 +116,11 @@ impl Outcome {
         let poses: Vec<Isometry3<f64>> = keep.iter().map(|&k| out.poses[k]).collect();
         let times: Vec<f64> = keep.iter().filter_map(|&k| self.seq.times.get(k).copied()).collect();
         write_kitti_poses(dir.join("trajectory.kitti.txt"), &poses)?;
-        write_tum(dir.join("trajectory.tum.txt"), if times.len() == poses.len() { &times } else { &self.seq.times }, &poses)?;
+        write_tum(
+            dir.join("trajectory.tum.txt"),
+            if times.len() == poses.len() { &times } else { &self.seq.times },
+            &poses,
+        )?;
         let csv = tracking_csv(out).map_err(RunnerError::other)?;
         std::fs::write(dir.join("tracking.csv"), csv)
             .context_with(|| format!("writing {}", dir.join("tracking.csv").display()))?;

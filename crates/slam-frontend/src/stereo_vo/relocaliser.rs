@@ -138,7 +138,15 @@ impl Relocaliser {
             let ransac = (2.0 * cx.tracker.config.ransac_px, RETRIEVAL_ITERATIONS, 12);
             let found = cx.tracker.pnp_ransac(&own, frame, &all, ransac)?;
             let pnp = t0.elapsed().as_secs_f64() * 1e3 - matched;
-            tracing::debug!(keyframe = id, score, points = own.len(), matches = all.len(), matched, pnp, "retrieved keyframe");
+            tracing::debug!(
+                keyframe = id,
+                score,
+                points = own.len(),
+                matches = all.len(),
+                matched,
+                pnp,
+                "retrieved keyframe"
+            );
             let Some((pose, _)) = found else { continue };
             let around: Vec<KeyframeId> =
                 std::iter::once(id).chain(cx.map.covisibility().best(id, cx.tracker.config.local_neighbours)).collect();
@@ -147,7 +155,12 @@ impl Relocaliser {
                 judge(&cx.tracker.config, cx.tracker.image_size, cx.motion, r, route, frame) == Support::Full
             };
             if let Some((r, n, _)) = Self::verify(cx, &map, frame, &pose, Route::Retrieved(id), &accept)? {
-                tracing::debug!(keyframe = id, inliers = r.inliers.len(), ms = t0.elapsed().as_secs_f64() * 1e3, "retrieved keyframe verified");
+                tracing::debug!(
+                    keyframe = id,
+                    inliers = r.inliers.len(),
+                    ms = t0.elapsed().as_secs_f64() * 1e3,
+                    "retrieved keyframe verified"
+                );
                 return Ok(Some((r, n, id, map)));
             }
         }

@@ -199,8 +199,138 @@ impl Map {
                 first_keyframe: p.observed_by.iter().copied().min().unwrap_or(0),
             })
             .collect();
-        let camera = StereoCamera { k: slam_core::geometry::Intrinsics::new(run.fx, run.fy, run.cx, run.cy), baseline: run.baseline };
+        let camera = StereoCamera {
+            k: slam_core::geometry::Intrinsics::new(run.fx, run.fy, run.cx, run.cy),
+            baseline: run.baseline,
+        };
         let map = slam_core::Map::restore(camera, slam_core::map::ScalePyramid::default(), keyframes, &points)?;
         Ok(LoadedMap { map, objects: self.objects.clone(), reexpressed: moved })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::PathBuf;
+
+    use slam_core::{
+        geometry::Intrinsics,
+        map::{CreationPolicy, Keypoint, NewKeyframe, ScalePyramid},
+    };
+
+    use super::*;
+
+    fn camera() -> StereoCamera {
+        StereoCamera { k: Intrinsics::new(707.0, 707.0, 601.9, 183.1), baseline: 0.54 }
+    }
+
+    /// Two keyframes 1 m apart seeing the same 60 points (the second matched to the first's).
+    fn live() -> slam_core::Map {
+        let cam = camera();
+        let mut m = slam_core::Map::new(cam, ScalePyramid::default());
+        let points: Vec<Vector3<f64>> = (0..60)
+            .map(|i| Vector3::new(f64::from(i % 10) - 4.5, f64::from(i / 10) * 0.5 - 1.5, 8.0 + f64::from(i % 7)))
+            .collect();
+        for n in 0..2u64 {
+            let pose = Isometry3::translation(0.0, 0.0, n as f64);
+            let keypoints = points
+                .iter()
+                .map(|p| {
+                    let o = cam.observe(&(p - pose.translation.vector));
+                    Keypoint { u: o[0], v: o[1], u_right: o[2], level: 0, angle: 30.0 }
+                })
+                .collect();
+            let descriptors = (0..60u8).map(|i| [i.wrapping_mul(37); 32]).collect();
+            let features = Features::new(keypoints, descriptors, (1226.0, 370.0)).expect("features");
+            let matched = match m.keyframe(0) {
+                Some(k) => k.points.clone(),
+                None => vec![None; 60],
+            };
+            let kf = NewKeyframe {
+                id: n,
+                frame: n as usize,
+                pose,
+                parent: n.checked_sub(1),
+                features: Arc::new(features),
+                matched,
+            };
+            m.insert_keyframe(kf, &CreationPolicy::default()).expect("inserted");
+        }
+        m
+    }
+
+    fn folder(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("slam-map-live-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).expect("folder");
+        d
+    }
+
+    /// Saved and loaded, a map rebuilds the live map it was made from: keyframes, points, the
+    /// observations of each, the covisibility; its keypoints to f32 precision.
+    #[test]
+    fn a_saved_map_loads_back_and_rebuilds_its_live_map() {
+        let live = live();
+        let map = Map::from_live(&live);
+        assert_eq!(map.camera, Some(MapCamera::of(&camera(), (1226.0, 370.0))));
+        let d = folder("roundtrip");
+        let file = d.join("map.json");
+        map.save(&file).expect("saved");
+        assert!(super::super::features_path(&file).is_file(), "features beside the JSON");
+        let back = Map::load(&file).expect("loads");
+        assert_eq!(back.keyframe_features.len(), 2);
+        for (id, f) in &map.keyframe_features {
+            let g = &back.keyframe_features[id];
+            assert_eq!((&g.descriptors, &g.observations, g.size), (&f.descriptors, &f.observations, f.size));
+            for (a, b) in g.keypoints.iter().zip(&f.keypoints) {
+                assert!((a.u - b.u).abs() < 1e-3 && (a.v - b.v).abs() < 1e-3 && (a.u_right - b.u_right).abs() < 1e-3);
+            }
+        }
+        let rebuilt = back.to_live(&MapCamera::of(&camera(), (1226.0, 370.0)), false).expect("rebuilt");
+        assert!(!rebuilt.reexpressed);
+        let m = rebuilt.map;
+        m.check().expect("consistent");
+        assert_eq!((m.keyframe_count(), m.point_count()), (live.keyframe_count(), live.point_count()));
+        assert_eq!(m.covisibility().weight(0, 1), live.covisibility().weight(0, 1));
+        assert!(m.covisibility().weight(0, 1) >= 50, "{}", m.covisibility().weight(0, 1));
+        for (id, p) in live.points() {
+            assert_eq!(m.point(id).map(|q| &q.observations), Some(&p.observations), "point {id}");
+        }
+        assert_eq!(m.next_keyframe_id(), 2);
+        let _ = std::fs::remove_dir_all(d);
+    }
+
+    /// A damaged or missing features file, a file of another map, another camera and a map without
+    /// features are refused with what is wrong; another calibration is accepted for localisation,
+    /// each keypoint moved to where the run's camera sees its ray.
+    #[test]
+    fn damage_other_cameras_and_old_maps_are_refused_with_the_reason() {
+        let map = Map::from_live(&live());
+        let d = folder("damage");
+        let file = d.join("map.json");
+        map.save(&file).expect("saved");
+        let side = super::super::features_path(&file);
+        let mut bytes = std::fs::read(&side).expect("features");
+        let last = bytes.len() - 1;
+        bytes[last] ^= 1;
+        std::fs::write(&side, &bytes).expect("damaged");
+        let e = Map::load(&file).expect_err("damaged").to_string();
+        assert!(e.contains("map.features") && e.contains("checksum"), "{e}");
+        std::fs::remove_file(&side).expect("removed");
+        let e = Map::load(&file).expect_err("missing").to_string();
+        assert!(e.contains("map.features"), "{e}");
+        let run = MapCamera { fx: 718.856, cx: 607.19, ..MapCamera::of(&camera(), (1241.0, 376.0)) };
+        let e = map.to_live(&run, false).expect_err("another camera").to_string();
+        assert!(e.contains("fx 707 px in the map, 718.856 px here") && e.contains("images 1226×370"), "{e}");
+        let moved = map.to_live(&run, true).expect("re-expressed for localisation");
+        assert!(moved.reexpressed);
+        let (a, b) =
+            (&map.keyframe_features[&0].keypoints[3], &moved.map.keyframe(0).expect("kf").features.keypoints[3]);
+        assert!((b.u - (718.856 / 707.0 * (a.u - 601.9) + 607.19)).abs() < 1e-9);
+        // the same depth: disparity scaled by the focal lengths (same baseline)
+        assert!(((b.u - b.u_right) - (a.u - a.u_right) * 718.856 / 707.0).abs() < 1e-9);
+        let old = Map { keyframe_features: Default::default(), features: None, ..map.clone() };
+        let e = old.to_live(&MapCamera::of(&camera(), (1226.0, 370.0)), false).expect_err("no features");
+        assert!(matches!(e, ToLiveError::NoFeatures(_)), "{e}");
+        let _ = std::fs::remove_dir_all(d);
     }
 }

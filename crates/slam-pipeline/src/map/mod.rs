@@ -338,7 +338,11 @@ impl Map {
             let side = features_path(path);
             slam_core::files::write_atomic(&side, &bytes)?;
             let file = side.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-            Some(FeaturesRef { file, bytes: bytes.len() as u64, fnv1a64: format!("{:016x}", features::fnv1a64(&bytes)) })
+            Some(FeaturesRef {
+                file,
+                bytes: bytes.len() as u64,
+                fnv1a64: format!("{:016x}", features::fnv1a64(&bytes)),
+            })
         };
         let fmt = |e: serde_json::Error| MapError::Format { path: path.to_path_buf(), message: e.to_string() };
         let text = if side == self.features {
@@ -394,8 +398,11 @@ impl Map {
         map.check().map_err(|(field, message)| MapError::Invalid { path: path.to_path_buf(), field, message })?;
         if let Some(r) = &map.features {
             map.keyframe_features = read_features(path, r)?;
-            map.check_features()
-                .map_err(|(field, message)| MapError::Invalid { path: path.to_path_buf(), field, message })?;
+            map.check_features().map_err(|(field, message)| MapError::Invalid {
+                path: path.to_path_buf(),
+                field,
+                message,
+            })?;
         }
         Ok(map)
     }

@@ -59,8 +59,8 @@ pub struct MapperConfig {
     /// bumper to bumper stand about 4.5 m apart).
     pub merge_distance_m: f64,
     /// A mapped ellipsoid that should have been detected (in front within `visible_depth_m`, its
-    /// projected box inside the image and at least as tall as the smallest box the object was detected
-    /// with, not overlapped by another box, in a frame with detections) and
+    /// projected box inside the image, no farther than the farthest it was detected at (a small detector
+    /// misses distant cars that it finds nearer), not overlapped by another box, in a frame with detections) and
     /// was not in this many frames in a row is removed (refitted when boxes come again). Default 5: a
     /// detector that finds a visible car 3 times in 4 misses it 5 times running about once in a
     /// thousand. `None`: off.

@@ -42,12 +42,12 @@ impl ObjectMapper {
                 continue;
             }
             let depth = (from_world * nalgebra::Point3::from(e.centre())).z;
-            // expected only at a size the detector has found it at: a car's box shrinks with distance
-            // and a small detector's recall with it, so its own smallest detected box is the bound
-            let smallest = o.observations.iter().map(|x| x.bbox.height()).fold(f64::INFINITY, f64::min);
+            // expected only as near as the detector has found it: a car's box shrinks with distance and
+            // a small detector's recall with it, so the farthest of its own detections is the bound
+            let centre = nalgebra::Point3::from(e.centre());
+            let farthest = o.observations.iter().map(|x| (x.camera.camera_from_world() * centre).z).fold(0.0, f64::max);
             let in_view = depth > 0.0
-                && depth < cfg.visible_depth_m
-                && b.height() >= smallest
+                && depth < cfg.visible_depth_m.min(farthest + 1e-6)
                 && !b.touches_border(&cfg.image, cfg.border_margin_px);
             let covered = detections.iter().any(|d| d.bbox.intersection(b).is_some_and(|x| x.area() >= 0.3 * b.area()));
             if !in_view || covered {

@@ -19,7 +19,10 @@ impl ObjectMapper {
             let mut obj = MappedObject::new(id, ClassId(o.class));
             let r = nalgebra::Matrix3::from_row_slice(&o.rotation);
             let rotation = nalgebra::UnitQuaternion::from_matrix(&r);
-            let pose = nalgebra::Isometry3::from_parts(nalgebra::Translation3::from(nalgebra::Vector3::from(o.center)), rotation);
+            let pose = nalgebra::Isometry3::from_parts(
+                nalgebra::Translation3::from(nalgebra::Vector3::from(o.center)),
+                rotation,
+            );
             obj.ellipsoid = Some(Ellipsoid::new(pose, nalgebra::Vector3::from(o.semi_axes)));
             obj.dynamic = o.dynamic;
             obj.moving = o.moving;
