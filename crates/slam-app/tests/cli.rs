@@ -590,7 +590,7 @@ fn run_with_triangulated_points_saves_and_reads_them() {
     assert!(number_after(&text, "local mapping: ") > 100.0, "points triangulated between keyframes: {text}");
     let map: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("out/map.json")).expect("map")).expect("json");
-    assert_eq!(map["version"], 3);
+    assert_eq!(map["version"], 4);
     let left_only = map["keyframes"]
         .as_object()
         .expect("keyframes")

@@ -194,6 +194,13 @@ pub fn map_summary(map: &Map, path: &Path) -> String {
             s.dynamic_objects
         ),
     ];
+    lines.push(match (&map.camera, &map.features) {
+        (Some(c), Some(f)) => format!(
+            "camera fx {} fy {} cx {} cy {} px, baseline {} m, images {}×{}; features of {} keyframes in {} ({:.2} MB): `run --map` can track against it",
+            c.fx, c.fy, c.cx, c.cy, c.baseline, c.width, c.height, map.keyframe_features.len(), f.file, f.bytes as f64 / 1e6
+        ),
+        _ => "no keyframe features (written before format version 4): inspected and exported, not tracked against".into(),
+    });
     for o in &map.objects {
         lines.push(format!(
             "object {:>3} class {:>2} {:<10} centre [{:7.2} {:6.2} {:7.2}] m, semi-axes [{:.2} {:.2} {:.2}] m, frames {:>3}{}",
