@@ -909,4 +909,53 @@ mod tests {
         );
         assert_eq!(serial, parallel);
     }
+
+    /// A tracker started on a map it did not make (a loaded map): a view of the mapped scene is placed
+    /// by retrieval at its true pose and relocalised; a view of another scene is lost without a pose
+    /// and no keyframe until `max_lost_s` has passed, then starts a new map segment; localising only,
+    /// it never does.
+    #[test]
+    fn a_loaded_map_places_a_view_of_its_scene_and_never_guesses_another() {
+        let s = scene();
+        let (_, map) = tracker_of(&s);
+        let fresh = |localise_only: bool| {
+            let optimizer = std::sync::Arc::new(slam_lm::LevenbergMarquardt::default());
+            let config = VoConfig { localise_only, ..VoConfig::default() };
+            let mut vo = StereoVo::new(StereoRig { k: s.k, baseline: s.b }, config, optimizer).expect("ORB");
+            vo.tracker.image_size = (1241.0, 376.0);
+            vo.load_map(&map);
+            vo
+        };
+        let at = Isometry3::translation(0.1, 0.0, 0.6);
+        let view = keyframe_of(&s.k, s.b, &in_camera(&at, &s.world), &s.desc);
+        let mut vo = fresh(false);
+        let tf = vo.track_frame(7, view, (Vec::new(), Vec::new()), (0.0, 0.0), &map).expect("tracks");
+        assert!(tf.placed && matches!(tf.state, TrackState::Relocalised { .. }), "{:?}", tf.state);
+        assert!((tf.world_from_camera.translation.vector - at.translation.vector).norm() < 0.01);
+        assert!(tf.keyframe.is_none());
+
+        // another street: other points, other descriptors
+        let mut rng = SimRng::new(99);
+        let other: Vec<Vector3<f64>> =
+            s.world.iter().map(|x| Vector3::new(-x.x, x.y, x.z + rng.uniform(0.0, 5.0))).collect();
+        let desc: Vec<[u8; 32]> = (0..other.len())
+            .map(|_| std::array::from_fn(|_| (rng.uniform(0.0, 256.0) as u32).min(255) as u8))
+            .collect();
+        for localise_only in [false, true] {
+            let mut vo = fresh(localise_only);
+            let mut first_keyframe = None;
+            for i in 0..8usize {
+                let f = keyframe_of(&s.k, s.b, &in_camera(&Isometry3::translation(0.0, 0.0, i as f64), &other), &desc);
+                let tf = vo.track_frame(i, f, (Vec::new(), Vec::new()), (0.0, 0.0), &map).expect("tracks");
+                if tf.keyframe.is_some() {
+                    first_keyframe = first_keyframe.or(Some((i, tf.keyframe.as_ref().and_then(|k| k.parent))));
+                    break;
+                }
+                assert!(!tf.placed && tf.state == TrackState::Lost, "frame {i}: {:?}", tf.state);
+            }
+            // 0.5 s at 0.1 s a frame: the sixth frame not placed starts a segment
+            let want = (!localise_only).then_some((5, None));
+            assert_eq!(first_keyframe, want, "localise only: {localise_only}");
+        }
+    }
 }

@@ -30,20 +30,28 @@ pub struct InMap {
     pub trying: usize,
 }
 
+/// Unaligned position errors of a run's frames placed in the map whose ids pass `keep`, against the
+/// ground truth as given (its world is the camera of the sequence's frame 0): RMS and largest,
+/// metres; `None` without ground truth or such frames.
+pub fn unaligned_errors(out: &RunOutput, seq: &StereoSequence, keep: impl Fn(usize) -> bool) -> Option<(f64, f64)> {
+    let gt = seq.ground_truth.as_ref()?;
+    let n = out.poses.len().min(gt.len()).min(seq.ids.len());
+    let e: Vec<f64> = (0..n)
+        .filter(|&k| out.placed.get(k).copied().unwrap_or(true) && keep(seq.ids[k]))
+        .map(|k| (out.poses[k].translation.vector - gt[k].translation.vector).norm())
+        .collect();
+    (!e.is_empty()).then(|| {
+        let rms = (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt();
+        (rms, e.iter().copied().fold(0.0, f64::max))
+    })
+}
+
 /// The figures of a run in a loaded map.
 pub fn in_map(out: &RunOutput, seq: &StereoSequence) -> InMap {
     let n = out.frames.len().min(out.placed.len()).min(out.poses.len());
     let placed: Vec<usize> = (0..n).filter(|&k| out.placed[k]).collect();
     let first = placed.first().copied();
-    let errors = seq.ground_truth.as_ref().filter(|_| !placed.is_empty()).map(|gt| {
-        let e: Vec<f64> = placed
-            .iter()
-            .filter(|&&k| k < gt.len())
-            .map(|&k| (out.poses[k].translation.vector - gt[k].translation.vector).norm())
-            .collect();
-        let rms = (e.iter().map(|x| x * x).sum::<f64>() / e.len().max(1) as f64).sqrt();
-        (rms, e.iter().copied().fold(0.0, f64::max))
-    });
+    let errors = unaligned_errors(out, seq, |_| true);
     let frame_ms = |k: usize| {
         let t = &out.frames[k].times;
         t.extraction + t.stereo + t.tracking

@@ -13,23 +13,12 @@ use slam_pipeline::report::median;
 
 use crate::{
     error::{Context, Result, RunnerError},
-    in_map::in_map,
+    in_map::{in_map, unaligned_errors},
     run::{load_map, prepare, Outcome, RunSettings},
 };
 
 /// Times each figure of loading is measured, for its median.
 const LOAD_REPEATS: usize = 5;
-
-/// Unaligned position error (RMS) of a run's placed frames against the ground truth as given (the
-/// world of the sequence's frame 0), over the frames whose ids are in `ids`.
-fn unaligned_rms(o: &Outcome, ids: &[usize]) -> Option<f64> {
-    let gt = o.seq.ground_truth.as_ref()?;
-    let e: Vec<f64> = (0..o.out.poses.len().min(gt.len()))
-        .filter(|&k| o.out.placed.get(k).copied().unwrap_or(true) && ids.contains(&o.seq.ids[k]))
-        .map(|k| (o.out.poses[k].translation.vector - gt[k].translation.vector).norm())
-        .collect();
-    (!e.is_empty()).then(|| (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt())
-}
 
 fn play(s: &RunSettings) -> Result<Outcome> {
     prepare(s)?.run(s, &mut |_| {}, || false)
@@ -88,7 +77,11 @@ fn cases(
         let m = in_map(&o.out, &o.seq);
         // the map run's frames these frames show: the same ids, or the layout's source frames
         let ids: Vec<usize> = if range.is_some() { o.seq.ids.clone() } else { (0..=50).collect() };
-        let same = if localise_only { None } else { unaligned_rms(&first, &ids) };
+        let same = if localise_only {
+            None
+        } else {
+            unaligned_errors(&first.out, &first.seq, |id| ids.contains(&id)).map(|e| e.0)
+        };
         let objects = &o.out.map.objects;
         let kept = objects.iter().filter(|x| max_id.is_some_and(|m| x.id <= m)).count();
         let added = objects.iter().filter(|x| max_id.is_none_or(|m| x.id > m) && !x.dynamic).count();

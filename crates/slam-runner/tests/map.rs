@@ -3,47 +3,26 @@
 //! as the run that made it; another road (odometry 01, localising only) places no frame and writes no
 //! pose; a map made with another camera is not extended.
 
-use std::{path::PathBuf, sync::Arc};
+mod common;
 
+use common::fixture;
 use slam_dataset::kitti::stereo::FrameSelection;
-use slam_pipeline::{objects::FitMethod, system::SystemConfig};
-use slam_runner::{in_map::in_map, prepare, DetectorChoice, Outcome, RunSettings};
-
-fn fixture(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures").join(rel)
-}
+use slam_runner::{
+    in_map::{in_map, unaligned_errors},
+    prepare, Outcome, RunSettings,
+};
 
 fn settings(sequence: &str, first: usize, end: usize) -> RunSettings {
-    RunSettings {
-        path: fixture(sequence),
-        selection: FrameSelection { first: Some(first), end: Some(end), stride: 1 },
-        max_frames: None,
-        tracking: slam_frontend::VoConfig::default(),
-        system: SystemConfig::default(),
-        optimizer: Arc::new(|| Arc::new(slam_lm::LevenbergMarquardt::default())),
-        associator: Arc::new(|_| Box::new(slam_assoc::IouAssociator::default())),
-        method: FitMethod::default(),
-        names: ("IoU".into(), "Tri+Yaw+refine".into()),
-        detector: DetectorChoice::None,
-        labels: None,
-        map: None,
-        localise_only: false,
-    }
+    common::settings(sequence, FrameSelection { first: Some(first), end: Some(end), stride: 1 }, None)
 }
 
 fn play(s: &RunSettings) -> slam_runner::Result<Outcome> {
     prepare(s)?.run(s, &mut |_| {}, || false)
 }
 
-/// Unaligned position errors of the frames with ids `ids` against the ground truth as given (RMS).
+/// Unaligned RMS position error of the placed frames with ids in `ids` (the map's frame).
 fn unaligned(o: &Outcome, ids: std::ops::RangeInclusive<usize>) -> f64 {
-    let gt = o.seq.ground_truth.as_ref().expect("odometry 06 has ground truth");
-    let e: Vec<f64> = (0..o.out.poses.len())
-        .filter(|&k| o.out.placed[k] && ids.contains(&o.seq.ids[k]))
-        .map(|k| (o.out.poses[k].translation.vector - gt[k].translation.vector).norm())
-        .collect();
-    assert!(!e.is_empty());
-    (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt()
+    unaligned_errors(&o.out, &o.seq, |id| ids.contains(&id)).expect("ground truth and placed frames").0
 }
 
 #[test]

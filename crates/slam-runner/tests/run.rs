@@ -1,28 +1,16 @@
 //! A few frames of the shipped odometry excerpt through the runner: preparation and its refusals, the
 //! header, the run, the files and summary of `run`, and a `track-bench` row.
 
-use std::{path::PathBuf, sync::Arc};
+mod common;
+
+use std::path::PathBuf;
 
 use slam_dataset::kitti::stereo::FrameSelection;
-use slam_pipeline::{objects::FitMethod, system::SystemConfig};
 use slam_runner::{bench, prepare, DetectorChoice, RunSettings};
 
 fn settings(frames: usize, stride: usize) -> RunSettings {
-    RunSettings {
-        path: PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/kitti_odom_06/sequences/06"),
-        selection: FrameSelection { first: None, end: None, stride },
-        max_frames: Some(frames),
-        tracking: slam_frontend::VoConfig::default(),
-        system: SystemConfig::default(),
-        optimizer: Arc::new(|| Arc::new(slam_lm::LevenbergMarquardt::default())),
-        associator: Arc::new(|_| Box::new(slam_assoc::IouAssociator::default())),
-        method: FitMethod::default(),
-        names: ("IoU".into(), "Tri+Yaw+refine".into()),
-        detector: DetectorChoice::None,
-        labels: None,
-        map: None,
-        localise_only: false,
-    }
+    let all = FrameSelection { first: None, end: None, stride };
+    common::settings("kitti_odom_06/sequences/06", all, Some(frames))
 }
 
 #[test]
