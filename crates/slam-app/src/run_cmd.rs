@@ -353,7 +353,7 @@ pub fn map(a: &MapArgs) -> anyhow::Result<()> {
     };
     exports.refuse_overwriting(&a.map, a.rerun.as_deref())?;
     let exports = exports.prepare()?;
-    let map = Map::load(&a.map)?;
+    let map = Map::load_without_features(&a.map)?;
     println!("{}", inspect::map_summary(&map, &a.map));
     inspect::export_map(&map, &a.map, exports, &mut |line| println!("{line}"))?;
     if let Some(path) = &a.rerun {

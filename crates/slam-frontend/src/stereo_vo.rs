@@ -96,6 +96,9 @@ pub struct StereoVo {
     started: bool,
     /// The first frame not placed in a loaded map, while none has been.
     unplaced_since: Option<usize>,
+    /// Tracking in a segment started beside a loaded map it was never placed in: its poses are in the
+    /// segment's own frame, not the map's ([`TrackedFrame::placed`] false), for the rest of the run.
+    detached: bool,
 }
 
 /// What [`StereoVo::prepare`] makes of a stereo pair: the frame, its stereo points, the stereo points
@@ -135,6 +138,7 @@ impl StereoVo {
             pairs: Vec::new(),
             started: false,
             unplaced_since: None,
+            detached: false,
         })
     }
 
@@ -220,6 +224,18 @@ impl StereoVo {
         let t2 = Instant::now();
         let times = |t3: Instant| StageTimes { extraction, stereo, tracking: (t3 - t2).as_secs_f64() * 1e3 };
         let stereo_points = frame.points.len();
+        // localising only, a frame lost for longer than a new segment would wait is no longer placed:
+        // it is localised again from scratch rather than predicted on and on
+        let period = self.config().period();
+        if self.config().localise_only
+            && self.started
+            && self.motion.failed
+            && frame_index.saturating_sub(self.motion.measured_index) as f64 * period > self.config().max_lost_s
+        {
+            tracing::warn!(frame = frame_index, "lost in the loaded map: localising again from scratch");
+            (self.started, self.reference, self.unplaced_since) = (false, None, None);
+            self.last_matched.clear();
+        }
         let Some(reference) = self.reference.filter(|r| map.keyframe_pose(*r).is_some()) else {
             let mut tf = if !self.started && map.keyframe_count() > 0 {
                 self.localise(frame, frame_index, map)?
@@ -336,7 +352,7 @@ impl StereoVo {
             keyframe,
             sightings,
             times: times(Instant::now()),
-            placed: true,
+            placed: !self.detached,
         })
     }
 
@@ -433,7 +449,7 @@ impl StereoVo {
             keyframe: Some(kf),
             sightings: Sightings::default(),
             times: StageTimes::default(),
-            placed: true,
+            placed: !self.detached,
         }
     }
 
@@ -443,7 +459,9 @@ impl StereoVo {
     /// local map, a second search at the pose found, the refinement, full support). Placed, it is
     /// relocalised and tracking goes on from that keyframe; not placed, it is lost without a pose
     /// ([`TrackedFrame::placed`] false) until `max_lost_s` has passed, after which a run that may
-    /// extend the map starts a new map segment (its own frame) at this frame.
+    /// extend the map starts a new map segment at this frame (when it has `min_inliers` stereo points,
+    /// as a lost run's new segment needs): a segment in its own frame, so its frames get no pose in
+    /// the map's either.
     fn localise(&mut self, frame: Frame, frame_index: usize, map: &Map) -> Result<TrackedFrame, FrontendError> {
         if self.relocaliser.index.is_empty() {
             self.index_map(map);
@@ -451,9 +469,14 @@ impl StereoVo {
         let cx = Context { tracker: &self.tracker, motion: &self.motion, map };
         let Some((r, ransac, id, local)) = self.relocaliser.retrieve(&cx, &frame)? else {
             let since = *self.unplaced_since.get_or_insert(frame_index);
-            let waited = (frame_index - since + 1) as f64 * self.config().period();
-            if !self.config().localise_only && waited > self.config().max_lost_s {
-                tracing::warn!(frame = frame_index, "not placed in the loaded map: new map segment from this frame");
+            let waited = (frame_index.saturating_sub(since) + 1) as f64 * self.config().period();
+            let c = self.config();
+            if !c.localise_only && waited > c.max_lost_s && frame.points.len() >= c.min_inliers {
+                tracing::warn!(
+                    frame = frame_index,
+                    "not placed in the loaded map: a new map segment from this frame, in its own frame (no pose in the map's)"
+                );
+                self.detached = true;
                 return Ok(self.initialise(frame, frame_index, map));
             }
             tracing::info!(frame = frame_index, "not placed in the loaded map");
@@ -639,9 +662,10 @@ impl StereoVo {
 
     /// Place one rectified stereo pair in `map` from scratch, as a run in a loaded map places its first
     /// frame ([`StereoVo::localise`]: retrieval, PnP RANSAC, the search at the pose found, the
-    /// refinement, full support), without changing what the tracker follows: the keyframe it was
-    /// placed against, its pose (world from camera) and the refinement's inliers; `None` when it is
-    /// not placed. The map's keyframes are indexed on the first call.
+    /// refinement, full support), without changing what the tracker follows (its reference, motion
+    /// model and keyframes; the pair does become the frame optical flow starts from): the keyframe it
+    /// was placed against, its pose (world from camera) and the refinement's inliers; `None` when it
+    /// is not placed. The map's keyframes are indexed on the first call.
     pub fn place(
         &mut self,
         left: &Image,
@@ -943,19 +967,40 @@ mod tests {
             .collect();
         for localise_only in [false, true] {
             let mut vo = fresh(localise_only);
-            let mut first_keyframe = None;
+            let mut keyframes = Vec::new();
             for i in 0..8usize {
-                let f = keyframe_of(&s.k, s.b, &in_camera(&Isometry3::translation(0.0, 0.0, i as f64), &other), &desc);
+                let f = keyframe_of(
+                    &s.k,
+                    s.b,
+                    &in_camera(&Isometry3::translation(0.0, 0.0, i as f64 * 0.5), &other),
+                    &desc,
+                );
                 let tf = vo.track_frame(i, f, (Vec::new(), Vec::new()), (0.0, 0.0), &map).expect("tracks");
-                if tf.keyframe.is_some() {
-                    first_keyframe = first_keyframe.or(Some((i, tf.keyframe.as_ref().and_then(|k| k.parent))));
-                    break;
+                assert!(!tf.placed, "frame {i}: never a pose in the map's frame");
+                if let Some(k) = &tf.keyframe {
+                    keyframes.push((i, k.parent));
+                } else if keyframes.is_empty() {
+                    assert_eq!(tf.state, TrackState::Lost, "frame {i}");
+                } else {
+                    assert!(tf.state.is_measured(), "frame {i}: tracked in its own segment: {:?}", tf.state);
                 }
-                assert!(!tf.placed && tf.state == TrackState::Lost, "frame {i}: {:?}", tf.state);
             }
-            // 0.5 s at 0.1 s a frame: the sixth frame not placed starts a segment
-            let want = (!localise_only).then_some((5, None));
-            assert_eq!(first_keyframe, want, "localise only: {localise_only}");
+            // 0.5 s at 0.1 s a frame: the sixth frame not placed starts a segment of its own
+            let first = keyframes.first().copied();
+            assert_eq!(first, (!localise_only).then_some((5, None)), "localise only: {localise_only}");
         }
+
+        // localising only, a placed run that loses the map is localised from scratch again after
+        // `max_lost_s`, not predicted on: its frames are no longer placed
+        let mut vo = fresh(true);
+        let view = keyframe_of(&s.k, s.b, &in_camera(&at, &s.world), &s.desc);
+        assert!(vo.track_frame(0, view, (Vec::new(), Vec::new()), (0.0, 0.0), &map).expect("tracks").placed);
+        let placed: Vec<bool> = (1..9usize)
+            .map(|i| {
+                let f = keyframe_of(&s.k, s.b, &in_camera(&Isometry3::translation(0.0, 0.0, 0.6), &other), &desc);
+                vo.track_frame(i, f, (Vec::new(), Vec::new()), (0.0, 0.0), &map).expect("tracks").placed
+            })
+            .collect();
+        assert_eq!(placed, [true, true, true, true, true, false, false, false], "predicted for 0.5 s, then not placed");
     }
 }

@@ -47,8 +47,9 @@ impl KeypointGrid {
         Self { cell, cols, rows, start, items }
     }
 
+    /// A coordinate's cell; beyond 65 535 cells (an image a thousand times KITTI's width) the last.
     fn coord(x: f64, cell: f64) -> usize {
-        (x / cell).floor().max(0.0) as usize
+        (x / cell).floor().clamp(0.0, 65_535.0) as usize
     }
 
     /// Calls `visit` with every keypoint index in the cells that a disc of `radius` around `(u, v)`

@@ -192,6 +192,11 @@ impl Map {
         Ok(())
     }
 
+    /// Ids below `next` are not given to new keyframes (those of a saved map's culled keyframes, say).
+    pub fn reserve_keyframe_ids(&mut self, next: KeyframeId) {
+        self.next_keyframe = self.next_keyframe.max(next);
+    }
+
     /// Restoring a map: the next keyframe inserted takes id `id` (never lower than the next one).
     pub(crate) fn set_next_keyframe(&mut self, id: KeyframeId) {
         self.next_keyframe = self.next_keyframe.max(id);

@@ -335,3 +335,36 @@ fn a_car_of_a_loaded_map_keeps_its_id_and_is_refined_by_both_runs() {
         .filter(|o| o.ellipsoid.is_some() && (o.ellipsoid.expect("e").centre() - parked.centre()).norm() < 3.0);
     assert_eq!(cars.count(), 1, "no second object for the loaded car");
 }
+
+/// A parked car boxed only while it is near (a small detector misses it farther away), then the
+/// camera backs away from it with another car boxed in every frame: it is not counted missing beyond
+/// the farthest it was detected at, so it keeps its ellipsoid; the miss test still removes a car
+/// missing nearer (`a_car_missing_where_it_should_be_visible_is_removed`).
+#[test]
+fn a_car_is_not_missed_farther_away_than_it_was_ever_detected() {
+    let near_only = car(-4.0, 30.0);
+    let always = car(4.5, 36.0);
+    let mut mapper = ObjectMapper::new(Box::new(Oda::default()), MapperConfig::default(), lm());
+    let mut farthest_boxed: f64 = 0.0;
+    for f in 0..16usize {
+        // towards the car from 16 to 11 m, then backing away to 26 m
+        let z = if f < 6 { 14.0 + f as f64 } else { 19.0 - 1.5 * (f - 5) as f64 };
+        let cam = Camera::new(K, Isometry3::translation(0.0, 0.0, z));
+        let mut dets = Vec::new();
+        for (e, boxed) in [(&near_only, f < 6), (&always, true)] {
+            if let (true, Ok(b)) = (boxed, project(e, &cam).and_then(|c| c.clipped_bounds(&IMAGE))) {
+                dets.push(Detection::new(ClassId(2), 1.0, b));
+            }
+        }
+        if f < 6 {
+            farthest_boxed = farthest_boxed.max(30.0 - z);
+        }
+        mapper.step(f, &cam, &dets);
+    }
+    assert!((farthest_boxed - 16.0).abs() < 1e-9);
+    let kept: Vec<f64> = mapper.objects().filter_map(|o| o.ellipsoid.map(|e| e.centre().z)).collect();
+    assert_eq!(kept.len(), 2, "both cars keep their ellipsoids: {kept:?}");
+    let backed_off =
+        mapper.objects().filter(|o| o.ellipsoid.is_some_and(|e| (e.centre().z - 30.0).abs() < 1.0)).count();
+    assert_eq!(backed_off, 1, "{kept:?}");
+}

@@ -196,10 +196,10 @@ pub fn map_summary(map: &Map, path: &Path) -> String {
     ];
     lines.push(match (&map.camera, &map.features) {
         (Some(c), Some(f)) => format!(
-            "camera fx {} fy {} cx {} cy {} px, baseline {} m, images {}×{}; features of {} keyframes in {} ({:.2} MB): `run --map` can track against it",
-            c.fx, c.fy, c.cx, c.cy, c.baseline, c.width, c.height, map.keyframe_features.len(), f.file, f.bytes as f64 / 1e6
+            "camera fx {:.4} fy {:.4} cx {:.4} cy {:.4} px, baseline {:.6} m, images {}×{}; keyframe features in {} ({:.2} MB, read and checked when `run --map` loads the map)",
+            c.fx, c.fy, c.cx, c.cy, c.baseline, c.width, c.height, f.file, f.bytes as f64 / 1e6
         ),
-        _ => "no keyframe features (written before format version 4): inspected and exported, not tracked against".into(),
+        _ => format!("no keyframe features (format version {}; a map written before version 4, or without keyframes): inspected and exported, not tracked against", map.version),
     });
     for o in &map.objects {
         lines.push(format!(
@@ -259,7 +259,8 @@ impl MapExports {
                 .collect();
         outputs.extend(pictures.iter().map(|p| Written::File("--picture", p)));
         outputs.extend(rerun.map(|p| Written::File("--rerun", p)));
-        Ok(refuse_overwriting_inputs(&[("the map", map)], &outputs)?)
+        let features = slam_pipeline::map::features_path(map);
+        Ok(refuse_overwriting_inputs(&[("the map", map), ("the map's features", &features)], &outputs)?)
     }
 
     /// Check every destination before any work (`map --ply/--scene/--trajectory/--picture`).
@@ -303,17 +304,21 @@ pub fn export_map(map: &Map, path: &Path, x: PreparedExports, wrote: &mut dyn Fn
             ));
         }
     }
+    // frames not placed in a loaded map have no pose: left out, as the run's own trajectory files do
     let poses: Vec<nalgebra::Isometry3<f64>> = map.frame_poses().into_iter().flatten().collect();
+    let placed = map.trajectory.iter().filter(|f| f.keyframe.is_some()).count();
     if let Some((p, f)) = x.trajectory {
-        if poses.len() != map.trajectory.len() {
+        if poses.len() != placed {
             return Err(RunnerError::Invalid(format!(
                 "{}: {} frames refer to missing keyframes",
                 path.display(),
-                map.trajectory.len() - poses.len()
+                placed - poses.len()
             )));
         }
         f.write_with(|tmp| write_kitti_poses(tmp, &poses))?;
-        wrote(format!("wrote {}", p.display()));
+        let unplaced = map.trajectory.len() - placed;
+        let note = if unplaced > 0 { format!(" ({unplaced} frames without a pose left out)") } else { String::new() };
+        wrote(format!("wrote {}{note}", p.display()));
     }
     if let Some(into) = x.picture {
         // each picture is written whole (beside its final name, then renamed): the folder may hold other files

@@ -95,7 +95,7 @@ fn cases(
             o.out.map.stats().keyframes.saturating_sub(kfs),
         ));
     }
-    let place = placement(&file, &first)?;
+    let place = placement(&file, &first, base.tracking)?;
     print(format!(
         "\nmap file: {:.2} MB ({:.2} MB JSON + {:.2} MB features), {} keyframes: {:.0} KB a keyframe; loading it (read, check, rebuild): {} s median of {LOAD_REPEATS}",
         (sizes[0] + sizes[1]) as f64 / 1e6,
@@ -112,11 +112,11 @@ fn cases(
 /// Every frame of 06 frames 0-50 placed in the saved map from scratch ([`StereoVo::place`]: features,
 /// stereo matching, retrieval, PnP, the search at the pose found and the refinement), timed, against
 /// the map run's tracked frames (features, stereo matching, tracking).
-fn placement(file: &Path, first: &Outcome) -> Result<String> {
+fn placement(file: &Path, first: &Outcome, tracking: slam_frontend::VoConfig) -> Result<String> {
     let rig = StereoRig { k: first.k, baseline: first.seq.baseline };
     let (loaded, _) = load_map(file, &rig, first.image, false)?;
     let optimizer: slam_optim::SharedOptimizer = std::sync::Arc::new(slam_lm::LevenbergMarquardt::default());
-    let mut vo = StereoVo::new(rig, slam_frontend::VoConfig::default(), optimizer)?;
+    let mut vo = StereoVo::new(rig, tracking, optimizer)?;
     let (mut ms, mut placed, mut errors) = (Vec::new(), 0usize, Vec::new());
     let gt = first.seq.ground_truth.clone().unwrap_or_default();
     for k in 0..first.seq.len() {

@@ -266,14 +266,16 @@ impl Outcome {
                     id: o.id.0,
                     class: o.class.0,
                     ellipsoid: o.ellipsoid?,
-                    frames: o.observations.iter().map(|x| x.frame).collect(),
+                    // this run's detections (a loaded map's object brings earlier runs' first)
+                    frames: o.observations[o.earlier.min(o.observations.len())..].iter().map(|x| x.frame).collect(),
                     dynamic: o.dynamic,
                 })
             })
             .collect();
-        let ids: Vec<usize> = out.frames.iter().map(|r| r.index).collect();
+        // frames without a pose in the map (a loaded map's, before the run was placed) are not scored
+        let (poses, ids) = self.placed_poses(|k| out.frames.get(k).map(|r| r.index));
         let mut score =
-            slam_eval::score_run(labels, &out.poses, &ids, geometry, &objects, &slam_eval::ScoreConfig::default());
+            slam_eval::score_run(labels, &poses, &ids, geometry, &objects, &slam_eval::ScoreConfig::default());
         let boxes: Vec<slam_eval::FrameBoxes> = out
             .frames
             .iter()
@@ -284,13 +286,32 @@ impl Outcome {
         Ok(Some(score.report()))
     }
 
+    /// The poses of the frames placed in the map (all frames but a loaded map's unplaced ones), with
+    /// `tag(k)` of each (its position `k` among the played frames, mapped).
+    fn placed_poses<T>(&self, tag: impl Fn(usize) -> Option<T>) -> (Vec<nalgebra::Isometry3<f64>>, Vec<T>) {
+        let out = &self.out;
+        (0..out.poses.len())
+            .filter(|&k| out.placed.get(k).copied().unwrap_or(true))
+            .filter_map(|k| tag(k).map(|t| (out.poses[k], t)))
+            .unzip()
+    }
+
     /// The top-down map picture and, when asked, overlay images into `dir/overlays`; returns what was
     /// written, for the summary line.
     pub fn pictures(&self, dir: &Path, overlays: Option<&OverlayChoice>) -> Result<String> {
         let out = &self.out;
         // a map that cannot be drawn is said so; the run's trajectory and maps are written all the same
-        let mut written = match slam_viz::map_picture(&out.map, &out.poses, self.seq.truth_from_first().as_deref(), dir)
-        {
+        // in a loaded map the poses are in the map's frame: the ground truth as given (frame 0's world),
+        // frames without a pose left out
+        let (poses, truth) = match self.loaded {
+            Some(_) => {
+                let (poses, ks) = self.placed_poses(Some);
+                let gt = self.seq.ground_truth.as_ref().map(|g| ks.iter().filter_map(|&k| g.get(k).copied()).collect());
+                (poses, gt)
+            }
+            None => (out.poses.clone(), self.seq.truth_from_first()),
+        };
+        let mut written = match slam_viz::map_picture(&out.map, &poses, truth.as_deref(), dir) {
             Ok(_) => "map.svg, map.png".to_string(),
             Err(slam_viz::VizError::NotDrawable { message }) => {
                 tracing::warn!("no map picture: {message}");

@@ -25,7 +25,8 @@ pub(crate) type Relocalisation = (Option<(Refined, usize, Route)>, Option<Isomet
 
 /// Keyframes tried by retrieval ([`Relocaliser::retrieve`]): the best few by votes, since the keyframes
 /// just before and after a place share most of its descriptors and the votes rank the right one near
-/// the top, not always first; each costs one brute-force matching and PnP RANSAC, on a lost frame only.
+/// the top, not always first; each costs one brute-force matching and PnP RANSAC, on a lost frame or a
+/// frame not yet placed in a loaded map only.
 const RETRIEVAL_CANDIDATES: usize = 3;
 
 /// Most PnP RANSAC rounds on a retrieved keyframe's matches: enough to draw one 4-point sample of

@@ -52,8 +52,12 @@ pub fn fnv1a64(bytes: &[u8]) -> u64 {
     bytes.iter().fold(0xcbf2_9ce4_8422_2325_u64, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3))
 }
 
-/// The features file's bytes.
-pub fn encode(features: &BTreeMap<KeyframeId, SavedFeatures>) -> Vec<u8> {
+/// The features file's bytes; refused (naming the keyframe) when a keyframe's keypoints and descriptors
+/// differ in number.
+pub fn encode(features: &BTreeMap<KeyframeId, SavedFeatures>) -> Result<Vec<u8>, String> {
+    if let Some((id, f)) = features.iter().find(|(_, f)| f.keypoints.len() != f.descriptors.len()) {
+        return Err(format!("keyframe {id}: {} keypoints, {} descriptors", f.keypoints.len(), f.descriptors.len()));
+    }
     let per: usize = features.values().map(|f| 24 + 49 * f.keypoints.len() + 12 * f.observations.len()).sum();
     let mut out = Vec::with_capacity(12 + per);
     out.extend_from_slice(FEATURES_MAGIC);
@@ -77,7 +81,7 @@ pub fn encode(features: &BTreeMap<KeyframeId, SavedFeatures>) -> Vec<u8> {
             out.extend_from_slice(&p.to_le_bytes());
         }
     }
-    out
+    Ok(out)
 }
 
 /// A cursor over the file's bytes that says where it ran out.
@@ -121,7 +125,8 @@ pub fn decode(bytes: &[u8]) -> Result<BTreeMap<KeyframeId, SavedFeatures>, Strin
         let id = r.u64("a keyframe id")?;
         let at = r.at;
         let size = (f64::from(r.f32("the image width")?), f64::from(r.f32("the image height")?));
-        if !(size.0 > 0.0 && size.1 > 0.0 && size.0.is_finite() && size.1.is_finite()) {
+        // a camera image is at most tens of thousands of pixels across
+        if !(size.0 >= 1.0 && size.1 >= 1.0 && size.0 <= 65_536.0 && size.1 <= 65_536.0) {
             return Err(format!("byte {at}: keyframe {id}: image size {size:?}"));
         }
         let count = r.u32("a keypoint count")? as usize;
@@ -137,6 +142,16 @@ pub fn decode(bytes: &[u8]) -> Result<BTreeMap<KeyframeId, SavedFeatures>, Strin
             let angle = r.f32("a keypoint")?;
             if !(u.is_finite() && v.is_finite() && !u_right.is_infinite() && angle.is_finite()) {
                 return Err(format!("byte {at}: keyframe {id} keypoint {i}: not finite"));
+            }
+            // inside its image (a pixel of slack for sub-pixel positions), its angle in degrees
+            let inside = |x: f32, n: f64| (-1.0..=n + 1.0).contains(&f64::from(x));
+            if !(inside(u, size.0) && inside(v, size.1) && (u_right.is_nan() || inside(u_right, size.0)))
+                || !(-360.0..=720.0).contains(&angle)
+            {
+                return Err(format!(
+                    "byte {at}: keyframe {id} keypoint {i}: ({u}, {v}, right {u_right}, angle {angle}) is not a keypoint of a {}×{} image",
+                    size.0, size.1
+                ));
             }
             keypoints.push(Keypoint { u: u.into(), v: v.into(), u_right: u_right.into(), level, angle });
             descriptors.push(r.take::<32>("a descriptor")?);
@@ -188,7 +203,10 @@ mod tests {
     #[test]
     fn features_read_back_as_written_and_damage_is_named() {
         let s = sample();
-        let bytes = encode(&s);
+        let bytes = encode(&s).expect("encodes");
+        let mut odd = s.clone();
+        odd.get_mut(&7).expect("keyframe 7").descriptors.pop();
+        assert_eq!(encode(&odd).expect_err("mismatch"), "keyframe 7: 3 keypoints, 2 descriptors");
         let back = decode(&bytes).expect("decodes");
         assert_eq!(back.len(), 3);
         for (id, f) in &s {

@@ -167,8 +167,24 @@ impl Map {
         let (sx, sy) = (run.fx / made.fx, run.fy / made.fy);
         let disparity = (run.fx * run.baseline) / (made.fx * made.baseline);
         let mut keyframes = Vec::with_capacity(self.keyframe_features.len());
+        let pyramid = slam_core::map::ScalePyramid::default();
         for (&id, f) in &self.keyframe_features {
             let Some(k) = self.keyframes.get(&id) else { continue };
+            let bad = |why: String| slam_core::map::RestoreError::Keyframe { id, why };
+            if f.size != (made.width, made.height) {
+                return Err(bad(format!(
+                    "features of a {}×{} image, the map's camera {}×{}",
+                    f.size.0, f.size.1, made.width, made.height
+                ))
+                .into());
+            }
+            if let Some(kp) = f.keypoints.iter().find(|kp| kp.level >= pyramid.levels) {
+                return Err(bad(format!(
+                    "a keypoint of pyramid level {}, the map has {} levels",
+                    kp.level, pyramid.levels
+                ))
+                .into());
+            }
             let mut keypoints = f.keypoints.clone();
             if moved {
                 for kp in &mut keypoints {
@@ -203,7 +219,11 @@ impl Map {
             k: slam_core::geometry::Intrinsics::new(run.fx, run.fy, run.cx, run.cy),
             baseline: run.baseline,
         };
-        let map = slam_core::Map::restore(camera, slam_core::map::ScalePyramid::default(), keyframes, &points)?;
+        let mut map = slam_core::Map::restore(camera, pyramid, keyframes, &points)?;
+        // a culled keyframe's id is never given again (an object's detection may name it)
+        if let Some(&last) = self.keyframes.keys().next_back() {
+            map.reserve_keyframe_ids(last.saturating_add(1));
+        }
         Ok(LoadedMap { map, objects: self.objects.clone(), reexpressed: moved })
     }
 }

@@ -327,35 +327,64 @@ impl Map {
     }
 
     /// Write the map as JSON, atomically (a temporary file beside it, then a rename).
-    /// The keyframes' features go to a binary file beside it first ([`features`], `map.features` for
-    /// `map.json`), also atomically; the JSON then names that file with its length and checksum, so a
-    /// run stopped between the two leaves a pair that [`Map::load`] refuses rather than mixes.
+    /// The keyframes' features go to a binary file beside it ([`features`], `map.features` for
+    /// `map.json`), also atomically, and the JSON names that file with its length and checksum. Both
+    /// are made in memory first and written one right after the other (features, then JSON), so only
+    /// a stop between the two renames leaves a new features file beside the old JSON: a pair that
+    /// [`Map::load`] refuses rather than mixes. (A run writes into a new output folder that replaces
+    /// the old one whole, so a stopped run leaves the old pair as it was.)
     pub fn save(&self, path: &Path) -> Result<(), MapError> {
+        let invalid =
+            |message: String| MapError::Invalid { path: path.to_path_buf(), field: "features".into(), message };
         let side = if self.keyframe_features.is_empty() {
             None
         } else {
-            let bytes = features::encode(&self.keyframe_features);
+            let bytes = features::encode(&self.keyframe_features).map_err(invalid)?;
             let side = features_path(path);
-            slam_core::files::write_atomic(&side, &bytes)?;
             let file = side.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-            Some(FeaturesRef {
-                file,
-                bytes: bytes.len() as u64,
-                fnv1a64: format!("{:016x}", features::fnv1a64(&bytes)),
-            })
+            let sum = format!("{:016x}", features::fnv1a64(&bytes));
+            let r = FeaturesRef { file, bytes: bytes.len() as u64, fnv1a64: sum };
+            Some((side, bytes, r))
         };
         let fmt = |e: serde_json::Error| MapError::Format { path: path.to_path_buf(), message: e.to_string() };
-        let text = if side == self.features {
+        let reference = side.as_ref().map(|s| s.2.clone());
+        let text = if reference == self.features {
             serde_json::to_string(self).map_err(fmt)?
         } else {
-            let head = Map { features: side, keyframe_features: BTreeMap::new(), ..self.clone() };
+            let head = Map { features: reference, keyframe_features: BTreeMap::new(), ..self.clone() };
             serde_json::to_string(&head).map_err(fmt)?
         };
+        if let Some((side, bytes, _)) = side {
+            slam_core::files::write_atomic(&side, &bytes)?;
+        }
         Ok(slam_core::files::write_atomic(path, text.as_bytes())?)
     }
 
-    /// Read a map file, checking its format name and version.
+    /// Read a map file and its features file ([`Map::load_without_features`], then the features file
+    /// it names, its length and checksum checked, its keyframes and points those of the map): what a
+    /// run tracks against.
     pub fn load(path: &Path) -> Result<Self, MapError> {
+        let mut map = Self::load_without_features(path)?;
+        if let Some(r) = &map.features {
+            map.keyframe_features = read_features(path, r)?;
+            map.check_features().map_err(|(field, message)| MapError::Invalid {
+                path: path.to_path_buf(),
+                field,
+                message,
+            })?;
+        }
+        Ok(map)
+    }
+
+    /// Read a map file alone (not its features file: `keyframe_features` stays empty), checking its
+    /// format name, version and values ([`Map::check`]): enough to inspect and export it.
+    pub fn load_without_features(path: &Path) -> Result<Self, MapError> {
+        if path.extension().is_some_and(|e| e == "features") {
+            return Err(MapError::Format {
+                path: path.to_path_buf(),
+                message: "this is a map's features file; give the map's JSON file beside it (map.json)".into(),
+            });
+        }
         let text = slam_core::files::read_text(path, &slam_core::files::DOCUMENT).map_err(|e| match e {
             slam_core::files::ReadError::Io { path, source } => MapError::Io { path, source },
             other => MapError::Read(other),
@@ -394,16 +423,7 @@ impl Map {
             return Err(MapError::Version { path: path.to_path_buf(), found: header.version });
         }
         let map: Self = serde_json::from_str(&text).map_err(fmt)?;
-        let mut map = map;
         map.check().map_err(|(field, message)| MapError::Invalid { path: path.to_path_buf(), field, message })?;
-        if let Some(r) = &map.features {
-            map.keyframe_features = read_features(path, r)?;
-            map.check_features().map_err(|(field, message)| MapError::Invalid {
-                path: path.to_path_buf(),
-                field,
-                message,
-            })?;
-        }
         Ok(map)
     }
 
@@ -453,6 +473,12 @@ impl Map {
                 return Err((field, format!("{what} (expected unit length)")));
             }
             Ok(())
+        }
+        // ids are counted up from 0; one near the top of the range is a corrupt number, and the next
+        // id after it would wrap around
+        let ids = self.keyframes.keys().chain(self.points.keys()).chain(self.objects.iter().map(|o| &o.id));
+        if let Some(id) = ids.copied().find(|&id| id >= MAX_ID) {
+            return Err(("id".into(), format!("{id} is not an id of a map (at most {MAX_ID})")));
         }
         for (id, k) in &self.keyframes {
             pose(format!("keyframes.{id}.pose"), &k.pose)?;
@@ -508,6 +534,23 @@ impl Map {
             }
             if let Some(p) = o.points.iter().find(|p| !self.points.contains_key(p)) {
                 return Err((at("points"), format!("point {p} does not exist")));
+            }
+            if o.earlier_views > o.views.len() {
+                return Err((at("earlier_views"), format!("{} of {} views", o.earlier_views, o.views.len())));
+            }
+            for (j, v) in o.views.iter().enumerate() {
+                let at = |f: &str| format!("objects[{i}].views[{j}].{f}");
+                pose(at("pose"), &v.pose)?;
+                let [x0, y0, x1, y1] = v.bbox;
+                if !(v.bbox.iter().all(|x| x.is_finite()) && x0 < x1 && y0 < y1) {
+                    return Err((at("bbox"), format!("not a box: {:?}", v.bbox)));
+                }
+                if let Some((k, rel)) = &v.reference {
+                    if !self.keyframes.contains_key(k) {
+                        return Err((at("reference"), format!("keyframe {k} does not exist")));
+                    }
+                    pose(at("reference"), rel)?;
+                }
             }
             let r = nalgebra::Matrix3::from_row_slice(&o.rotation);
             let err = (r * r.transpose() - nalgebra::Matrix3::identity()).abs().max();
@@ -569,6 +612,10 @@ impl Map {
     }
 }
 
+/// Ids of keyframes, points and objects stay below 2⁴⁸: a map made at 10 Hz for a century, with a
+/// thousand points a frame, counts to about 3·10¹³.
+pub const MAX_ID: u64 = 1 << 48;
+
 /// The features file of a map file: `map.features` beside `map.json`.
 pub fn features_path(map: &Path) -> PathBuf {
     map.with_extension("features")
@@ -582,10 +629,8 @@ fn read_features(path: &Path, r: &FeaturesRef) -> Result<BTreeMap<KeyframeId, Sa
         return Err(invalid(format!("{:?} is not a file name", r.file)));
     }
     let side = path.parent().unwrap_or(Path::new(".")).join(&r.file);
-    let bytes = slam_core::files::read_bytes(&side, &slam_core::files::DOCUMENT).map_err(|e| match e {
-        slam_core::files::ReadError::Io { path, source } => MapError::Io { path, source },
-        other => MapError::Read(other),
-    })?;
+    let bytes = slam_core::files::read_bytes(&side, &slam_core::files::DOCUMENT)
+        .map_err(|e| invalid(format!("the keyframes' features file it names: {e}")))?;
     let sum = format!("{:016x}", features::fnv1a64(&bytes));
     if bytes.len() as u64 != r.bytes || sum != r.fnv1a64 {
         return Err(invalid(format!(
@@ -1115,8 +1160,28 @@ mod tests {
                     "objects[0].frames",
                     "frame 99999 is not in the trajectory",
                 ),
+                ("object-earlier", |m| m.objects[0].earlier_views = 1, "objects[0].earlier_views", "1 of 0 views"),
+                (
+                    "object-view-box",
+                    |m| m.objects[0].views.push(view([5.0, 0.0, 4.0, 9.0], None)),
+                    "objects[0].views[0].bbox",
+                    "not a box",
+                ),
+                (
+                    "object-view-reference",
+                    |m| m.objects[0].views.push(view([0.0, 0.0, 4.0, 9.0], Some(42))),
+                    "objects[0].views[0].reference",
+                    "keyframe 42 does not exist",
+                ),
+                ("object-id", |m| m.objects[0].id = u64::MAX, "id", "is not an id of a map"),
             ],
         );
+    }
+
+    /// A detection of an object as stored, at the identity pose.
+    fn view(bbox: [f64; 4], reference: Option<KeyframeId>) -> ObjectView {
+        let identity = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0];
+        ObjectView { frame: 0, pose: identity, bbox, class: 2, reference: reference.map(|k| (k, identity)) }
     }
 
     /// JSON has no NaN: a non-number where a number belongs is a format error with its line.

@@ -146,7 +146,14 @@ impl ObjectMapper {
                 // what made the trend was another object under this track: its boxes, centroids and
                 // map points before the still readings are dropped (the next keyframes give it points
                 // again), and the object is fitted afresh from the rest, with fresh counters
-                obj.observations.retain(|o| o.frame >= from);
+                // (this run's: the boxes of an earlier run, a loaded map's, have frame ids of their own and
+                // are kept)
+                let earlier = obj.earlier.min(obj.observations.len());
+                let mut k = 0;
+                obj.observations.retain(|o| {
+                    k += 1;
+                    k <= earlier || o.frame >= from
+                });
                 obj.points.clear();
                 obj.ellipsoid = None;
                 obj.fitted_at = 0;

@@ -43,8 +43,10 @@ impl ObjectMapper {
                 })
                 .collect();
             obj.earlier = obj.observations.len();
-            // fitted from these already: the next fit waits for the new run's boxes
-            obj.fitted_at = obj.observations.len();
+            // fitted from these already: the next fit waits for the new run's boxes (counted as the
+            // fits count them: the boxes clear of the image border)
+            let (image, margin) = (self.config.image, self.config.border_margin_px);
+            obj.fitted_at = obj.observations.iter().filter(|x| !x.bbox.touches_border(&image, margin)).count();
             restored += 1;
             self.loaded.insert(id);
             self.objects.insert(id, obj);
