@@ -53,7 +53,10 @@ enum Command {
     /// back (5 legs) and with frame 20 shown 2, 30 and 200 more times, and any --case PATH[:STRIDE]),
     /// without objects (with --objects: the full system): aligned ATE, path error, drift, largest step
     /// error of tracked frames, frames per tracking state, keyframes, map points, local BA median, raw
-    /// ATE, median frames/s.
+    /// ATE, median frames/s. Then the saved-map cases (a map of odometry 06 frames 0-50 saved, then
+    /// `run --map` on frames 20-50, on 06 driven back, and localising only on 01): frames placed, error
+    /// in the map's frame, keyframes and objects added, the file's size, its load time and the time to
+    /// place a frame.
     TrackBench(run_cmd::TrackBenchArgs),
     /// ATE, drift and RPE of a trajectory file (KITTI or TUM) against ground truth.
     TrajectoryEval(run_cmd::TrajEvalArgs),

@@ -31,7 +31,8 @@ pub struct RunArgs {
     /// and its objects keep their ids. The camera must be the one it was made with
     #[arg(long, value_name = "MAP.json")]
     map: Option<PathBuf>,
-    /// With --map: localise only, add nothing to the map (no keyframes, points or objects)
+    /// With --map: localise only, add nothing to the map (no keyframes, points or objects). A map made
+    /// with another calibration of the rig is accepted then, its keyframes re-expressed in this camera
     #[arg(long, requires = "map")]
     localise_only: bool,
     #[command(flatten)]

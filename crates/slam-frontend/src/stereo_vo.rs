@@ -479,7 +479,7 @@ impl StereoVo {
                 self.detached = true;
                 return Ok(self.initialise(frame, frame_index, map));
             }
-            tracing::info!(frame = frame_index, "not placed in the loaded map");
+            tracing::debug!(frame = frame_index, "not placed in the loaded map");
             return Ok(TrackedFrame {
                 world_from_camera: Isometry3::identity(),
                 reference: (0, Isometry3::identity()),

@@ -203,7 +203,7 @@ pub fn map_summary(map: &Map, path: &Path) -> String {
     });
     for o in &map.objects {
         lines.push(format!(
-            "object {:>3} class {:>2} {:<10} centre [{:7.2} {:6.2} {:7.2}] m, semi-axes [{:.2} {:.2} {:.2}] m, frames {:>3}{}",
+            "object {:>3} class {:>2} {:<10} centre [{:7.2} {:6.2} {:7.2}] m, semi-axes [{:.2} {:.2} {:.2}] m, frames {:>3}{}{}",
             o.id,
             o.class,
             slam_core::ClassId(o.class).name(),
@@ -214,6 +214,7 @@ pub fn map_summary(map: &Map, path: &Path) -> String {
             o.semi_axes[1],
             o.semi_axes[2],
             o.frames.len(),
+            if o.earlier_views > 0 { format!(" (+{} boxes of earlier runs)", o.earlier_views) } else { String::new() },
             match slam_viz::ObjectState::of(o.dynamic, o.moving) {
                 slam_viz::ObjectState::Static => "",
                 slam_viz::ObjectState::Dynamic => " dynamic",

@@ -371,7 +371,10 @@ impl Tracking {
             TrackState::Weak { .. } => self.counts.weak += 1,
             TrackState::Lost => {
                 self.counts.lost += 1;
-                tracing::warn!(frame = i, stereo_points = tf.stereo_points, "tracking lost");
+                // a frame not placed in a loaded map is counted, said once in the summary
+                if tf.placed {
+                    tracing::warn!(frame = i, stereo_points = tf.stereo_points, "tracking lost");
+                }
             }
             TrackState::Predicted => self.counts.predicted += 1,
             TrackState::Relocalised { .. } => self.counts.relocalised += 1,
