@@ -1,8 +1,9 @@
 //! A map rebuilt from what a map file keeps ([`Map::restore`]): its keyframes with their features and
 //! the point each keypoint observes, and its points' positions. Everything derived is recomputed with
 //! the map's own primitives: the observations on both sides, the covisibility weights, each point's
-//! representative descriptor, viewing direction and distance range. Restored points count as mature
-//! (young-point culling judges only the points a run makes), and new keyframes and points take ids
+//! representative descriptor, viewing direction and distance range. Restored points count as born
+//! before the first keyframe, so in a map of more keyframes than the probation lasts (3) they are
+//! mature (young-point culling judges the points a run makes); new keyframes and points take ids
 //! after the highest restored ones, so what a later run adds never collides with what was loaded.
 
 use std::collections::BTreeSet;
