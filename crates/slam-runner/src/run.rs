@@ -270,7 +270,7 @@ impl Prepared {
             played_ids(seq, &self.selection),
             self.k.fx,
             seq.baseline,
-            s.detector.describe(),
+            if s.localise_only { "none (localising only)".to_string() } else { s.detector.describe() },
             s.names.0,
             s.names.1,
         );
@@ -331,7 +331,11 @@ impl Prepared {
             }
         }
         let mut unused_detections = Vec::new();
-        let (det, detections) = guarded(s, &seq, image, labels.as_ref(), &mut unused_detections)?;
+        // localising only maps no objects: no detector runs
+        let (det, detections) = match s.localise_only {
+            true => (None, None),
+            false => guarded(s, &seq, image, labels.as_ref(), &mut unused_detections)?,
+        };
         notes.extend(unused_detections.into_iter().map(|n| format!("unused detections: {n}")));
         for note in &notes {
             tracing::warn!("{note}");
