@@ -84,7 +84,11 @@ impl Outcome {
             counts.0,
             counts.1,
             counts.2,
-            if *localise_only { "; localising only (nothing added, no detector run)" } else { "; extended by this run" },
+            if *localise_only {
+                "; localising only (nothing added, no detector run)"
+            } else {
+                "; extended by this run"
+            },
             if *reexpressed { "; its keyframes re-expressed in this run's camera" } else { "" }
         )];
         lines.push(match m.first_placed {
