@@ -954,9 +954,6 @@ mod tests {
         std::fs::remove_dir_all(&dir).ok();
     }
 
-    /// A version-1 file, as builds before left-only observations wrote it (every observation has its
-    /// right column as a number), loads unchanged: same keyframes, points, objects and trajectory, and
-    /// saving it again writes the current version.
     /// An object map (a run's objects.json) given where a map is expected: the error says which file to
     /// give.
     #[test]
@@ -970,6 +967,9 @@ mod tests {
         std::fs::remove_dir_all(&dir).ok();
     }
 
+    /// A version-1 file, as builds before left-only observations wrote it (every observation has its
+    /// right column as a number), loads unchanged: same keyframes, points, objects and trajectory, and
+    /// saving it again writes the current version.
     #[test]
     fn loads_a_version_1_map() {
         let dir = std::env::temp_dir().join(format!("map-v1-{}", std::process::id()));
