@@ -6,13 +6,11 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use clap::Args;
 use slam_core::check::InvalidValue;
-use slam_dataset::output::Written;
 use slam_eval::{
-    labelled::{study_title, table_header, LabelNoise, VehicleCriteria},
-    study::{eval_study, map_to_file},
+    labelled::{LabelNoise, VehicleCriteria},
+    study::map_to_file,
 };
 use slam_pipeline::objects::{MapperConfig, ObjectMapper};
-use slam_quadric::ImageSize;
 use slam_runner::{AssociatorKind, Method, OptimizerKind, Shape};
 
 #[derive(Args, Debug, Clone)]
@@ -143,18 +141,12 @@ pub struct EvalArgs {
 }
 
 /// `slam-app eval <run folder> --labels <label_02.txt>`: score a finished run's object map.
-fn eval_run_folder(dir: &std::path::Path, a: &EvalArgs) -> anyhow::Result<()> {
+fn eval_run_folder(dir: &std::path::Path, a: &EvalArgs, criteria: VehicleCriteria) -> anyhow::Result<()> {
     let labels = a.labels.as_ref().context("scoring a run folder needs --labels <label_02.txt>")?;
     if a.csv.is_some() {
         bail!("--csv writes the table of a study over sequence folders; scoring a run folder writes objects_score.json into it");
     }
-    let config = slam_eval::ScoreConfig {
-        min_frames: a.min_frames,
-        static_m: a.static_m,
-        moving_m: a.moving_m,
-        ..Default::default()
-    };
-    println!("{}", slam_eval::study::score_run_folder_to_file(dir, labels, &config)?);
+    println!("{}", slam_eval::study::score_run_folder_to_file(dir, labels, &criteria.into())?);
     Ok(())
 }
 
@@ -172,29 +164,40 @@ pub fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     }
     let dir = a.dir.clone().unwrap_or_else(|| crate::fixture("kitti_tracking"));
     if slam_eval::study::is_run_folder(&dir)? {
-        return eval_run_folder(&dir, a);
+        return eval_run_folder(&dir, a, criteria);
     }
-    let seqs = slam_dataset::folders::tracking_sequences(&dir)?;
-    let files: Vec<PathBuf> =
-        seqs.iter().flat_map(|s| slam_eval::labelled::SEQUENCE_FILES.map(|f| s.join(f))).collect();
-    let inputs: Vec<(&str, &std::path::Path)> = files.iter().map(|f| ("the sequence file", f.as_path())).collect();
-    let csv: Vec<Written> = a.csv.iter().map(|p| Written::File("--csv", p)).collect();
-    slam_dataset::output::refuse_overwriting_inputs(&inputs, &csv)?;
-    let csv_out = a.csv.as_deref().map(slam_dataset::output::AtomicFile::new).transpose()?;
-    let (associator, method) = (a.input.associator.name(), a.input.method.fit());
-    println!("{}", study_title(&a.input.noise(), associator, method.name(), &criteria));
-    println!("{}", table_header());
-    let mut bar = slam_runner::console::Progress::new("eval", seqs.len() as u64, "sequences", false);
-    let image = ImageSize::new(1242.0, 375.0);
-    let (study, csv) =
-        eval_study(&seqs, &|| mapper(&a.input), &a.input.noise(), &criteria, &image, &mut |name, score| {
-            bar.println(&score.row.table_line(name));
-            bar.inc();
-        })?;
-    bar.finish();
-    print!("{}", study.report(a.moving_m));
-    if let Some(f) = csv_out {
-        f.write_with(|tmp| std::fs::write(tmp, csv))?;
-    }
+    let method = a.input.method.fit();
+    let names = slam_runner::studies::StudyNames { associator: a.input.associator.name(), method: method.name() };
+    let (noise, csv) = (a.input.noise(), a.csv.as_deref());
+    slam_runner::studies::eval_table(&dir, &|| mapper(&a.input), (&noise, &criteria), names, csv, &mut |l| {
+        println!("{l}")
+    })?;
+    Ok(())
+}
+
+#[derive(Args, Debug)]
+pub struct ObjectsBenchArgs {
+    /// Settings file used for every case (TOML, as for `run --config`; its `[objects] box_shape` also
+    /// sets the image-free study's box model)
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Strides at which the labelled drive is played, comma-separated
+    #[arg(long, value_delimiter = ',', default_value = "1,2,3", value_parser = clap::value_parser!(u64).range(1..=100))]
+    strides: Vec<u64>,
+    /// Leave out the image-free study on the 17 tracking sequences (about a minute)
+    #[arg(long)]
+    no_image_free: bool,
+}
+
+/// `slam-app objects-bench`: the object map of every dev case in one table (issue 45): drive 0005 at
+/// each stride scored against its labels, the image-free study, the main job's cars against the street.
+pub fn objects_bench(b: &ObjectsBenchArgs) -> anyhow::Result<()> {
+    let config = slam_runner::RunConfig::load(b.config.as_deref())?;
+    let mut base = slam_runner::RunSettings::odometry_only(crate::fixture(crate::SHIPPED), &config, None);
+    base.detector = slam_runner::DetectorChoice::Network(crate::detect_cmd::ModelArgs::default().loader());
+    let strides = b.strides.iter().map(|&s| s as usize).collect();
+    let cases = slam_runner::objects_bench::ObjectsBenchCases::shipped(&crate::fixture(""), strides, !b.no_image_free);
+    let bench = slam_runner::objects_bench::objects_bench(&base, &cases, &mut |c| eprintln!("objects-bench: {c}"))?;
+    bench.lines().iter().for_each(|l| println!("{l}"));
     Ok(())
 }

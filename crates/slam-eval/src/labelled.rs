@@ -113,6 +113,13 @@ pub struct LabelNoise {
     pub seed: u64,
 }
 
+impl Default for LabelNoise {
+    /// The label boxes as they are (`slam-app eval`'s defaults: no noise, no dropout, seed 1).
+    fn default() -> Self {
+        Self { noise: 0.0, dropout: 0.0, seed: 1 }
+    }
+}
+
 /// Per (frame, detection index), the label track id the detection came from.
 pub type DetectionTruth = BTreeMap<(usize, usize), i64>;
 
@@ -164,6 +171,14 @@ pub struct VehicleCriteria {
     pub static_m: f64,
     /// Smallest spread of a moving vehicle's world centre, metres.
     pub moving_m: f64,
+}
+
+impl Default for VehicleCriteria {
+    /// `slam-app eval`'s defaults: 10 labelled frames; static within 1 m (parked cars move by the poses'
+    /// drift only, 0.25-0.4 m RMS per the fixtures' SOURCE.md), moving beyond 3 m.
+    fn default() -> Self {
+        Self { min_frames: 10, static_m: 1.0, moving_m: 3.0 }
+    }
 }
 
 /// A ground-truth static vehicle: its ellipsoid (inscribed in the mean labelled 3-D box) and its label
@@ -540,6 +555,39 @@ pub const CSV_COLUMNS: [&str; 11] = [
     "yaw_within_15",
 ];
 
+/// One line of a study's figures ([`Study::figures`]): success, IoU2D, box IoU2D, e_trans and e_axe
+/// (metres), e_yaw (degrees) and the share within 15°; `None` where there is nothing to average.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Figures {
+    /// Found / static vehicles.
+    pub success: Option<f64>,
+    /// The paper's IoU2D.
+    pub iou2d: Option<f64>,
+    /// Box IoU2D (the estimate's own 3-D box projected).
+    pub box_iou2d: Option<f64>,
+    /// Centre error, metres.
+    pub e_trans: Option<f64>,
+    /// Semi-axis error, metres.
+    pub e_axe: Option<f64>,
+    /// Yaw error, degrees.
+    pub e_yaw: Option<f64>,
+    /// Share of the found vehicles with e_yaw within 15°.
+    pub yaw_within: Option<f64>,
+}
+
+/// A study's summary ([`Study::figures`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StudyFigures {
+    /// Means of the sequences' figures.
+    pub means: Figures,
+    /// Pooled over vehicles.
+    pub pooled: Figures,
+    /// What the ground-truth ellipsoids score on the found vehicles: IoU2D and box IoU2D.
+    pub truth: (Option<f64>, Option<f64>),
+    /// Moving vehicles: (count, mapped as a static ellipsoid, flagged dynamic only).
+    pub moving: (usize, usize, usize),
+}
+
 /// The study over several sequences: means of the sequences' means and figures pooled over vehicles.
 #[derive(Debug, Default, Clone)]
 pub struct Study {
@@ -600,6 +648,30 @@ impl Study {
     /// The figures pooled over all vehicles of the added sequences.
     pub fn pooled(&self) -> Row {
         self.tot
+    }
+
+    /// The summary figures: the means of the sequences' figures and the figures pooled over vehicles
+    /// (a mean of nothing is `None`), and what the ground-truth ellipsoids score on the found vehicles.
+    pub fn figures(&self) -> StudyFigures {
+        let m = self.n_found_seq;
+        let means = Figures {
+            success: mean(self.sum_success, self.n_seq),
+            iou2d: mean(self.sum_iou, m),
+            box_iou2d: mean(self.sum_box_iou, m),
+            e_trans: mean(self.sum_et, m),
+            e_axe: mean(self.sum_ea, m),
+            e_yaw: mean(self.sum_yaw, m),
+            yaw_within: mean(self.sum_within, m),
+        };
+        let tot = &self.tot;
+        let [iou2d, box_iou2d, e_trans, e_axe, e_yaw, yaw_within] = tot.found_means();
+        let pooled = Figures { success: tot.success(), iou2d, box_iou2d, e_trans, e_axe, e_yaw, yaw_within };
+        StudyFigures {
+            means,
+            pooled,
+            truth: (mean(tot.iou_truth, tot.found), mean(tot.box_iou_truth, tot.found)),
+            moving: self.moving,
+        }
     }
 
     /// The study's closing lines (the mean of the sequences, the pooled figures, the moving vehicles and
@@ -691,6 +763,12 @@ mod tests {
         assert_eq!(&all[1..6], ["5", "4", "0.800", "0.575", "0.000"], "{report}");
         assert_eq!(all[6], "1.750", "{report}");
         assert!(report.contains("moving vehicles (world centre moves more than 3 m): 3; mapped as a static ellipsoid: 0, flagged dynamic: 3, never fitted: 0"), "{report}");
+        // the same figures as numbers
+        let f = study.figures();
+        assert_eq!((f.means.success, f.means.e_trans), (Some(0.75), Some(1.5)));
+        assert!((f.means.iou2d.unwrap() - 0.65).abs() < 1e-12);
+        assert_eq!((f.pooled.success, f.pooled.e_trans), (Some(0.8), Some(1.75)));
+        assert_eq!(f.moving, (3, 0, 3));
         assert_eq!(a.csv_record("0001").len(), CSV_COLUMNS.len());
         assert_eq!(a.table_line("0001").split_whitespace().count(), table_header().split_whitespace().count());
         // R05: no vehicle, or none found: dashes and empty CSV fields, never 0.000 or NaN

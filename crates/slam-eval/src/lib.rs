@@ -11,6 +11,7 @@ pub mod labelled;
 pub mod labels;
 pub mod recall;
 pub mod score;
+pub mod street;
 pub mod study;
 pub mod trajectory;
 

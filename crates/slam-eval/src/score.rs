@@ -65,6 +65,13 @@ impl Default for ScoreConfig {
     }
 }
 
+impl From<crate::labelled::VehicleCriteria> for ScoreConfig {
+    /// The default scoring with the vehicles' criteria (frames, static and moving spreads).
+    fn from(c: crate::labelled::VehicleCriteria) -> Self {
+        Self { min_frames: c.min_frames, static_m: c.static_m, moving_m: c.moving_m, ..Self::default() }
+    }
+}
+
 /// A map object to score.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ScoredInput {

@@ -6,12 +6,15 @@
 //!   [`Prepared::run`] → [`Outcome`]);
 //! - [`report`]: the run's output files, summary, object score and pictures;
 //! - [`bench`]: the `run-bench` and `track-bench` runs and table rows;
+//! - [`objects_bench`]: `objects-bench`, the object map of every dev case (labelled drive at several
+//!   strides, the image-free study, the main job's street);
 //! - [`stereo`]: `stereo-check`, the rig's disparity offset in rounds;
 //! - [`depth`]: `depth-check`, the stereo depth against a raw drive's Velodyne scans;
 //! - [`inspect`]: `map` (a saved map's summary and exports) and `trajectory-eval`;
 //! - [`detect`]: `detect` (a detector over a folder into a detection file) and `detect-recall`;
 //! - [`settings`]: the run's settings from TOML over the libraries' defaults ([`RunConfig`]);
 //! - [`simulation`]: `sim`, the paper's simulation sweep into an output folder;
+//! - [`studies`] (feature `console`): `eval`'s image-free study table with progress and CSV;
 //! - [`console`] (feature `console`): progress, Ctrl-C and stdout of a command-line program;
 //! - [`wiring`]: the implementations behind each seam by name ([`Wiring`]; `ValueEnum`s with `clap`).
 //!
@@ -27,11 +30,14 @@ pub mod error;
 pub mod in_map;
 pub mod inspect;
 pub mod map_bench;
+pub mod objects_bench;
 pub mod report;
 pub mod run;
 pub mod settings;
 pub mod simulation;
 pub mod stereo;
+#[cfg(feature = "console")]
+pub mod studies;
 pub mod wiring;
 
 pub use detector::{DetectorChoice, DetectorKind, DetectorOptions, NetworkLoader};

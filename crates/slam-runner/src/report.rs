@@ -256,7 +256,15 @@ impl Outcome {
     /// Score the run's objects against its labels, if any: writes objects_score.json and returns the
     /// printed report.
     pub fn score(&self, dir: &Path) -> Result<Option<String>> {
-        let Some((labels, geometry)) = &self.labels else { return Ok(None) };
+        let Some(score) = self.run_score() else { return Ok(None) };
+        score.write_json(&dir.join("objects_score.json"))?;
+        Ok(Some(score.report()))
+    }
+
+    /// The run's objects scored against its labels (`None` without labels), the association's figures
+    /// included.
+    pub fn run_score(&self) -> Option<slam_eval::RunScore> {
+        let (labels, geometry) = self.labels.as_ref()?;
         let out = &self.out;
         let objects: Vec<slam_eval::ScoredInput> = out
             .objects
@@ -282,8 +290,7 @@ impl Outcome {
             .map(|r| (r.index, r.detections.iter().zip(&r.tracks).map(|(d, t)| (d.bbox, t.map(|t| t.0))).collect()))
             .collect();
         score.association = Some(slam_eval::association_score(labels, geometry, &boxes));
-        score.write_json(&dir.join("objects_score.json"))?;
-        Ok(Some(score.report()))
+        Some(score)
     }
 
     /// The poses of the frames placed in the map (all frames but a loaded map's unplaced ones), with
