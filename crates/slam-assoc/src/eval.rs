@@ -247,6 +247,7 @@ pub fn run(tracker: &mut ObjectTracker, frames: &[SimFrame]) -> MotCounts {
         let out = tracker.step(&TrackerInput {
             detections: &f.detections,
             projected: &projected,
+            predicted: &projected,
             flow: &f.flow,
             keyframe: true,
         });

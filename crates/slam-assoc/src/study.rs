@@ -129,7 +129,13 @@ pub fn id_switches_on_labels(
             truth.push(*id);
         }
         n_det += dets.len();
-        let out = tracker.step(&TrackerInput { detections: &dets, projected: &projected, flow: &[], keyframe: true });
+        let out = tracker.step(&TrackerInput {
+            detections: &dets,
+            projected: &projected,
+            predicted: &projected,
+            flow: &[],
+            keyframe: true,
+        });
         ids.frame(truth.iter().zip(&out.tracks).filter_map(|(t, k)| Some((*t, (*k)?))));
         f += 1;
     }

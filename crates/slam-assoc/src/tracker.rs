@@ -63,6 +63,11 @@ pub struct TrackerInput<'a> {
     pub detections: &'a [Detection],
     /// Boxes of the projected ellipsoids of tracks that have one.
     pub projected: &'a BTreeMap<TrackId, BBox>,
+    /// Where a track's object is expected in this frame from its 3-D position and the camera's motion
+    /// (the caller knows both): it replaces the Kalman filter's image-space prediction of those tracks,
+    /// which assumes a constant velocity in the image and fails when frames are far apart (the camera's
+    /// own motion moves and grows a box in ways no constant image velocity follows).
+    pub predicted: &'a BTreeMap<TrackId, BBox>,
     /// Keypoints tracked from the last reference frame to this frame.
     pub flow: &'a [PointPair],
     /// This frame becomes the new reference frame (the flow of later frames starts here; the running
@@ -138,7 +143,7 @@ impl ObjectTracker {
                     id: t.id,
                     class: t.class,
                     projected: input.projected.get(&t.id).copied(),
-                    predicted: Some(*p),
+                    predicted: Some(input.predicted.get(&t.id).copied().unwrap_or(*p)),
                     last: t.last,
                     reference_region: t.reference.as_ref().map(|r| r.view()),
                 })
@@ -232,7 +237,8 @@ mod tests {
             Detection::new(ClassId(2), 0.9, BBox::new(800.0, 100.0, 900.0, 170.0)),
         ];
         let projected = BTreeMap::new();
-        let input = TrackerInput { detections: &dets, projected: &projected, flow: &[], keyframe: true };
+        let input =
+            TrackerInput { detections: &dets, projected: &projected, predicted: &projected, flow: &[], keyframe: true };
         let out = t.step(&input);
         assert_eq!(out.tracks, [Some(TrackId(4)), Some(TrackId(10))]);
         for _ in 0..3 {

@@ -211,6 +211,17 @@ impl MovingRegion {
     }
 }
 
+/// A box of the last tracked frame whose own stereo points are asked for
+/// ([`StereoTracker::box_points`]): where it is and the depths its object can lie at (from the class's
+/// sizes and the box's height), so that the search covers only the disparities that depth range allows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoxQuery {
+    /// The box, left image, pixels.
+    pub bbox: BBox,
+    /// Nearest and farthest depth of the object, metres (`near` may be 0: no near limit).
+    pub depth: (f64, f64),
+}
+
 /// A stereo visual front end.
 pub trait StereoTracker: Send {
     /// Track one rectified stereo pair against `map`. Keypoints on the `exclude` regions (moving
@@ -240,6 +251,15 @@ pub trait StereoTracker: Send {
         Ok(Vec::new())
     }
 
+    /// Dense stereo points inside each box of the last tracked frame (one list per query, in the
+    /// queries' order): the objects' own points, measured where the object is, whatever the features
+    /// tracking chose (which are spread over the image for the pose and leave a distant car a handful).
+    /// The points of a list lie inside its box, at the query's depths; each has its observation
+    /// `[u_left, v, u_right]`. A tracker without dense stereo returns empty lists (the default): the
+    /// objects then read the frame's own stereo points ([`TrackedFrame::points`]).
+    fn box_points(&mut self, queries: &[BoxQuery]) -> Result<Vec<Vec<FramePoint>>, TrackError> {
+        Ok(vec![Vec::new(); queries.len()])
+    }
     /// The run starts in `map`, loaded from an earlier run: get ready to localise in it before the
     /// first frame (e.g. index its keyframes for retrieval), so that loading, not the first frame,
     /// pays for it. Called once, before [`StereoTracker::track`]; trackers that need nothing do

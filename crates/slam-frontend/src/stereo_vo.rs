@@ -26,7 +26,7 @@ use std::time::Instant;
 use nalgebra::Isometry3;
 use opencv::prelude::*;
 use slam_core::{
-    geometry::BBox, FramePoint, Image, KeyframeId, MovingRegion, PointId, PointPair, Sightings, StageTimes,
+    geometry::BBox, BoxQuery, FramePoint, Image, KeyframeId, MovingRegion, PointId, PointPair, Sightings, StageTimes,
     StereoTracker, TrackError, TrackState, TrackedFrame,
 };
 use slam_map::{CreationPolicy, Map};
@@ -35,6 +35,7 @@ use slam_optim::SharedOptimizer;
 use crate::disparity::DisparityPair;
 use crate::image_io::{image_to_mat, FrontendError};
 
+mod box_stereo;
 mod checks;
 pub mod config;
 mod features;
@@ -420,7 +421,7 @@ impl StereoVo {
         };
         let points = frame.stereo_points();
         let t2 = Instant::now();
-        self.flow.push(lm, frame.keypoints.clone(), flow_keypoints);
+        self.flow.push((lm, rm), frame.keypoints.clone(), flow_keypoints);
         Ok((frame, points, masked, ((t1 - t0).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3)))
     }
 
@@ -708,6 +709,17 @@ impl StereoVo {
     }
 }
 
+impl StereoVo {
+    /// Dense stereo points inside each query's box of the last frame ([`box_stereo`]); they also start
+    /// the next frame's scene flow (the objects' own points followed into it).
+    pub fn dense_box_points(&mut self, queries: &[BoxQuery]) -> Result<Vec<Vec<FramePoint>>, FrontendError> {
+        let Some((left, right)) = self.flow.current_pair() else { return Ok(vec![Vec::new(); queries.len()]) };
+        let points = box_stereo::box_points(left, right, &self.stereo.rig, self.stereo.disparity_offset, queries)?;
+        self.flow.add_flow_keypoints(points.iter().flatten().map(|p| (p.observation[0], p.observation[1])));
+        Ok(points)
+    }
+}
+
 impl StereoTracker for StereoVo {
     fn track(
         &mut self,
@@ -726,6 +738,10 @@ impl StereoTracker for StereoVo {
 
     fn stereo_flow(&mut self, regions: &[BBox]) -> Result<Vec<PointPair>, TrackError> {
         self.optical_flow(regions, true).map_err(TrackError::backend)
+    }
+
+    fn box_points(&mut self, queries: &[BoxQuery]) -> Result<Vec<Vec<FramePoint>>, TrackError> {
+        self.dense_box_points(queries).map_err(TrackError::backend)
     }
 
     fn load_map(&mut self, map: &Map) {

@@ -6,10 +6,12 @@ use slam_core::{geometry::BBox, PointPair};
 
 use crate::image_io::FrontendError;
 
-/// The grey left images and keypoints of the previous and the current frame.
+/// The grey left images and keypoints of the previous and the current frame, and the current frame's
+/// right image (dense stereo in boxes).
 #[derive(Default)]
 pub(crate) struct FlowHistory {
     grey: [Option<Mat>; 2],
+    right: Option<Mat>,
     keypoints: [Vec<(f64, f64)>; 2],
     /// The stereo keypoints of the last two frames, those on moving regions included (the scene flow's).
     flow_keypoints: [Vec<(f64, f64)>; 2],
@@ -18,13 +20,30 @@ pub(crate) struct FlowHistory {
 impl FlowHistory {
     /// A new frame: its grey left image, its keypoints (those tracking uses) and its stereo keypoints
     /// (those on moving regions too).
-    pub(crate) fn push(&mut self, grey: Mat, keypoints: Vec<(f64, f64)>, flow_keypoints: Vec<(f64, f64)>) {
+    pub(crate) fn push(
+        &mut self,
+        (grey, right): (Mat, Mat),
+        keypoints: Vec<(f64, f64)>,
+        flow_keypoints: Vec<(f64, f64)>,
+    ) {
         self.grey.swap(0, 1);
         self.grey[1] = Some(grey);
+        self.right = Some(right);
         self.keypoints.swap(0, 1);
         self.keypoints[1] = keypoints;
         self.flow_keypoints.swap(0, 1);
         self.flow_keypoints[1] = flow_keypoints;
+    }
+
+    /// The current frame's grey pair (left, right), once a frame was pushed.
+    pub(crate) fn current_pair(&self) -> Option<(&Mat, &Mat)> {
+        Some((self.grey[1].as_ref()?, self.right.as_ref()?))
+    }
+
+    /// More start points of the scene flow in the current frame (pixels with a stereo point: an
+    /// object's dense points), followed into the next frame with its stereo keypoints.
+    pub(crate) fn add_flow_keypoints(&mut self, points: impl IntoIterator<Item = (f64, f64)>) {
+        self.flow_keypoints[1].extend(points);
     }
 
     /// Forward-backward Lucas-Kanade flow of the previous frame's keypoints inside `regions` into the

@@ -225,7 +225,11 @@ pub use super::flow::{RaySplit, SceneFlow};
 
 /// The scene flow of `points` seen from a camera at `camera` (world position, this frame); `None`
 /// below [`MIN_FLOW_POINTS`]. The median per world axis: up to half the points may be followed onto
-/// another surface (a flow vector that slid off the object onto the road behind it).
+/// another surface (a flow vector that slid off the object onto the road behind it). Each point's σ is
+/// its stereo noise, or the points' own scatter about their median where that is larger (1.4826 × the
+/// median absolute deviation, along and across the ray: points followed onto another surface, or
+/// depths of neighbouring pixels that share their errors, spread more than each one's noise says), so
+/// that a reading is never more certain than its points agree.
 pub fn scene_flow(points: &[FlowedPoint], camera: &Vector3<f64>) -> Option<SceneFlow> {
     let n = points.len();
     if n < MIN_FLOW_POINTS {
@@ -240,8 +244,14 @@ pub fn scene_flow(points: &[FlowedPoint], camera: &Vector3<f64>) -> Option<Scene
     let at = Vector3::new(axis_median(&|p| p.now.x), axis_median(&|p| p.now.y), axis_median(&|p| p.now.z));
     let ray = (at - camera).try_normalize(1e-9)?;
     let rms = |f: &dyn Fn(&FlowedPoint) -> f64| (points.iter().map(|p| f(p).powi(2)).sum::<f64>() / n as f64).sqrt();
+    // the points' scatter about the median motion, along and across the ray
+    let spread = |f: &dyn Fn(&Vector3<f64>) -> f64| {
+        1.4826 * median(&mut points.iter().map(|p| f(&(p.now - p.before - motion)).abs()).collect::<Vec<_>>())
+    };
+    let along = rms(&|p| p.sigma_along).max(spread(&|d| d.dot(&ray)));
+    let across = rms(&|p| p.sigma_across).max(spread(&|d| (d - ray * d.dot(&ray)).norm()));
     let of_median = |s: f64| ((1.2533 * s / (n as f64).sqrt()).powi(2) + FLOW_POSE_SIGMA_M.powi(2)).sqrt();
-    Some(SceneFlow::new(motion, ray, (of_median(rms(&|p| p.sigma_along)), of_median(rms(&|p| p.sigma_across))), n))
+    Some(SceneFlow::new(motion, ray, (of_median(along), of_median(across)), n))
 }
 
 /// Fewest scene-flow readings over a trend's span that can refute it ([`flow_refutes`]).
@@ -370,6 +380,19 @@ mod tests {
         let partly_road = scene_flow(&points(0.8, 30, 0.25), &camera).expect("a reading");
         assert!(partly_road.sigmas() > 3.0 && partly_road.split().along > 0.3, "{partly_road:?}");
         assert!(scene_flow(&points(1.0, MIN_FLOW_POINTS - 1, 0.0), &camera).is_none());
+        // points whose motions scatter far beyond their stereo noise (flows that slid between a parked
+        // van and a rack 18 m in front of it: half read +1.5 m, half -1.5 m, each claiming 0.1 m of
+        // noise) make a reading as uncertain as their scatter, not a confident 3 σ motion
+        let sliding: Vec<FlowedPoint> = (0..24)
+            .map(|k| {
+                let x = Vector3::new(0.1 * k as f64, 0.0, 40.0);
+                let dz = if k % 2 == 0 { 1.5 } else { -1.45 };
+                FlowedPoint { before: x, now: x + Vector3::new(0.0, 0.0, dz), sigma_along: 0.1, sigma_across: 0.05 }
+            })
+            .collect();
+        let r = scene_flow(&sliding, &camera).expect("a reading");
+        assert!(r.sigma_along > 0.5, "{r:?}");
+        assert!(r.sigmas() < 3.0, "{r:?}");
     }
 
     /// The scene flow refutes a centroid trend only when its own readings over the trend's span say

@@ -7,7 +7,7 @@ use crossbeam_channel::{Receiver, Sender};
 use nalgebra::{Isometry3, Point3, Vector3};
 use slam_core::{
     geometry::{BBox, Camera, ImageSize, Intrinsics},
-    ClassId, DetectError, Detection, FramePoint, KeyframeId, KeyframePoint, Map, MovingRegion, PointPair,
+    BoxQuery, ClassId, DetectError, Detection, FramePoint, KeyframeId, KeyframePoint, Map, MovingRegion, PointPair,
     StereoTracker, TrackState, TrackedFrame,
 };
 
@@ -415,11 +415,30 @@ impl Tracking {
             k: rig.k,
             image: self.config.objects.image,
         };
-        // each detection's object in this frame's stereo points: where they put it, the depths they span
+        // each box's own dense stereo points (a tracker without them gives none: the frame's stereo
+        // points stand in), at the depths the box's class allows
+        let dense = if tf.state.is_measured() && !detections.is_empty() {
+            let queries: Vec<BoxQuery> =
+                detections.iter().map(|d| BoxQuery { bbox: d.bbox, depth: box_depths(d, &geometry) }).collect();
+            self.tracker.box_points(&queries).unwrap_or_else(|e| {
+                tracing::debug!(frame = i, "dense stereo in the boxes failed: {e}");
+                vec![Vec::new(); detections.len()]
+            })
+        } else {
+            vec![Vec::new(); detections.len()]
+        };
+        let own = |k: usize| -> &[FramePoint] {
+            match dense.get(k) {
+                Some(p) if !p.is_empty() => p,
+                _ => &tf.points,
+            }
+        };
+        // each detection's object in its stereo points: where they put it, the depths they span
         let on_frame: Vec<FrameObject> = detections
             .iter()
-            .map(|d| {
-                let (kept, centroid) = object_points(&tf.points, &tf.world_from_camera, d, &geometry);
+            .enumerate()
+            .map(|(k, d)| {
+                let (kept, centroid) = object_points(own(k), &tf.world_from_camera, d, &geometry);
                 FrameObject { centroid, depths: centroid.map(|_| depth_span(&kept)) }
             })
             .collect();
@@ -428,7 +447,7 @@ impl Tracking {
         // tracking, the map and the objects' points above): a masked object goes on being measured
         // (the frame's own points first, then the masked ones)
         let all_points: Vec<FramePoint> = if self.config.scene_flow {
-            tf.points.iter().chain(&tf.masked_points).copied().collect()
+            tf.points.iter().chain(&tf.masked_points).chain(dense.iter().flatten()).copied().collect()
         } else {
             Vec::new()
         };
@@ -716,6 +735,15 @@ fn height_range(class: ClassId) -> (f64, f64) {
     }
 }
 
+/// The depths a detection's object can lie at: where the class's heights fill the box's height (no
+/// near limit for a box the image border cuts: part of the object is outside).
+fn box_depths(d: &Detection, g: &PointGeometry) -> (f64, f64) {
+    let (hmin, hmax) = height_range(d.class);
+    let bh = d.bbox.height().max(1.0);
+    let cut = d.bbox.touches_border(&g.image, 2.0);
+    (if cut { 0.0 } else { g.k.fy * hmin / bh }, g.k.fy * hmax / bh)
+}
+
 /// What [`object_points`] needs besides the keyframe and the box.
 struct PointGeometry {
     /// Depth noise, and the central part of the box whose points count.
@@ -741,7 +769,7 @@ fn object_points<'a, P: BoxPoint>(
     g: &PointGeometry,
 ) -> (Vec<&'a P>, Option<PointsCentroid>) {
     let sigma_z = |z: f64| g.noise.depth_sigma(z);
-    let cand = box_candidates(points, &d.bbox, d.class, g);
+    let cand = box_candidates(points, d, g);
     let half_length = class_prior(d.class).axes.x;
     let windows: Vec<usize> = (0..cand.len())
         .map(|i| {
@@ -773,11 +801,8 @@ fn object_points<'a, P: BoxPoint>(
 
 /// The points inside the box's core at a depth its height allows for the class, nearest first (ties
 /// in input order).
-fn box_candidates<'a, P: BoxPoint>(points: &'a [P], b: &BBox, class: ClassId, g: &PointGeometry) -> Vec<&'a P> {
-    let (hmin, hmax) = height_range(class);
-    let bh = b.height().max(1.0);
-    let cut = b.touches_border(&g.image, 2.0);
-    let (near, far) = (if cut { 0.0 } else { g.k.fy * hmin / bh }, g.k.fy * hmax / bh);
+fn box_candidates<'a, P: BoxPoint>(points: &'a [P], d: &Detection, g: &PointGeometry) -> Vec<&'a P> {
+    let (b, (near, far)) = (&d.bbox, box_depths(d, g));
     let mut cand: Vec<&P> = points
         .iter()
         .filter(|p| {
