@@ -47,7 +47,7 @@ pub struct InputArgs {
     dynamic_prior_sigmas: f64,
     /// What a box bounds in the object optimisation: the ellipsoid (the paper), its circumscribed cuboid,
     /// or two stages (yaw from the cuboid, then the ellipse with that yaw held)
-    #[arg(long, value_enum, default_value_t = Shape::Ellipse)]
+    #[arg(long, value_enum, default_value_t = Shape::Cuboid)]
     box_shape: Shape,
     /// Remove an ellipsoid visible but not detected in this many frames in a row (0: never)
     #[arg(long, default_value_t = 5)]

@@ -170,6 +170,9 @@ pub struct Census {
     pub dont_care: usize,
     /// Matching nothing.
     pub nothing: usize,
+    /// Of those, objects of a class the labels never annotate standing alone: bicycles and motorcycles
+    /// (KITTI labels one only with its rider, as a Cyclist), so a parked one can match nothing.
+    pub nothing_unlabelled_class: usize,
     /// Not in view in its own frames.
     pub unscored: usize,
     /// Objects flagged dynamic by the run (not in the counts above).
@@ -449,7 +452,13 @@ pub fn score_run(
                 Fate::Duplicate => census.duplicate += 1,
                 Fate::Moving => census.moving += 1,
                 Fate::DontCare => census.dont_care += 1,
-                Fate::Nothing => census.nothing += 1,
+                Fate::Nothing => {
+                    census.nothing += 1;
+                    // COCO bicycle (1) and motorcycle (3)
+                    if matches!(o.class, 1 | 3) {
+                        census.nothing_unlabelled_class += 1;
+                    }
+                }
                 Fate::Unscored => census.unscored += 1,
             }
         }
@@ -595,7 +604,7 @@ impl RunScore {
         };
         s.push_str(&format!(
             "static map objects {}: matched {}, duplicate {}, moving object mapped as static {}, in a DontCare \
-             region {}, matching nothing {}{}; objects flagged dynamic (with an ellipsoid) {}, {} of them on a \
+             region {}, matching nothing {}{}{}; objects flagged dynamic (with an ellipsoid) {}, {} of them on a \
              moving label (an object found moving before its first fit has no ellipsoid and is not counted)\n",
             c.static_objects,
             c.matched,
@@ -603,6 +612,14 @@ impl RunScore {
             c.moving,
             c.dont_care,
             c.nothing,
+            if c.nothing_unlabelled_class > 0 {
+                format!(
+                    " ({} of them bicycles or motorcycles, which KITTI labels only with a rider)",
+                    c.nothing_unlabelled_class
+                )
+            } else {
+                String::new()
+            },
             if c.unscored > 0 { format!(", never in view {}", c.unscored) } else { String::new() },
             c.dynamic_objects,
             c.dynamic_on_moving
@@ -831,16 +848,25 @@ mod tests {
                 frames: vec![first, first + 1],
                 dynamic: false,
             },
+            // a parked bicycle: no label can match it (KITTI labels a bicycle only with its rider)
+            ScoredInput {
+                id: 10,
+                class: 1,
+                ellipsoid: Ellipsoid::new(Isometry3::translation(-3.0, 1.2, 30.0), Vector3::new(0.9, 0.5, 0.3)),
+                frames: vec![first, first + 1],
+                dynamic: false,
+            },
         ];
         let s = score_run(&labels, &poses, &ids, &G, &objects, &ScoreConfig::default());
         assert!(s.tracks.iter().all(|t| t.track != 8), "a track outside the run's frames was scored");
         let c = s.census;
         assert_eq!(
-            (c.static_objects, c.matched, c.duplicate, c.moving, c.dont_care, c.nothing),
-            (5, 1, 1, 1, 1, 1),
+            (c.static_objects, c.matched, c.duplicate, c.moving, c.dont_care, c.nothing, c.nothing_unlabelled_class),
+            (6, 1, 1, 1, 1, 2, 1),
             "{}",
             s.report()
         );
+        assert!(s.report().contains("matching nothing 2 (1 of them bicycles or motorcycles"), "{}", s.report());
         assert_eq!((c.dynamic_objects, c.dynamic_on_moving), (1, 1));
         let fate = |id: u64| s.objects.iter().find(|o| o.id == id).map(|o| o.fate);
         assert_eq!(fate(7), Some(Fate::Matched));

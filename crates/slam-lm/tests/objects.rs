@@ -205,3 +205,142 @@ fn the_stereo_depth_of_the_surface_corrects_a_size_biased_depth() {
     assert!(e0 > 1.0, "the car prior should misplace the van: {e0:.3} m");
     assert!(e1 < 0.5 * e0, "the surface depth should halve the centre error: {e0:.3} m -> {e1:.3} m");
 }
+
+/// A box-shaped car's detector boxes (its cuboid's bounds, each edge off by up to `noise_px` in a fixed
+/// pseudo-random pattern, and the share `cut` of the width missing on the left, as a detector that boxes
+/// part of a large vehicle) and its stereo points: a grid over each side the camera sees (the central
+/// 60 % of the height), each point moved along its viewing ray by a seeded normal draw of the stereo
+/// depth noise at 0.5 px of disparity. Every view whose box lies inside the image is kept.
+fn car_seen(
+    truth: &Ellipsoid,
+    cameras: &[Camera],
+    (noise_px, cut): (f64, f64),
+    per_side: usize,
+) -> (Vec<slam_quadric::init::BoxView>, Vec<slam_optim::object::SurfacePoint>) {
+    use rand::{RngExt, SeedableRng};
+    let image = ImageSize::new(1242.0, 375.0);
+    let fb = K.fx * 0.54;
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(5);
+    let mut normal = move || -> f64 {
+        // Box-Muller from two uniform draws
+        let (u1, u2): (f64, f64) = (rng.random::<f64>().max(1e-12), rng.random::<f64>());
+        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+    };
+    let (mut views, mut points) = (Vec::new(), Vec::new());
+    for (i, cam) in cameras.iter().enumerate() {
+        let Some(b) = slam_quadric::cuboid_bounds(truth, cam) else { continue };
+        if !image.as_box().contains(&b) || b.touches_border(&image, 5.0) {
+            continue;
+        }
+        let wobble = |k: usize| noise_px * (((i * 7 + k * 3) % 5) as f64 / 2.0 - 1.0);
+        let noisy = slam_quadric::BBox::new(
+            b.xmin + cut * b.width() + wobble(0),
+            b.ymin + wobble(1),
+            b.xmax + wobble(2),
+            b.ymax + wobble(3),
+        );
+        views.push(slam_quadric::init::BoxView::new(*cam, noisy));
+        let eye = cam.world_from_camera.translation.vector;
+        let (r, c, a) = (truth.rotation(), truth.centre(), truth.semi_axes);
+        let seen = r.transpose() * (eye - c);
+        for (axis, span) in [(0usize, 2usize), (2, 0)] {
+            for s in [1.0, -1.0] {
+                if s * seen[axis] <= a[axis] {
+                    continue;
+                }
+                for u in 0..per_side {
+                    for v in 0..3 {
+                        let mut q = Vector3::zeros();
+                        q[axis] = s * a[axis];
+                        q[span] = a[span] * (2.0 * (u as f64 + 0.5) / per_side as f64 - 1.0);
+                        q[1] = a[1] * 0.6 * (v as f64 - 1.0);
+                        let x = c + r * q;
+                        let depth = (cam.camera_from_world() * nalgebra::Point3::from(x)).z;
+                        let sigma_z = depth * depth * 0.5 / fb;
+                        let ray = (x - eye).normalize();
+                        points.push(slam_optim::object::SurfacePoint {
+                            point: x + ray * (sigma_z * normal()),
+                            camera: eye,
+                            sigma_z,
+                            sigma_across: depth / K.fx,
+                        });
+                    }
+                }
+            }
+        }
+    }
+    (views, points)
+}
+
+/// `Cues::surface_points` with the cuboid box model: a car's stereo points on the sides its camera sees
+/// give its heading where its boxes cannot (a car seen from behind, turned in its lane), its heading
+/// and extent where two sides show (a van seen obliquely, larger than the car prior), and its heading
+/// along a side seen in passing; a handful of points from one view gives no opinion of its own (the fit
+/// stays the boxes').
+#[test]
+fn surface_points_give_heading_and_extent_from_behind_obliquely_and_from_the_side() {
+    use slam_optim::object::{refine_with_cues, BoxShape, Cues, ObjectPrior, RefineConfig};
+    use slam_quadric::init::Dqp;
+    let image = ImageSize::new(1242.0, 375.0);
+    let config = RefineConfig { box_shape: BoxShape::Cuboid, pose_drift: None, ..RefineConfig::default() };
+    let prior = ObjectPrior::car();
+    let lm = LevenbergMarquardt::default();
+    let up = -Vector3::y();
+    let placed = |x: f64, z: f64, heading_deg: f64, axes: Vector3<f64>| {
+        // own x (the length) along the road (world z) turned by `heading_deg`
+        let rot = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), (heading_deg - 90.0).to_radians());
+        Ellipsoid::new(Isometry3::from_parts(Translation3::new(x, 0.9, z), rot), axes)
+    };
+    let fit = |views: &[slam_quadric::init::BoxView], pts: &[slam_optim::object::SurfacePoint]| {
+        let cues = Cues { surface_points: pts, ..Cues::default() };
+        refine_with_cues(&Dqp::default(), views, &image, &prior, &config, &cues, &lm).expect("fits")
+    };
+    let drive = |from: f64, step: f64, n: usize| -> Vec<Camera> {
+        (0..n).map(|i| Camera::new(K, Isometry3::translation(0.0, 0.0, from + step * i as f64))).collect()
+    };
+    let car = Vector3::new(2.0, 0.75, 0.85);
+
+    // 1. from behind: a car parked 35 m dead ahead, turned by 15°, the camera driving 4.5 m towards it:
+    // its boxes (3 px off) are small and barely change, and leave its heading open
+    let behind = placed(0.0, 35.0, 15.0, car);
+    let (views, pts) = car_seen(&behind, &drive(0.0, 0.5, 10), (3.0, 0.0), 6);
+    let (boxes, with) = (fit(&views, &[]), fit(&views, &pts));
+    let (y0, y1) = (metrics::e_yaw(&boxes, &behind, &up), metrics::e_yaw(&with, &behind, &up));
+    eprintln!("from behind: e_yaw boxes {y0:.1}°, with points {y1:.1}°");
+    assert!(y0 > 5.0, "the scene's premise: the boxes alone leave the heading open ({y0:.1}°)");
+    assert!(y1 < 3.0, "from behind: boxes {y0:.1}°, with points {y1:.1}°");
+
+    // 2. obliquely: a van (larger than the car prior) parked at 40° ahead on the left, rear and side seen,
+    // its boxes missing a sixth of its width on the left (drive 0005's parked van: 10-30 px of 60-140)
+    let van = placed(-5.0, 22.0, 40.0, Vector3::new(2.77, 1.1, 0.95));
+    let (views, pts) = car_seen(&van, &drive(0.0, 1.0, 12), (2.0, 1.0 / 6.0), 6);
+    let (boxes, with) = (fit(&views, &[]), fit(&views, &pts));
+    let (t0, t1) = (metrics::e_trans(&boxes, &van), metrics::e_trans(&with, &van));
+    let (y1, a0, a1) = (metrics::e_yaw(&with, &van, &up), metrics::e_axe(&boxes, &van), metrics::e_axe(&with, &van));
+    eprintln!("obliquely: e_trans boxes {t0:.2} m, with points {t1:.2} m; e_axe {a0:.2} -> {a1:.2} m; e_yaw {y1:.1}°");
+    assert!(y1 < 3.0 && t1 < 0.3 && t1 < 0.5 * t0, "obliquely: e_trans {t0:.2} -> {t1:.2} m, e_yaw {y1:.1}°");
+    // the sides give the van's length and width (its height, which no side's points measure, stays
+    // with the boxes and the car prior)
+    let flat = |e: &Ellipsoid| Vector3::new(e.semi_axes.x - 2.77, 0.0, e.semi_axes.z - 0.95).norm();
+    let (h0, h1) = (flat(&boxes), flat(&with));
+    eprintln!("obliquely: length and width error {h0:.2} -> {h1:.2} m");
+    assert!(
+        a1 < a0 && h1 < 0.5 * h0 && h1 < 0.25,
+        "the van's extent: e_axe {a0:.2} -> {a1:.2} m, length and width {h0:.2} -> {h1:.2} m"
+    );
+
+    // 3. from the side: a car parked along the road 6 m to the right, passed
+    let side = placed(6.0, 15.0, 3.0, car);
+    let (views, pts) = car_seen(&side, &drive(0.0, 1.0, 14), (2.0, 0.0), 6);
+    let with = fit(&views, &pts);
+    let (y1, t1) = (metrics::e_yaw(&with, &side, &up), metrics::e_trans(&with, &side));
+    eprintln!("from the side: e_yaw {y1:.1}°, e_trans {t1:.2} m");
+    assert!(y1 < 3.0 && t1 < 0.3, "from the side: e_yaw {y1:.1}°, e_trans {t1:.2} m");
+
+    // 4. too few points: three from one view of the car seen from behind, fewer than two frames' worth
+    // of an object's depth (`min_surface_points`): no opinion, the fit is the boxes' own
+    let (views, pts) = car_seen(&behind, &drive(0.0, 0.5, 10), (3.0, 0.0), 1);
+    let (boxes, few) = (fit(&views, &[]), fit(&views, &pts[..3]));
+    assert_eq!(few, boxes, "three points change the fit");
+    assert!(pts.len() >= 10 && fit(&views, &pts) != boxes, "enough points do");
+}

@@ -10,7 +10,9 @@ use slam_quadric::{
 };
 
 use crate::{
-    factors::{AxisDirection, AxisPrior, BoxFactor, CuboidBoxFactor, PosePrior, SurfaceDepth, TexturePlane},
+    factors::{
+        AxisDirection, AxisPrior, BoxFactor, CuboidBoxFactor, CuboidSurface, PosePrior, SurfaceDepth, TexturePlane,
+    },
     Graph, Huber, NoiseModel, Optimizer, Options, Values, Var, L2,
 };
 
@@ -79,6 +81,20 @@ pub struct SurfaceCue {
     pub sigma_m: f64,
 }
 
+/// A stereo point on an object's visible surface ([`CuboidSurface`]): where it is and the camera it
+/// was seen from (world), and its noise along and across its viewing ray, metres.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfacePoint {
+    /// World position, metres.
+    pub point: Vector3<f64>,
+    /// The camera's centre, world, metres.
+    pub camera: Vector3<f64>,
+    /// Stereo depth σ along the ray, metres.
+    pub sigma_z: f64,
+    /// σ across the ray (a pixel at the point's depth), metres.
+    pub sigma_across: f64,
+}
+
 /// What a fit may use besides the boxes and the class prior; every stage after the starts uses them.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Cues<'a> {
@@ -89,6 +105,10 @@ pub struct Cues<'a> {
     pub yaw: Option<YawCue>,
     /// The stereo depth of the object's visible surface.
     pub surface: Option<SurfaceCue>,
+    /// The object's own stereo points, on the faces of its box ([`CuboidSurface`], with the cuboid box
+    /// model and its stage of a two-stage fit), σ from each point's noise and
+    /// [`RefineConfig::surface_shape_sigma_m`], with Huber at [`RefineConfig::surface_huber`].
+    pub surface_points: &'a [SurfacePoint],
 }
 
 /// Settings of [`refine`].
@@ -131,6 +151,17 @@ pub struct RefineConfig {
     pub plane_box_floor_px: f64,
     /// [`BoxShape::TwoStage`]: σ of the prior holding the first stage's yaw in the second, degrees.
     pub hold_yaw_sigma_deg: f64,
+    /// How far a real body's surface lies from its bounding box (σ, metres): a car's panels are curved
+    /// and its corners rounded (a plan-view corner radius of about a quarter of its width, 0.4 m, puts
+    /// its surface up to 0.12 m inside the box there), its glass slopes inward; 0.1 m.
+    pub surface_shape_sigma_m: f64,
+    /// Huber threshold of the surface points, in σ: a point beyond it (the road or a wall inside the
+    /// object's depth window, a mismatch on glass) counts linearly. 2 σ (95 % of a normal noise below it).
+    pub surface_huber: f64,
+    /// Fewest surface points a fit uses at all: fewer say nothing (no opinion rather than one a stray
+    /// point or two could make). 10: the points an object's depth needs in each of two frames (a
+    /// centroid takes five, so that one stray point of the background cannot move it).
+    pub min_surface_points: usize,
 }
 
 impl Default for RefineConfig {
@@ -150,6 +181,9 @@ impl Default for RefineConfig {
             plane_huber_m: 0.5,
             plane_box_floor_px: 2.0,
             hold_yaw_sigma_deg: 0.5,
+            surface_shape_sigma_m: 0.1,
+            surface_huber: 2.0,
+            min_surface_points: 10,
         }
     }
 }
@@ -212,7 +246,7 @@ pub fn optimise_object(
         prior,
         config,
         start,
-        Stage { sigmas: &sigmas, drift: None, cues: Cues::default(), optimizer },
+        Stage { sigmas: &sigmas, drift: None, cues: Cues::default(), optimizer, tolerance: FINE },
     )
 }
 
@@ -223,7 +257,17 @@ struct Stage<'a> {
     drift: Option<f64>,
     cues: Cues<'a>,
     optimizer: &'a dyn Optimizer,
+    /// Relative cost decrease (and step) below which the stage stops: [`FINE`], or [`COARSE`] for the
+    /// starts, which only need to be ranked.
+    tolerance: f64,
 }
+
+/// Stop when a step lowers the cost by less than this share: the final passes, converged to the
+/// solver's precision so that exact data give exact results.
+const FINE: f64 = 1e-12;
+/// The starts' first pass stops at a millionth of the cost (the tolerance Ceres uses by default):
+/// enough to rank the starts, the best of which is then polished to [`FINE`].
+const COARSE: f64 = 1e-6;
 
 /// [`optimise_object`] with one box σ per view (pixels); with `drift`, the cameras other than the
 /// first become variables with a prior at their given poses (translation σ = `drift` × distance to the
@@ -234,13 +278,17 @@ fn optimise_object_weighted(
     prior: &ObjectPrior,
     config: &RefineConfig,
     start: Ellipsoid,
-    Stage { sigmas, drift, cues, optimizer }: Stage<'_>,
+    Stage { sigmas, drift, cues, optimizer, tolerance }: Stage<'_>,
 ) -> Option<(Ellipsoid, f64)> {
     let mut values = Values::new();
     let mut graph = Graph::new();
     let ko = values.add(Var::Ellipsoid(start));
-    let options =
-        Options { function_tolerance: 1e-12, parameter_tolerance: 1e-12, max_iterations: 200, ..Options::default() };
+    let options = Options {
+        function_tolerance: tolerance,
+        parameter_tolerance: tolerance,
+        max_iterations: 200,
+        ..Options::default()
+    };
     let first = views.first()?.camera.world_from_camera;
     let rot_sigma = config.pose_rot_sigma_deg.to_radians();
     for (i, (v, &sigma)) in views.iter().zip(sigmas).enumerate() {
@@ -291,6 +339,16 @@ fn optimise_object_weighted(
     if let Some(cue) = cues.surface {
         if let Some(f) = SurfaceDepth::new(ko, cue.surface, cue.towards_camera) {
             graph.add(f, NoiseModel::Isotropic(cue.sigma_m), L2).ok()?;
+        }
+    }
+    if config.box_shape == BoxShape::Cuboid && cues.surface_points.len() >= config.min_surface_points {
+        for p in cues.surface_points {
+            let at = (p.point, p.camera, up);
+            let f = CuboidSurface::new(ko, at, p.sigma_z, p.sigma_across, config.surface_shape_sigma_m);
+            if let Some(f) = f {
+                // the factor whitens itself (σ from the point's noise along the face's normal)
+                graph.add(f, NoiseModel::Isotropic(1.0), Huber(config.surface_huber)).ok()?;
+            }
         }
     }
     let summary = optimizer.optimize(&graph, &mut values, &options, None).ok()?;
@@ -390,7 +448,7 @@ pub fn refine_with_cues(
             prior,
             &second,
             e1,
-            Stage { sigmas: &sigmas, drift: None, cues: held, optimizer },
+            Stage { sigmas: &sigmas, drift: None, cues: held, optimizer, tolerance: FINE },
         );
         return Ok(match started {
             Some((e, _)) if in_front_of_all(views, &e) => polish(views, image, prior, &second, held, e, optimizer),
@@ -432,7 +490,7 @@ pub fn refine_with_cues(
             prior,
             config,
             s,
-            Stage { sigmas: &sigmas, drift: None, cues, optimizer },
+            Stage { sigmas: &sigmas, drift: None, cues, optimizer, tolerance: COARSE },
         ) {
             if in_front_of_all(views, &e) && best.as_ref().is_none_or(|b| cost < b.1) {
                 best = Some((e, cost));
@@ -476,7 +534,7 @@ fn polish(
             prior,
             config,
             e,
-            Stage { sigmas: &sigmas, drift: None, cues, optimizer },
+            Stage { sigmas: &sigmas, drift: None, cues, optimizer, tolerance: FINE },
         ) {
             Some((next, _)) if in_front_of_all(views, &next) => e = next,
             _ => break,
@@ -498,7 +556,7 @@ fn polish(
                 prior,
                 config,
                 e,
-                Stage { sigmas: &sigmas, drift: Some(drift), cues, optimizer },
+                Stage { sigmas: &sigmas, drift: Some(drift), cues, optimizer, tolerance: FINE },
             ) {
                 e = j.0;
             }

@@ -217,14 +217,14 @@ mod tests {
     #[test]
     fn settings_round_trip_and_zero_switches_a_test_off() {
         let text = serde_json::to_string(&MapperConfig::default()).expect("serialises");
-        assert!(text.contains("\"box_shape\":\"ellipse\"") && text.contains("\"dynamic_prior_sigmas\":6.0"), "{text}");
+        assert!(text.contains("\"box_shape\":\"cuboid\"") && text.contains("\"dynamic_prior_sigmas\":6.0"), "{text}");
         assert!(!text.contains("tracker") && !text.contains("image"), "caller-set fields stay out: {text}");
         let back: MapperConfig = serde_json::from_str(&text).expect("parses");
         assert_eq!(back, MapperConfig::default());
         let off: MapperConfig =
-            serde_json::from_str(r#"{"dynamic_prior_sigmas": 0, "box_shape": "cuboid"}"#).expect("parses");
+            serde_json::from_str(r#"{"dynamic_prior_sigmas": 0, "box_shape": "ellipse"}"#).expect("parses");
         assert_eq!(off.dynamic_prior_sigmas, None);
-        assert_eq!(off.box_shape, slam_optim::object::BoxShape::Cuboid);
+        assert_eq!(off.box_shape, slam_optim::object::BoxShape::Ellipse);
         assert_eq!(off.min_views, MapperConfig::default().min_views, "missing keys keep the defaults");
         assert!(serde_json::from_str::<MapperConfig>(r#"{"box_shape": "sphere"}"#).is_err());
         assert!(serde_json::from_str::<MapperConfig>(r#"{"min_view": 3}"#).is_err(), "unknown keys are errors");

@@ -51,11 +51,12 @@ impl Initializer for Recording {
     }
 }
 
-/// The parked car seen over 22 frames (1 m per frame, exact boxes); the ellipsoids mapped.
+/// The parked car seen over 22 frames (1 m per frame, exact boxes of its ellipsoid, so fitted with the
+/// ellipse box model); the ellipsoids mapped.
 fn map_with(method: FitMethod) -> Vec<Ellipsoid> {
     let optimizer = common::lm();
-    let mut mapper =
-        ObjectMapper::new(Box::new(Oda::default()), MapperConfig::default(), optimizer).with_method(method);
+    let config = MapperConfig { box_shape: slam_optim::object::BoxShape::Ellipse, ..MapperConfig::default() };
+    let mut mapper = ObjectMapper::new(Box::new(Oda::default()), config, optimizer).with_method(method);
     for f in 0..22 {
         let cam = Camera::new(K, Isometry3::translation(0.0, 0.0, f as f64));
         let dets: Vec<Detection> = project(&parked(), &cam)

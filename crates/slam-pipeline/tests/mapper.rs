@@ -8,7 +8,7 @@ use nalgebra::Isometry3;
 use slam_assoc::Oda;
 use slam_core::{ClassId, Detection};
 use slam_pipeline::objects::{write_object_map, MapperConfig, ObjectMapper};
-use slam_quadric::{metrics, project, Camera, Ellipsoid};
+use slam_quadric::{metrics, Camera, Ellipsoid};
 
 fn car(x: f64, z: f64) -> Ellipsoid {
     common::car(x, z, 0.05)
@@ -24,7 +24,7 @@ fn parked_car_is_mapped_and_moving_car_is_not() {
         let moving = car(-4.0, z + 12.0 + 0.8 * f as f64); // overtaking on the left
         let mut dets = Vec::new();
         for e in [&parked, &moving] {
-            if let Ok(b) = project(e, &cam).and_then(|c| c.clipped_bounds(&IMAGE)) {
+            if let Some(b) = common::detected_box(e, &cam) {
                 dets.push(Detection::new(ClassId(2), 1.0, b));
             }
         }
@@ -45,7 +45,9 @@ fn parked_car_is_mapped_and_moving_car_is_not() {
 
 /// A car ahead driving the same way at half the camera's speed: its boxes are exactly those of a static
 /// car twice as far and twice as large, so the box misfit cannot tell; the fitted size, far from the
-/// class prior, can (`dynamic_prior_sigmas`).
+/// class prior, can (`dynamic_prior_sigmas`), under the ellipse box model; under the cuboid model (the
+/// default) the fit of twice a car's size lies beyond the physical limits of a car (8 m long) and is
+/// refused whether or not the size test runs: it is never mapped as a static car.
 #[test]
 fn a_slower_car_ahead_is_flagged_by_its_size() {
     let fit = |config: MapperConfig| {
@@ -53,18 +55,21 @@ fn a_slower_car_ahead_is_flagged_by_its_size() {
         for f in 0..30 {
             let cam = Camera::new(K, Isometry3::translation(0.0, 0.0, f as f64));
             let ahead = car(-3.5, 25.0 + 0.5 * f as f64);
-            let dets: Vec<Detection> = project(&ahead, &cam)
-                .and_then(|c| c.clipped_bounds(&IMAGE))
+            let dets: Vec<Detection> = common::detected_box(&ahead, &cam)
                 .map(|b| vec![Detection::new(ClassId(2), 1.0, b)])
                 .unwrap_or_default();
             mapper.step(f, &cam, &dets);
         }
         mapper.objects().filter(|o| o.ellipsoid.is_some()).map(|o| o.dynamic).collect::<Vec<bool>>()
     };
-    let without = fit(MapperConfig { dynamic_prior_sigmas: None, ..MapperConfig::default() });
+    let ellipse = MapperConfig { box_shape: slam_optim::object::BoxShape::Ellipse, ..MapperConfig::default() };
+    let without = fit(MapperConfig { dynamic_prior_sigmas: None, ..ellipse });
     assert_eq!(without, vec![false], "fitted as a static car when only the box misfit is tested");
-    let with = fit(MapperConfig::default());
+    let with = fit(ellipse);
     assert_eq!(with, vec![true], "flagged dynamic by its size");
+    for config in [MapperConfig::default(), MapperConfig { dynamic_prior_sigmas: None, ..MapperConfig::default() }] {
+        assert_eq!(fit(config), Vec::<bool>::new(), "the cuboid model's fit is no car at all");
+    }
 }
 
 /// A parked car boxed in three frames, fitted, then never detected again while it stays in full view
@@ -83,7 +88,7 @@ fn a_car_missing_where_it_should_be_visible_is_removed() {
             let cam = Camera::new(K, Isometry3::translation(0.5 * f as f64, 0.0, 0.0));
             let mut dets = Vec::new();
             for (e, boxed) in [(&phantom, f < 3), (&kept, true)] {
-                if let (true, Ok(b)) = (boxed, project(e, &cam).and_then(|c| c.clipped_bounds(&IMAGE))) {
+                if let (true, Some(b)) = (boxed, common::detected_box(e, &cam)) {
                     assert!(!b.touches_border(&IMAGE, 5.0), "frame {f}: in full view");
                     dets.push(Detection::new(ClassId(2), 1.0, b));
                 }
@@ -153,7 +158,7 @@ fn an_ellipsoid_the_stereo_points_see_through_is_removed() {
             let cam = Camera::new(K, Isometry3::translation(0.5 * f as f64, 0.0, 0.0));
             let mut dets = Vec::new();
             for (e, boxed) in [(&phantom, f < 3), (&real, true)] {
-                if let (true, Ok(b)) = (boxed, project(e, &cam).and_then(|c| c.clipped_bounds(&IMAGE))) {
+                if let (true, Some(b)) = (boxed, common::detected_box(e, &cam)) {
                     dets.push(Detection::new(ClassId(2), 1.0, b));
                 }
             }
@@ -195,7 +200,7 @@ fn scene_flow_flags_a_new_object_and_leaves_a_mapped_one_to_the_centroid_test() 
             let cam = Camera::new(K, Isometry3::translation(0.5 * f as f64, 0.0, 0.0));
             let mut dets = Vec::new();
             for (e, seen) in [(&parked, true), (&newcomer, f == 3)] {
-                if let (true, Ok(b)) = (seen, project(e, &cam).and_then(|c| c.clipped_bounds(&IMAGE))) {
+                if let (true, Some(b)) = (seen, common::detected_box(e, &cam)) {
                     dets.push(Detection::new(ClassId(2), 1.0, b));
                 }
             }
@@ -255,7 +260,7 @@ fn scene_flow_that_excludes_the_trend_lifts_its_moving_flag() {
         let mut id = None;
         for f in 0..18 {
             let cam = Camera::new(K, Isometry3::translation(0.0, 0.0, 0.4 * f as f64));
-            let b = project(&parked, &cam).and_then(|c| c.clipped_bounds(&IMAGE)).expect("in view");
+            let b = common::detected_box(&parked, &cam).expect("in view");
             let ids = m.step(f, &cam, &[Detection::new(ClassId(2), 1.0, b)]);
             let track = ids[0].expect("associated");
             assert!(id.is_none_or(|i| i == track), "one track");
@@ -302,7 +307,7 @@ fn a_car_of_a_loaded_map_keeps_its_id_and_is_refined_by_both_runs() {
             let cam = Camera::new(K, Isometry3::translation(0.0, 0.0, (f % 100) as f64));
             let dets: Vec<Detection> = std::iter::once(&parked)
                 .chain(extra)
-                .filter_map(|e| project(e, &cam).and_then(|c| c.clipped_bounds(&IMAGE)).ok())
+                .filter_map(|e| common::detected_box(e, &cam))
                 .map(|b| Detection::new(ClassId(2), 1.0, b))
                 .collect();
             ids.push(mapper.step(f, &cam, &dets));
@@ -352,7 +357,7 @@ fn a_car_is_not_missed_farther_away_than_it_was_ever_detected() {
         let cam = Camera::new(K, Isometry3::translation(0.0, 0.0, z));
         let mut dets = Vec::new();
         for (e, boxed) in [(&near_only, f < 6), (&always, true)] {
-            if let (true, Ok(b)) = (boxed, project(e, &cam).and_then(|c| c.clipped_bounds(&IMAGE))) {
+            if let (true, Some(b)) = (boxed, common::detected_box(e, &cam)) {
                 dets.push(Detection::new(ClassId(2), 1.0, b));
             }
         }

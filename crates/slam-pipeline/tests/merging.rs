@@ -3,12 +3,12 @@
 
 mod common;
 
-use common::{lm, IMAGE, K};
+use common::{lm, K};
 use nalgebra::Isometry3;
 use slam_assoc::Oda;
 use slam_core::{geometry::BBox, ClassId, Detection};
 use slam_pipeline::objects::{MapperConfig, ObjectMapper};
-use slam_quadric::{metrics, project, Camera, Ellipsoid};
+use slam_quadric::{metrics, Camera, Ellipsoid};
 
 const FRAMES: usize = 24;
 
@@ -23,7 +23,7 @@ fn drive(cars: &[Ellipsoid], boxes: impl Fn(BBox) -> Vec<BBox>) -> ObjectMapper 
         let cam = Camera::new(K, Isometry3::translation(0.0, 0.0, f as f64));
         let dets: Vec<Detection> = cars
             .iter()
-            .filter_map(|e| project(e, &cam).and_then(|c| c.clipped_bounds(&IMAGE)).ok())
+            .filter_map(|e| common::detected_box(e, &cam))
             .flat_map(&boxes)
             .map(|b| Detection::new(ClassId(2), 1.0, b))
             .collect();

@@ -8,7 +8,7 @@ mod common;
 use common::{car as car_at, field, frames, lm, Scene, ScriptedBoxes, ScriptedTracker, B, IMAGE, K};
 use nalgebra::{Isometry3, Vector3};
 use slam_pipeline::system::{run, SystemConfig};
-use slam_quadric::{metrics, project, Camera, Ellipsoid};
+use slam_quadric::{metrics, Camera, Ellipsoid};
 
 const FRAMES: usize = 36;
 
@@ -66,7 +66,7 @@ fn cars_driving_ahead_are_found_moving_and_not_mapped() {
         .expect("runs");
     // which object took the boxes of which car: by the first detection's box
     let cam0 = Camera::new(K, pose(0));
-    let box_of = |e: &Ellipsoid| project(e, &cam0).and_then(|c| c.clipped_bounds(&IMAGE)).expect("in view");
+    let box_of = |e: &Ellipsoid| common::detected_box(e, &cam0).expect("in view");
     let object_of = |e: &Ellipsoid| {
         let b = box_of(e);
         let k = out.frames[0].detections.iter().position(|d| d.bbox.iou(&b) > 0.9).expect("detected");
@@ -119,7 +119,7 @@ fn scene_flow_finds_a_car_driving_ahead_within_three_frames() {
         .expect("runs");
         let cam0 = Camera::new(K, pose(0));
         let moving = |e: &Ellipsoid| {
-            let b = project(e, &cam0).and_then(|c| c.clipped_bounds(&IMAGE)).expect("in view");
+            let b = common::detected_box(e, &cam0).expect("in view");
             let k = out.frames[0].detections.iter().position(|d| d.bbox.iou(&b) > 0.9).expect("detected");
             let id = out.frames[0].tracks[k].expect("associated");
             out.objects.iter().find(|o| o.id == id).expect("object").moving
@@ -152,7 +152,7 @@ impl slam_core::DetectionSource for Relabelled {
         image: Option<&slam_core::Image>,
     ) -> Result<Vec<slam_core::Detection>, slam_core::DetectError> {
         let cam = Camera::new(K, pose(frame));
-        let ahead = project(&same_speed(frame), &cam).and_then(|c| c.clipped_bounds(&IMAGE)).expect("in view");
+        let ahead = common::detected_box(&same_speed(frame), &cam).expect("in view");
         let mut boxes = self.0.detect(frame, image)?;
         for d in &mut boxes {
             if frame >= RELABELLED_FROM && d.bbox.iou(&ahead) > 0.9 {
@@ -214,7 +214,7 @@ fn a_masked_car_stays_measured_through_a_new_track() {
         let out = run(frames(8, None), tracker, Some(Box::new(boxes)), K, B, &config, lm(), &mut |_| {}).expect("runs");
         let track_at = |frame: usize| {
             let cam = Camera::new(K, pose(frame));
-            let b = project(&same_speed(frame), &cam).and_then(|c| c.clipped_bounds(&IMAGE)).expect("in view");
+            let b = common::detected_box(&same_speed(frame), &cam).expect("in view");
             let k = out.frames[frame].detections.iter().position(|d| d.bbox.iou(&b) > 0.9).expect("detected");
             out.frames[frame].tracks[k].expect("associated")
         };

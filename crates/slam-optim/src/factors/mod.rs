@@ -20,6 +20,8 @@ mod reproj;
 mod se3;
 
 pub use bal::BalReprojection;
-pub use object::{cuboid_box_error, AxisDirection, AxisPrior, BoxFactor, CuboidBoxFactor, SurfaceDepth, TexturePlane};
+pub use object::{
+    cuboid_box_error, AxisDirection, AxisPrior, BoxFactor, CuboidBoxFactor, CuboidSurface, SurfaceDepth, TexturePlane,
+};
 pub use reproj::{MonoReprojection, StereoReprojection};
 pub use se3::{Between, PointPrior, PosePrior};

@@ -371,6 +371,186 @@ impl Factor for SurfaceDepth {
     }
 }
 
+/// A stereo point on an object's visible surface, on one of the visible sides of its box: the box is
+/// the cuboid that circumscribes the ellipsoid (semi-axes `a`, own frame; own y is the height), the
+/// shape the cuboid box model gives a vehicle. Seen from above (the horizontal plane across `up`), the
+/// box is a rectangle, and a camera sees the one or two sides whose outside it stands on; the roof,
+/// seen edge-on from a car's height, is left out, and so is the height.
+///
+/// The point's stereo noise lies along its viewing ray (`σ_z`, growing with the depth squared) with a
+/// little across it (`σ_across`, a pixel); a real body's surface lies off its bounding box by
+/// `σ_shape` in every direction. In the plane seen from above, whitened by that noise (along the
+/// ray by `√(σ_z² + σ_shape²)`, across it by `√(σ_across² + σ_shape²)`), the residual (1) is the
+/// point's distance to the nearest visible side, a segment: a point the depth noise put behind a rear
+/// face is a σ or two along its ray from it, while a point whose ray passes beside the box is far from
+/// every side across the ray, where stereo is precise. Sign: negative inside the footprint. A rear face
+/// gives the heading, two faces at a right angle the yaw and their extents; a box too short or beside
+/// the points is refused by the points beyond its ends. No visible side (the camera inside the
+/// footprint): no residual.
+#[derive(Debug, Clone)]
+pub struct CuboidSurface {
+    keys: [Key; 1],
+    /// The point and the camera seen from above (2-D coordinates in the plane across `up`).
+    point: nalgebra::Vector2<f64>,
+    camera: nalgebra::Vector2<f64>,
+    /// The plane's axes (world), rows of the projection.
+    plane: nalgebra::Matrix2x3<f64>,
+    /// Whitening: rows along the ray / σ_along and across it / σ_across.
+    whiten: nalgebra::Matrix2<f64>,
+}
+
+impl CuboidSurface {
+    /// Point `point` seen from a camera at `camera` (both world), the world's vertical `up`, with depth
+    /// σ `sigma_z`, σ across the ray `sigma_across` and shape σ `sigma_shape` (metres); `None` for
+    /// non-finite input, a point straight above or below the camera, a zero `up` or σ that are not
+    /// positive and finite.
+    pub fn new(
+        object: Key,
+        (point, camera, up): (Vector3<f64>, Vector3<f64>, Vector3<f64>),
+        sigma_z: f64,
+        sigma_across: f64,
+        sigma_shape: f64,
+    ) -> Option<Self> {
+        let ok = |v: f64| v.is_finite() && v > 0.0;
+        if !(ok(sigma_z) && ok(sigma_across) && ok(sigma_shape)) {
+            return None;
+        }
+        let u = up.try_normalize(1e-12)?;
+        let seed = if u.x.abs() < 0.9 { Vector3::x() } else { Vector3::z() };
+        let h1 = (seed - u * u.dot(&seed)).normalize();
+        let h2 = u.cross(&h1);
+        let plane = nalgebra::Matrix2x3::from_rows(&[h1.transpose(), h2.transpose()]);
+        let (p, c) = (plane * point, plane * camera);
+        if !p.iter().chain(c.iter()).all(|v| v.is_finite()) {
+            return None;
+        }
+        let ray = (p - c).try_normalize(1e-9)?;
+        let across = nalgebra::Vector2::new(-ray.y, ray.x);
+        let (along_s, across_s) = (sigma_z.hypot(sigma_shape), sigma_across.hypot(sigma_shape));
+        let whiten = nalgebra::Matrix2::from_rows(&[(ray / along_s).transpose(), (across / across_s).transpose()]);
+        Some(Self { keys: [object], point: p, camera: c, plane, whiten })
+    }
+}
+
+/// The nearest visible side of a [`CuboidSurface`]: the whitened distance to it, the nearest point's
+/// offset in the object's frame and its derivatives in the three semi-axes, and the whitened gap.
+type NearestSide = (f64, Vector3<f64>, [Vector3<f64>; 3], nalgebra::Vector2<f64>);
+
+impl CuboidSurface {
+    /// The residual and, on request, its Jacobian (`[ω, v, δa]`) at ellipsoid `e`, without allocating.
+    fn residual(&self, e: &Ellipsoid, jacobian: Option<&mut [f64; 9]>) -> f64 {
+        let r = e.rotation();
+        let (a, t) = (e.semi_axes, e.centre());
+        // the camera in the object's frame decides which sides it sees (only own x and z matter)
+        let seen_from = r.transpose() * (self.plane.transpose() * self.camera - t);
+        let (pc, pr) = (self.plane * t, self.plane * r);
+        let mut best: Option<NearestSide> = None;
+        for (i, j) in [(0usize, 2usize), (2, 0)] {
+            // the camera stands outside at most one of the two sides across axis i
+            let s = if seen_from[i] > a[i] {
+                1.0
+            } else if seen_from[i] < -a[i] {
+                -1.0
+            } else {
+                continue;
+            };
+            // the side's ends, own frame: `i` at s a_i, `j` from −a_j to a_j
+            let mut e1 = Vector3::zeros();
+            e1[i] = s * a[i];
+            e1[j] = -a[j];
+            let mut e2 = e1;
+            e2[j] = a[j];
+            let c1 = pc + pr * e1;
+            let span = pr * (e2 - e1);
+            let (w1, w2) = (self.whiten * (self.point - c1), self.whiten * span);
+            let tt = (w1.dot(&w2) / w2.norm_squared().max(1e-300)).clamp(0.0, 1.0);
+            let gap = w1 - w2 * tt;
+            let d = gap.norm();
+            if best.as_ref().is_none_or(|b| d < b.0) {
+                // the nearest point's own-frame offset and its derivatives in a_x, a_y, a_z
+                let en = e1 * (1.0 - tt) + e2 * tt;
+                let mut de = [Vector3::zeros(); 3];
+                de[i][i] = s;
+                de[j][j] = 2.0 * tt - 1.0;
+                best = Some((d, en, de, gap));
+            }
+        }
+        let Some((d, en, de, gap)) = best else {
+            if let Some(jac) = jacobian {
+                *jac = [0.0; 9];
+            }
+            return 0.0;
+        };
+        // inside the footprint: negative
+        let q = r.transpose() * (self.plane.transpose() * self.point - t);
+        let sign = if q.x.abs() < a.x && q.z.abs() < a.z { -1.0 } else { 1.0 };
+        if let Some(jac) = jacobian {
+            // d = |W (p − N)|, N = π(t + R e_N): dd = −gᵀ W dN (the nearest point's parameter is at an
+            // optimum or a bound: its change does not move d to first order), g = W(p − N) / d;
+            // dN = π (R v − R [e_N]× ω + R de_N)
+            *jac = [0.0; 9];
+            if d > 0.0 {
+                let g = (self.whiten.transpose() * gap / d).transpose() * pr; // 1×3: gᵀ W π R
+                let dw = g * crate::lie::hat(&en);
+                for k in 0..3 {
+                    jac[k] = sign * dw[k];
+                    jac[3 + k] = -sign * g[k];
+                    jac[6 + k] = -sign * g.dot(&de[k].transpose());
+                }
+            }
+        }
+        sign * d
+    }
+}
+
+impl Factor for CuboidSurface {
+    fn keys(&self) -> &[Key] {
+        &self.keys
+    }
+
+    fn dim(&self) -> usize {
+        1
+    }
+
+    fn evaluate(
+        &self,
+        values: &Values,
+        jacobians: Option<&mut Vec<DMatrix<f64>>>,
+    ) -> Result<DVector<f64>, FactorError> {
+        let e = values.require_ellipsoid(self.keys[0])?;
+        let want = jacobians.is_some();
+        let mut j = [0.0; 9];
+        let res = self.residual(e, want.then_some(&mut j));
+        if let Some(jac) = jacobians {
+            jac.clear();
+            jac.push(DMatrix::from_row_slice(1, 9, &j));
+        }
+        Ok(DVector::from_element(1, res))
+    }
+
+    fn evaluate_into(
+        &self,
+        values: &Values,
+        residual: &mut [f64],
+        jacobians: Option<&mut [f64]>,
+    ) -> Result<(), FactorError> {
+        let e = values.require_ellipsoid(self.keys[0])?;
+        let size = |what: &str, n: usize, want: usize| {
+            FactorError::Undefined(format!("{what} buffer of {n} entries, the cuboid surface factor fills {want}"))
+        };
+        let [r] = residual else { return Err(size("residual", residual.len(), 1)) };
+        match jacobians {
+            Some(out) => {
+                let n = out.len();
+                let out: &mut [f64; 9] = out.try_into().map_err(|_| size("Jacobian", n, 9))?;
+                *r = self.residual(e, Some(out));
+            }
+            None => *r = self.residual(e, None),
+        }
+        Ok(())
+    }
+}
+
 /// Keeps one of an ellipsoid's axes along a direction: residual `d × (R e_k)` (3; its norm is the sine
 /// of the angle between them), e.g. a car's height axis along gravity, the paper's yaw-only assumption
 /// as a soft constraint. Without it, a straight drive cannot observe the object's tilt and the

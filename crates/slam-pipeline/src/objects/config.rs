@@ -11,9 +11,12 @@ use slam_quadric::ImageSize;
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize, documented::DocumentedFieldsOpt)]
 #[serde(default, deny_unknown_fields)]
 pub struct MapperConfig {
-    /// What a box bounds in the object optimisation: "ellipse" (the ellipsoid's projected ellipse, the
-    /// paper's model, default), "cuboid" (its circumscribed cuboid) or "two-stage" (yaw from the cuboid
-    /// model, then the ellipse model with that yaw held); docs/objects.md.
+    /// What a box bounds in the object optimisation: "cuboid" (the cuboid circumscribing the
+    /// ellipsoid: a vehicle is box-shaped, and its box bounds its corners; default, with the object's
+    /// stereo points on the cuboid's visible sides in the running system), "ellipse" (the ellipsoid's
+    /// projected ellipse, the paper's model, which turns and grows an ellipsoid until it fills the box)
+    /// or "two-stage" (yaw from the cuboid model, then the ellipse model with that yaw held);
+    /// docs/objects.md.
     #[serde(with = "crate::serde_forms::box_shape")]
     pub box_shape: BoxShape,
     /// Image size (for clipped bounds and the border test).
@@ -104,7 +107,7 @@ pub struct MapperConfig {
 impl Default for MapperConfig {
     fn default() -> Self {
         Self {
-            box_shape: BoxShape::Ellipse,
+            box_shape: BoxShape::Cuboid,
             image: ImageSize::new(1242.0, 375.0),
             min_views: 3,
             min_parallax_deg: 3.0,

@@ -2,10 +2,10 @@
 //! the fit needs ([`FitJob`], [`ObjectMapper::fit_jobs`]), and what is accepted of its result
 //! ([`ObjectMapper::apply`]: physical size, the stereo gate, the dynamic flags).
 
-use nalgebra::Vector4;
+use nalgebra::{Vector3, Vector4};
 use slam_core::{ClassId, KeyframeId, PointId, TrackId};
 use slam_optim::{
-    object::{box_residual, refine_with_cues, BoxShape, Cues, RefineConfig, SurfaceCue, YawCue},
+    object::{box_residual, refine_with_cues, BoxShape, Cues, RefineConfig, SurfaceCue, SurfacePoint, YawCue},
     SharedOptimizer,
 };
 use slam_quadric::{init::BoxView, Ellipsoid, ImageSize};
@@ -16,6 +16,9 @@ use super::{
 };
 
 pub use super::method::FitMethod;
+
+/// Most surface points a fit uses ([`FitJob::surface_points`]): 16 from each of 20 views.
+const SURFACE_POINTS_PER_FIT: usize = 320;
 
 /// An ellipsoid fit to run (possibly on another thread): everything it needs, by value.
 #[derive(Debug, Clone)]
@@ -33,6 +36,9 @@ pub struct FitJob {
     /// Positions of its map points when the job was made ([`FitJob::locate`]): the runner's fallback
     /// for points its own map does not hold.
     pub positions: Vec<(PointId, nalgebra::Vector3<f64>)>,
+    /// The object's stereo points in each view's frame (its left camera's frame, with their depth σ):
+    /// the surface cue, placed in the world with the view's (re-posed) camera when the fit runs.
+    pub surfaces: Vec<Vec<(Vector3<f64>, f64)>>,
     /// The object's generation when the job was made (see [`FitResult::generation`]).
     generation: u32,
     method: FitMethod,
@@ -90,6 +96,28 @@ impl FitJob {
         self.run_with_cue(planes, None)
     }
 
+    /// The surface cue's points in the world, from each view's camera (re-posed where its keyframe
+    /// moved): the point, the ray it was seen along, its depth σ and a pixel's width at its depth.
+    pub fn surface_points(&self) -> Vec<SurfacePoint> {
+        // the points of one frame share that frame's disparity errors (the rig's calibration, the
+        // matcher's bias on a surface), so many of them are worth few independent ones: a fit takes
+        // `SURFACE_POINTS_PER_FIT` in all, spread over its views, which also bounds its cost
+        let per_view = (SURFACE_POINTS_PER_FIT / self.views.len().max(1)).max(1);
+        self.views
+            .iter()
+            .zip(&self.surfaces)
+            .flat_map(|(v, points)| {
+                let pose = v.camera.world_from_camera;
+                let fx = v.camera.intrinsics.fx;
+                let step = points.len().div_ceil(per_view).max(1);
+                points.iter().step_by(step).map(move |(p, sigma_z)| {
+                    let point = (pose * nalgebra::Point3::from(*p)).coords;
+                    SurfacePoint { point, camera: pose.translation.vector, sigma_z: *sigma_z, sigma_across: p.z / fx }
+                })
+            })
+            .collect()
+    }
+
     /// Whether the fit wants the stereo-point yaw cue ([`MapperConfig::point_yaw`]) and refines.
     pub fn uses_point_yaw(&self) -> bool {
         self.point_yaw && self.method.refines()
@@ -102,7 +130,8 @@ impl FitJob {
             let config = RefineConfig { box_shape: self.box_shape, ..RefineConfig::default() };
             let prior = class_prior(self.class);
             let init = self.method.initializer();
-            let cues = Cues { planes, yaw, surface: self.surface };
+            let surface_points = self.surface_points();
+            let cues = Cues { planes, yaw, surface: self.surface, surface_points: &surface_points };
             refine_with_cues(init, views, &self.image, &prior, &config, &cues, &*self.optimizer)
         } else {
             self.method.initializer().initialize(views)
@@ -129,6 +158,9 @@ impl FitJob {
                 tracing::debug!(
                     object = self.id.0,
                     views = views.len(),
+                    surface_points = self.surfaces.iter().map(Vec::len).sum::<usize>(),
+                    centre = ?e.centre().as_slice(),
+                    axes = ?e.semi_axes.as_slice(),
                     "fitted: box misfit {} px RMS, size {size_dev:.1} prior sigmas from its class",
                     rms.map_or("(none)".to_string(), |r| format!("{r:.1}"))
                 );
@@ -246,6 +278,7 @@ impl ObjectMapper {
         };
         let views: Vec<BoxView> = pick.iter().map(|&i| BoxView::new(usable[i].camera, usable[i].bbox)).collect();
         let references = pick.iter().map(|&i| usable[i].reference).collect();
+        let surfaces = pick.iter().map(|&i| obj.surface.get(&usable[i].frame).cloned().unwrap_or_default()).collect();
         obj.fitted_at = n;
         self.fits += 1;
         Some(FitJob {
@@ -255,6 +288,7 @@ impl ObjectMapper {
             references,
             points: obj.points.iter().copied().collect(),
             positions: Vec::new(),
+            surfaces,
             generation: obj.generation,
             method: self.method.clone(),
             box_shape: cfg.box_shape,

@@ -103,6 +103,9 @@ impl ObjectMapper {
             tracing::debug!(kept = %keep, dropped = %drop, "duplicate object merged");
             if let Some(k) = self.objects.get_mut(&keep) {
                 k.points.extend(gone.points);
+                for (f, p) in gone.surface {
+                    k.surface.entry(f).or_insert(p);
+                }
             }
             self.merged.insert(drop, keep);
         }

@@ -9,6 +9,15 @@ use slam_core::{PointId, TrackId};
 use super::{class_prior, object::TrendFlag, ObjectMapper, PointsCentroid};
 
 impl ObjectMapper {
+    /// Keep a sample of the object's stereo points in the frame of its latest box (its left camera's
+    /// frame, each with its depth σ), for the surface cue of its fits
+    /// ([`slam_optim::object::Cues::surface_points`]).
+    pub fn add_surface(&mut self, id: TrackId, points: &[(Vector3<f64>, f64)]) {
+        let Some(obj) = self.objects.get_mut(&id) else { return };
+        let Some(frame) = obj.observations.last().map(|o| o.frame) else { return };
+        obj.surface.insert(frame, points.to_vec());
+    }
+
     /// Attach map points seen inside the object's latest box and where they put the object (callers pass
     /// `None` when too few points support it); flags the object as moving when its stereo points have
     /// carried it away from where they first put it.
@@ -154,6 +163,7 @@ impl ObjectMapper {
                     k += 1;
                     k <= earlier || o.frame >= from
                 });
+                obj.surface.retain(|&f, _| f >= from);
                 obj.points.clear();
                 obj.ellipsoid = None;
                 obj.fitted_at = 0;

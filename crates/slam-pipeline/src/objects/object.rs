@@ -74,6 +74,9 @@ pub struct MappedObject {
     /// Set when the centroid trend flagged it moving: what the trend read, so that its own scene flow
     /// can refute it afterwards ([`ObjectMapper::add_flow`]).
     pub(super) trend_flag: Option<TrendFlag>,
+    /// A sample of its stereo points in the frames that measured them (frame id → points in that
+    /// frame's left camera, each with its depth σ): the surface cue of its fits. Not kept in a saved map.
+    pub(super) surface: std::collections::BTreeMap<usize, Vec<(Vector3<f64>, f64)>>,
     /// How many of its observations come from a map loaded from an earlier run (the first ones).
     pub earlier: usize,
     /// How many times its observations were dropped (a refuted trend flag): a fit job made before
@@ -123,6 +126,7 @@ impl MappedObject {
             misses: 0,
             free_frames: 0,
             trend_flag: None,
+            surface: Default::default(),
             earlier: 0,
             generation: 0,
         }

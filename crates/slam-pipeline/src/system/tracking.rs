@@ -439,7 +439,8 @@ impl Tracking {
             .enumerate()
             .map(|(k, d)| {
                 let (kept, centroid) = object_points(own(k), &tf.world_from_camera, d, &geometry);
-                FrameObject { centroid, depths: centroid.map(|_| depth_span(&kept)) }
+                let surface = if centroid.is_some() { surface_sample(&kept, &geometry.noise) } else { Vec::new() };
+                FrameObject { centroid, depths: centroid.map(|_| depth_span(&kept)), surface }
             })
             .collect();
         self.attach_points(tf, keyframe, detections, &tracks, (&geometry, &on_frame));
@@ -468,10 +469,10 @@ impl Tracking {
                 .zip(&on_frame)
                 .map(|(d, o)| {
                     if tf.masked_points.is_empty() || !masked_object(d) {
-                        return *o;
+                        return o.clone();
                     }
                     let (kept, centroid) = object_points(&all_points, &tf.world_from_camera, d, &geometry);
-                    FrameObject { centroid, depths: centroid.map(|_| depth_span(&kept)) }
+                    FrameObject { centroid, depths: centroid.map(|_| depth_span(&kept)), surface: Vec::new() }
                 })
                 .collect();
             match pairs {
@@ -586,6 +587,9 @@ impl Tracking {
             if keyframe.is_some() || centroid.is_some() {
                 self.objects.add_points(*id, &ids, centroid);
             }
+            if measured && !o.surface.is_empty() {
+                self.objects.add_surface(*id, &o.surface);
+            }
         }
     }
 }
@@ -660,10 +664,22 @@ fn depth_span(points: &[&FramePoint]) -> (f64, f64) {
 
 /// A detection's object in the frame's stereo points ([`object_points`]): where they put it, and the
 /// nearest and farthest depth among them (both `None` below [`MIN_OBJECT_POINTS`] points).
-#[derive(Clone, Copy)]
+#[derive(Clone)]
 struct FrameObject {
     centroid: Option<PointsCentroid>,
     depths: Option<(f64, f64)>,
+    /// A sample of its points (left-camera frame) with their depth σ, for the surface cue of its fits.
+    surface: Vec<(Vector3<f64>, f64)>,
+}
+
+/// Most of an object's points kept per frame for the surface cue of its fits: enough for its faces
+/// (two faces, each from a dozen points), few enough that a fit of 20 views stays a few hundred terms.
+const SURFACE_POINTS_PER_FRAME: usize = 30;
+
+/// Up to [`SURFACE_POINTS_PER_FRAME`] of `kept`, evenly spaced over the list, each with its depth σ.
+fn surface_sample<P: BoxPoint>(kept: &[&P], noise: &StereoNoise) -> Vec<(Vector3<f64>, f64)> {
+    let step = kept.len().div_ceil(SURFACE_POINTS_PER_FRAME).max(1);
+    kept.iter().step_by(step).map(|p| (p.camera_point(), noise.depth_sigma(p.camera_point().z))).collect()
 }
 
 /// Stereo points in square cells of their left-image position, for nearest-point lookups.

@@ -15,7 +15,7 @@ use slam_core::{
     NewKeyframe, PointId, PointPair, Sightings, StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
 };
 use slam_pipeline::system::FrameInput;
-use slam_quadric::{project, Camera, Ellipsoid, ImageSize, Intrinsics};
+use slam_quadric::{Camera, Ellipsoid, ImageSize, Intrinsics};
 
 /// KITTI odometry 06's left camera.
 pub const K: Intrinsics = Intrinsics { fx: 721.5377, fy: 721.5377, skew: 0.0, cx: 609.5593, cy: 172.854 };
@@ -34,6 +34,13 @@ pub fn car(x: f64, z: f64, yaw: f64) -> Ellipsoid {
         ),
         Vector3::new(2.0, 0.78, 0.85),
     )
+}
+
+/// The box a detector draws around a box-shaped object: the bounds of the projected corners of the
+/// ellipsoid's circumscribed cuboid (the mapper's default box model), clipped to the image; `None`
+/// when a corner lies behind the camera or the box leaves the image.
+pub fn detected_box(e: &Ellipsoid, cam: &Camera) -> Option<BBox> {
+    slam_quadric::cuboid_bounds(e, cam)?.clipped(&IMAGE)
 }
 
 /// The optimiser of these tests (the project's Levenberg–Marquardt).
@@ -99,7 +106,7 @@ impl ScriptedTracker {
         let cars: Vec<(BBox, f64)> = (self.scene.cars)(frame)
             .iter()
             .filter_map(|e| {
-                let b = project(e, &cam).and_then(|c| c.clipped_bounds(&IMAGE)).ok()?;
+                let b = detected_box(e, &cam)?;
                 Some((b, (t.inverse() * Point3::from(e.centre())).z))
             })
             .collect();
@@ -254,7 +261,7 @@ impl DetectionSource for ScriptedBoxes {
         let cam = Camera::new(K, (self.truth)(frame));
         Ok((self.cars)(frame)
             .iter()
-            .filter_map(|e| project(e, &cam).and_then(|c| c.clipped_bounds(&IMAGE)).ok())
+            .filter_map(|e| detected_box(e, &cam))
             .filter(|b| b.width() > 4.0)
             .map(|b| Detection::new(ClassId(2), 0.9, b))
             .collect())
