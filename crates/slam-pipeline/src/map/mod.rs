@@ -92,6 +92,40 @@ mod observation_list {
     }
 }
 
+/// A JSON object read as a map by id, refusing an id written twice (JSON allows it, and a plain map
+/// would keep the last copy in silence: a hand edit that adds a keyframe under an id in use replaced
+/// the other one).
+mod unique_keys {
+    use std::{collections::BTreeMap, fmt, marker::PhantomData};
+
+    use serde::{
+        de::{MapAccess, Visitor},
+        Deserialize, Deserializer,
+    };
+
+    pub fn deserialize<'de, D: Deserializer<'de>, T: Deserialize<'de>>(d: D) -> Result<BTreeMap<u64, T>, D::Error> {
+        struct Unique<T>(PhantomData<T>);
+        impl<'de, T: Deserialize<'de>> Visitor<'de> for Unique<T> {
+            type Value = BTreeMap<u64, T>;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("an object of ids")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut access: A) -> Result<Self::Value, A::Error> {
+                let mut out = BTreeMap::new();
+                while let Some((id, value)) = access.next_entry::<u64, T>()? {
+                    if out.insert(id, value).is_some() {
+                        return Err(serde::de::Error::custom(format!(
+                            "id {id} appears twice (each id is written once; a second copy would replace the first)"
+                        )));
+                    }
+                }
+                Ok(out)
+            }
+        }
+        d.deserialize_map(Unique(PhantomData))
+    }
+}
+
 /// A map point.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -187,9 +221,11 @@ pub struct Map {
     /// The world frame, in words ([`MAP_WORLD`]; absent in older files).
     #[serde(default)]
     pub frame: String,
-    /// Keyframes by id.
+    /// Keyframes by id (an id written twice is refused, not the last one taken).
+    #[serde(deserialize_with = "unique_keys::deserialize")]
     pub keyframes: BTreeMap<KeyframeId, MapKeyframe>,
-    /// Map points by id.
+    /// Map points by id (as `keyframes`).
+    #[serde(deserialize_with = "unique_keys::deserialize")]
     pub points: BTreeMap<PointId, MapPoint>,
     /// Objects, by id.
     pub objects: Vec<MapObject>,
@@ -427,7 +463,9 @@ impl Map {
         Ok(map)
     }
 
-    /// The features refer to keyframes of the map that are not culled, and to points that exist.
+    /// The features refer to keyframes of the map that are not culled, and to points that exist; every
+    /// keyframe that is not culled has its features; each keyframe's observations are the same in the
+    /// JSON and in the features file (the same points, at the keypoints' positions).
     fn check_features(&self) -> Result<(), (String, String)> {
         for (id, f) in &self.keyframe_features {
             let field = || format!("features (keyframe {id})");
@@ -438,6 +476,133 @@ impl Map {
             }
             if let Some((k, p)) = f.observations.iter().find(|(_, p)| !self.points.contains_key(p)) {
                 return Err((field(), format!("keypoint {k} observes point {p}, which does not exist")));
+            }
+        }
+        for (id, k) in self.keyframes.iter().filter(|(_, k)| !k.culled) {
+            let field = || format!("keyframes.{id}.observations");
+            let Some(f) = self.keyframe_features.get(id) else {
+                return Err((
+                    format!("keyframes.{id}"),
+                    "not culled, but the features file holds no features of it (every keyframe a run tracks \
+                     against keeps its keypoints there)"
+                        .into(),
+                ));
+            };
+            let json: BTreeMap<PointId, [f64; 3]> = k.observations.iter().copied().collect();
+            let saved: BTreeMap<PointId, u32> = f.observations.iter().map(|&(kp, p)| (p, kp)).collect();
+            if let Some(p) = json.keys().find(|p| !saved.contains_key(p)) {
+                return Err((field(), format!("point {p} is observed here but not in the features file")));
+            }
+            if let Some(p) = saved.keys().find(|p| !json.contains_key(p)) {
+                return Err((field(), format!("the features file has keyframe {id} observe point {p}, the JSON does not")));
+            }
+            for (p, kp) in &saved {
+                let o = json[p];
+                let Some(key) = f.keypoints.get(*kp as usize) else {
+                    return Err((field(), format!("point {p}: keypoint {kp} is not in the features file")));
+                };
+                // the features file keeps 32-bit floats: a keypoint of 2 000 px is kept to 1e-4 px
+                let same = |a: f64, b: f64| (a.is_nan() && b.is_nan()) || (a - b).abs() <= 1e-3;
+                if !(same(o[0], key.u) && same(o[1], key.v) && same(o[2], key.u_right)) {
+                    return Err((
+                        field(),
+                        format!(
+                            "point {p} is observed at {o:?} in the JSON, at keypoint {kp} ({}, {}, right {}) in the features file",
+                            key.u, key.v, key.u_right
+                        ),
+                    ));
+                }
+            }
+        }
+        self.check_geometry()
+    }
+
+    /// Observations on both sides: a keyframe observes each point once, and a point's `observed_by`
+    /// lists exactly the keyframes whose observations name it.
+    fn check_both_sides(&self) -> Result<(), (String, String)> {
+        let mut observers: BTreeMap<PointId, Vec<KeyframeId>> = BTreeMap::new();
+        for (id, k) in &self.keyframes {
+            let mut seen = std::collections::BTreeSet::new();
+            for (i, (p, _)) in k.observations.iter().enumerate() {
+                if !seen.insert(*p) {
+                    return Err((format!("keyframes.{id}.observations[{i}]"), format!("point {p} is observed twice")));
+                }
+                observers.entry(*p).or_default().push(*id);
+            }
+        }
+        for (id, p) in &self.points {
+            let mut listed = p.observed_by.clone();
+            listed.sort_unstable();
+            let observing = observers.remove(id).unwrap_or_default();
+            if listed != observing {
+                return Err((
+                    format!("points.{id}.observed_by"),
+                    format!(
+                        "{:?}, but the keyframes observing it are {observing:?} (each side must name the other)",
+                        p.observed_by
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Keyframe poses and points agree with their observations (with the map's camera, when it names
+    /// one): every observed point lies in front of its keyframe and is seen within the image's larger
+    /// side of its keypoint ([`observation_error`]), and no keyframe has most of its observations
+    /// beyond the 99.9 % χ² bound of a keypoint's noise at its level.
+    ///
+    /// Why these bounds: local bundle adjustment leaves observations within their 95 % χ² bound when it
+    /// culls (σ = 1 px × the level's scale), and later adjustments of neighbouring keyframes move some
+    /// of them a little beyond it: in the maps of odometry 06 and drive 0005 at most 0.9 % of a
+    /// keyframe's observations lie beyond the 99.9 % bound, and no observation 41 px or more from its
+    /// point's projection. A pose or point edited by hand (a keyframe 100 m off, a point at 1e5 m)
+    /// puts the point behind the camera, or farther from its keypoint than the image is wide, where the
+    /// camera never saw it; a keyframe pose whose own observations mostly disagree with it beyond the
+    /// noise is not the pose they were adjusted with (a least-squares pose explains most of its data).
+    fn check_geometry(&self) -> Result<(), (String, String)> {
+        let Some(c) = &self.camera else { return Ok(()) };
+        let pyramid = slam_core::map::ScalePyramid::default();
+        let largest = c.width.max(c.height);
+        for (id, k) in self.keyframes.iter().filter(|(_, k)| !k.culled) {
+            let Some(f) = self.keyframe_features.get(id) else { continue };
+            let levels: BTreeMap<PointId, u8> =
+                f.observations.iter().filter_map(|&(kp, p)| Some((p, f.keypoints.get(kp as usize)?.level))).collect();
+            let from_world = pose_from_array(&k.pose).inverse();
+            let mut beyond = 0;
+            for (i, (p, o)) in k.observations.iter().enumerate() {
+                let Some(x) = self.points.get(p) else { continue };
+                let field = || format!("keyframes.{id}.observations[{i}]");
+                let in_camera = from_world * nalgebra::Point3::from(x.position);
+                let Some((e2, chi2)) = observation_error(c, &in_camera.coords, o) else {
+                    return Err((
+                        field(),
+                        format!("point {p} at {:?} lies behind keyframe {id}, which observes it", x.position),
+                    ));
+                };
+                if e2.sqrt() > largest {
+                    return Err((
+                        field(),
+                        format!(
+                            "point {p} at {:?} is seen {:.0} px from the keypoint that observes it, farther than the \
+                             image is wide ({largest} px): the point or the keyframe's pose was moved",
+                            x.position,
+                            e2.sqrt()
+                        ),
+                    ));
+                }
+                let sigma = pyramid.scale(levels.get(p).copied().unwrap_or(0));
+                beyond += usize::from(e2 > chi2 * sigma * sigma);
+            }
+            if 2 * beyond > k.observations.len() {
+                return Err((
+                    format!("keyframes.{id}.pose"),
+                    format!(
+                        "{beyond} of its {} observations lie beyond the 99.9 % bound of a keypoint's noise: the pose \
+                         is not the one they were adjusted with",
+                        k.observations.len()
+                    ),
+                ));
             }
         }
         Ok(())
@@ -514,6 +679,11 @@ impl Map {
             if let Some(k) = p.observed_by.iter().find(|k| !self.keyframes.contains_key(k)) {
                 return Err((format!("points.{id}.observed_by"), format!("keyframe {k} does not exist")));
             }
+        }
+        self.check_both_sides()?;
+        if let Some(c) = &self.camera {
+            slam_core::check::stereo_camera([c.fx, c.fy, c.cx, c.cy], c.baseline, (c.width, c.height))
+                .map_err(|e| (format!("camera.{}", e.key), format!("{}: must be {}", e.value, e.valid)))?;
         }
         let mut ids = std::collections::BTreeSet::new();
         for (i, o) in self.objects.iter().enumerate() {
@@ -621,6 +791,20 @@ pub fn features_path(map: &Path) -> PathBuf {
     map.with_extension("features")
 }
 
+/// Where the features file of the map file at `path` may be, in the order tried: beside the file the
+/// path leads to (through symbolic links) under the name the JSON gives (`named`), beside the path
+/// itself under that name, then under the map file's own name with `.features` (a pair copied under
+/// another name: `06.json` with `06.features`), beside the path and beside the file it leads to. The
+/// length and checksum in the JSON tell whether the file found is the right one.
+pub fn features_places(path: &Path, named: &str) -> Vec<PathBuf> {
+    let real = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+    let beside = |p: &Path| p.parent().unwrap_or(Path::new(".")).join(named);
+    let mut places = vec![beside(&real), beside(path), features_path(path), features_path(&real)];
+    let mut seen = std::collections::BTreeSet::new();
+    places.retain(|p| seen.insert(p.clone()));
+    places
+}
+
 /// Read the features file a map file names, checking its length and checksum.
 fn read_features(path: &Path, r: &FeaturesRef) -> Result<BTreeMap<KeyframeId, SavedFeatures>, MapError> {
     let invalid = |message: String| MapError::Invalid { path: path.to_path_buf(), field: "features".into(), message };
@@ -628,7 +812,15 @@ fn read_features(path: &Path, r: &FeaturesRef) -> Result<BTreeMap<KeyframeId, Sa
     if Path::new(&r.file).file_name().map(|n| n.to_string_lossy()) != Some(r.file.as_str().into()) {
         return Err(invalid(format!("{:?} is not a file name", r.file)));
     }
-    let side = path.parent().unwrap_or(Path::new(".")).join(&r.file);
+    let places = features_places(path, &r.file);
+    let Some(side) = places.iter().find(|p| p.exists()).cloned() else {
+        let looked: Vec<String> = places.iter().map(|p| p.display().to_string()).collect();
+        return Err(invalid(format!(
+            "the keyframes' features file it names (features.file {:?}) is in none of: {}",
+            r.file,
+            looked.join(", ")
+        )));
+    };
     let bytes = slam_core::files::read_bytes(&side, &slam_core::files::DOCUMENT)
         .map_err(|e| invalid(format!("the keyframes' features file it names: {e}")))?;
     let sum = format!("{:016x}", features::fnv1a64(&bytes));
@@ -643,6 +835,24 @@ fn read_features(path: &Path, r: &FeaturesRef) -> Result<BTreeMap<KeyframeId, Sa
         )));
     }
     features::decode(&bytes).map_err(|m| invalid(format!("{}: {m}", side.display())))
+}
+
+/// The squared reprojection error of an observation `[u, v, u_right]` (`u_right` NaN: left only) of a
+/// point at `x` (camera frame) through `camera`, with the 99.9 % χ² bound of unit noise for its degrees
+/// of freedom (13.82 for two, 16.27 for three); `None` when the point is not in front of the camera.
+fn observation_error(camera: &MapCamera, x: &Vector3<f64>, o: &[f64; 3]) -> Option<(f64, f64)> {
+    if !(x.z > 0.0) {
+        return None;
+    }
+    let u = camera.fx * x.x / x.z + camera.cx;
+    let v = camera.fy * x.y / x.z + camera.cy;
+    let left = (u - o[0]).powi(2) + (v - o[1]).powi(2);
+    Some(if o[2].is_nan() {
+        (left, 13.82)
+    } else {
+        let u_right = u - camera.fx * camera.baseline / x.z;
+        (left + (u_right - o[2]).powi(2), 16.27)
+    })
 }
 
 /// Largest coordinate a map may hold, metres: the Earth's diameter (1.3e7 m), the bound the dataset
