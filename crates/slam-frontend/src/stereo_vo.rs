@@ -264,7 +264,7 @@ impl StereoVo {
             }
             _ => (reference, world_from_ref, local),
         };
-        let (state, curr_from_ref, refined) = self.decide(frame_index, found, &frame, predicted);
+        let (state, curr_from_ref, refined, support) = self.decide(frame_index, found, &frame, predicted);
         let kf_from_curr = curr_from_ref.inverse();
         let measured = refined.is_some();
         self.record(frame_index, state, refined.as_ref(), (&local, &frame), &curr_from_ref);
@@ -311,7 +311,7 @@ impl StereoVo {
         let view = View { frame: &frame, map: &local, refined: refined.as_ref(), seen: &seen };
         let rig = self.tracker.rig;
         let wants = !self.config().localise_only
-            && self.policy.wants(&self.tracker.config, &rig, state, &view, map, since_measured);
+            && self.policy.wants(&self.tracker.config, &rig, support, &view, map, since_measured);
         let keyframe = if wants {
             // a frame lost for too long starts a new map segment: no parent, no matched points, at the
             // first unverified candidate pose when there was one, else at the motion prediction
@@ -562,14 +562,15 @@ impl StereoVo {
     /// The state of a frame from what [`StereoVo::find_pose`] found: tracked or weak by its support,
     /// relocalised after a failed frame or by a relocalisation route; lost (the first failed frame)
     /// or predicted (the next ones) at the prediction when nothing was accepted. Returns the state,
-    /// `curr_from_ref` and the refined pose when one was accepted.
+    /// `curr_from_ref`, the refined pose when one was accepted and its support
+    /// ([`Support::Rejected`] when none was).
     fn decide(
         &self,
         frame_index: usize,
         found: Option<(Refined, usize, Route)>,
         frame: &Frame,
         predicted: Isometry3<f64>,
-    ) -> (TrackState, Isometry3<f64>, Option<Refined>) {
+    ) -> (TrackState, Isometry3<f64>, Option<Refined>, Support) {
         let support = found.as_ref().map(|(r, _, route)| self.judge(r, *route, frame));
         let was_measured = !self.motion.failed;
         match (found, support) {
@@ -591,9 +592,12 @@ impl StereoVo {
                 } else {
                     TrackState::Weak { inliers: ransac }
                 };
-                (state, r.pose, Some(r))
+                (state, r.pose, Some(r), s)
             }
-            _ => (if was_measured { TrackState::Lost } else { TrackState::Predicted }, predicted, None),
+            _ => {
+                let state = if was_measured { TrackState::Lost } else { TrackState::Predicted };
+                (state, predicted, None, Support::Rejected)
+            }
         }
     }
 
@@ -865,6 +869,42 @@ mod tests {
                 rms: r.rms,
             };
             assert_eq!(vo.judge(&jump, Route::Motion, &frame), Support::Rejected, "a 5 m jump");
+        }
+    }
+
+    /// A weak pose (fewer than `min_inliers` inliers) is taken only where the motion model's prediction
+    /// vouches for it: with the velocity known it is accepted as weak, with the velocity unknown (the
+    /// frame after a relocalisation, where only the 5 m speed limit would apply) it is rejected, while
+    /// the same pose with full support is still taken; and a weak frame never becomes a keyframe, even
+    /// when the view has moved on, where a fully supported one does.
+    #[test]
+    fn a_weak_pose_needs_the_motion_model_and_never_becomes_a_keyframe() {
+        let s = scene();
+        let truth = Isometry3::translation(0.0, 0.0, 2.4);
+        let frame = keyframe_of(&s.k, s.b, &in_camera(&truth, &s.world), &s.desc);
+        let curr_from_ref = truth.inverse() * Isometry3::translation(0.0, 0.0, 1.2);
+        let (mut vo, map) = tracker_of(&s);
+        let local = LocalMap::of(&map, 1, &[1, 0]);
+        let (skip, taken) = (vec![false; local.len()], vec![false; frame.keypoints.len()]);
+        let t = &vo.tracker;
+        let matches = t.search(&local, &curr_from_ref, &frame, &|c, l| t.window(c, l, (0.35, 0.03)), (&skip, &taken));
+        let full = t.refiner().refine(&local, &frame, &matches, &curr_from_ref, &Isometry3::identity()).expect("refined");
+        // every 12th inlier: 20 of them, spread over the view
+        let weak = Refined { pose: full.pose, inliers: full.inliers.iter().step_by(12).copied().collect(), rms: full.rms };
+        assert_eq!(weak.inliers.len(), 20);
+        vo.motion.velocity = Isometry3::translation(0.0, 0.0, 1.2);
+        vo.motion.velocity_known = true;
+        assert_eq!(vo.judge(&weak, Route::Motion, &frame), Support::Weak, "the prediction vouches for it");
+        vo.motion.velocity_known = false;
+        assert_eq!(vo.judge(&weak, Route::Motion, &frame), Support::Rejected, "the speed limit alone does not");
+        assert_eq!(vo.judge(&full, Route::Motion, &frame), Support::Full, "full support within the speed limit");
+        let seen = vec![None; local.len()];
+        let c = *vo.config();
+        let rig = vo.tracker.rig;
+        for (r, support, wanted) in [(&weak, Support::Weak, false), (&full, Support::Full, true)] {
+            let view = View { frame: &frame, map: &local, refined: Some(r), seen: &seen };
+            let mut policy = KeyframePolicy::default();
+            assert_eq!(policy.wants(&c, &rig, support, &view, &map, 0), wanted, "{support:?}: the view moved on");
         }
     }
 
