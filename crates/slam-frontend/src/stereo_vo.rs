@@ -26,8 +26,8 @@ use std::time::Instant;
 use nalgebra::Isometry3;
 use opencv::prelude::*;
 use slam_core::{
-    geometry::BBox, FramePoint, Image, KeyframeId, MovingRegion, PointId, PointPair, Sightings, StageTimes,
-    StereoTracker, TrackError, TrackState, TrackedFrame,
+    geometry::BBox, FramePoint, Image, KeyframeId, MovingRegion, PointId, PointPair, SegmentJoin, Sightings,
+    StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
 };
 use slam_map::{CreationPolicy, Map};
 use slam_optim::SharedOptimizer;
@@ -96,9 +96,11 @@ pub struct StereoVo {
     started: bool,
     /// The first frame not placed in a loaded map, while none has been.
     unplaced_since: Option<usize>,
-    /// Tracking in a segment started beside a loaded map it was never placed in: its poses are in the
-    /// segment's own frame, not the map's ([`TrackedFrame::placed`] false), for the rest of the run.
-    detached: bool,
+    /// Tracking in a segment started beside a loaded map it was never placed in: that segment's first
+    /// keyframe. Its poses are in the segment's own frame, not the map's ([`TrackedFrame::placed`]
+    /// false), until a frame of it is placed in the map and the segment joins it
+    /// ([`TrackedFrame::joined`]).
+    segment: Option<KeyframeId>,
 }
 
 /// What [`StereoVo::prepare`] makes of a stereo pair: the frame, its stereo points, the stereo points
@@ -138,7 +140,7 @@ impl StereoVo {
             pairs: Vec::new(),
             started: false,
             unplaced_since: None,
-            detached: false,
+            segment: None,
         })
     }
 
@@ -312,6 +314,14 @@ impl StereoVo {
         let rig = self.tracker.rig;
         let wants = !self.config().localise_only
             && self.policy.wants(&self.tracker.config, &rig, support, &view, map, since_measured);
+        // a segment in a frame of its own tries to place itself in the map wherever it would take a
+        // keyframe (a view the map may not hold yet, at a fully supported pose): placed, it joins it
+        if let (Some(root), true) = (self.segment, wants && support == Support::Full) {
+            if let Some(mut tf) = self.join(frame_index, &frame, root, &world_from_curr, map)? {
+                (tf.times, tf.points, tf.masked_points) = (times(Instant::now()), points, masked_points);
+                return Ok(tf);
+            }
+        }
         let keyframe = if wants {
             // a frame lost for too long starts a new map segment: no parent, no matched points, at the
             // first unverified candidate pose when there was one, else at the motion prediction
@@ -319,6 +329,10 @@ impl StereoVo {
                 (Some(reference), world_from_curr)
             } else {
                 tracing::warn!(frame = frame_index, "tracking lost: new map segment from this frame");
+                // a segment of its own frame lost: the new one has a frame of its own too
+                if self.segment.is_some() {
+                    self.segment = Some(map.next_keyframe_id());
+                }
                 (None, world_from_ref * fallback.unwrap_or(curr_from_ref).inverse())
             };
             let kf = new_keyframe(
@@ -352,7 +366,9 @@ impl StereoVo {
             keyframe,
             sightings,
             times: times(Instant::now()),
-            placed: !self.detached,
+            placed: self.segment.is_none(),
+            segment: self.segment,
+            joined: None,
         })
     }
 
@@ -449,7 +465,9 @@ impl StereoVo {
             keyframe: Some(kf),
             sightings: Sightings::default(),
             times: StageTimes::default(),
-            placed: !self.detached,
+            placed: self.segment.is_none(),
+            segment: self.segment,
+            joined: None,
         }
     }
 
@@ -466,7 +484,7 @@ impl StereoVo {
         if self.relocaliser.index.is_empty() {
             self.index_map(map);
         }
-        let cx = Context { tracker: &self.tracker, motion: &self.motion, map };
+        let cx = Context { tracker: &self.tracker, motion: &self.motion, map, among: 0..KeyframeId::MAX };
         let Some((r, ransac, id, local)) = self.relocaliser.retrieve(&cx, &frame)? else {
             let since = *self.unplaced_since.get_or_insert(frame_index);
             let waited = (frame_index.saturating_sub(since) + 1) as f64 * self.config().period();
@@ -476,7 +494,7 @@ impl StereoVo {
                     frame = frame_index,
                     "not placed in the loaded map: a new map segment from this frame, in its own frame (no pose in the map's)"
                 );
-                self.detached = true;
+                self.segment = Some(map.next_keyframe_id());
                 return Ok(self.initialise(frame, frame_index, map));
             }
             tracing::debug!(frame = frame_index, "not placed in the loaded map");
@@ -493,6 +511,8 @@ impl StereoVo {
                 sightings: Sightings::default(),
                 times: StageTimes::default(),
                 placed: false,
+                segment: None,
+                joined: None,
             });
         };
         tracing::info!(frame = frame_index, keyframe = id, inliers = r.inliers.len(), "placed in the loaded map");
@@ -522,7 +542,69 @@ impl StereoVo {
             sightings,
             times: StageTimes::default(),
             placed: true,
+            segment: None,
+            joined: None,
         })
+    }
+
+    /// A frame tracked in a segment of its own frame (the segment from keyframe `root` on, the frame at
+    /// `world_from_curr` there) placed in the map by retrieval among the keyframes before the segment
+    /// ([`Relocaliser::retrieve`]: the map's own points of a retrieved keyframe, PnP RANSAC, its local map
+    /// searched at the pose found, the refinement, full support), as a run's first frame in a loaded
+    /// map is placed. The two poses of the frame give the segment's frame in the map's; the frame is
+    /// relocalised in the map, the segment joins it ([`TrackedFrame::joined`]), and tracking goes on
+    /// from the keyframe it was placed against, the motion model's velocity kept (a step between two
+    /// frames is the same step in either frame). `None`: not placed, the segment goes on.
+    fn join(
+        &mut self,
+        frame_index: usize,
+        frame: &Frame,
+        root: KeyframeId,
+        world_from_curr: &Isometry3<f64>,
+        map: &Map,
+    ) -> Result<Option<TrackedFrame>, FrontendError> {
+        let cx = Context { tracker: &self.tracker, motion: &self.motion, map, among: 0..root };
+        let Some((r, ransac, id, local)) = self.relocaliser.retrieve(&cx, frame)? else {
+            tracing::debug!(frame = frame_index, "segment not placed in the loaded map yet");
+            return Ok(None);
+        };
+        let Some(world_from_kf) = map.keyframe_pose(id) else { return Ok(None) };
+        let kf_from_curr = r.pose.inverse();
+        let world_from_placed = world_from_kf * kf_from_curr;
+        let map_from_segment = world_from_placed * world_from_curr.inverse();
+        tracing::info!(
+            frame = frame_index,
+            keyframe = id,
+            inliers = r.inliers.len(),
+            segment = root,
+            moved_m = map_from_segment.translation.vector.norm(),
+            "placed in the loaded map: the segment tracked so far joins it"
+        );
+        (self.segment, self.started, self.reference) = (None, true, Some(id));
+        (self.motion.kf_from_last, self.motion.kf_from_measured) = (kf_from_curr, kf_from_curr);
+        self.policy.reset();
+        self.last_matched = r.inliers.iter().map(|&(i, _)| local.ids[i]).collect();
+        let seen = self.in_view(&local, &r.pose);
+        let sightings = Sightings {
+            visible: local.ids.iter().zip(&seen).filter(|(_, s)| s.is_some()).map(|(id, _)| *id).collect(),
+            found: self.last_matched.clone(),
+        };
+        Ok(Some(TrackedFrame {
+            world_from_camera: world_from_placed,
+            reference: (id, kf_from_curr),
+            state: TrackState::Relocalised { inliers: ransac },
+            stereo_points: frame.points.len(),
+            points: Vec::new(),
+            masked_points: Vec::new(),
+            tracked_map_points: r.inliers.len(),
+            reprojection_rms_px: r.rms,
+            keyframe: None,
+            sightings,
+            times: StageTimes::default(),
+            placed: true,
+            segment: None,
+            joined: Some(SegmentJoin { root, map_from_segment, anchor: id }),
+        }))
     }
 
     /// The frame's pose: 1. the local map searched from the constant-velocity prediction
@@ -554,7 +636,10 @@ impl StereoVo {
                 }
             }
         }
-        let cx = Context { tracker: &self.tracker, motion: m, map: whole };
+        // a segment in a frame of its own relocalises in itself: a keyframe of the map would put the
+        // frame in another frame (the segment joins the map through a placement, `StereoVo::join`)
+        let among = self.segment.unwrap_or(0)..KeyframeId::MAX;
+        let cx = Context { tracker: &self.tracker, motion: m, map: whole, among };
         let (found, first, retrieved) = self.relocaliser.relocalise(&cx, map, frame, &accept)?;
         Ok((found, fallback.or(first), retrieved))
     }
@@ -681,7 +766,7 @@ impl StereoVo {
         }
         let (frame, ..) = self.prepare(left, right, &[])?;
         let motion = MotionModel::default();
-        let cx = Context { tracker: &self.tracker, motion: &motion, map };
+        let cx = Context { tracker: &self.tracker, motion: &motion, map, among: 0..KeyframeId::MAX };
         Ok(self.relocaliser.retrieve(&cx, &frame)?.and_then(|(r, _, id, _)| {
             let world_from_kf = map.keyframe_pose(id)?;
             Some((id, world_from_kf * r.pose.inverse(), r.inliers.len()))
