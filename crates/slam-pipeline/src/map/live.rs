@@ -83,6 +83,10 @@ pub struct LoadedMap {
     /// The keyframes' keypoints were re-expressed in the run's camera (another calibration of a
     /// rectified rig, accepted for localisation only).
     pub reexpressed: bool,
+    /// The frame whose camera is the map's world ([`Map::first_frame`]).
+    pub first_frame: Option<usize>,
+    /// The map's world in the ground truth of the run that made it, when it says.
+    pub ground_truth_world: Option<super::GroundTruthWorld>,
 }
 
 /// Why a map file cannot be tracked against.
@@ -230,7 +234,13 @@ impl Map {
         if let Some(&last) = self.keyframes.keys().next_back() {
             map.reserve_keyframe_ids(last.saturating_add(1));
         }
-        Ok(LoadedMap { map, objects: self.objects.clone(), reexpressed: moved })
+        Ok(LoadedMap {
+            map,
+            objects: self.objects.clone(),
+            reexpressed: moved,
+            first_frame: self.first_frame(),
+            ground_truth_world: self.ground_truth_world,
+        })
     }
 }
 

@@ -195,6 +195,18 @@ pub struct ObjectView {
     pub reference: Option<(KeyframeId, PoseArray)>,
 }
 
+/// Where a map's world lies in a ground truth: the frame whose left camera is the map's world (its
+/// first keyframe's frame) and that camera's pose in the ground truth (its world from the camera), as
+/// the run that made the map read them.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GroundTruthWorld {
+    /// The frame id.
+    pub frame: usize,
+    /// Its camera's ground-truth pose, `[qx, qy, qz, qw, tx, ty, tz]`.
+    pub pose: PoseArray,
+}
+
 /// The pose of one input frame, relative to a keyframe (so it follows the keyframe's refinement).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -237,6 +249,11 @@ pub struct Map {
     /// The keyframes' features file beside this one (absent before version 4, or without keyframes).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub features: Option<FeaturesRef>,
+    /// The map's world in the ground truth of the run that made it (absent when that run had none, and
+    /// in files written before issue 46): figures of later runs in the map's frame compare against
+    /// the ground truth expressed in this world.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ground_truth_world: Option<GroundTruthWorld>,
     /// The keyframes' features (from the features file; written there by [`Map::save`]).
     #[serde(skip)]
     pub keyframe_features: BTreeMap<KeyframeId, SavedFeatures>,
@@ -254,6 +271,7 @@ impl Default for Map {
             trajectory: Vec::new(),
             camera: None,
             features: None,
+            ground_truth_world: None,
             keyframe_features: BTreeMap::new(),
         }
     }
@@ -327,6 +345,12 @@ pub struct MapStats {
 }
 
 impl Map {
+    /// The frame whose camera is the map's world: its first keyframe's (the lowest id; a map's first
+    /// keyframe sits at the origin), `None` for a map without keyframes.
+    pub fn first_frame(&self) -> Option<usize> {
+        self.keyframes.values().next().map(|k| k.frame)
+    }
+
     /// Pose of a keyframe.
     pub fn keyframe_pose(&self, id: KeyframeId) -> Option<Isometry3<f64>> {
         self.keyframes.get(&id).map(|k| pose_from_array(&k.pose))
@@ -730,6 +754,9 @@ impl Map {
                     format!("not a rotation (|R Rᵀ − I| = {err:.2e}, det {:.3})", r.determinant()),
                 ));
             }
+        }
+        if let Some(w) = &self.ground_truth_world {
+            pose("ground_truth_world.pose".into(), &w.pose)?;
         }
         let mut last = None;
         for (i, f) in self.trajectory.iter().enumerate() {
