@@ -213,6 +213,13 @@ pub fn runtime_library(env: Option<&std::ffi::OsStr>, device: Device, setup_dir:
 /// The library this process opened and its environment (ONNX Runtime allows one of each per process).
 static RUNTIME: Mutex<Option<(PathBuf, Option<Environment>)>> = Mutex::new(None);
 
+/// Open the runtime library `path` (once per process) and start its environment, as loading a model
+/// does first: an error when it is not an ONNX Runtime this build can use (not a library, too old, no
+/// API table behind its entry point).
+pub fn open_runtime(path: &Path) -> Result<(), OnnxError> {
+    environment(path).map(|_| ())
+}
+
 /// Open the runtime library `path` (once per process) and its environment.
 fn environment(path: &Path) -> Result<Environment, OnnxError> {
     let path = std::fs::canonicalize(path)
@@ -227,13 +234,52 @@ fn environment(path: &Path) -> Result<Environment, OnnxError> {
         Some((_, None)) => return Err(load("its environment failed to start earlier in this process".into())),
         None => {}
     }
-    let builder = ort::init_from(&path).map_err(|e| load(load_message(&e)))?;
+    let no_table = |m: String| {
+        load(format!(
+            "it exports ONNX Runtime's entry point OrtGetApiBase but gives no usable API table through it (the `ort` \
+             crate: {m})"
+        ))
+    };
+    let builder = unpanicked(|| ort::init_from(&path)).map_err(no_table)?.map_err(|e| load(load_message(&e)))?;
     // from here the library stays open whatever follows: remember it, so no other one is tried beside it
     *runtime = Some((path.clone(), None));
-    let env = builder.with_name("quadric-slam").build().map_err(|e| load(e.to_string()))?;
+    // the environment is the first call through the API table (`ort` asks the library for it here)
+    let env =
+        unpanicked(|| builder.with_name("quadric-slam").build()).map_err(no_table)?.map_err(|e| load(e.to_string()))?;
     *runtime = Some((path.clone(), Some(env.clone())));
     tracing::debug!(library = %path.display(), "ONNX Runtime loaded");
     Ok(env)
+}
+
+thread_local! {
+    /// This thread is in [`unpanicked`]: a panic here is its error, not a message for the user.
+    static GUARDED: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Run `f`, a call into `ort` that checks what the runtime library hands it by panicking (`OrtGetApiBase`
+/// returning nothing, an API table of the version asked for missing: `ort` asserts, it does not return
+/// an error), and give such a panic back as an error with its message, printed by no one. The panic
+/// hook that keeps it quiet is installed once and leaves every other panic, and panics of other
+/// threads, to the hook before it.
+fn unpanicked<T>(f: impl FnOnce() -> T) -> Result<T, String> {
+    static QUIET_HOOK: std::sync::Once = std::sync::Once::new();
+    QUIET_HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !GUARDED.with(std::cell::Cell::get) {
+                previous(info);
+            }
+        }));
+    });
+    GUARDED.with(|g| g.set(true));
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    GUARDED.with(|g| g.set(false));
+    result.map_err(|p| {
+        p.downcast_ref::<&str>()
+            .map(|m| m.to_string())
+            .or_else(|| p.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "it panicked".into())
+    })
 }
 
 /// Why the library did not open, with the system loader's own reason (`ort` names only the call that failed).
