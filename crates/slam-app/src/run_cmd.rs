@@ -52,6 +52,9 @@ impl RunArgs {
             slam_core::check::count("--max-frames", n, 1, usize::MAX)?;
         }
         self.detector.options().kind()?;
+        if self.localise_only {
+            self.detector.options().for_localising_only()?;
+        }
         self.detector.model.check()?;
         self.settings.load()
     }

@@ -340,7 +340,8 @@ pub struct MapStats {
     pub dynamic_objects: usize,
     /// Frames.
     pub frames: usize,
-    /// Length of the keyframe path, metres.
+    /// Length of the keyframe path (the spanning tree: each keyframe's distance from its parent),
+    /// metres.
     pub keyframe_path_m: f64,
 }
 
@@ -370,10 +371,19 @@ impl Map {
             .collect()
     }
 
-    /// Counts.
+    /// Counts. The keyframe path is the length of the keyframes' spanning tree: each keyframe's
+    /// distance from its parent (the keyframe it was tracked from), summed, so that keyframes a later
+    /// run added over the same road count by where they were tracked from, not by their ids (ids follow
+    /// the runs, and summing in id order hopped back across the road at each run).
     pub fn stats(&self) -> MapStats {
-        let poses: Vec<Isometry3<f64>> =
-            self.keyframes.values().filter(|k| !k.culled).map(|k| pose_from_array(&k.pose)).collect();
+        let live = |id: &KeyframeId| self.keyframes.get(id).filter(|k| !k.culled);
+        let centre = |k: &MapKeyframe| Vector3::new(k.pose[4], k.pose[5], k.pose[6]);
+        let keyframe_path_m = self
+            .keyframes
+            .values()
+            .filter(|k| !k.culled)
+            .filter_map(|k| Some((centre(k) - centre(live(&k.parent?)?)).norm()))
+            .fold(0.0, |a, d| a + d);
         MapStats {
             keyframes: self.keyframes.values().filter(|k| !k.culled).count(),
             segments: self.keyframes.values().filter(|k| k.parent.is_none()).count(),
@@ -382,7 +392,7 @@ impl Map {
             objects: self.objects.len(),
             dynamic_objects: self.objects.iter().filter(|o| o.dynamic).count(),
             frames: self.trajectory.len(),
-            keyframe_path_m: poses.windows(2).map(|w| (w[1].translation.vector - w[0].translation.vector).norm()).sum(),
+            keyframe_path_m,
         }
     }
 
@@ -1114,6 +1124,29 @@ mod tests {
             .collect();
         assert_eq!(names.len(), 2, "far.json and p.ply, no temporary: {names:?}");
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// The keyframe path follows the spanning tree: a second run's keyframes over the same road add
+    /// their distance from the keyframe each was tracked from, not the hop back from the first run's
+    /// last keyframe (24 m here, 48 m in id order); a map of one keyframe has a path of 0 m, not -0.
+    #[test]
+    fn the_keyframe_path_follows_the_spanning_tree() {
+        let kf = |z: f64, parent: Option<KeyframeId>| MapKeyframe {
+            frame: 0,
+            pose: [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, z],
+            parent,
+            observations: vec![],
+            culled: false,
+        };
+        let mut m = Map::default();
+        m.keyframes.insert(0, kf(0.0, None));
+        assert_eq!(format!("{:.1}", m.stats().keyframe_path_m), "0.0");
+        m.keyframes.insert(1, kf(10.0, Some(0)));
+        m.keyframes.insert(2, kf(20.0, Some(1)));
+        assert_eq!(m.stats().keyframe_path_m, 20.0);
+        m.keyframes.insert(3, kf(2.0, Some(0)));
+        m.keyframes.insert(4, kf(12.0, Some(1)));
+        assert_eq!(m.stats().keyframe_path_m, 24.0);
     }
 
     #[test]
