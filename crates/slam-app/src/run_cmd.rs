@@ -51,10 +51,7 @@ impl RunArgs {
         if let Some(n) = self.seq.max_frames {
             slam_core::check::count("--max-frames", n, 1, usize::MAX)?;
         }
-        self.detector.options().kind()?;
-        if self.localise_only {
-            self.detector.options().for_localising_only()?;
-        }
+        self.detector.options().checked(self.localise_only)?;
         self.detector.model.check()?;
         self.settings.load()
     }

@@ -112,6 +112,15 @@ impl DetectorOptions {
         }
     }
 
+    /// The source ([`DetectorOptions::kind`]), for a run that localises only when `localise_only`
+    /// ([`DetectorOptions::for_localising_only`]).
+    pub fn checked(&self, localise_only: bool) -> Result<DetectorKind> {
+        if localise_only {
+            self.for_localising_only()?;
+        }
+        self.kind()
+    }
+
     /// A run that localises only runs no detector (it maps no objects): an option of any detection
     /// source (`--detector` other than `none`, `--detections`, `--label-noise`, a model option) is an
     /// error naming it, as an option of another source is, rather than one accepted and ignored.
