@@ -112,7 +112,11 @@ pub fn number(key: &str, v: f64, range: Range, unit: &str) -> Result<(), Invalid
         return Ok(());
     }
     let unit = if unit.is_empty() { String::new() } else { format!(" {unit}") };
-    Err(InvalidValue { key: key.to_string(), value: number_text(v), valid: format!("a finite number in {range}{unit}") })
+    Err(InvalidValue {
+        key: key.to_string(),
+        value: number_text(v),
+        valid: format!("a finite number in {range}{unit}"),
+    })
 }
 
 /// A count `key` must lie in `[lo, hi]` (`hi = usize::MAX`: no upper bound).
@@ -150,7 +154,11 @@ pub fn stereo_camera([fx, fy, cx, cy]: [f64; 4], baseline: f64, (w, h): (f64, f6
     for (key, side) in [("width", w), ("height", h)] {
         number(key, side, Range::closed(1.0, MAX_IMAGE_SIDE_PX), "px")?;
         if side.fract() != 0.0 {
-            return Err(InvalidValue { key: key.into(), value: side.to_string(), valid: "a whole number of pixels".into() });
+            return Err(InvalidValue {
+                key: key.into(),
+                value: side.to_string(),
+                valid: "a whole number of pixels".into(),
+            });
         }
     }
     let focal = |fov_deg: f64| w / (2.0 * (fov_deg.to_radians() / 2.0).tan());
@@ -233,7 +241,10 @@ mod tests {
             let e = stereo_camera(kitti.0, b, kitti.2).expect_err("baseline").to_string();
             assert!(e.starts_with("baseline") && e.contains("(0, 10] m"), "{e}");
         }
-        assert!(stereo_camera(kitti.0, kitti.1, (1226.5, 370.0)).expect_err("half pixel").to_string().starts_with("width"));
+        assert!(stereo_camera(kitti.0, kitti.1, (1226.5, 370.0))
+            .expect_err("half pixel")
+            .to_string()
+            .starts_with("width"));
         assert!(stereo_camera(kitti.0, kitti.1, (1226.0, 0.0)).expect_err("empty").to_string().starts_with("height 0"));
     }
 }

@@ -734,7 +734,9 @@ mod tests {
         let pipe_temporaries = std::fs::read_dir(std::env::temp_dir())
             .expect("temporary folder")
             .flatten()
-            .filter(|e| e.file_name().to_string_lossy().starts_with(&format!(".slam-pipe-output-{}-", std::process::id())))
+            .filter(|e| {
+                e.file_name().to_string_lossy().starts_with(&format!(".slam-pipe-output-{}-", std::process::id()))
+            })
             .count();
         assert_eq!(pipe_temporaries, 0, "the pipe's temporary file is removed");
 

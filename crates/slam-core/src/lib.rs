@@ -27,8 +27,8 @@ pub use assoc::{Assignment, AssociationInput, Associator, PointPair, TrackView};
 pub use detection::{ClassId, Detection, Mask, Region, TrackId, COCO_NAMES};
 pub use source::{DetectError, DetectionSource, Image};
 pub use tracking::{
-    FramePoint, KeyframeId, KeyframePoint, Map, MovingRegion, NewKeyframe, PointId, SegmentJoin, Sightings,
-    StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
+    FramePoint, KeyframeId, KeyframePoint, Map, MovingRegion, NewKeyframe, PointId, SegmentJoin, Sightings, StageTimes,
+    StereoTracker, TrackError, TrackState, TrackedFrame,
 };
 
 /// The map crate, re-exported so that users of the tracking seam need one dependency.

@@ -99,7 +99,12 @@ impl KeyframeIndex {
     /// [`KeyframeIndex::query`] among the keyframes whose keys `keep` takes (those of one map segment,
     /// or of every segment but one): ranked among themselves, so that the keyframes left out do not
     /// take the `n` places.
-    pub(crate) fn query_among(&self, descriptors: &[Descriptor], n: usize, keep: &dyn Fn(u64) -> bool) -> Vec<(u64, f64)> {
+    pub(crate) fn query_among(
+        &self,
+        descriptors: &[Descriptor],
+        n: usize,
+        keep: &dyn Fn(u64) -> bool,
+    ) -> Vec<(u64, f64)> {
         self.query_counted(descriptors, n, keep).0
     }
 
@@ -107,7 +112,12 @@ impl KeyframeIndex {
     /// [`CHAIN_LIMIT`]). The chains are walked by two threads, each for half of the descriptors (a
     /// query is bound by memory reads: 2 000 descriptors walk some 250 000 chain entries in a map with
     /// a keyframe a frame), and their votes added: the same result as one walk.
-    fn query_counted(&self, descriptors: &[Descriptor], n: usize, keep: &dyn Fn(u64) -> bool) -> (Vec<(u64, f64)>, usize) {
+    fn query_counted(
+        &self,
+        descriptors: &[Descriptor],
+        n: usize,
+        keep: &dyn Fn(u64) -> bool,
+    ) -> (Vec<(u64, f64)>, usize) {
         let (votes, visited) = if descriptors.len() >= 256 {
             let (a, b) = descriptors.split_at(descriptors.len() / 2);
             let (mut mine, other) = std::thread::scope(|s| {

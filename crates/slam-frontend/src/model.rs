@@ -361,7 +361,9 @@ impl ModelSpec {
             (true, Device::Cpu) => {
                 let asked = self.threads.unwrap_or(DEFAULT_THREADS);
                 match crate::onnx::capped_threads(asked) {
-                    Some(cores) => format!(", cpu {cores} threads ({asked} asked: as many as the cores this process may use)"),
+                    Some(cores) => {
+                        format!(", cpu {cores} threads ({asked} asked: as many as the cores this process may use)")
+                    }
                     None => format!(", cpu {asked} thread{}", if asked == 1 { "" } else { "s" }),
                 }
             }

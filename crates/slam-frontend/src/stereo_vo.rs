@@ -973,9 +973,11 @@ mod tests {
         let (skip, taken) = (vec![false; local.len()], vec![false; frame.keypoints.len()]);
         let t = &vo.tracker;
         let matches = t.search(&local, &curr_from_ref, &frame, &|c, l| t.window(c, l, (0.35, 0.03)), (&skip, &taken));
-        let full = t.refiner().refine(&local, &frame, &matches, &curr_from_ref, &Isometry3::identity()).expect("refined");
+        let full =
+            t.refiner().refine(&local, &frame, &matches, &curr_from_ref, &Isometry3::identity()).expect("refined");
         // every 12th inlier: 20 of them, spread over the view
-        let weak = Refined { pose: full.pose, inliers: full.inliers.iter().step_by(12).copied().collect(), rms: full.rms };
+        let weak =
+            Refined { pose: full.pose, inliers: full.inliers.iter().step_by(12).copied().collect(), rms: full.rms };
         assert_eq!(weak.inliers.len(), 20);
         vo.motion.velocity = Isometry3::translation(0.0, 0.0, 1.2);
         vo.motion.velocity_known = true;

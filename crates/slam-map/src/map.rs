@@ -649,8 +649,7 @@ mod tests {
         for (n, z) in [0.0, 2.0].into_iter().enumerate() {
             street.insert(&mut live, (n, z), &policy, &mut first);
         }
-        let segment_from_map =
-            Isometry3::new(Vector3::new(5.0, 0.0, -3.0), Vector3::new(0.0, 0.3, 0.0));
+        let segment_from_map = Isometry3::new(Vector3::new(5.0, 0.0, -3.0), Vector3::new(0.0, 0.3, 0.0));
         let mut second: BTreeMap<usize, PointId> = BTreeMap::new();
         let mut index_of = BTreeMap::new();
         for (n, z) in [(2usize, 3.0), (3, 5.0)] {

@@ -386,7 +386,10 @@ impl Prepared {
 
 /// Where a map made by a run over `seq` lies in the sequence's ground truth: its first frame and that
 /// frame's ground-truth pose (none without ground truth or keyframes).
-fn ground_truth_world(map: &slam_pipeline::map::Map, seq: &StereoSequence) -> Option<slam_pipeline::map::GroundTruthWorld> {
+fn ground_truth_world(
+    map: &slam_pipeline::map::Map,
+    seq: &StereoSequence,
+) -> Option<slam_pipeline::map::GroundTruthWorld> {
     let frame = map.first_frame()?;
     let k = seq.ids.iter().position(|&id| id == frame)?;
     let pose = seq.ground_truth.as_ref()?.get(k)?;

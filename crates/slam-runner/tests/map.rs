@@ -142,7 +142,11 @@ fn a_run_that_starts_before_the_mapped_road_joins_the_map_when_it_reaches_it() {
         .iter()
         .filter(|(id, k)| !loaded.contains_key(id) && !k.culled && (30..=50).contains(&k.frame))
         .count();
-    assert!(2 * added_on_road < loaded.len(), "{added_on_road} keyframes added over frames 30-50, {} loaded", loaded.len());
+    assert!(
+        2 * added_on_road < loaded.len(),
+        "{added_on_road} keyframes added over frames 30-50, {} loaded",
+        loaded.len()
+    );
     assert_eq!(map.ground_truth_world, Some(world), "the extended map keeps its world");
 
     // without the recorded world: through the sequence's frame 30, the same figures

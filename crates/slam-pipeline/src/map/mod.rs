@@ -528,7 +528,10 @@ impl Map {
                 return Err((field(), format!("point {p} is observed here but not in the features file")));
             }
             if let Some(p) = saved.keys().find(|p| !json.contains_key(p)) {
-                return Err((field(), format!("the features file has keyframe {id} observe point {p}, the JSON does not")));
+                return Err((
+                    field(),
+                    format!("the features file has keyframe {id} observe point {p}, the JSON does not"),
+                ));
             }
             for (p, kp) in &saved {
                 let o = json[p];
@@ -878,7 +881,8 @@ fn read_features(path: &Path, r: &FeaturesRef) -> Result<BTreeMap<KeyframeId, Sa
 /// point at `x` (camera frame) through `camera`, with the 99.9 % χ² bound of unit noise for its degrees
 /// of freedom (13.82 for two, 16.27 for three); `None` when the point is not in front of the camera.
 fn observation_error(camera: &MapCamera, x: &Vector3<f64>, o: &[f64; 3]) -> Option<(f64, f64)> {
-    if !(x.z > 0.0) {
+    // NaN is not in front either
+    if x.z.is_nan() || x.z <= 0.0 {
         return None;
     }
     let u = camera.fx * x.x / x.z + camera.cx;

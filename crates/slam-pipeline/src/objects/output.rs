@@ -144,7 +144,8 @@ mod tests {
             reference: reference.map(|(kf, d)| (kf, Isometry3::translation(0.0, 0.0, d))),
         };
         let mut o = MappedObject::new(TrackId(4), ClassId(2));
-        o.ellipsoid = Some(Ellipsoid::new(Isometry3::translation(0.0, 0.0, 20.0), nalgebra::Vector3::new(2.0, 0.8, 0.9)));
+        o.ellipsoid =
+            Some(Ellipsoid::new(Isometry3::translation(0.0, 0.0, 20.0), nalgebra::Vector3::new(2.0, 0.8, 0.9)));
         // an earlier run: keyframe 1 from frames 0-2, keyframe 2 from 3-4, frame 5 without a keyframe
         o.observations = vec![
             seen(0, Some((1, 0.0))),
