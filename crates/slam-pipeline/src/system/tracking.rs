@@ -375,6 +375,18 @@ impl Tracking {
     fn join_segment(&mut self, frame: usize, join: &slam_core::SegmentJoin) -> Result<(), SystemError> {
         self.drain_replies()?;
         let (keyframes, points) = self.map.join_segment(join.root, &join.map_from_segment, join.anchor);
+        if keyframes == 0 {
+            // the segment's first keyframe is not in the map (it was refused when handed over): its
+            // frames keep no pose rather than name a keyframe the map lacks
+            tracing::warn!(
+                frame,
+                segment = join.root,
+                "the segment to join is not in the map: its frames stay without a pose"
+            );
+            self.segment_frames.retain(|f| f.1 != join.root);
+            self.segment_reference = None;
+            return Ok(());
+        }
         // as local mapping fuses a new keyframe: its best covisible keyframes, and theirs
         let window = slam_core::map::local::WindowConfig::default();
         let best = |m: &Map, k: KeyframeId, n: usize| std::iter::once(k).chain(m.covisibility().best(k, n)).collect();
