@@ -27,8 +27,10 @@ pub struct RunArgs {
     rerun: Option<PathBuf>,
     /// Start from the map of an earlier run (its map.json, with map.features beside it): localise in
     /// it by keyframe retrieval, then track against it; frames not yet placed in it are `lost` and get
-    /// no pose. What this run adds extends it (the new map.json holds both), poses are in its frame,
-    /// and its objects keep their ids. The camera must be the one it was made with
+    /// no pose. A run that starts off the mapped road tracks on its own after 0.5 s and joins the map
+    /// where it reaches it (those frames then get their poses too). What this run adds extends it
+    /// (the new map.json holds both), poses are in its frame, and its objects keep their ids. The
+    /// camera must be the one it was made with
     #[arg(long, value_name = "MAP.json")]
     map: Option<PathBuf>,
     /// With --map: localise only, add nothing to the map (no keyframes, points or objects). A map made
@@ -49,7 +51,7 @@ impl RunArgs {
         if let Some(n) = self.seq.max_frames {
             slam_core::check::count("--max-frames", n, 1, usize::MAX)?;
         }
-        self.detector.options().kind()?;
+        self.detector.options().checked(self.localise_only)?;
         self.detector.model.check()?;
         self.settings.load()
     }

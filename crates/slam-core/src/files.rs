@@ -14,7 +14,11 @@
 //! disk included) the temporary file is removed: a failed write leaves the old file as it was and no
 //! temporary file behind. Every temporary is registered while it exists, so that Ctrl-C removes it
 //! ([`remove_temporaries`]), and one left by a process that was killed is removed by the next write of
-//! the same file ([`remove_stale_temporaries`]).
+//! the same file ([`remove_stale_temporaries`]). Only a regular file (or a new name) is ever renamed
+//! over ([`output_kind`]): a named pipe, or the pipe of a shell's process substitution (`>(gzip > t.gz)`,
+//! `/dev/fd/63`), is written into once the contents are whole (a temporary file in the system's
+//! temporary folder first), as `cp` and `tee` do; a device (`/dev/null`, a disk), a socket or a folder is
+//! refused, saying what it is, and left as it was.
 
 use std::{
     fs::File,
@@ -298,12 +302,57 @@ pub enum WriteError {
     },
 }
 
+/// What an output path is, as far as writing it goes ([`output_kind`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputKind {
+    /// Nothing yet, or a regular file (also through a symbolic link): written beside it and renamed
+    /// over it when whole.
+    File,
+    /// A named pipe or an anonymous one (`/dev/fd/N`, `/dev/stdout` into a pipe): written into, whole,
+    /// never replaced.
+    Pipe,
+}
+
+/// What `path` is as an output: a new name or a regular file ([`OutputKind::File`]), or a pipe
+/// ([`OutputKind::Pipe`]); anything else is refused with what it is. A device is never written: `cp`
+/// would write a trajectory onto a disk or into `/dev/mem` as readily as into `/dev/null`, and a rename
+/// would replace the device node itself (as root, `/dev/null` for the whole machine); a socket cannot
+/// be opened as a file; a folder is not a file name.
+pub fn output_kind(path: &Path) -> Result<OutputKind, WriteError> {
+    let refuse = |kind: &str| WriteError::Refused {
+        path: path.to_path_buf(),
+        message: format!(
+            "it is {kind}, not a regular file: outputs are written to regular files (or into a pipe), and nothing \
+             replaces {kind}; give a file name"
+        ),
+    };
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_file() => Ok(OutputKind::File),
+        Ok(m) if m.is_dir() => Err(WriteError::Refused {
+            path: path.to_path_buf(),
+            message: "it is a folder, expected a file name".into(),
+        }),
+        #[cfg(unix)]
+        Ok(m) if std::os::unix::fs::FileTypeExt::is_fifo(&m.file_type()) => Ok(OutputKind::Pipe),
+        Ok(m) => Err(refuse(kind_of(&m))),
+        // nothing there yet (or a link to nothing, which the rename replaces): a new file
+        Err(_) => Ok(OutputKind::File),
+    }
+}
+
+/// Temporary files of pipe outputs made by this process so far (their names must differ: two
+/// substitutions may both be `/dev/fd/63` in turn).
+static PIPE_TEMPORARIES: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
 /// A file being written beside its destination: [`AtomicWrite::commit`] renames it into place;
-/// dropped without a commit (an error on the way, a panic), the temporary file is removed.
+/// dropped without a commit (an error on the way, a panic), the temporary file is removed. A pipe
+/// ([`OutputKind::Pipe`]) is written through a temporary file in the system's temporary folder, copied
+/// into the pipe on commit.
 #[derive(Debug)]
 pub struct AtomicWrite {
     path: PathBuf,
     tmp: PathBuf,
+    kind: OutputKind,
     done: bool,
 }
 
@@ -395,14 +444,24 @@ impl AtomicWrite {
                 message: "it is a folder, expected a file name".into(),
             });
         }
-        remove_stale_temporaries(path);
-        let tmp = temporary_of(path);
+        let kind = output_kind(path)?;
+        let tmp = match kind {
+            OutputKind::File => {
+                remove_stale_temporaries(path);
+                temporary_of(path)
+            }
+            // a pipe's folder (`/dev/fd`) takes no file: the contents wait in the temporary folder
+            OutputKind::Pipe => {
+                let n = PIPE_TEMPORARIES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                std::env::temp_dir().join(format!(".slam-pipe-output-{}-{n}.tmp", std::process::id()))
+            }
+        };
         register_temporary(&tmp);
         if let Err(source) = File::create(&tmp) {
             unregister_temporary(&tmp);
             return Err(WriteError::Io { path: path.to_path_buf(), source });
         }
-        Ok(Self { path: path.to_path_buf(), tmp, done: false })
+        Ok(Self { path: path.to_path_buf(), tmp, kind, done: false })
     }
 
     /// The temporary file, for writers that take a path (image encoders, plotting libraries).
@@ -428,11 +487,39 @@ impl AtomicWrite {
 
     /// Put the temporary file (written through [`AtomicWrite::temporary`]) in place.
     pub fn commit(mut self) -> Result<(), WriteError> {
-        if let Ok(f) = File::open(&self.tmp) {
-            // best effort: a crash of the machine, not only of the process
-            let _ = f.sync_all();
+        let io = |source| WriteError::Io { path: self.path.clone(), source };
+        match self.kind {
+            OutputKind::File => {
+                if let Ok(f) = File::open(&self.tmp) {
+                    // best effort: a crash of the machine, not only of the process
+                    let _ = f.sync_all();
+                }
+                // what was a file when the write started must still be one (or nothing)
+                if output_kind(&self.path)? != OutputKind::File {
+                    return Err(WriteError::Refused {
+                        path: self.path.clone(),
+                        message: "it became a pipe while it was written; nothing was written into it".into(),
+                    });
+                }
+                std::fs::rename(&self.tmp, &self.path).map_err(io)?;
+            }
+            OutputKind::Pipe => {
+                // opening waits for a reader, as any writer of a pipe does
+                let mut from = File::open(&self.tmp).map_err(io)?;
+                let mut to = std::fs::OpenOptions::new().write(true).open(&self.path).map_err(io)?;
+                let meta = to.metadata().map_err(io)?;
+                if meta.is_file() {
+                    return Err(WriteError::Refused {
+                        path: self.path.clone(),
+                        message: "it was a pipe when the write started and is a file now; nothing was written".into(),
+                    });
+                }
+                std::io::copy(&mut from, &mut to).map_err(io)?;
+                to.flush().map_err(io)?;
+                drop(from);
+                let _ = std::fs::remove_file(&self.tmp);
+            }
         }
-        std::fs::rename(&self.tmp, &self.path).map_err(|source| WriteError::Io { path: self.path.clone(), source })?;
         self.done = true;
         unregister_temporary(&self.tmp);
         Ok(())
@@ -621,6 +708,49 @@ mod tests {
         // the temporary of a file with two extensions keeps its whole name (`.obj.json`, not `.obj.json.json`)
         let t = temporary_of(Path::new("out/x.obj.json"));
         assert_eq!(t, PathBuf::from(format!("out/.x.obj.json.tmp-{}", std::process::id())));
+        std::fs::remove_dir_all(&d).ok();
+    }
+
+    /// An output that is not a regular file is never renamed over: a named pipe is written into (its
+    /// reader gets the whole file and the pipe stays a pipe), a device (reached through a link, so that
+    /// nothing outside the scratch folder is at stake) and a socket are refused naming what they are,
+    /// and left as they were; a pipe output leaves no temporary file behind.
+    #[cfg(unix)]
+    #[test]
+    fn outputs_go_to_regular_files_or_into_pipes_and_never_replace_devices() {
+        use std::os::unix::fs::FileTypeExt;
+        let d = scratch("special");
+        let fifo = d.join("pipe");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success());
+        assert!(made, "mkfifo {}", fifo.display());
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::read(&fifo).expect("the reader reads the pipe"))
+        };
+        assert_eq!(output_kind(&fifo).expect("a pipe is an output"), OutputKind::Pipe);
+        write_atomic(&fifo, b"1 0 0 0\n").expect("written into the pipe");
+        assert_eq!(reader.join().expect("reader"), b"1 0 0 0\n", "the reader got the whole file");
+        assert!(std::fs::symlink_metadata(&fifo).expect("still there").file_type().is_fifo(), "still a pipe");
+        let pipe_temporaries = std::fs::read_dir(std::env::temp_dir())
+            .expect("temporary folder")
+            .flatten()
+            .filter(|e| {
+                e.file_name().to_string_lossy().starts_with(&format!(".slam-pipe-output-{}-", std::process::id()))
+            })
+            .count();
+        assert_eq!(pipe_temporaries, 0, "the pipe's temporary file is removed");
+
+        let null = d.join("null");
+        std::os::unix::fs::symlink("/dev/null", &null).expect("link");
+        let e = AtomicWrite::create(&null).expect_err("a device").to_string();
+        assert!(e.contains("it is a character device, not a regular file") && e.contains("null"), "{e}");
+        assert_eq!(std::fs::read_link(&null).expect("still the link"), PathBuf::from("/dev/null"));
+        let socket = d.join("socket");
+        let _listener = std::os::unix::net::UnixListener::bind(&socket).expect("socket");
+        let e = write_atomic(&socket, b"x").expect_err("a socket").to_string();
+        assert!(e.contains("it is a socket, not a regular file"), "{e}");
+        assert!(std::fs::symlink_metadata(&socket).expect("still there").file_type().is_socket());
+        assert_eq!(listing(&d), ["null", "pipe", "socket"], "no temporary file left, nothing replaced");
         std::fs::remove_dir_all(&d).ok();
     }
 

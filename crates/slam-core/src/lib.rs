@@ -27,7 +27,8 @@ pub use assoc::{Assignment, AssociationInput, Associator, PointPair, TrackView};
 pub use detection::{ClassId, Detection, Mask, Region, TrackId, COCO_NAMES};
 pub use source::{DetectError, DetectionSource, Image};
 pub use tracking::{
-    BoxQuery, FramePoint, KeyframeId, KeyframePoint, Map, MovingRegion, NewKeyframe, PointId, Sightings, StageTimes,
+    BoxQuery, FramePoint, KeyframeId, KeyframePoint, Map, MovingRegion, NewKeyframe, PointId, SegmentJoin, Sightings,
+    StageTimes,
     StereoTracker, TrackError, TrackState, TrackedFrame,
 };
 

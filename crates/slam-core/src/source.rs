@@ -69,4 +69,10 @@ pub trait DetectionSource: Send {
     fn forward_ms(&self) -> Option<f64> {
         None
     }
+    /// Boxes of the last [`DetectionSource::detect`] that the source itself clipped to the image (a
+    /// network's boxes reaching past its input), so that a guard counting clipped boxes counts them
+    /// too; 0 for a source that clips nothing.
+    fn clipped(&self) -> usize {
+        0
+    }
 }

@@ -160,6 +160,31 @@ pub struct TrackedFrame {
     /// `reference` are then not a pose, and the frame is written without one (its state is
     /// [`TrackState::Lost`]).
     pub placed: bool,
+    /// A frame not placed but tracked in a map segment of its own frame (started beside a loaded map
+    /// before any frame was placed there): that segment's first keyframe. Its `reference` is then a
+    /// pose in the segment, which becomes one in the map's frame when the segment joins the map
+    /// ([`TrackedFrame::joined`]).
+    pub segment: Option<KeyframeId>,
+    /// This frame, tracked in such a segment, was placed in the map: the segment joins it
+    /// ([`SegmentJoin`]). The frame itself is placed (its pose in the map's frame).
+    pub joined: Option<SegmentJoin>,
+}
+
+/// A map segment tracked in a frame of its own joins the map: a frame tracked in it was placed in the
+/// map (verified by retrieval, as a run's first frame in a loaded map is), so the two poses of that
+/// frame give the transform between the two frames (as ORB-SLAM3's atlas merges a map into another
+/// where a place of both is recognised). The map's owner moves the segment's keyframes and points
+/// into the map's frame ([`slam_map::Map::join_segment`]), and the frames tracked in the segment get
+/// their poses there.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SegmentJoin {
+    /// The segment's first keyframe (the segment: the keyframes from it on).
+    pub root: KeyframeId,
+    /// The segment's frame in the map's: map world from segment world.
+    pub map_from_segment: Isometry3<f64>,
+    /// The keyframe of the map the frame was placed against (the segment's first keyframe's parent
+    /// from now on).
+    pub anchor: KeyframeId,
 }
 
 /// The map points a frame's view held and those it found ([`TrackedFrame::sightings`]).

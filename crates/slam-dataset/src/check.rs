@@ -76,13 +76,7 @@ pub fn calibration(
     Ok(())
 }
 
-/// Largest distance of the principal point from the image centre, as a share of the image's width
-/// (for `cx`) or height (for `cy`). A lens sits on the middle of its sensor to within a few per cent and
-/// rectification keeps the principal point near the middle of the common view (KITTI: 1 % on the
-/// odometry pair, 4 % vertically on the raw pair); 20 % still lets a user crop a few hundred pixels off
-/// one side, but images of half the calibrated size put the principal point at their corner (48 %)
-/// and images of twice the size at their first quarter (25 %).
-pub const PRINCIPAL_POINT_OFF_CENTRE: f64 = 0.2;
+pub use slam_core::check::PRINCIPAL_POINT_OFF_CENTRE;
 
 /// The principal point must lie near the middle of the image ([`PRINCIPAL_POINT_OFF_CENTRE`]): a
 /// calibration of another image size, or of another camera, is refused naming both.

@@ -619,6 +619,17 @@ impl FilesInto {
         if dir.exists() && !dir.is_dir() {
             bail!("{option} {}: is a file, expected a folder", dir.display());
         }
+        // files written into a folder are renamed into place: a name there that is a pipe, a device or a
+        // socket is never renamed over (slam_core::files::output_kind)
+        for n in names {
+            match slam_core::files::output_kind(&dir.join(n)) {
+                Ok(slam_core::files::OutputKind::File) => {}
+                Ok(slam_core::files::OutputKind::Pipe) => {
+                    bail!("{option} {}: {n} is a named pipe, not a regular file; it would be replaced", dir.display())
+                }
+                Err(e) => bail!("{option} {}: {e}", dir.display()),
+            }
+        }
         let (marked, listed) = marked_names(dir);
         let foreign: Vec<&str> = names
             .iter()

@@ -253,6 +253,17 @@ fn decode(
     config: &DetectorConfig,
 ) -> Result<Vec<Detection>, FrontendError> {
     let row_len = shape.last().copied().unwrap_or(0).max(0) as usize;
+    // a network computes finite numbers from a finite image: NaN or infinity in its output is a model
+    // whose weights or arithmetic broke, and no box of that pass can be trusted (it is not a frame
+    // without objects)
+    let broken = values.iter().filter(|v| !v.is_finite()).count();
+    if broken > 0 {
+        return Err(FrontendError::Network(format!(
+            "{broken} of the network's {} output values are not finite numbers (NaN or infinite): a model whose \
+             weights or arithmetic are broken; none of this pass's boxes is used",
+            values.len()
+        )));
+    }
     let (threshold, classes) = (config.score_threshold, &config.classes);
     match family {
         ModelFamily::Rows => Ok(decode_rows(values, row_len, config.input, threshold, classes)),
@@ -306,6 +317,8 @@ pub struct DnnDetector {
     backend: Backend,
     /// Milliseconds of forward passes in the last [`DnnDetector::detect_image`] (its tiles' passes summed).
     last_forward_ms: Option<f64>,
+    /// Boxes of the last [`DnnDetector::detect_image`] that reached past the image and were clipped to it.
+    last_clipped: usize,
     /// Settings.
     pub config: DetectorConfig,
 }
@@ -381,7 +394,7 @@ impl DnnDetector {
             .map_err(|e| err(format!("does not run on an input of {w}x{h} (see --input-size): {e}")))?;
         net.take_forward_ms();
         check_output_shapes(&[shape], &config).map_err(err)?;
-        Ok(Self { backend: Backend::Onnx(net), last_forward_ms: None, config })
+        Ok(Self { backend: Backend::Onnx(net), last_forward_ms: None, last_clipped: 0, config })
     }
 
     fn from_net(mut net: dnn::Net, config: DetectorConfig, path: &Path) -> Result<Self, FrontendError> {
@@ -411,7 +424,7 @@ impl DnnDetector {
         })?;
         let shapes: Vec<Vec<i32>> = outs.iter().map(|o| o.mat_size().iter().copied().collect()).collect();
         check_output_shapes(&shapes, &config).map_err(err)?;
-        Ok(Self { backend: Backend::OpenCv { net, out_names }, last_forward_ms: None, config })
+        Ok(Self { backend: Backend::OpenCv { net, out_names }, last_forward_ms: None, last_clipped: 0, config })
     }
 
     /// Whether the network runs on ONNX Runtime (else on OpenCV's dnn module).
@@ -426,8 +439,8 @@ impl DnnDetector {
     }
 
     /// Run the network on one crop (grey or BGR), letterboxed or squashed into the input; boxes in crop
-    /// pixels, clipped to the crop.
-    fn run_crop(&mut self, crop: &Mat, letterbox: bool) -> Result<Vec<Detection>, FrontendError> {
+    /// pixels, clipped to the crop, each with whether it was.
+    fn run_crop(&mut self, crop: &Mat, letterbox: bool) -> Result<Vec<(Detection, bool)>, FrontendError> {
         let [nw_in, nh_in] = self.config.input;
         let (w, h) = (crop.cols() as f64, crop.rows() as f64);
         let (sx, sy, size) = if letterbox {
@@ -470,30 +483,42 @@ impl DnnDetector {
             .into_iter()
             .filter_map(|mut d| {
                 let b = d.bbox;
+                let unclipped = [b.xmin / sx, b.ymin / sy, b.xmax / sx, b.ymax / sy];
                 d.bbox = BBox::new(
-                    (b.xmin / sx).clamp(0.0, w),
-                    (b.ymin / sy).clamp(0.0, h),
-                    (b.xmax / sx).clamp(0.0, w),
-                    (b.ymax / sy).clamp(0.0, h),
+                    unclipped[0].clamp(0.0, w),
+                    unclipped[1].clamp(0.0, h),
+                    unclipped[2].clamp(0.0, w),
+                    unclipped[3].clamp(0.0, h),
                 );
-                d.bbox.validated().is_ok().then_some(d)
+                let clipped = d.bbox.to_array() != unclipped;
+                d.bbox.validated().is_ok().then_some((d, clipped))
             })
             .collect())
     }
 
     /// Detect objects in an image.
     pub fn detect_image(&mut self, image: &Image) -> Result<Vec<Detection>, FrontendError> {
-        self.last_forward_ms = None;
+        (self.last_forward_ms, self.last_clipped) = (None, 0);
         // a grey frame (KITTI's cameras 0 and 1) stays grey until the input blob, which repeats it in
         // all three channels: resizing one channel instead of three equal ones gives the same values
         let mat = image_to_mat(image)?;
         let (w, h) = (mat.cols(), mat.rows());
         let mut all = Vec::new();
+        // the boxes clipped to the image (a tile's clipped at an inner edge are dropped as cut below)
+        let mut clipped = Vec::new();
+        let mut keep = |found: Vec<(Detection, bool)>, all: &mut Vec<Detection>| {
+            for (d, c) in found {
+                if c {
+                    clipped.push(d.bbox);
+                }
+                all.push(d);
+            }
+        };
         match self.config.mode {
-            InputMode::Squash => all.extend(self.run_crop(&mat, false)?),
-            InputMode::Letterbox => all.extend(self.run_crop(&mat, true)?),
+            InputMode::Squash => keep(self.run_crop(&mat, false)?, &mut all),
+            InputMode::Letterbox => keep(self.run_crop(&mat, true)?, &mut all),
             InputMode::Tiles(k) => {
-                all.extend(self.run_crop(&mat, true)?);
+                keep(self.run_crop(&mat, true)?, &mut all);
                 let k = k.max(1) as i32;
                 // near-square tiles (4:3 at most) across the width, overlapping
                 let tw = (h * 4 / 3).min(w).max(w / k);
@@ -501,7 +526,7 @@ impl DnnDetector {
                 for i in 0..k {
                     let x0 = (i * step).min(w - tw);
                     let roi = Mat::roi(&mat, core::Rect::new(x0, 0, tw, h))?.try_clone()?;
-                    for mut d in self.run_crop(&roi, true)? {
+                    for (mut d, c) in self.run_crop(&roi, true)? {
                         let b = d.bbox;
                         // a box cut by an inner tile edge is a partial object: the neighbouring tile or the
                         // whole-frame pass sees it whole
@@ -511,13 +536,20 @@ impl DnnDetector {
                             continue;
                         }
                         d.bbox = BBox::new(b.xmin + x0 as f64, b.ymin, b.xmax + x0 as f64, b.ymax);
-                        all.push(d);
+                        keep(vec![(d, c)], &mut all);
                     }
                 }
             }
         }
         let iou = self.config.nms_iou as f64;
-        Ok(if self.config.group_nms { nms_by_group(all, iou) } else { nms(all, iou) })
+        let kept = if self.config.group_nms { nms_by_group(all, iou) } else { nms(all, iou) };
+        self.last_clipped = kept.iter().filter(|d| clipped.contains(&d.bbox)).count();
+        Ok(kept)
+    }
+
+    /// Boxes of the last [`DnnDetector::detect_image`] that reached past the image and were clipped to it.
+    pub fn clipped(&self) -> usize {
+        self.last_clipped
     }
 }
 
@@ -565,6 +597,10 @@ impl DetectionSource for DnnDetector {
 
     fn forward_ms(&self) -> Option<f64> {
         self.last_forward_ms
+    }
+
+    fn clipped(&self) -> usize {
+        self.last_clipped
     }
 }
 
@@ -639,6 +675,14 @@ mod tests {
         let nan = (5, [0.0, 0.0, f32::NAN, 0.0, 1.0, 0.9, 0.0, 0.0]);
         let nan_score = (6, [0.0, 0.0, 0.0, 0.0, f32::NAN, 0.9, 0.0, 0.0]);
         assert!(decode_yolox(&output(&[nan, nan_score]), 8, [64, 32], 0.4, &[]).expect("decodes").is_empty());
+        // a forward pass whose output holds NaN is a broken model, not a frame without objects
+        let config = DetectorConfig { input: [64, 32], ..DetectorConfig::yolox() };
+        let values = output(&[nan, (7, [0.0, 0.0, 0.0, 0.0, 1.0, 0.9, 0.0, 0.0])]);
+        let e = decode(ModelFamily::Yolox, &[1, 42, 8], &values, &config).expect_err("NaN").to_string();
+        assert!(e.contains("1 of the network's 336 output values are not finite"), "{e}");
+        let all_nan = vec![f32::NAN; 42 * 85];
+        let rows = decode(ModelFamily::Rows, &[42, 85], &all_nan, &config).expect_err("all NaN").to_string();
+        assert!(rows.contains("3570 of the network's 3570"), "{rows}");
     }
 
     /// A network's outputs against its decode: YOLOX's one output of a row per grid cell, Darknet's

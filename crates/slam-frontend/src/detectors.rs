@@ -102,6 +102,9 @@ impl DetectionSource for ClassFilter {
     fn forward_ms(&self) -> Option<f64> {
         self.0.forward_ms()
     }
+    fn clipped(&self) -> usize {
+        self.0.clipped()
+    }
 }
 
 /// A detection source with its output bounded (see the module).
@@ -145,6 +148,8 @@ impl DetectionSource for DetectionGuard {
                 }
             }
         }
+        // boxes the source clipped itself reached past the image as much as those clipped here
+        clipped += self.inner.clipped();
         let dropped = limit(&mut dets, self.max);
         if clipped + outside + dropped > 0 {
             tracing::debug!(frame, clipped, outside, dropped, "detections bounded");
@@ -157,6 +162,9 @@ impl DetectionSource for DetectionGuard {
     }
     fn forward_ms(&self) -> Option<f64> {
         self.inner.forward_ms()
+    }
+    fn clipped(&self) -> usize {
+        self.inner.clipped()
     }
 }
 
@@ -277,6 +285,32 @@ mod tests {
                 && s.contains("2 of classes not mapped as objects skipped"),
             "{s}"
         );
+    }
+
+    /// A source that clipped boxes itself (a network's boxes reaching past its input) has them counted
+    /// with the guard's own, through the class filter too.
+    #[test]
+    fn boxes_the_source_clipped_itself_are_counted() {
+        struct ClippedTwo;
+        impl DetectionSource for ClippedTwo {
+            fn name(&self) -> &str {
+                "clipped"
+            }
+            fn needs_image(&self) -> bool {
+                false
+            }
+            fn detect(&mut self, _: usize, _: Option<&Image>) -> Result<Vec<Detection>, DetectError> {
+                Ok(vec![det(0.9, [0.0, 0.0, 1242.0, 375.0]), det(0.8, [-3.0, 5.0, 30.0, 30.0])])
+            }
+            fn clipped(&self) -> usize {
+                2
+            }
+        }
+        let filtered = ClassFilter(Box::new(ClippedTwo));
+        assert_eq!(filtered.clipped(), 2);
+        let (mut g, counts) = DetectionGuard::new(Box::new(filtered), [1242.0, 375.0], 100);
+        assert_eq!(g.detect(0, None).expect("detects").len(), 2);
+        assert!(counts.summary(100).contains("3 boxes clipped to the image"), "{}", counts.summary(100));
     }
 
     #[test]

@@ -91,15 +91,33 @@ impl KeyframeIndex {
     /// the votes (query descriptors with a stored descriptor of that keyframe within [`MAX_HAMMING`])
     /// over √(query descriptors × keyframe descriptors), so a keyframe with more keypoints is not
     /// favoured for its size. Ties go to the lower key.
+    #[cfg(test)]
     pub(crate) fn query(&self, descriptors: &[Descriptor], n: usize) -> Vec<(u64, f64)> {
-        self.query_counted(descriptors, n).0
+        self.query_counted(descriptors, n, &|_| true).0
+    }
+
+    /// [`KeyframeIndex::query`] among the keyframes whose keys `keep` takes (those of one map segment,
+    /// or of every segment but one): ranked among themselves, so that the keyframes left out do not
+    /// take the `n` places.
+    pub(crate) fn query_among(
+        &self,
+        descriptors: &[Descriptor],
+        n: usize,
+        keep: &dyn Fn(u64) -> bool,
+    ) -> Vec<(u64, f64)> {
+        self.query_counted(descriptors, n, keep).0
     }
 
     /// [`KeyframeIndex::query`] and the number of chain entries it visited (at most descriptors × 16 ×
     /// [`CHAIN_LIMIT`]). The chains are walked by two threads, each for half of the descriptors (a
     /// query is bound by memory reads: 2 000 descriptors walk some 250 000 chain entries in a map with
     /// a keyframe a frame), and their votes added: the same result as one walk.
-    fn query_counted(&self, descriptors: &[Descriptor], n: usize) -> (Vec<(u64, f64)>, usize) {
+    fn query_counted(
+        &self,
+        descriptors: &[Descriptor],
+        n: usize,
+        keep: &dyn Fn(u64) -> bool,
+    ) -> (Vec<(u64, f64)>, usize) {
         let (votes, visited) = if descriptors.len() >= 256 {
             let (a, b) = descriptors.split_at(descriptors.len() / 2);
             let (mut mine, other) = std::thread::scope(|s| {
@@ -125,6 +143,7 @@ impl KeyframeIndex {
                 let (key, size) = self.entries[slot as usize];
                 (key, v as f64 / ((descriptors.len() * size).max(1) as f64).sqrt())
             })
+            .filter(|(key, _)| keep(*key))
             .collect();
         scored.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
         scored.truncate(n);
@@ -218,7 +237,7 @@ mod tests {
         for k in 0..300u64 {
             index.insert(k, &place);
             if k == 99 || k == 299 {
-                let (best, n) = index.query_counted(&place, 3);
+                let (best, n) = index.query_counted(&place, 3, &|_| true);
                 assert_eq!(best.len(), 3, "the newest keyframes of the place are found: {best:?}");
                 assert!(best.iter().all(|b| b.0 >= k + 1 - CHAIN_LIMIT as u64), "{best:?}");
                 visited.push(n);
@@ -257,7 +276,7 @@ mod tests {
         view.extend(places[7][..100].iter().map(|d| noisy(&mut rng, d, 20)));
         view.extend(random(&mut rng, 300));
         assert!(view.len() >= 256, "the two-thread path");
-        let (ranked, visited) = index.query_counted(&view, 12);
+        let (ranked, visited) = index.query_counted(&view, 12, &|_| true);
         let (votes, walked) = index.votes(&view);
         assert_eq!(visited, walked);
         let mut one: Vec<(u64, f64)> = votes
@@ -270,5 +289,11 @@ mod tests {
         one.truncate(12);
         assert_eq!(ranked, one);
         assert_eq!((ranked[0].0, ranked[1].0), (3, 7));
+        // ranked among the keyframes kept: place 3 left out, place 7 comes first, as it does among all
+        // but place 3
+        let among = index.query_among(&view, 3, &|k| k != 3);
+        assert_eq!(among.first().map(|a| a.0), Some(7));
+        assert!(among.iter().all(|(k, _)| *k != 3));
+        assert_eq!(among, ranked.iter().filter(|r| r.0 != 3).take(3).copied().collect::<Vec<_>>());
     }
 }

@@ -358,11 +358,15 @@ impl ModelSpec {
         };
         let runtime = match (self.on_onnx_runtime(), self.device.unwrap_or_default()) {
             (false, _) => String::new(),
-            (true, Device::Cpu) => format!(
-                ", cpu {} thread{}",
-                self.threads.unwrap_or(DEFAULT_THREADS),
-                if self.threads.unwrap_or(DEFAULT_THREADS) == 1 { "" } else { "s" }
-            ),
+            (true, Device::Cpu) => {
+                let asked = self.threads.unwrap_or(DEFAULT_THREADS);
+                match crate::onnx::capped_threads(asked) {
+                    Some(cores) => {
+                        format!(", cpu {cores} threads ({asked} asked: as many as the cores this process may use)")
+                    }
+                    None => format!(", cpu {asked} thread{}", if asked == 1 { "" } else { "s" }),
+                }
+            }
             (true, Device::Cuda) => ", cuda".to_string(),
         };
         Ok(format!("{name}, {mode} {}x{}, score {}{runtime}", c.input[0], c.input[1], c.score_threshold))

@@ -26,8 +26,8 @@ use std::time::Instant;
 use nalgebra::Isometry3;
 use opencv::prelude::*;
 use slam_core::{
-    geometry::BBox, BoxQuery, FramePoint, Image, KeyframeId, MovingRegion, PointId, PointPair, Sightings, StageTimes,
-    StereoTracker, TrackError, TrackState, TrackedFrame,
+    geometry::BBox, BoxQuery, FramePoint, Image, KeyframeId, MovingRegion, PointId, PointPair, SegmentJoin, Sightings,
+    StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
 };
 use slam_map::{CreationPolicy, Map};
 use slam_optim::SharedOptimizer;
@@ -97,9 +97,11 @@ pub struct StereoVo {
     started: bool,
     /// The first frame not placed in a loaded map, while none has been.
     unplaced_since: Option<usize>,
-    /// Tracking in a segment started beside a loaded map it was never placed in: its poses are in the
-    /// segment's own frame, not the map's ([`TrackedFrame::placed`] false), for the rest of the run.
-    detached: bool,
+    /// Tracking in a segment started beside a loaded map it was never placed in: that segment's first
+    /// keyframe. Its poses are in the segment's own frame, not the map's ([`TrackedFrame::placed`]
+    /// false), until a frame of it is placed in the map and the segment joins it
+    /// ([`TrackedFrame::joined`]).
+    segment: Option<KeyframeId>,
 }
 
 /// What [`StereoVo::prepare`] makes of a stereo pair: the frame, its stereo points, the stereo points
@@ -139,7 +141,7 @@ impl StereoVo {
             pairs: Vec::new(),
             started: false,
             unplaced_since: None,
-            detached: false,
+            segment: None,
         })
     }
 
@@ -265,7 +267,7 @@ impl StereoVo {
             }
             _ => (reference, world_from_ref, local),
         };
-        let (state, curr_from_ref, refined) = self.decide(frame_index, found, &frame, predicted);
+        let (state, curr_from_ref, refined, support) = self.decide(frame_index, found, &frame, predicted);
         let kf_from_curr = curr_from_ref.inverse();
         let measured = refined.is_some();
         self.record(frame_index, state, refined.as_ref(), (&local, &frame), &curr_from_ref);
@@ -312,7 +314,15 @@ impl StereoVo {
         let view = View { frame: &frame, map: &local, refined: refined.as_ref(), seen: &seen };
         let rig = self.tracker.rig;
         let wants = !self.config().localise_only
-            && self.policy.wants(&self.tracker.config, &rig, state, &view, map, since_measured);
+            && self.policy.wants(&self.tracker.config, &rig, support, &view, map, since_measured);
+        // a segment in a frame of its own tries to place itself in the map wherever it would take a
+        // keyframe (a view the map may not hold yet, at a fully supported pose): placed, it joins it
+        if let (Some(root), true) = (self.segment, wants && support == Support::Full) {
+            if let Some(mut tf) = self.join(frame_index, &frame, root, &world_from_curr, map)? {
+                (tf.times, tf.points, tf.masked_points) = (times(Instant::now()), points, masked_points);
+                return Ok(tf);
+            }
+        }
         let keyframe = if wants {
             // a frame lost for too long starts a new map segment: no parent, no matched points, at the
             // first unverified candidate pose when there was one, else at the motion prediction
@@ -320,6 +330,10 @@ impl StereoVo {
                 (Some(reference), world_from_curr)
             } else {
                 tracing::warn!(frame = frame_index, "tracking lost: new map segment from this frame");
+                // a segment of its own frame lost: the new one has a frame of its own too
+                if self.segment.is_some() {
+                    self.segment = Some(map.next_keyframe_id());
+                }
                 (None, world_from_ref * fallback.unwrap_or(curr_from_ref).inverse())
             };
             let kf = new_keyframe(
@@ -353,7 +367,9 @@ impl StereoVo {
             keyframe,
             sightings,
             times: times(Instant::now()),
-            placed: !self.detached,
+            placed: self.segment.is_none(),
+            segment: self.segment,
+            joined: None,
         })
     }
 
@@ -450,7 +466,9 @@ impl StereoVo {
             keyframe: Some(kf),
             sightings: Sightings::default(),
             times: StageTimes::default(),
-            placed: !self.detached,
+            placed: self.segment.is_none(),
+            segment: self.segment,
+            joined: None,
         }
     }
 
@@ -467,7 +485,7 @@ impl StereoVo {
         if self.relocaliser.index.is_empty() {
             self.index_map(map);
         }
-        let cx = Context { tracker: &self.tracker, motion: &self.motion, map };
+        let cx = Context { tracker: &self.tracker, motion: &self.motion, map, among: 0..KeyframeId::MAX };
         let Some((r, ransac, id, local)) = self.relocaliser.retrieve(&cx, &frame)? else {
             let since = *self.unplaced_since.get_or_insert(frame_index);
             let waited = (frame_index.saturating_sub(since) + 1) as f64 * self.config().period();
@@ -477,7 +495,7 @@ impl StereoVo {
                     frame = frame_index,
                     "not placed in the loaded map: a new map segment from this frame, in its own frame (no pose in the map's)"
                 );
-                self.detached = true;
+                self.segment = Some(map.next_keyframe_id());
                 return Ok(self.initialise(frame, frame_index, map));
             }
             tracing::debug!(frame = frame_index, "not placed in the loaded map");
@@ -494,6 +512,8 @@ impl StereoVo {
                 sightings: Sightings::default(),
                 times: StageTimes::default(),
                 placed: false,
+                segment: None,
+                joined: None,
             });
         };
         tracing::info!(frame = frame_index, keyframe = id, inliers = r.inliers.len(), "placed in the loaded map");
@@ -523,7 +543,69 @@ impl StereoVo {
             sightings,
             times: StageTimes::default(),
             placed: true,
+            segment: None,
+            joined: None,
         })
+    }
+
+    /// A frame tracked in a segment of its own frame (the segment from keyframe `root` on, the frame at
+    /// `world_from_curr` there) placed in the map by retrieval among the keyframes before the segment
+    /// ([`Relocaliser::retrieve`]: the map's own points of a retrieved keyframe, PnP RANSAC, its local map
+    /// searched at the pose found, the refinement, full support), as a run's first frame in a loaded
+    /// map is placed. The two poses of the frame give the segment's frame in the map's; the frame is
+    /// relocalised in the map, the segment joins it ([`TrackedFrame::joined`]), and tracking goes on
+    /// from the keyframe it was placed against, the motion model's velocity kept (a step between two
+    /// frames is the same step in either frame). `None`: not placed, the segment goes on.
+    fn join(
+        &mut self,
+        frame_index: usize,
+        frame: &Frame,
+        root: KeyframeId,
+        world_from_curr: &Isometry3<f64>,
+        map: &Map,
+    ) -> Result<Option<TrackedFrame>, FrontendError> {
+        let cx = Context { tracker: &self.tracker, motion: &self.motion, map, among: 0..root };
+        let Some((r, ransac, id, local)) = self.relocaliser.retrieve(&cx, frame)? else {
+            tracing::debug!(frame = frame_index, "segment not placed in the loaded map yet");
+            return Ok(None);
+        };
+        let Some(world_from_kf) = map.keyframe_pose(id) else { return Ok(None) };
+        let kf_from_curr = r.pose.inverse();
+        let world_from_placed = world_from_kf * kf_from_curr;
+        let map_from_segment = world_from_placed * world_from_curr.inverse();
+        tracing::info!(
+            frame = frame_index,
+            keyframe = id,
+            inliers = r.inliers.len(),
+            segment = root,
+            moved_m = map_from_segment.translation.vector.norm(),
+            "placed in the loaded map: the segment tracked so far joins it"
+        );
+        (self.segment, self.started, self.reference) = (None, true, Some(id));
+        (self.motion.kf_from_last, self.motion.kf_from_measured) = (kf_from_curr, kf_from_curr);
+        self.policy.reset();
+        self.last_matched = r.inliers.iter().map(|&(i, _)| local.ids[i]).collect();
+        let seen = self.in_view(&local, &r.pose);
+        let sightings = Sightings {
+            visible: local.ids.iter().zip(&seen).filter(|(_, s)| s.is_some()).map(|(id, _)| *id).collect(),
+            found: self.last_matched.clone(),
+        };
+        Ok(Some(TrackedFrame {
+            world_from_camera: world_from_placed,
+            reference: (id, kf_from_curr),
+            state: TrackState::Relocalised { inliers: ransac },
+            stereo_points: frame.points.len(),
+            points: Vec::new(),
+            masked_points: Vec::new(),
+            tracked_map_points: r.inliers.len(),
+            reprojection_rms_px: r.rms,
+            keyframe: None,
+            sightings,
+            times: StageTimes::default(),
+            placed: true,
+            segment: None,
+            joined: Some(SegmentJoin { root, map_from_segment, anchor: id }),
+        }))
     }
 
     /// The frame's pose: 1. the local map searched from the constant-velocity prediction
@@ -555,7 +637,10 @@ impl StereoVo {
                 }
             }
         }
-        let cx = Context { tracker: &self.tracker, motion: m, map: whole };
+        // a segment in a frame of its own relocalises in itself: a keyframe of the map would put the
+        // frame in another frame (the segment joins the map through a placement, `StereoVo::join`)
+        let among = self.segment.unwrap_or(0)..KeyframeId::MAX;
+        let cx = Context { tracker: &self.tracker, motion: m, map: whole, among };
         let (found, first, retrieved) = self.relocaliser.relocalise(&cx, map, frame, &accept)?;
         Ok((found, fallback.or(first), retrieved))
     }
@@ -563,14 +648,15 @@ impl StereoVo {
     /// The state of a frame from what [`StereoVo::find_pose`] found: tracked or weak by its support,
     /// relocalised after a failed frame or by a relocalisation route; lost (the first failed frame)
     /// or predicted (the next ones) at the prediction when nothing was accepted. Returns the state,
-    /// `curr_from_ref` and the refined pose when one was accepted.
+    /// `curr_from_ref`, the refined pose when one was accepted and its support
+    /// ([`Support::Rejected`] when none was).
     fn decide(
         &self,
         frame_index: usize,
         found: Option<(Refined, usize, Route)>,
         frame: &Frame,
         predicted: Isometry3<f64>,
-    ) -> (TrackState, Isometry3<f64>, Option<Refined>) {
+    ) -> (TrackState, Isometry3<f64>, Option<Refined>, Support) {
         let support = found.as_ref().map(|(r, _, route)| self.judge(r, *route, frame));
         let was_measured = !self.motion.failed;
         match (found, support) {
@@ -592,9 +678,12 @@ impl StereoVo {
                 } else {
                     TrackState::Weak { inliers: ransac }
                 };
-                (state, r.pose, Some(r))
+                (state, r.pose, Some(r), s)
             }
-            _ => (if was_measured { TrackState::Lost } else { TrackState::Predicted }, predicted, None),
+            _ => {
+                let state = if was_measured { TrackState::Lost } else { TrackState::Predicted };
+                (state, predicted, None, Support::Rejected)
+            }
         }
     }
 
@@ -678,7 +767,7 @@ impl StereoVo {
         }
         let (frame, ..) = self.prepare(left, right, &[])?;
         let motion = MotionModel::default();
-        let cx = Context { tracker: &self.tracker, motion: &motion, map };
+        let cx = Context { tracker: &self.tracker, motion: &motion, map, among: 0..KeyframeId::MAX };
         Ok(self.relocaliser.retrieve(&cx, &frame)?.and_then(|(r, _, id, _)| {
             let world_from_kf = map.keyframe_pose(id)?;
             Some((id, world_from_kf * r.pose.inverse(), r.inliers.len()))
@@ -881,6 +970,44 @@ mod tests {
                 rms: r.rms,
             };
             assert_eq!(vo.judge(&jump, Route::Motion, &frame), Support::Rejected, "a 5 m jump");
+        }
+    }
+
+    /// A weak pose (fewer than `min_inliers` inliers) is taken only where the motion model's prediction
+    /// vouches for it: with the velocity known it is accepted as weak, with the velocity unknown (the
+    /// frame after a relocalisation, where only the 5 m speed limit would apply) it is rejected, while
+    /// the same pose with full support is still taken; and a weak frame never becomes a keyframe, even
+    /// when the view has moved on, where a fully supported one does.
+    #[test]
+    fn a_weak_pose_needs_the_motion_model_and_never_becomes_a_keyframe() {
+        let s = scene();
+        let truth = Isometry3::translation(0.0, 0.0, 2.4);
+        let frame = keyframe_of(&s.k, s.b, &in_camera(&truth, &s.world), &s.desc);
+        let curr_from_ref = truth.inverse() * Isometry3::translation(0.0, 0.0, 1.2);
+        let (mut vo, map) = tracker_of(&s);
+        let local = LocalMap::of(&map, 1, &[1, 0]);
+        let (skip, taken) = (vec![false; local.len()], vec![false; frame.keypoints.len()]);
+        let t = &vo.tracker;
+        let matches = t.search(&local, &curr_from_ref, &frame, &|c, l| t.window(c, l, (0.35, 0.03)), (&skip, &taken));
+        let full =
+            t.refiner().refine(&local, &frame, &matches, &curr_from_ref, &Isometry3::identity()).expect("refined");
+        // every 12th inlier: 20 of them, spread over the view
+        let weak =
+            Refined { pose: full.pose, inliers: full.inliers.iter().step_by(12).copied().collect(), rms: full.rms };
+        assert_eq!(weak.inliers.len(), 20);
+        vo.motion.velocity = Isometry3::translation(0.0, 0.0, 1.2);
+        vo.motion.velocity_known = true;
+        assert_eq!(vo.judge(&weak, Route::Motion, &frame), Support::Weak, "the prediction vouches for it");
+        vo.motion.velocity_known = false;
+        assert_eq!(vo.judge(&weak, Route::Motion, &frame), Support::Rejected, "the speed limit alone does not");
+        assert_eq!(vo.judge(&full, Route::Motion, &frame), Support::Full, "full support within the speed limit");
+        let seen = vec![None; local.len()];
+        let c = *vo.config();
+        let rig = vo.tracker.rig;
+        for (r, support, wanted) in [(&weak, Support::Weak, false), (&full, Support::Full, true)] {
+            let view = View { frame: &frame, map: &local, refined: Some(r), seen: &seen };
+            let mut policy = KeyframePolicy::default();
+            assert_eq!(policy.wants(&c, &rig, support, &view, &map, 0), wanted, "{support:?}: the view moved on");
         }
     }
 

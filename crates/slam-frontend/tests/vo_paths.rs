@@ -232,7 +232,11 @@ fn a_revisit_relocalises_to_the_earlier_place_and_back() {
     let (m, deg) = distance(&revisit[26].0, &plain[4].0);
     assert!(m < 0.10 && deg < 0.5, "frame 26 at frame 4's pose: off by {m:.3} m, {deg:.2} deg");
     assert!(matches!(revisit[27].1, TrackState::Relocalised { .. }), "{:?}", revisit[27].1);
-    for i in 27..n {
+    // against the undisturbed run where it measured a pose: this odometry has no local mapping, and
+    // its frame 28 is weak, which never becomes a keyframe, so the undisturbed run loses frame 29
+    let measured: Vec<usize> = (27..n).filter(|&i| plain[i].1.is_measured()).collect();
+    assert!(measured.len() >= 2, "{plain:?}");
+    for i in measured {
         let (m, deg) = distance(&revisit[i].0, &plain[i].0);
         assert!(m < 0.15 && deg < 0.5, "frame {i}: off the undisturbed run by {m:.3} m, {deg:.2} deg");
     }

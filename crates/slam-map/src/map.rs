@@ -213,6 +213,42 @@ impl Map {
         self.points.remove(&id);
     }
 
+    /// Join the map segment that starts at keyframe `root` to the rest of the map (live map only): the
+    /// segment was tracked in a frame of its own (a run that started beside a loaded map it had not been
+    /// placed in), and `map_from_segment` takes its poses into the map's. Every keyframe from `root` on
+    /// (the keyframes made since the segment started: ids are handed out in order) and every point
+    /// they alone observe is moved by it (a point's viewing direction turns with it; its distance range
+    /// and descriptor stay), and `root` gets `anchor` (a keyframe of the map the segment was placed
+    /// against) as its parent: one segment, in one frame. Culled keyframes follow through their anchors.
+    /// Returns the keyframes and points moved.
+    pub fn join_segment(
+        &mut self,
+        root: KeyframeId,
+        map_from_segment: &Isometry3<f64>,
+        anchor: KeyframeId,
+    ) -> (usize, usize) {
+        if !self.keyframes.contains_key(&root) || !self.keyframes.contains_key(&anchor) || anchor >= root {
+            return (0, 0);
+        }
+        let mut moved = (0, 0);
+        for k in self.keyframes.range_mut(root..).map(|(_, k)| k) {
+            k.pose = map_from_segment * k.pose;
+            moved.0 += 1;
+        }
+        for p in self.points.values_mut() {
+            let ours = !p.observations.is_empty() && p.observations.iter().all(|o| o.keyframe >= root);
+            if ours {
+                p.position = (map_from_segment * Point3::from(p.position)).coords;
+                p.normal = map_from_segment.rotation * p.normal;
+                moved.1 += 1;
+            }
+        }
+        if let Some(k) = self.keyframes.get_mut(&root) {
+            k.parent = Some(anchor);
+        }
+        moved
+    }
+
     // ---- the primitives (recorded in a snapshot) ----
 
     fn record(&mut self, e: Edit) {
@@ -598,6 +634,55 @@ mod tests {
     use crate::{
         fusion::Fusion, insert::CreationPolicy, point_culling::PointCulling, synthetic, triangulation::Triangulation,
     };
+
+    /// A segment tracked in a frame of its own (keyframes 2 and 3, made beside keyframes 0 and 1 of the
+    /// same street with their poses in a frame turned by 0.3 rad and moved 5 m) joined to the map by
+    /// the transform between the two frames: its keyframes and the points it made are where the street
+    /// is, its first keyframe's parent is the keyframe it was placed against, the map stays consistent,
+    /// and fusion then finds the two segments' points of one corner to be one point.
+    #[test]
+    fn a_segment_joined_to_the_map_lands_in_the_map_frame() {
+        let mut street = synthetic::Street::new(8, 500);
+        let mut live = synthetic::map();
+        let policy = CreationPolicy::default();
+        let mut first = BTreeMap::new();
+        for (n, z) in [0.0, 2.0].into_iter().enumerate() {
+            street.insert(&mut live, (n, z), &policy, &mut first);
+        }
+        let segment_from_map = Isometry3::new(Vector3::new(5.0, 0.0, -3.0), Vector3::new(0.0, 0.3, 0.0));
+        let mut second: BTreeMap<usize, PointId> = BTreeMap::new();
+        let mut index_of = BTreeMap::new();
+        for (n, z) in [(2usize, 3.0), (3, 5.0)] {
+            let (mut kf, index) = street.keyframe(&live, n, z, &|i| second.get(&i).copied());
+            kf.pose = segment_from_map * kf.pose;
+            kf.parent = (n == 3).then_some(2);
+            let id = kf.id;
+            live.insert_keyframe(kf, &policy).expect("insert");
+            for (kp, p) in live.keyframe(id).expect("kf").observations() {
+                second.entry(index[kp]).or_insert(p);
+                index_of.insert(p, index[kp]);
+            }
+        }
+        let ours: Vec<PointId> = second.values().copied().collect();
+        assert!(ours.iter().all(|p| (live.position(*p).expect("p") - street.points[index_of[p]]).norm() > 1.0));
+        let moved = live.join_segment(2, &segment_from_map.inverse(), 1);
+        assert_eq!(moved, (2, ours.len()));
+        for (id, z) in [(2, 3.0), (3, 5.0)] {
+            let k = live.keyframe_pose(id).expect("kf");
+            assert!((k.translation.vector - Vector3::new(0.0, 0.0, z)).norm() < 1e-9 && k.rotation.angle() < 1e-9);
+        }
+        for p in &ours {
+            let err = (live.position(*p).expect("point") - street.points[index_of[p]]).norm();
+            assert!(err < 1e-9, "point {p}: {err} m from the street");
+        }
+        assert_eq!(live.keyframe(2).expect("kf").parent, Some(1), "one segment");
+        live.check().expect("consistent");
+        let fused = live.fuse(2, &[1, 0], &Fusion::default());
+        assert!(fused.merged > 50, "the two segments' points of one corner are one: {fused:?}");
+        live.check().expect("consistent after fusion");
+        // a root that is not after its anchor, or unknown keyframes, join nothing
+        assert_eq!(live.join_segment(1, &Isometry3::identity(), 2), (0, 0));
+    }
 
     /// Work done on a snapshot and replayed on the live map gives what the same work done on the live
     /// map itself gives: points, observations, positions and poses.

@@ -231,6 +231,9 @@ pub struct RunCounts {
     pub relocalised: usize,
     /// Map segments started after a failure (the first one not counted).
     pub new_segments: usize,
+    /// Map segments tracked in a frame of their own that joined the loaded map once a frame of them
+    /// was placed there.
+    pub joined_segments: usize,
     /// Detection failures (counted and logged, the frame goes on without boxes).
     pub detector_errors: usize,
     /// Observations culled by local mapping.

@@ -112,6 +112,33 @@ impl DetectorOptions {
         }
     }
 
+    /// The source ([`DetectorOptions::kind`]), for a run that localises only when `localise_only`
+    /// ([`DetectorOptions::for_localising_only`]).
+    pub fn checked(&self, localise_only: bool) -> Result<DetectorKind> {
+        if localise_only {
+            self.for_localising_only()?;
+        }
+        self.kind()
+    }
+
+    /// A run that localises only runs no detector (it maps no objects): an option of any detection
+    /// source (`--detector` other than `none`, `--detections`, `--label-noise`, a model option) is an
+    /// error naming it, as an option of another source is, rather than one accepted and ignored.
+    pub fn for_localising_only(&self) -> Result<()> {
+        let given = [
+            self.kind.filter(|k| *k != DetectorKind::None).map(|k| format!("--detector {}", k.name())),
+            self.detections.as_ref().map(|_| "--detections".to_string()),
+            self.label_noise.map(|_| "--label-noise".to_string()),
+            self.model_option.map(str::to_string),
+        ];
+        match given.into_iter().flatten().next() {
+            Some(flag) => Err(RunnerError::Invalid(format!(
+                "{flag} is an option of a detection source, but --localise-only runs no detector (it maps no objects)"
+            ))),
+            None => Ok(()),
+        }
+    }
+
     /// The run's detector choice; `network` loads the model when the run starts.
     pub fn choice(&self, network: NetworkLoader) -> Result<DetectorChoice> {
         Ok(match self.kind()? {
@@ -217,6 +244,18 @@ mod tests {
             assert!(e.contains("--detections (detector file)") && e.contains(&format!("{flag} (detector dnn)")), "{e}");
             assert!(o(Some(DetectorKind::File), Some("d.json"), None, Some(flag)).kind().is_err(), "{flag}");
         }
+        // localising only: every source's option is refused, --detector none is not
+        for (kind, file, noise, flag) in [
+            (Some(DetectorKind::Labels), None, None, None),
+            (None, Some("d.json"), None, None),
+            (None, None, Some(0.1), None),
+            (None, None, None, Some("--device")),
+        ] {
+            let e = o(kind, file, noise, flag).for_localising_only().expect_err("a source's option").to_string();
+            assert!(e.contains("--localise-only runs no detector"), "{e}");
+        }
+        o(Some(DetectorKind::None), None, None, None).for_localising_only().expect("no detector");
+        o(None, None, None, None).for_localising_only().expect("nothing given");
         let e = o(None, None, Some(f64::NAN), None).kind().expect_err("NaN noise");
         assert!(e.to_string().contains("--label-noise NaN: must be a finite number in [0, 1]"), "{e}");
         let network: NetworkLoader = Arc::new(|| Err("not loaded in this test".into()));

@@ -260,8 +260,11 @@ impl MapExports {
                 .collect();
         outputs.extend(pictures.iter().map(|p| Written::File("--picture", p)));
         outputs.extend(rerun.map(|p| Written::File("--rerun", p)));
-        let features = slam_pipeline::map::features_path(map);
-        Ok(refuse_overwriting_inputs(&[("the map", map), ("the map's features", &features)], &outputs)?)
+        // the features file is read beside the file the path leads to or under the map's own name
+        let features = slam_pipeline::map::features_places(map, "map.features");
+        let mut inputs = vec![("the map", map)];
+        inputs.extend(features.iter().map(|f| ("the map's features", f.as_path())));
+        Ok(refuse_overwriting_inputs(&inputs, &outputs)?)
     }
 
     /// Check every destination before any work (`map --ply/--scene/--trajectory/--picture`).

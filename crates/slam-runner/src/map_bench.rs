@@ -74,13 +74,15 @@ fn cases(
         c.selection = FrameSelection { first: range.map(|r| r.0), end: range.map(|r| r.1), stride: 1 };
         (c.map, c.localise_only) = (Some(file.clone()), localise_only);
         let o = play(&c).context_with(|| format!("case {name}"))?;
-        let m = in_map(&o.out, &o.seq);
+        let load = o.loaded.as_ref().ok_or_else(|| RunnerError::Invalid(format!("case {name}: no map loaded")))?;
+        let m = in_map(&o.out, &o.seq, load);
         // the map run's frames these frames show: the same ids, or the layout's source frames
         let ids: Vec<usize> = if range.is_some() { o.seq.ids.clone() } else { (0..=50).collect() };
         let same = if localise_only {
             None
         } else {
-            unaligned_errors(&first.out, &first.seq, |id| ids.contains(&id)).map(|e| e.0)
+            let truth = first.seq.truth_from_first().unwrap_or_default();
+            unaligned_errors(&first.out, &truth, &first.seq.ids, |id| ids.contains(&id)).map(|e| e.0)
         };
         let objects = &o.out.map.objects;
         let kept = objects.iter().filter(|x| max_id.is_some_and(|m| x.id <= m)).count();

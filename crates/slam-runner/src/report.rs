@@ -308,12 +308,18 @@ impl Outcome {
     pub fn pictures(&self, dir: &Path, overlays: Option<&OverlayChoice>) -> Result<String> {
         let out = &self.out;
         // a map that cannot be drawn is said so; the run's trajectory and maps are written all the same
-        // in a loaded map the poses are in the map's frame: the ground truth as given (frame 0's world),
-        // frames without a pose left out
-        let (poses, truth) = match self.loaded {
-            Some(_) => {
+        // in a loaded map the poses are in the map's frame: the ground truth expressed in the map's world
+        // (or none, said why), frames without a pose left out
+        let (poses, truth) = match &self.loaded {
+            Some(load) => {
                 let (poses, ks) = self.placed_poses(Some);
-                let gt = self.seq.ground_truth.as_ref().map(|g| ks.iter().filter_map(|&k| g.get(k).copied()).collect());
+                let gt = match crate::in_map::truth_in_map(&self.seq, load) {
+                    Ok((g, _)) => Some(ks.iter().filter_map(|&k| g.get(k).copied()).collect()),
+                    Err(why) => {
+                        tracing::info!("the map picture draws no ground truth: {why}");
+                        None
+                    }
+                };
                 (poses, gt)
             }
             None => (out.poses.clone(), self.seq.truth_from_first()),

@@ -81,6 +81,10 @@ pub struct MapLoad {
     pub reexpressed: bool,
     /// Localising only.
     pub localise_only: bool,
+    /// The frame whose camera is the map's world (its first keyframe's).
+    pub first_frame: Option<usize>,
+    /// The map's world in the ground truth of the run that made it, when the map records it.
+    pub ground_truth_world: Option<slam_pipeline::map::GroundTruthWorld>,
 }
 
 /// Read a map file and rebuild it as the live map of a run with `rig` and images of `image` size;
@@ -108,7 +112,15 @@ pub fn load_map(
     let counts = (loaded.map.keyframe_count(), loaded.map.point_count(), loaded.objects.len());
     let seconds = t0.elapsed().as_secs_f64();
     tracing::info!(keyframes = counts.0, points = counts.1, objects = counts.2, seconds, "map loaded");
-    let info = MapLoad { path: path.to_path_buf(), counts, seconds, reexpressed: loaded.reexpressed, localise_only };
+    let info = MapLoad {
+        path: path.to_path_buf(),
+        counts,
+        seconds,
+        reexpressed: loaded.reexpressed,
+        localise_only,
+        first_frame: loaded.first_frame,
+        ground_truth_world: loaded.ground_truth_world,
+    };
     Ok((loaded, info))
 }
 
@@ -347,7 +359,7 @@ impl Prepared {
         // the map makes points and local BA weighs disparities by the tracker's near bound
         sys.mapping.near_baselines = tracking.far_baselines;
         sys.localise_only = s.localise_only;
-        let out = SystemBuilder::new(k, seq.baseline)
+        let mut out = SystemBuilder::new(k, seq.baseline)
             .map(map)
             .config(sys)
             .source(frames)
@@ -359,12 +371,29 @@ impl Prepared {
             .build()?
             .run(on_frame)?;
         let elapsed = start.elapsed().as_secs_f64();
+        // the map's world in the ground truth: the loaded map's, else this run's first frame's
+        out.map.ground_truth_world = match &loaded {
+            Some(l) => l.ground_truth_world,
+            None => ground_truth_world(&out.map, &seq),
+        };
         let stages = slam_pipeline::report::StagesOn {
             objects: detections.is_some(),
             bundle_adjustment: sys.mapping.bundle_adjustment,
         };
         Ok(Outcome { out, labels, seq, elapsed, k, image, colour, detections, notes, selection, stages, loaded })
     }
+}
+
+/// Where a map made by a run over `seq` lies in the sequence's ground truth: its first frame and that
+/// frame's ground-truth pose (none without ground truth or keyframes).
+fn ground_truth_world(
+    map: &slam_pipeline::map::Map,
+    seq: &StereoSequence,
+) -> Option<slam_pipeline::map::GroundTruthWorld> {
+    let frame = map.first_frame()?;
+    let k = seq.ids.iter().position(|&id| id == frame)?;
+    let pose = seq.ground_truth.as_ref()?.get(k)?;
+    Some(slam_pipeline::map::GroundTruthWorld { frame, pose: slam_pipeline::map::pose_to_array(pose) })
 }
 
 /// The run's labels: the `--labels` file, else the tracking layout's own; with their camera geometry.

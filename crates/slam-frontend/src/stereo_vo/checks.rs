@@ -84,7 +84,9 @@ pub(crate) fn spread_cells(points: impl Iterator<Item = (f64, f64)>, (width, hei
 /// an image of `image_size`), and its consistency with the motion model over the frames since the last
 /// measured pose. A pose found without the motion model (by descriptors against the local map, or
 /// against a keyframe retrieved from the index) needs full support and no motion check: it is found
-/// exactly where the motion model broke (a reversal, a start after a standstill, a revisit).
+/// exactly where the motion model broke (a reversal, a start after a standstill, a revisit). A pose of
+/// weak support needs the motion model's prediction with a known velocity: where only the speed limit
+/// applies it needs full support, as a relocalisation does.
 pub(crate) fn judge(
     config: &VoConfig,
     image_size: (f64, f64),
@@ -101,6 +103,13 @@ pub(crate) fn judge(
     if support == Support::Rejected {
         tracing::debug!(inliers = r.inliers.len(), cells, rms = r.rms, "pose rejected: support");
         return support;
+    }
+    // a weak pose is taken only where the motion model vouches for it: with the velocity unknown (the
+    // step after a relocalisation or a segment's first frame) the speed limit alone lets a pose lie
+    // anywhere within 5 m a frame, and 15 inliers on repeated structure can be found there
+    if support == Support::Weak && !motion.velocity_known {
+        tracing::debug!(inliers = r.inliers.len(), cells, "weak pose rejected: the velocity is not known");
+        return Support::Rejected;
     }
     let (steps, frames) = match route {
         Route::Along(k) => {

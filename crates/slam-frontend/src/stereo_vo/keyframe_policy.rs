@@ -5,9 +5,10 @@
 use std::sync::Arc;
 
 use nalgebra::Isometry3;
-use slam_core::{KeyframeId, NewKeyframe, PointId, TrackState};
+use slam_core::{KeyframeId, NewKeyframe, PointId};
 use slam_map::Map;
 
+use super::checks::Support;
 use super::config::{StereoRig, VoConfig};
 use super::frame::Frame;
 use super::local_map::LocalMap;
@@ -37,9 +38,10 @@ impl KeyframePolicy {
         self.since_kf = 0;
     }
 
-    /// Whether the frame becomes a keyframe. A frame with an accepted pose (tracked, weak or
-    /// relocalised) does when the map needs it, with more than `weak_inliers` inliers so that the
-    /// keyframe is placed well:
+    /// Whether the frame becomes a keyframe. A frame whose accepted pose has full support (tracked or
+    /// relocalised: `min_inliers` inliers spread over the image) does when the map needs it; a weak
+    /// one never does (a keyframe's pose anchors every point it makes and every frame tracked from
+    /// it, so it must be placed at least as well as a tracked frame is):
     /// - the view moved on: fewer than `keyframe_tracked_ratio` of the reference keyframe's established
     ///   points (seen by at least three keyframes; two while the map holds two or fewer) lie in it
     ///   (inside the image, within their distance range and viewing angle). This is geometry, not
@@ -56,7 +58,7 @@ impl KeyframePolicy {
         &mut self,
         config: &VoConfig,
         rig: &StereoRig,
-        state: TrackState,
+        support: Support,
         view: &View<'_>,
         map: &Map,
         since_measured: usize,
@@ -66,7 +68,7 @@ impl KeyframePolicy {
             let lost_too_long = since_measured as f64 * config.period() > config.max_lost_s;
             return lost_too_long && view.frame.points.len() >= config.min_inliers;
         };
-        if !state.is_measured() {
+        if support != Support::Full {
             return false;
         }
         let tracked = r.inliers.len();

@@ -44,11 +44,14 @@ pub(crate) struct Relocaliser {
     pub(crate) index: KeyframeIndex,
 }
 
-/// What relocalisation reads of the tracker: the pose search, the motion model and the map.
+/// What relocalisation reads of the tracker: the pose search, the motion model, the map, and the
+/// keyframes retrieval may place a frame against (by id: those of one map segment, or of the map but a
+/// segment).
 pub(crate) struct Context<'a> {
     pub(crate) tracker: &'a Tracker,
     pub(crate) motion: &'a MotionModel,
     pub(crate) map: &'a Map,
+    pub(crate) among: std::ops::Range<KeyframeId>,
 }
 
 impl Relocaliser {
@@ -126,7 +129,8 @@ impl Relocaliser {
             return Ok(None);
         }
         let t0 = Instant::now();
-        let candidates = self.index.query(&frame.keypoint_desc, RETRIEVAL_CANDIDATES);
+        let candidates =
+            self.index.query_among(&frame.keypoint_desc, RETRIEVAL_CANDIDATES, &|id| cx.among.contains(&id));
         tracing::debug!(ms = t0.elapsed().as_secs_f64() * 1e3, "retrieval query");
         for (id, score) in candidates {
             if cx.map.keyframe(id).is_none() {

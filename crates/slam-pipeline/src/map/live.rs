@@ -83,6 +83,10 @@ pub struct LoadedMap {
     /// The keyframes' keypoints were re-expressed in the run's camera (another calibration of a
     /// rectified rig, accepted for localisation only).
     pub reexpressed: bool,
+    /// The frame whose camera is the map's world ([`Map::first_frame`]).
+    pub first_frame: Option<usize>,
+    /// The map's world in the ground truth of the run that made it, when it says.
+    pub ground_truth_world: Option<super::GroundTruthWorld>,
 }
 
 /// Why a map file cannot be tracked against.
@@ -91,6 +95,9 @@ pub enum ToLiveError {
     /// A file without features (written before version 4).
     #[error("the map has no keyframe features to track against (format version {0}; version 4 and later keep them): make the map again with this build")]
     NoFeatures(u32),
+    /// A map without a keyframe (nothing was tracked when it was made).
+    #[error("the map holds no keyframe: there is nothing to localise in")]
+    Empty,
     /// A file without the camera it was made with.
     #[error("the map does not say which camera it was made with (format version {0})")]
     NoCamera(u32),
@@ -155,6 +162,9 @@ impl Map {
     /// the run's camera sees the same ray (and its right-image position to the disparity the run's
     /// focal length and baseline give the same depth), exact for rectified pinhole images.
     pub fn to_live(&self, run: &MapCamera, reexpress: bool) -> Result<LoadedMap, ToLiveError> {
+        if self.keyframes.values().all(|k| k.culled) {
+            return Err(ToLiveError::Empty);
+        }
         if self.keyframe_features.is_empty() {
             return Err(ToLiveError::NoFeatures(self.version));
         }
@@ -224,7 +234,13 @@ impl Map {
         if let Some(&last) = self.keyframes.keys().next_back() {
             map.reserve_keyframe_ids(last.saturating_add(1));
         }
-        Ok(LoadedMap { map, objects: self.objects.clone(), reexpressed: moved })
+        Ok(LoadedMap {
+            map,
+            objects: self.objects.clone(),
+            reexpressed: moved,
+            first_frame: self.first_frame(),
+            ground_truth_world: self.ground_truth_world,
+        })
     }
 }
 
@@ -351,6 +367,91 @@ mod tests {
         let old = Map { keyframe_features: Default::default(), features: None, ..map.clone() };
         let e = old.to_live(&MapCamera::of(&camera(), (1226.0, 370.0)), false).expect_err("no features");
         assert!(matches!(e, ToLiveError::NoFeatures(_)), "{e}");
+        let _ = std::fs::remove_dir_all(d);
+    }
+
+    /// A map file is checked whole before a run uses it, and what fails is refused naming the field:
+    /// a keyframe id written twice (JSON keeps the last copy), a camera that cannot be right (a focal
+    /// length of 1e300 px or 0, a baseline of 0 or below), observations on one side only (a keyframe's
+    /// emptied, a point's `observed_by` naming a keyframe that does not observe it), a point moved to
+    /// 1e5 m, a keyframe pose moved 1 m sideways (most of its observations beyond the noise) or 100 m, a
+    /// keyframe without features and features without observations (the checksum made right again).
+    /// The same pair found through a symbolic link to its JSON and copied under another name loads.
+    #[test]
+    fn a_map_is_checked_whole_and_refused_naming_what_and_where() {
+        let d = folder("whole");
+        let good = Map::from_live(&live());
+        let refused = |name: &str, m: &Map| -> String {
+            let file = d.join(format!("{name}.json"));
+            m.save(&file).expect("saved");
+            Map::load(&file).expect_err(name).to_string()
+        };
+        let with = |edit: &dyn Fn(&mut Map)| {
+            let mut m = good.clone();
+            edit(&mut m);
+            m
+        };
+        let expect = |name: &str, m: &Map, field: &str, why: &str| {
+            let e = refused(name, m);
+            assert!(e.contains(&format!("{name}.json: {field}")) && e.contains(why), "{name}: {e}");
+        };
+        // an id twice in the file
+        let file = d.join("twice.json");
+        good.save(&file).expect("saved");
+        let text = std::fs::read_to_string(&file).expect("json");
+        let at = text.find("\"1\":{\"frame\"").expect("keyframe 1");
+        let copy = text[at..].split_once("},\"").map(|(k, _)| k).expect("its end");
+        std::fs::write(&file, format!("{}{copy},{}", &text[..at], &text[at..])).expect("edited");
+        let e = Map::load(&file).expect_err("twice").to_string();
+        assert!(e.contains("keyframes") && e.contains("id 1 appears twice"), "{e}");
+        // the camera
+        for (name, edit, field) in [
+            ("fx-huge", (|c: &mut MapCamera| c.fx = 1e300) as fn(&mut MapCamera), "camera.fx"),
+            ("fx-zero", |c| c.fx = 0.0, "camera.fx"),
+            ("baseline-zero", |c| c.baseline = 0.0, "camera.baseline"),
+            ("baseline-negative", |c| c.baseline = -0.54, "camera.baseline"),
+        ] {
+            let m = with(&|m: &mut Map| edit(m.camera.as_mut().expect("camera")));
+            expect(name, &m, field, "must be a finite number in");
+        }
+        // both sides of an observation
+        let m = with(&|m: &mut Map| m.keyframes.get_mut(&1).expect("kf").observations.clear());
+        expect("no-observations", &m, "points.", "each side must name the other");
+        let m = with(&|m: &mut Map| {
+            let p = m.points.values_mut().next().expect("point");
+            p.observed_by = vec![0];
+        });
+        expect("observed-by", &m, "points.", "the keyframes observing it are [0, 1]");
+        // positions that disagree with the observations
+        let m = with(&|m: &mut Map| m.points.values_mut().next().expect("point").position[0] = 1e5);
+        expect("far-point", &m, "keyframes.0.observations[", "farther than the image is wide");
+        let moved = |dx: f64| {
+            move |m: &mut Map| {
+                let k = m.keyframes.get_mut(&1).expect("kf");
+                k.pose[4] += dx;
+            }
+        };
+        expect("pose-1m", &with(&moved(1.0)), "keyframes.1.pose", "60 of its 60 observations");
+        expect("pose-100m", &with(&moved(100.0)), "keyframes.1.observations[", "the image is wide");
+        // the features file against the JSON (the features file written anew, its checksum right)
+        let m = with(&|m: &mut Map| drop(m.keyframe_features.remove(&1)));
+        expect("no-features", &m, "keyframes.1", "holds no features of it");
+        let m = with(&|m: &mut Map| m.keyframe_features.values_mut().for_each(|f| f.observations.clear()));
+        expect("features-emptied", &m, "keyframes.0.observations", "not in the features file");
+        // the right pair through a link, and copied under another name
+        let made = d.join("made");
+        std::fs::create_dir_all(&made).expect("folder");
+        good.save(&made.join("map.json")).expect("saved");
+        std::os::unix::fs::symlink(made.join("map.json"), d.join("06.json")).expect("link");
+        assert_eq!(Map::load(&d.join("06.json")).expect("through the link").keyframe_features.len(), 2);
+        let copy = d.join("copy");
+        std::fs::create_dir_all(&copy).expect("folder");
+        std::fs::copy(made.join("map.json"), copy.join("06.json")).expect("json");
+        std::fs::copy(made.join("map.features"), copy.join("06.features")).expect("features");
+        assert_eq!(Map::load(&copy.join("06.json")).expect("renamed pair").keyframe_features.len(), 2);
+        std::fs::remove_file(copy.join("06.features")).expect("removed");
+        let e = Map::load(&copy.join("06.json")).expect_err("no features").to_string();
+        assert!(e.contains("is in none of") && e.contains("06.features"), "{e}");
         let _ = std::fs::remove_dir_all(d);
     }
 }

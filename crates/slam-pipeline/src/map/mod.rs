@@ -92,6 +92,40 @@ mod observation_list {
     }
 }
 
+/// A JSON object read as a map by id, refusing an id written twice (JSON allows it, and a plain map
+/// would keep the last copy in silence: a hand edit that adds a keyframe under an id in use replaced
+/// the other one).
+mod unique_keys {
+    use std::{collections::BTreeMap, fmt, marker::PhantomData};
+
+    use serde::{
+        de::{MapAccess, Visitor},
+        Deserialize, Deserializer,
+    };
+
+    pub fn deserialize<'de, D: Deserializer<'de>, T: Deserialize<'de>>(d: D) -> Result<BTreeMap<u64, T>, D::Error> {
+        struct Unique<T>(PhantomData<T>);
+        impl<'de, T: Deserialize<'de>> Visitor<'de> for Unique<T> {
+            type Value = BTreeMap<u64, T>;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("an object of ids")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut access: A) -> Result<Self::Value, A::Error> {
+                let mut out = BTreeMap::new();
+                while let Some((id, value)) = access.next_entry::<u64, T>()? {
+                    if out.insert(id, value).is_some() {
+                        return Err(serde::de::Error::custom(format!(
+                            "id {id} appears twice (each id is written once; a second copy would replace the first)"
+                        )));
+                    }
+                }
+                Ok(out)
+            }
+        }
+        d.deserialize_map(Unique(PhantomData))
+    }
+}
+
 /// A map point.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -161,6 +195,18 @@ pub struct ObjectView {
     pub reference: Option<(KeyframeId, PoseArray)>,
 }
 
+/// Where a map's world lies in a ground truth: the frame whose left camera is the map's world (its
+/// first keyframe's frame) and that camera's pose in the ground truth (its world from the camera), as
+/// the run that made the map read them.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GroundTruthWorld {
+    /// The frame id.
+    pub frame: usize,
+    /// Its camera's ground-truth pose, `[qx, qy, qz, qw, tx, ty, tz]`.
+    pub pose: PoseArray,
+}
+
 /// The pose of one input frame, relative to a keyframe (so it follows the keyframe's refinement).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -187,9 +233,11 @@ pub struct Map {
     /// The world frame, in words ([`MAP_WORLD`]; absent in older files).
     #[serde(default)]
     pub frame: String,
-    /// Keyframes by id.
+    /// Keyframes by id (an id written twice is refused, not the last one taken).
+    #[serde(deserialize_with = "unique_keys::deserialize")]
     pub keyframes: BTreeMap<KeyframeId, MapKeyframe>,
-    /// Map points by id.
+    /// Map points by id (as `keyframes`).
+    #[serde(deserialize_with = "unique_keys::deserialize")]
     pub points: BTreeMap<PointId, MapPoint>,
     /// Objects, by id.
     pub objects: Vec<MapObject>,
@@ -201,6 +249,11 @@ pub struct Map {
     /// The keyframes' features file beside this one (absent before version 4, or without keyframes).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub features: Option<FeaturesRef>,
+    /// The map's world in the ground truth of the run that made it (absent when that run had none, and
+    /// in files written before issue 46): figures of later runs in the map's frame compare against
+    /// the ground truth expressed in this world.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ground_truth_world: Option<GroundTruthWorld>,
     /// The keyframes' features (from the features file; written there by [`Map::save`]).
     #[serde(skip)]
     pub keyframe_features: BTreeMap<KeyframeId, SavedFeatures>,
@@ -218,6 +271,7 @@ impl Default for Map {
             trajectory: Vec::new(),
             camera: None,
             features: None,
+            ground_truth_world: None,
             keyframe_features: BTreeMap::new(),
         }
     }
@@ -286,11 +340,18 @@ pub struct MapStats {
     pub dynamic_objects: usize,
     /// Frames.
     pub frames: usize,
-    /// Length of the keyframe path, metres.
+    /// Length of the keyframe path (the spanning tree: each keyframe's distance from its parent),
+    /// metres.
     pub keyframe_path_m: f64,
 }
 
 impl Map {
+    /// The frame whose camera is the map's world: its first keyframe's (the lowest id; a map's first
+    /// keyframe sits at the origin), `None` for a map without keyframes.
+    pub fn first_frame(&self) -> Option<usize> {
+        self.keyframes.values().next().map(|k| k.frame)
+    }
+
     /// Pose of a keyframe.
     pub fn keyframe_pose(&self, id: KeyframeId) -> Option<Isometry3<f64>> {
         self.keyframes.get(&id).map(|k| pose_from_array(&k.pose))
@@ -310,10 +371,19 @@ impl Map {
             .collect()
     }
 
-    /// Counts.
+    /// Counts. The keyframe path is the length of the keyframes' spanning tree: each keyframe's
+    /// distance from its parent (the keyframe it was tracked from), summed, so that keyframes a later
+    /// run added over the same road count by where they were tracked from, not by their ids (ids follow
+    /// the runs, and summing in id order hopped back across the road at each run).
     pub fn stats(&self) -> MapStats {
-        let poses: Vec<Isometry3<f64>> =
-            self.keyframes.values().filter(|k| !k.culled).map(|k| pose_from_array(&k.pose)).collect();
+        let live = |id: &KeyframeId| self.keyframes.get(id).filter(|k| !k.culled);
+        let centre = |k: &MapKeyframe| Vector3::new(k.pose[4], k.pose[5], k.pose[6]);
+        let keyframe_path_m = self
+            .keyframes
+            .values()
+            .filter(|k| !k.culled)
+            .filter_map(|k| Some((centre(k) - centre(live(&k.parent?)?)).norm()))
+            .fold(0.0, |a, d| a + d);
         MapStats {
             keyframes: self.keyframes.values().filter(|k| !k.culled).count(),
             segments: self.keyframes.values().filter(|k| k.parent.is_none()).count(),
@@ -322,7 +392,7 @@ impl Map {
             objects: self.objects.len(),
             dynamic_objects: self.objects.iter().filter(|o| o.dynamic).count(),
             frames: self.trajectory.len(),
-            keyframe_path_m: poses.windows(2).map(|w| (w[1].translation.vector - w[0].translation.vector).norm()).sum(),
+            keyframe_path_m,
         }
     }
 
@@ -427,7 +497,9 @@ impl Map {
         Ok(map)
     }
 
-    /// The features refer to keyframes of the map that are not culled, and to points that exist.
+    /// The features refer to keyframes of the map that are not culled, and to points that exist; every
+    /// keyframe that is not culled has its features; each keyframe's observations are the same in the
+    /// JSON and in the features file (the same points, at the keypoints' positions).
     fn check_features(&self) -> Result<(), (String, String)> {
         for (id, f) in &self.keyframe_features {
             let field = || format!("features (keyframe {id})");
@@ -438,6 +510,136 @@ impl Map {
             }
             if let Some((k, p)) = f.observations.iter().find(|(_, p)| !self.points.contains_key(p)) {
                 return Err((field(), format!("keypoint {k} observes point {p}, which does not exist")));
+            }
+        }
+        for (id, k) in self.keyframes.iter().filter(|(_, k)| !k.culled) {
+            let field = || format!("keyframes.{id}.observations");
+            let Some(f) = self.keyframe_features.get(id) else {
+                return Err((
+                    format!("keyframes.{id}"),
+                    "not culled, but the features file holds no features of it (every keyframe a run tracks \
+                     against keeps its keypoints there)"
+                        .into(),
+                ));
+            };
+            let json: BTreeMap<PointId, [f64; 3]> = k.observations.iter().copied().collect();
+            let saved: BTreeMap<PointId, u32> = f.observations.iter().map(|&(kp, p)| (p, kp)).collect();
+            if let Some(p) = json.keys().find(|p| !saved.contains_key(p)) {
+                return Err((field(), format!("point {p} is observed here but not in the features file")));
+            }
+            if let Some(p) = saved.keys().find(|p| !json.contains_key(p)) {
+                return Err((
+                    field(),
+                    format!("the features file has keyframe {id} observe point {p}, the JSON does not"),
+                ));
+            }
+            for (p, kp) in &saved {
+                let o = json[p];
+                let Some(key) = f.keypoints.get(*kp as usize) else {
+                    return Err((field(), format!("point {p}: keypoint {kp} is not in the features file")));
+                };
+                // the features file keeps 32-bit floats: a keypoint of 2 000 px is kept to 1e-4 px
+                let same = |a: f64, b: f64| (a.is_nan() && b.is_nan()) || (a - b).abs() <= 1e-3;
+                if !(same(o[0], key.u) && same(o[1], key.v) && same(o[2], key.u_right)) {
+                    return Err((
+                        field(),
+                        format!(
+                            "point {p} is observed at {o:?} in the JSON, at keypoint {kp} ({}, {}, right {}) in the features file",
+                            key.u, key.v, key.u_right
+                        ),
+                    ));
+                }
+            }
+        }
+        self.check_geometry()
+    }
+
+    /// Observations on both sides: a keyframe observes each point once, and a point's `observed_by`
+    /// lists exactly the keyframes whose observations name it.
+    fn check_both_sides(&self) -> Result<(), (String, String)> {
+        let mut observers: BTreeMap<PointId, Vec<KeyframeId>> = BTreeMap::new();
+        for (id, k) in &self.keyframes {
+            let mut seen = std::collections::BTreeSet::new();
+            for (i, (p, _)) in k.observations.iter().enumerate() {
+                if !seen.insert(*p) {
+                    return Err((format!("keyframes.{id}.observations[{i}]"), format!("point {p} is observed twice")));
+                }
+                observers.entry(*p).or_default().push(*id);
+            }
+        }
+        for (id, p) in &self.points {
+            let mut listed = p.observed_by.clone();
+            listed.sort_unstable();
+            let observing = observers.remove(id).unwrap_or_default();
+            if listed != observing {
+                return Err((
+                    format!("points.{id}.observed_by"),
+                    format!(
+                        "{:?}, but the keyframes observing it are {observing:?} (each side must name the other)",
+                        p.observed_by
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Keyframe poses and points agree with their observations (with the map's camera, when it names
+    /// one): every observed point lies in front of its keyframe and is seen within the image's larger
+    /// side of its keypoint ([`observation_error`]), and no keyframe has most of its observations
+    /// beyond the 99.9 % χ² bound of a keypoint's noise at its level.
+    ///
+    /// Why these bounds: local bundle adjustment leaves observations within their 95 % χ² bound when it
+    /// culls (σ = 1 px × the level's scale), and later adjustments of neighbouring keyframes move some
+    /// of them a little beyond it: in the maps of odometry 06 and drive 0005 at most 0.9 % of a
+    /// keyframe's observations lie beyond the 99.9 % bound, and no observation 41 px or more from its
+    /// point's projection. A pose or point edited by hand (a keyframe 100 m off, a point at 1e5 m)
+    /// puts the point behind the camera, or farther from its keypoint than the image is wide, where the
+    /// camera never saw it; a keyframe pose whose own observations mostly disagree with it beyond the
+    /// noise is not the pose they were adjusted with (a least-squares pose explains most of its data).
+    fn check_geometry(&self) -> Result<(), (String, String)> {
+        let Some(c) = &self.camera else { return Ok(()) };
+        let pyramid = slam_core::map::ScalePyramid::default();
+        let largest = c.width.max(c.height);
+        for (id, k) in self.keyframes.iter().filter(|(_, k)| !k.culled) {
+            let Some(f) = self.keyframe_features.get(id) else { continue };
+            let levels: BTreeMap<PointId, u8> =
+                f.observations.iter().filter_map(|&(kp, p)| Some((p, f.keypoints.get(kp as usize)?.level))).collect();
+            let from_world = pose_from_array(&k.pose).inverse();
+            let mut beyond = 0;
+            for (i, (p, o)) in k.observations.iter().enumerate() {
+                let Some(x) = self.points.get(p) else { continue };
+                let field = || format!("keyframes.{id}.observations[{i}]");
+                let in_camera = from_world * nalgebra::Point3::from(x.position);
+                let Some((e2, chi2)) = observation_error(c, &in_camera.coords, o) else {
+                    return Err((
+                        field(),
+                        format!("point {p} at {:?} lies behind keyframe {id}, which observes it", x.position),
+                    ));
+                };
+                if e2.sqrt() > largest {
+                    return Err((
+                        field(),
+                        format!(
+                            "point {p} at {:?} is seen {:.0} px from the keypoint that observes it, farther than the \
+                             image is wide ({largest} px): the point or the keyframe's pose was moved",
+                            x.position,
+                            e2.sqrt()
+                        ),
+                    ));
+                }
+                let sigma = pyramid.scale(levels.get(p).copied().unwrap_or(0));
+                beyond += usize::from(e2 > chi2 * sigma * sigma);
+            }
+            if 2 * beyond > k.observations.len() {
+                return Err((
+                    format!("keyframes.{id}.pose"),
+                    format!(
+                        "{beyond} of its {} observations lie beyond the 99.9 % bound of a keypoint's noise: the pose \
+                         is not the one they were adjusted with",
+                        k.observations.len()
+                    ),
+                ));
             }
         }
         Ok(())
@@ -515,6 +717,11 @@ impl Map {
                 return Err((format!("points.{id}.observed_by"), format!("keyframe {k} does not exist")));
             }
         }
+        self.check_both_sides()?;
+        if let Some(c) = &self.camera {
+            slam_core::check::stereo_camera([c.fx, c.fy, c.cx, c.cy], c.baseline, (c.width, c.height))
+                .map_err(|e| (format!("camera.{}", e.key), format!("{}: must be {}", e.value, e.valid)))?;
+        }
         let mut ids = std::collections::BTreeSet::new();
         for (i, o) in self.objects.iter().enumerate() {
             let at = |f: &str| format!("objects[{i}].{f}");
@@ -560,6 +767,9 @@ impl Map {
                     format!("not a rotation (|R Rᵀ − I| = {err:.2e}, det {:.3})", r.determinant()),
                 ));
             }
+        }
+        if let Some(w) = &self.ground_truth_world {
+            pose("ground_truth_world.pose".into(), &w.pose)?;
         }
         let mut last = None;
         for (i, f) in self.trajectory.iter().enumerate() {
@@ -621,6 +831,20 @@ pub fn features_path(map: &Path) -> PathBuf {
     map.with_extension("features")
 }
 
+/// Where the features file of the map file at `path` may be, in the order tried: beside the file the
+/// path leads to (through symbolic links) under the name the JSON gives (`named`), beside the path
+/// itself under that name, then under the map file's own name with `.features` (a pair copied under
+/// another name: `06.json` with `06.features`), beside the path and beside the file it leads to. The
+/// length and checksum in the JSON tell whether the file found is the right one.
+pub fn features_places(path: &Path, named: &str) -> Vec<PathBuf> {
+    let real = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+    let beside = |p: &Path| p.parent().unwrap_or(Path::new(".")).join(named);
+    let mut places = vec![beside(&real), beside(path), features_path(path), features_path(&real)];
+    let mut seen = std::collections::BTreeSet::new();
+    places.retain(|p| seen.insert(p.clone()));
+    places
+}
+
 /// Read the features file a map file names, checking its length and checksum.
 fn read_features(path: &Path, r: &FeaturesRef) -> Result<BTreeMap<KeyframeId, SavedFeatures>, MapError> {
     let invalid = |message: String| MapError::Invalid { path: path.to_path_buf(), field: "features".into(), message };
@@ -628,7 +852,15 @@ fn read_features(path: &Path, r: &FeaturesRef) -> Result<BTreeMap<KeyframeId, Sa
     if Path::new(&r.file).file_name().map(|n| n.to_string_lossy()) != Some(r.file.as_str().into()) {
         return Err(invalid(format!("{:?} is not a file name", r.file)));
     }
-    let side = path.parent().unwrap_or(Path::new(".")).join(&r.file);
+    let places = features_places(path, &r.file);
+    let Some(side) = places.iter().find(|p| p.exists()).cloned() else {
+        let looked: Vec<String> = places.iter().map(|p| p.display().to_string()).collect();
+        return Err(invalid(format!(
+            "the keyframes' features file it names (features.file {:?}) is in none of: {}",
+            r.file,
+            looked.join(", ")
+        )));
+    };
     let bytes = slam_core::files::read_bytes(&side, &slam_core::files::DOCUMENT)
         .map_err(|e| invalid(format!("the keyframes' features file it names: {e}")))?;
     let sum = format!("{:016x}", features::fnv1a64(&bytes));
@@ -643,6 +875,25 @@ fn read_features(path: &Path, r: &FeaturesRef) -> Result<BTreeMap<KeyframeId, Sa
         )));
     }
     features::decode(&bytes).map_err(|m| invalid(format!("{}: {m}", side.display())))
+}
+
+/// The squared reprojection error of an observation `[u, v, u_right]` (`u_right` NaN: left only) of a
+/// point at `x` (camera frame) through `camera`, with the 99.9 % χ² bound of unit noise for its degrees
+/// of freedom (13.82 for two, 16.27 for three); `None` when the point is not in front of the camera.
+fn observation_error(camera: &MapCamera, x: &Vector3<f64>, o: &[f64; 3]) -> Option<(f64, f64)> {
+    // NaN is not in front either
+    if x.z.is_nan() || x.z <= 0.0 {
+        return None;
+    }
+    let u = camera.fx * x.x / x.z + camera.cx;
+    let v = camera.fy * x.y / x.z + camera.cy;
+    let left = (u - o[0]).powi(2) + (v - o[1]).powi(2);
+    Some(if o[2].is_nan() {
+        (left, 13.82)
+    } else {
+        let u_right = u - camera.fx * camera.baseline / x.z;
+        (left + (u_right - o[2]).powi(2), 16.27)
+    })
 }
 
 /// Largest coordinate a map may hold, metres: the Earth's diameter (1.3e7 m), the bound the dataset
@@ -877,6 +1128,29 @@ mod tests {
             .collect();
         assert_eq!(names.len(), 2, "far.json and p.ply, no temporary: {names:?}");
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// The keyframe path follows the spanning tree: a second run's keyframes over the same road add
+    /// their distance from the keyframe each was tracked from, not the hop back from the first run's
+    /// last keyframe (24 m here, 48 m in id order); a map of one keyframe has a path of 0 m, not -0.
+    #[test]
+    fn the_keyframe_path_follows_the_spanning_tree() {
+        let kf = |z: f64, parent: Option<KeyframeId>| MapKeyframe {
+            frame: 0,
+            pose: [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, z],
+            parent,
+            observations: vec![],
+            culled: false,
+        };
+        let mut m = Map::default();
+        m.keyframes.insert(0, kf(0.0, None));
+        assert_eq!(format!("{:.1}", m.stats().keyframe_path_m), "0.0");
+        m.keyframes.insert(1, kf(10.0, Some(0)));
+        m.keyframes.insert(2, kf(20.0, Some(1)));
+        assert_eq!(m.stats().keyframe_path_m, 20.0);
+        m.keyframes.insert(3, kf(2.0, Some(0)));
+        m.keyframes.insert(4, kf(12.0, Some(1)));
+        assert_eq!(m.stats().keyframe_path_m, 24.0);
     }
 
     #[test]

@@ -36,6 +36,7 @@ impl MappedObject {
     pub fn to_map_object(&self) -> Option<crate::map::MapObject> {
         let e = self.ellipsoid.as_ref()?;
         let r = e.rotation();
+        let kept = views_to_keep(&self.observations);
         Some(crate::map::MapObject {
             id: self.id.0,
             class: self.class.0,
@@ -47,10 +48,36 @@ impl MappedObject {
             dynamic: self.dynamic,
             moving: self.moving,
             points: self.points.iter().copied().collect(),
-            views: self.observations.iter().map(Observation::to_view).collect(),
-            earlier_views: self.earlier,
+            views: kept.iter().map(|&k| self.observations[k].to_view()).collect(),
+            earlier_views: kept.iter().filter(|&&k| k < self.earlier).count(),
         })
     }
+}
+
+/// The observations of an object a map keeps ([`MappedObject::to_map_object`]), by index, in order: one
+/// per reference keyframe, the one taken nearest that keyframe (the latest on a tie), and every one
+/// without a reference. The frames between two keyframes see the object from about the same place; a
+/// map used day after day over one road would otherwise keep each run's boxes of it (18, 28, 38, 48, 58
+/// views over chained runs of the same frames), while its keyframes, and so its views, stop growing
+/// once the road is mapped.
+fn views_to_keep(observations: &[Observation]) -> Vec<usize> {
+    let mut best: std::collections::BTreeMap<slam_core::KeyframeId, (f64, usize)> = Default::default();
+    let mut kept = Vec::new();
+    for (k, o) in observations.iter().enumerate() {
+        match o.reference {
+            Some((kf, rel)) => {
+                let d = rel.translation.vector.norm();
+                let e = best.entry(kf).or_insert((d, k));
+                if d <= e.0 {
+                    *e = (d, k);
+                }
+            }
+            None => kept.push(k),
+        }
+    }
+    kept.extend(best.values().map(|&(_, k)| k));
+    kept.sort_unstable();
+    kept
 }
 
 /// Write the object map (objects with an ellipsoid) as JSON, atomically, naming the world frame of the
@@ -90,4 +117,55 @@ pub fn object_map_text(objects: &[&MappedObject], frame: &str) -> std::io::Resul
         .collect();
     serde_json::to_string_pretty(&MapJson { version: OBJECT_MAP_VERSION, frame, objects })
         .map_err(std::io::Error::other)
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Isometry3;
+    use slam_core::{geometry::BBox, ClassId, TrackId};
+    use slam_quadric::{Camera, Ellipsoid, Intrinsics};
+
+    use super::*;
+
+    /// An object seen from frames 0-5 of an earlier run and 10-15 of this one: the map keeps one view per
+    /// reference keyframe (the one nearest it, the latest on a tie) and each view without a keyframe, in
+    /// order, and counts the earlier runs' among them; driving the same keyframes again adds no view.
+    #[test]
+    fn an_object_keeps_one_view_per_keyframe_that_saw_it() {
+        let k = Intrinsics::new(707.0, 707.0, 601.9, 183.1);
+        let seen = |frame: usize, reference: Option<(u64, f64)>| Observation {
+            frame,
+            camera: Camera::new(k, Isometry3::translation(0.0, 0.0, frame as f64)),
+            bbox: BBox::new(100.0, 100.0, 200.0, 160.0),
+            class: ClassId(2),
+            detection: 0,
+            centroid: None,
+            depth_sigma: 0.0,
+            reference: reference.map(|(kf, d)| (kf, Isometry3::translation(0.0, 0.0, d))),
+        };
+        let mut o = MappedObject::new(TrackId(4), ClassId(2));
+        o.ellipsoid =
+            Some(Ellipsoid::new(Isometry3::translation(0.0, 0.0, 20.0), nalgebra::Vector3::new(2.0, 0.8, 0.9)));
+        // an earlier run: keyframe 1 from frames 0-2, keyframe 2 from 3-4, frame 5 without a keyframe
+        o.observations = vec![
+            seen(0, Some((1, 0.0))),
+            seen(1, Some((1, 1.2))),
+            seen(2, Some((1, 2.4))),
+            seen(3, Some((2, 0.0))),
+            seen(4, Some((2, 1.2))),
+            seen(5, None),
+        ];
+        o.earlier = o.observations.len();
+        // this run over the same keyframes: frame 10 as near keyframe 1 as frame 0 was, frame 11 farther
+        o.observations.extend([seen(10, Some((1, 0.0))), seen(11, Some((2, 0.6))), seen(12, Some((3, 0.0)))]);
+        let m = o.to_map_object().expect("an ellipsoid");
+        let frames: Vec<usize> = m.views.iter().map(|v| v.frame).collect();
+        assert_eq!(frames, [3, 5, 10, 12], "keyframe 1: frame 10 (a tie with 0, the latest), keyframe 2: frame 3");
+        assert_eq!(m.earlier_views, 2, "frames 3 and 5 come from the earlier run");
+        assert_eq!(m.frames, [10, 11, 12], "this run's detections");
+        // the same run again over the same keyframes keeps as many views
+        let mut again = o.clone();
+        again.observations.extend([seen(20, Some((1, 0.5))), seen(21, Some((2, 0.9))), seen(22, Some((3, 0.2)))]);
+        assert_eq!(again.to_map_object().expect("an ellipsoid").views.len(), 4);
+    }
 }

@@ -56,6 +56,13 @@ pub struct Tracking {
     /// The map was loaded from an earlier run: a frame is written without a pose until one is placed
     /// in it.
     loaded: bool,
+    /// Frames written without a pose while tracked in a segment of its own frame beside the loaded
+    /// map: the trajectory entry, the segment (its first keyframe) and the frame's reference keyframe;
+    /// they get their pose in the map when the segment joins it.
+    segment_frames: Vec<(usize, KeyframeId, KeyframeId)>,
+    /// The last frame tracked in such a segment: the segment and the frame's reference (an unreadable
+    /// frame holds it).
+    segment_reference: Option<(KeyframeId, (KeyframeId, Isometry3<f64>))>,
 }
 
 impl Tracking {
@@ -89,6 +96,8 @@ impl Tracking {
             last_done: Instant::now(),
             last_pose: None,
             applied: Vec::new(),
+            segment_frames: Vec::new(),
+            segment_reference: None,
         }
     }
 
@@ -229,9 +238,14 @@ impl Tracking {
         self.last_pose = None;
         tracing::warn!(frame = i, "unreadable: {why}; pose held");
         // in a loaded map, a frame before the first placed one has no pose to hold
-        let (kf, rel) = match self.last_reference {
-            Some((k, rel)) => (Some(k), rel),
-            None => ((!self.loaded).then_some(0), Isometry3::identity()),
+        let (kf, rel) = match (self.last_reference, self.segment_reference) {
+            (Some((k, rel)), _) => (Some(k), rel),
+            // in a segment of its own frame: held there, placed if the segment joins the map
+            (None, Some((root, (k, rel)))) => {
+                self.segment_frames.push((self.trajectory.len(), root, k));
+                (None, rel)
+            }
+            (None, None) => ((!self.loaded).then_some(0), Isometry3::identity()),
         };
         self.trajectory.push(FramePose {
             frame: i,
@@ -270,6 +284,9 @@ impl Tracking {
         times.extraction = tf.times.extraction;
         times.stereo = tf.times.stereo;
         times.tracking = tf.times.tracking;
+        if let Some(join) = &tf.joined {
+            self.join_segment(i, join)?;
+        }
         self.last_pose = tf.placed.then_some(tf.world_from_camera);
         self.count_state(i, &tf);
         self.map.count_sightings(&tf.sightings.visible, &tf.sightings.found);
@@ -288,6 +305,9 @@ impl Tracking {
         };
         if tf.placed {
             self.last_reference = Some(tf.reference);
+        } else if let Some(root) = tf.segment {
+            self.segment_frames.push((self.trajectory.len(), root, tf.reference.0));
+            self.segment_reference = Some((root, tf.reference));
         }
         self.trajectory.push(FramePose {
             frame: i,
@@ -342,6 +362,67 @@ impl Tracking {
                 Ok(None)
             }
         }
+    }
+
+    /// A segment tracked in a frame of its own joins the loaded map (frame `frame` of it was placed
+    /// there, [`slam_core::SegmentJoin`]): once local mapping's work on its keyframes is in the map (a
+    /// reply computed in the segment's frame must not land after the move), its keyframes and points
+    /// move into the map's frame ([`Map::join_segment`]); the newest keyframe of the segment and its
+    /// best covisible ones are fused with the keyframe it was placed against and that one's best
+    /// covisible ones (a corner both saw becomes one point, and the two parts share points from then
+    /// on, so local bundle adjustment holds them together); and the frames tracked in the segment get
+    /// their poses in the map.
+    fn join_segment(&mut self, frame: usize, join: &slam_core::SegmentJoin) -> Result<(), SystemError> {
+        self.drain_replies()?;
+        let (keyframes, points) = self.map.join_segment(join.root, &join.map_from_segment, join.anchor);
+        if keyframes == 0 {
+            // the segment's first keyframe is not in the map (it was refused when handed over): its
+            // frames keep no pose rather than name a keyframe the map lacks
+            tracing::warn!(
+                frame,
+                segment = join.root,
+                "the segment to join is not in the map: its frames stay without a pose"
+            );
+            self.segment_frames.retain(|f| f.1 != join.root);
+            self.segment_reference = None;
+            return Ok(());
+        }
+        // as local mapping fuses a new keyframe: its best covisible keyframes, and theirs
+        let window = slam_core::map::local::WindowConfig::default();
+        let best = |m: &Map, k: KeyframeId, n: usize| std::iter::once(k).chain(m.covisibility().best(k, n)).collect();
+        let newest = self.map.keyframes().map(|k| k.id).filter(|&k| k >= join.root).max();
+        let ours: Vec<KeyframeId> = newest.map(|k| best(&self.map, k, window.second_neighbours)).unwrap_or_default();
+        let theirs: Vec<KeyframeId> = best(&self.map, join.anchor, window.neighbours);
+        let fusion = slam_core::map::fusion::Fusion::default();
+        let mut merged = 0;
+        for k in ours {
+            merged += self.map.fuse(k, &theirs, &fusion).merged;
+        }
+        self.counts.fused_points += merged;
+        let mut placed = 0;
+        let trajectory = &mut self.trajectory;
+        self.segment_frames.retain(|&(at, root, kf)| {
+            if root != join.root {
+                return true;
+            }
+            if let Some(f) = trajectory.get_mut(at) {
+                f.keyframe = Some(kf);
+                placed += 1;
+            }
+            false
+        });
+        self.segment_reference = None;
+        self.counts.joined_segments += 1;
+        tracing::info!(
+            frame,
+            keyframes,
+            points,
+            merged,
+            frames = placed,
+            moved_m = join.map_from_segment.translation.vector.norm(),
+            "the segment tracked beside the loaded map joined it: its keyframes, points and frames now in the map's frame"
+        );
+        Ok(())
     }
 
     /// The points keyframe `id` observes, as the object cues read them (a stereo keypoint's own stereo

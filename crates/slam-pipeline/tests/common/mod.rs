@@ -208,6 +208,8 @@ impl StereoTracker for ScriptedTracker {
             sightings: Sightings::default(),
             times: StageTimes::default(),
             placed: true,
+            segment: None,
+            joined: None,
         })
     }
 
