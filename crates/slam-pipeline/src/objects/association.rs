@@ -160,6 +160,15 @@ impl ObjectMapper {
             flow,
             keyframe: true,
         });
+        if tracing::enabled!(tracing::Level::TRACE) {
+            for (d, t) in detections.iter().zip(&out.tracks) {
+                let p = t.and_then(|t| predicted.get(&t));
+                tracing::trace!(frame, class = d.class.0, bbox = ?d.bbox.to_array(), track = ?t.map(|t| t.0), predicted = ?p.map(|b| b.to_array()), "associated");
+            }
+            for (id, b) in &predicted {
+                tracing::trace!(frame, track = id.0, predicted = ?b.to_array(), "predicted box");
+            }
+        }
         self.count_misses(camera, &projected, detections, &out.tracks);
         for (k, (t, d)) in out.tracks.iter().zip(detections).enumerate() {
             let Some(id) = *t else { continue };
