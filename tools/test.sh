@@ -6,6 +6,10 @@
 # the shipped excerpt read back with rerun's own decoder) runs in CI too; rerun's SDK adds about 12-17
 # minutes to a first build on 2 cores (README, "A run in 3-D"). SLAM_TEST_RERUN=0 leaves it out (the
 # tests then check that --rerun is refused without the feature).
+# Then the Python tests (issue 49, crates/slam-py/tests): the quadric_slam wheel built once (tools/wheel.sh),
+# installed into .py/test (tools/setup.sh), and pytest against it: the oracle vectors against the Rust
+# crate, bad input, the wheel's portability and a fresh virtual environment, load_run on the main job's
+# output, the fleet on a local two-node Ray cluster with one broken drive.
 # tools/setup.sh installs ONNX Runtime (the detector's runtime) into .ort/ first. The detector's CUDA test
 # needs a GPU: a plain cargo test lists it as ignored; it runs here, after the suite, where nvidia-smi lists
 # a GPU (setup then installed the GPU runtime too).
@@ -25,3 +29,10 @@ if command -v nvidia-smi >/dev/null 2>&1 && nvidia-smi -L 2>/dev/null | grep -q 
 else
   echo "test.sh: the detector's CUDA test (slam-frontend, tests/gpu.rs) skipped: no GPU found (nvidia-smi lists none)"
 fi
+# the Python module and the fleet, against the wheel as a user installs it
+start=$(date +%s)
+wheel=$(bash tools/wheel.sh | tail -n 1)
+.py/test/bin/pip install -q --disable-pip-version-check --force-reinstall --no-deps "$wheel"
+echo "test.sh: wheel built and installed in $(( $(date +%s) - start )) s: $wheel"
+SLAM_APP="$(pwd)/target/release/slam-app" QUADRIC_SLAM_WHEEL="$(pwd)/$wheel" \
+  .py/test/bin/python -m pytest -q -p no:cacheprovider crates/slam-py/tests

@@ -1,0 +1,178 @@
+"""The fleet on a two-node Ray cluster on this machine: four drive excerpts mapped with results identical
+to sequential slam-app runs, one broken drive reported with its error after its second attempt, the
+summary table as CSV and Parquet.
+
+The cluster: ``ray start --head`` and a second ``ray start --address``, both on a loopback address, one CPU
+each. (Ray replaces 127.0.0.1 given as a node's address by the machine's network address, so the nodes
+use 127.0.0.2, which is loopback too.) Both run in the foreground (``--block``) as this test's own
+processes and are stopped by their ids.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pytest
+
+from quadric_slam import fleet
+
+LOOPBACK = "127.0.0.2"
+
+EXCERPTS = [
+    ("fixtures/kitti_odom_06/sequences/06", ("--frames", "0..12")),
+    ("fixtures/kitti_odom_06/sequences/06", ("--frames", "20..32")),
+    ("fixtures/kitti_odom_01/sequences/01", ("--frames", "0..12")),
+    ("fixtures/kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync", ("--frames", "0..12")),
+]
+SAME_FILES = ("trajectory.kitti.txt", "trajectory.tum.txt", "map.json", "map.features", "objects.json", "camera.json")
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind((LOOPBACK, 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A head node and a worker node, one CPU each; yields the head's address."""
+    ray = Path(sys.executable).with_name("ray")
+    tmp = tempfile.mkdtemp(prefix="rt", dir="/tmp")  # Ray's socket paths must stay short
+    env = dict(os.environ, RAY_TMPDIR=tmp, RAY_USAGE_STATS_ENABLED="0")
+    port = free_port()
+    address = f"{LOOPBACK}:{port}"
+    common = ["--block", "--num-cpus=1", f"--node-ip-address={LOOPBACK}", "--disable-usage-stats"]
+    logs = open(Path(tmp) / "ray-start.log", "w")
+    nodes = [
+        subprocess.Popen([str(ray), "start", "--head", f"--port={port}", "--include-dashboard=false", *common], env=env, stdout=logs, stderr=subprocess.STDOUT, start_new_session=True)
+    ]
+    try:
+        import ray as ray_api
+
+        deadline = time.time() + 120
+        while time.time() < deadline:
+            probe = subprocess.run([str(ray), "status", f"--address={address}"], env=env, capture_output=True, text=True)
+            if probe.returncode == 0:
+                break
+            time.sleep(1)
+        nodes.append(
+            subprocess.Popen([str(ray), "start", f"--address={address}", *common], env=env, stdout=logs, stderr=subprocess.STDOUT, start_new_session=True)
+        )
+        while time.time() < deadline:
+            ray_api.init(address=address, logging_level="warning")
+            alive = [n for n in ray_api.nodes() if n["Alive"]]
+            ray_api.shutdown()
+            if len(alive) == 2:
+                break
+            time.sleep(1)
+        else:
+            pytest.fail(f"the two-node cluster did not come up: {(Path(tmp) / 'ray-start.log').read_text()[-3000:]}")
+        assert {n["NodeManagerAddress"] for n in alive} == {LOOPBACK}
+        yield address
+    finally:
+        for p in reversed(nodes):
+            # the foreground `ray start` stops what it started on SIGTERM; its session is its own
+            if p.poll() is None:
+                os.killpg(p.pid, signal.SIGTERM)
+        for p in nodes:
+            try:
+                p.wait(timeout=60)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+        logs.close()
+
+
+def sequential(repo, slam_app, tmp_path):
+    outs = []
+    for k, (path, options) in enumerate(EXCERPTS):
+        out = tmp_path / f"seq{k}"
+        subprocess.run([str(slam_app), "run", path, "--out", str(out), *options], cwd=repo, check=True, capture_output=True)
+        outs.append(out)
+    return outs
+
+
+def tracking_without_times(path: Path):
+    with open(path, newline="") as f:
+        return [row[:-1] for row in csv.reader(f)]
+
+
+def test_fleet_on_two_nodes(cluster, repo, slam_app, tmp_path):
+    broken = tmp_path / "broken-drive"
+    (broken / "image_0").mkdir(parents=True)
+    drives = [fleet.Drive(str(repo / p), o) for p, o in EXCERPTS[:2]]
+    drives.append(fleet.Drive(str(broken), ()))
+    drives += [fleet.Drive(str(repo / p), o) for p, o in EXCERPTS[2:]]
+    out = tmp_path / "fleet"
+    rows = fleet.map_drives(drives, out, address=cluster, slam_app=slam_app, cwd=repo, progress=True)
+    assert [r.drive for r in rows] == [
+        "06_frames-0..12",
+        "06_frames-20..32",
+        "broken-drive",
+        "01_frames-0..12",
+        "2011_09_26_drive_0005_sync_frames-0..12",
+    ]
+    done = [r for r in rows if r.status == "done"]
+    failed = [r for r in rows if r.status != "done"]
+    assert len(done) == 4 and [r.drive for r in failed] == ["broken-drive"]
+    # the broken drive: run twice, reported with slam-app's own error
+    bad = failed[0]
+    assert bad.attempts == 2 and "not a KITTI stereo sequence" in bad.error and "exit status 1" in bad.error
+    assert (out / "broken-drive" / "attempt-2.stderr.txt").is_file() and (out / "broken-drive" / "error.txt").is_file()
+    # both nodes took tasks
+    assert len({r.node for r in rows}) == 2, [r.node for r in rows]
+    # the results equal sequential runs of the same excerpts
+    for r, seq in zip(done, sequential(repo, slam_app, tmp_path)):
+        run = out / r.output
+        for name in SAME_FILES:
+            assert (run / name).read_bytes() == (seq / name).read_bytes(), f"{r.drive}: {name} differs"
+        assert tracking_without_times(run / "tracking.csv") == tracking_without_times(seq / "tracking.csv")
+        assert r.frames == 12 and r.tracked >= 10 and r.keyframes >= 2 and r.attempts == 1
+        assert r.ate_m is not None and 0 <= r.ate_aligned_m <= r.ate_m < 2, r
+        assert r.time_s > 0 and r.cpu_s > 0
+    # the summary table: CSV and Parquet, one row per drive in the order given
+    with open(out / "summary.csv", newline="") as f:
+        table = list(csv.DictReader(f))
+    assert tuple(table[0]) == fleet.COLUMNS
+    assert [t["drive"] for t in table] == [r.drive for r in rows]
+    assert table[2]["status"] == "failed" and table[2]["ate_m"] == "" and table[2]["attempts"] == "2"
+    import pyarrow.parquet as pq
+
+    parquet = pq.read_table(out / "summary.parquet").to_pylist()
+    assert [p["drive"] for p in parquet] == [t["drive"] for t in table]
+    assert parquet[0]["frames"] == 12 and parquet[2]["frames"] is None and parquet[2]["status"] == "failed"
+    assert parquet[3]["ate_m"] == pytest.approx(rows[3].ate_m)
+
+
+def test_drive_lists_and_names(tmp_path):
+    listing = tmp_path / "drives.txt"
+    listing.write_text("# two excerpts of one drive\n/data/06 --frames 0..20\n\n/data/06 --frames 20..40 --name later\n/data/06\n/data/06\n")
+    drives = fleet.read_drive_list(listing)
+    assert drives[0] == fleet.Drive("/data/06", ("--frames", "0..20"))
+    assert drives[1] == fleet.Drive("/data/06", ("--frames", "20..40"), "later")
+    assert fleet.drive_names(drives) == ["06_frames-0..20", "later", "06", "06-2"]
+    with pytest.raises(fleet.FleetError, match="names given twice"):
+        fleet.drive_names([fleet.Drive("/a", (), "x"), fleet.Drive("/b", (), "x")])
+    bad = tmp_path / "bad.txt"
+    bad.write_text("/data/06 --frames '0..20\n")
+    with pytest.raises(fleet.FleetError, match=r"bad\.txt line 1: "):
+        fleet.read_drive_list(bad)
+
+
+def test_an_output_folder_of_something_else_is_refused(tmp_path):
+    (tmp_path / "mine.txt").write_text("keep me")
+    with pytest.raises(fleet.FleetError, match="was not written by slam-fleet"):
+        fleet.map_drives([fleet.Drive("/data/06")], tmp_path)
+    assert (tmp_path / "mine.txt").read_text() == "keep me"
+
+
+def test_the_command_line_reports_usage_errors(tmp_path, capsys):
+    assert fleet.main(["--out", str(tmp_path / "o"), "--list", str(tmp_path / "none.txt")]) == 2
+    assert "cannot read the drive list" in capsys.readouterr().err
