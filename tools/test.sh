@@ -35,4 +35,4 @@ wheel=$(bash tools/wheel.sh | tail -n 1)
 .py/test/bin/pip install -q --disable-pip-version-check --force-reinstall --no-deps "$wheel"
 echo "test.sh: wheel built and installed in $(( $(date +%s) - start )) s: $wheel"
 SLAM_APP="$(pwd)/target/release/slam-app" QUADRIC_SLAM_WHEEL="$(pwd)/$wheel" \
-  .py/test/bin/python -m pytest -q -p no:cacheprovider crates/slam-py/tests
+  .py/test/bin/python -m pytest -q -p no:cacheprovider --durations=5 crates/slam-py/tests

@@ -367,7 +367,9 @@ def map_drives(
         drives: the drives (relative paths are made absolute here, on the driver).
         out_dir: the fleet's folder: new, empty, or written by an earlier fleet.
         address: an existing Ray cluster (``ray start --head`` prints it, or ``auto``); None: a local
-            cluster for this call. Ray already initialised in this process is used as it is.
+            cluster for this call, its workers at niceness 0 (Ray's default is 15: start a cluster's
+            nodes with ``RAY_worker_niceness=0`` in their environment for the same). Ray already
+            initialised in this process is used as it is.
         slam_app: the executable on the nodes; else ``$SLAM_APP``, else ``slam-app`` on each node's PATH.
         cwd: the working directory of the runs on the nodes (where slam-app looks for ``fixtures/`` and
             ``.ort/`` first).
@@ -387,13 +389,20 @@ def map_drives(
     if retries < 0 or not cpus_per_task > 0:
         raise FleetError("retries must be >= 0 and cpus_per_task > 0")
     names = drive_names(drives)
+    ray = _ray()
     out = Path(out_dir)
     _prepare_output(out, names)
-    ray = _ray()
     started_here = False
     if not ray.is_initialized():
         if address is None:
-            ray.init(include_dashboard=False, logging_level="warning", log_to_driver=False)
+            # Ray runs its workers at niceness 15 by default, so that a run would yield the CPU to anything
+            # else on the machine; a fleet's runs are the work, at the driver's priority
+            ray.init(
+                include_dashboard=False,
+                logging_level="warning",
+                log_to_driver=False,
+                _system_config={"worker_niceness": 0},
+            )
         else:
             ray.init(address=address, logging_level="warning", log_to_driver=False)
         started_here = True
