@@ -10,7 +10,7 @@ use slam_quadric::{
 
 use crate::convert::{
     batch, bbox, fixed, image_size, matrix_to_numpy, pose, pose_rows, projection_error, rigid, to_numpy, value_error,
-    vector_to_numpy, with_batch, Array,
+    vector_to_numpy, with_batch, Array, ProjectionError,
 };
 
 /// A pinhole camera at a pose: calibration ``K`` and its world-from-camera pose.
@@ -377,9 +377,20 @@ impl DualConic {
 ///         (its outline is then not an ellipse).
 #[pyfunction]
 pub fn project(ellipsoid: &Ellipsoid, camera: &Camera) -> PyResult<DualConic> {
-    q::project(&ellipsoid.inner, &camera.inner)
-        .map(|inner| DualConic { inner })
-        .map_err(|e| projection_error(e, "ellipsoid"))
+    let inner = q::project(&ellipsoid.inner, &camera.inner).map_err(|e| projection_error(e, "ellipsoid"))?;
+    if !finite_conic(&inner) {
+        return Err(ProjectionError::new_err(format!("ellipsoid: {OVERFLOW}")));
+    }
+    Ok(DualConic { inner })
+}
+
+/// Why a projection of finite inputs is refused when its conic is not finite.
+const OVERFLOW: &str = "its projection overflows: the ellipsoid's or the camera's numbers are too large for \
+                        double precision (a conic entry is infinite or NaN)";
+
+/// Every entry of the conic finite: finite inputs can still overflow (a centre at 1e300 m).
+fn finite_conic(c: &q::DualConic) -> bool {
+    c.0.iter().all(|v| v.is_finite())
 }
 
 /// Ellipsoids of a batch: poses `(N, 4, 4)` and axes `(N, 3)`.
@@ -440,6 +451,10 @@ where
         (out, first_error)
     });
     match (first_error, mode) {
+        // finite inputs whose projection is not finite overflowed (the inputs were checked)
+        (Some((i, q::ProjectionError::NotFinite)), OnError::Raise) => {
+            Err(ProjectionError::new_err(format!("ellipsoid {i}: {OVERFLOW}")))
+        }
         (Some((i, err)), OnError::Raise) => Err(projection_error(err, &format!("ellipsoid {i}"))),
         _ => Ok(out),
     }
@@ -471,6 +486,9 @@ pub fn project_many<'py>(
     let cam = camera.inner;
     let out = run_batch(py, es, 9, mode, move |e, row| {
         let c = q::project(e, &cam)?;
+        if !finite_conic(&c) {
+            return Err(q::ProjectionError::NotFinite);
+        }
         for (k, v) in row.iter_mut().enumerate() {
             *v = c.0[(k / 3, k % 3)];
         }
@@ -510,7 +528,11 @@ pub fn bounds_many<'py>(
     let n = es.len();
     let cam = camera.inner;
     let out = run_batch(py, es, 4, mode, move |e, row| {
-        let b = model.bounds(&q::project(e, &cam)?)?;
+        let c = q::project(e, &cam)?;
+        if !finite_conic(&c) {
+            return Err(q::ProjectionError::NotFinite);
+        }
+        let b = model.bounds(&c)?;
         row.copy_from_slice(&b.to_array());
         Ok(())
     })?;
@@ -544,6 +566,8 @@ pub fn predict_box<'py>(
         Some(s) => BoundsModel::Clipped(self::image_size(s, "image_size")?),
         None => BoundsModel::Full,
     };
+    // refuses what project refuses, an overflow included, with the same text
+    project(ellipsoid, camera)?;
     let p = q::predict_box(&ellipsoid.inner, &camera.inner, &model).map_err(|e| projection_error(e, "ellipsoid"))?;
     Ok((
         vector_to_numpy(py, &p.bbox.to_array())?,

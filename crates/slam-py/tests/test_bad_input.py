@@ -74,6 +74,20 @@ def test_projection_failures_are_value_errors_naming_the_reason():
         qs.DualConic(np.diag([1.0, 1.0, 1.0])).bounds()
 
 
+def test_numbers_too_large_for_double_precision_are_refused():
+    """Finite inputs whose projection overflows (a centre 1e300 m away) are refused, not a conic of infinities."""
+    cam = qs.Camera(K)
+    far = qs.Ellipsoid.from_centre([0.0, 0.0, 1e300], [1.0, 1.0, 1.0])
+    for call in (lambda: qs.project(far, cam), lambda: qs.predict_box(far, cam)):
+        with pytest.raises(qs.ProjectionError, match="^ellipsoid: its projection overflows"):
+            call()
+    poses = np.stack([car_pose(), far.pose])
+    with pytest.raises(qs.ProjectionError, match=r"^ellipsoid 1: its projection overflows"):
+        qs.bounds_many(poses, np.ones((2, 3)), cam)
+    out = qs.project_many(poses, np.ones((2, 3)), cam, errors="nan")
+    assert np.isfinite(out[0]).all() and np.isnan(out[1]).all()
+
+
 def test_batches_name_the_item():
     cam = qs.Camera(K)
     poses = np.stack([car_pose()] * 4)
