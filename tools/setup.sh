@@ -11,7 +11,7 @@
 #     .ort/gpu.path, and the folders of those CUDA libraries in .ort/gpu.libs (for --device cuda).
 #   - Python tools for the quadric_slam wheel (crates/slam-py, issue 49), pinned, each in a virtual environment
 #     of .py/: build (maturin and ziglang: tools/wheel.sh links the wheel through zig against glibc 2.17) and
-#     test (numpy, pytest, ray, pyarrow, matplotlib: the Python tests that tools/test.sh runs).
+#     test (numpy, pytest, ray, pyarrow, matplotlib, rosbags: the Python tests that tools/test.sh runs).
 # Prints one line per component and does nothing when everything is present.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -110,7 +110,7 @@ fi
 # Python environments of the quadric_slam wheel (issue 49). Pinned: the versions the wheel was built and tested
 # with. ray's wheel is the large one (about 70 MB to download, 500 MB installed with its dependencies).
 PY_BUILD="maturin==1.16.0 ziglang==0.17.1"
-PY_TEST="numpy==2.4.6 pytest==9.2.0 ray==2.60.0 pyarrow==26.0.1 matplotlib==3.11.2"
+PY_TEST="numpy==2.4.6 pytest==9.2.0 ray==2.60.0 pyarrow==26.0.1 matplotlib==3.11.2 rosbags==0.11.9"
 
 # install_python_env NAME REQUIREMENTS: a virtual environment .py/NAME holding them, recorded in .py/NAME/installed
 install_python_env() {

@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 import pytest
+from bagmaker import write_bag
 
 from quadric_slam import fleet
 
@@ -41,13 +42,23 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+def listening(port: int) -> bool:
+    with socket.socket() as s:
+        s.settimeout(1.0)
+        return s.connect_ex((LOOPBACK, port)) == 0
+
+
 @pytest.fixture(scope="module")
 def cluster():
     """A head node and a worker node, one CPU each; yields the head's address."""
     ray = Path(sys.executable).with_name("ray")
     tmp = tempfile.mkdtemp(prefix="rt", dir="/tmp")  # Ray's socket paths must stay short
-    # workers at niceness 0 (Ray's default 15 makes the runs yield to anything else on the machine)
-    env = dict(os.environ, RAY_TMPDIR=tmp, RAY_USAGE_STATS_ENABLED="0", RAY_worker_niceness="0")
+    # workers at niceness 0 (Ray's default 15 makes the runs yield to anything else on the machine); no
+    # token authentication on this loopback-only cluster (Ray turns it on when ~/.ray/auth_token exists, and
+    # the driver in this process must then hold the same token)
+    env = dict(os.environ, RAY_TMPDIR=tmp, RAY_USAGE_STATS_ENABLED="0", RAY_worker_niceness="0", RAY_AUTH_MODE="disabled")
+    saved_mode = os.environ.get("RAY_AUTH_MODE")
+    os.environ["RAY_AUTH_MODE"] = "disabled"
     port = free_port()
     address = f"{LOOPBACK}:{port}"
     common = ["--block", "--num-cpus=1", f"--node-ip-address={LOOPBACK}", "--disable-usage-stats"]
@@ -58,27 +69,31 @@ def cluster():
     try:
         import ray as ray_api
 
-        deadline = time.time() + 120
-        while time.time() < deadline:
-            probe = subprocess.run([str(ray), "status", f"--address={address}"], env=env, capture_output=True, text=True)
-            if probe.returncode == 0:
-                break
+        # a loaded machine starts Ray slowly: wait for the head's GCS port, then for both nodes
+        deadline = time.time() + 300
+        while time.time() < deadline and not listening(port):
+            assert nodes[0].poll() is None, (Path(tmp) / "ray-start.log").read_text()[-3000:]
             time.sleep(1)
         nodes.append(
             subprocess.Popen([str(ray), "start", f"--address={address}", *common], env=env, stdout=logs, stderr=subprocess.STDOUT, start_new_session=True)
         )
+        alive = []
         while time.time() < deadline:
             ray_api.init(address=address, logging_level="warning")
             alive = [n for n in ray_api.nodes() if n["Alive"]]
             ray_api.shutdown()
             if len(alive) == 2:
                 break
-            time.sleep(1)
+            time.sleep(2)
         else:
             pytest.fail(f"the two-node cluster did not come up: {(Path(tmp) / 'ray-start.log').read_text()[-3000:]}")
         assert {n["NodeManagerAddress"] for n in alive} == {LOOPBACK}
         yield address
     finally:
+        if saved_mode is None:
+            os.environ.pop("RAY_AUTH_MODE", None)
+        else:
+            os.environ["RAY_AUTH_MODE"] = saved_mode
         for p in reversed(nodes):
             # the foreground `ray start` stops what it started on SIGTERM; its session is its own
             if p.poll() is None:
@@ -111,6 +126,8 @@ def test_fleet_on_two_nodes(cluster, repo, slam_app, tmp_path):
     drives = [fleet.Drive(str(repo / p), o) for p, o in EXCERPTS[:2]]
     drives.append(fleet.Drive(str(broken), ()))
     drives += [fleet.Drive(str(repo / p), o) for p, o in EXCERPTS[2:]]
+    # and the first excerpt again, recorded as a ROS bag: the task turns it into a sequence first
+    drives.append(fleet.Drive(str(write_bag(tmp_path / "drive06.bag", repo, frames=12)), ()))
     out = tmp_path / "fleet"
     rows = fleet.map_drives(drives, out, address=cluster, slam_app=slam_app, cwd=repo, progress=True)
     assert [r.drive for r in rows] == [
@@ -119,10 +136,12 @@ def test_fleet_on_two_nodes(cluster, repo, slam_app, tmp_path):
         "broken-drive",
         "01_frames-0..12",
         "2011_09_26_drive_0005_sync_frames-0..12",
+        "drive06.bag",
     ]
     done = [r for r in rows if r.status == "done"]
     failed = [r for r in rows if r.status != "done"]
-    assert len(done) == 4 and [r.drive for r in failed] == ["broken-drive"]
+    assert len(done) == 5 and [r.drive for r in failed] == ["broken-drive"]
+    from_bag = done.pop()
     # the broken drive: run twice, reported with slam-app's own error
     bad = failed[0]
     assert bad.attempts == 2 and "not a KITTI stereo sequence" in bad.error and "exit status 1" in bad.error
@@ -138,6 +157,10 @@ def test_fleet_on_two_nodes(cluster, repo, slam_app, tmp_path):
         assert r.frames == 12 and r.tracked >= 10 and r.keyframes >= 2 and r.attempts == 1
         assert r.ate_m is not None and 0 <= r.ate_aligned_m <= r.ate_m < 2, r
         assert r.time_s > 0 and r.cpu_s > 0
+    # the bag: the first excerpt's results (it carries no ground truth: no ATE)
+    assert from_bag.frames == 12 and from_bag.ate_m is None
+    for name in ("trajectory.kitti.txt", "objects.json", "camera.json"):
+        assert (out / from_bag.output / name).read_bytes() == (out / done[0].output / name).read_bytes(), name
     # the summary table: CSV and Parquet, one row per drive in the order given
     with open(out / "summary.csv", newline="") as f:
         table = list(csv.DictReader(f))

@@ -8,6 +8,9 @@ or from a shell, ``slam-fleet DRIVE... --out DIR`` (``--list FILE``: one drive a
 own ``slam-app run`` options). ``address`` / ``--address`` names an existing cluster (``ray start
 --head`` prints it; ``auto`` finds the local one); without it a local cluster is started for the call.
 
+A drive is a folder ``slam-app run`` reads (any KITTI stereo layout) or a ROS bag (a ``.bag`` file, or a ROS 2
+bag folder), which the task first turns into a KITTI sequence in its temporary folder (``quadric_slam.bags``).
+
 What a task does: runs ``slam-app run DRIVE --out TMP OPTIONS`` in a temporary folder of the node it runs
 on, reads the run's figures there (frames, tracked, keyframes, objects, ATE where the sequence has
 ground truth), and hands the output folder back as one uncompressed tar archive through Ray's object
@@ -45,6 +48,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple
 
+from . import bags
 from .results import STATES, PathLike, RunError, find_slam_app, ground_truth_errors, last_lines
 
 #: The columns of the summary table, in order.
@@ -235,7 +239,12 @@ def map_one(spec: Dict[str, Any]) -> Dict[str, Any]:
     tmp = Path(tempfile.mkdtemp(prefix="slam-fleet-"))
     try:
         out = tmp / "run"
-        cmd = [find_slam_app(spec.get("slam_app")), "run", spec["path"], "--out", str(out), *spec["options"]]
+        sequence = spec["path"]
+        if bags.is_bag(sequence):
+            topics = spec.get("bag_topics") or (None, None)
+            sequence = str(bags.to_kitti(sequence, tmp / "bag", left=topics[0], right=topics[1]))
+            result["converted_s"] = time.time() - task_start
+        cmd = [find_slam_app(spec.get("slam_app")), "run", sequence, "--out", str(out), *spec["options"]]
         with open(tmp / "stdout", "w+b") as so, open(tmp / "stderr", "w+b") as se:
             result["run_start"] = time.time()
             proc = subprocess.Popen(cmd, stdout=so, stderr=se, stdin=subprocess.DEVNULL, cwd=spec.get("cwd"))
@@ -262,7 +271,7 @@ def map_one(spec: Dict[str, Any]) -> Dict[str, Any]:
                 tar.add(path, arcname=str(path.relative_to(out)), recursive=False)
         result.update(status="done", archive=buffer.getvalue())
         return result
-    except (OSError, RunError, ValueError, KeyError) as e:
+    except (OSError, RunError, ValueError, KeyError) as e:  # BagError is a ValueError
         result.update(status="failed", error=f"{type(e).__name__}: {e}")
         return result
     finally:
@@ -360,6 +369,7 @@ def map_drives(
     cpus_per_task: float = 1.0,
     options: Sequence[str] = (),
     progress: bool = True,
+    bag_topics: Optional[Tuple[str, str]] = None,
 ) -> List[DriveResult]:
     """Map every drive with one Ray task each and gather the results into ``out_dir``.
 
@@ -377,6 +387,9 @@ def map_drives(
         cpus_per_task: CPUs Ray reserves for each task (a run uses about one core; its threads overlap).
         options: ``slam-app run`` options for every drive, before each drive's own.
         progress: draw a progress bar on stderr.
+        bag_topics: the left and right image topics of drives that are ROS bags (``quadric_slam.bags``:
+            each is turned into a KITTI sequence in the task's temporary folder first); None: the first
+            pair of ``bags.DEFAULT_TOPICS`` present.
 
     Returns:
         One row per drive, in the order given (also written to ``summary.csv`` and ``summary.parquet``).
@@ -414,6 +427,7 @@ def map_drives(
                 "options": [*options, *d.options],
                 "slam_app": None if slam_app is None else os.path.abspath(slam_app),
                 "cwd": None if cwd is None else os.path.abspath(cwd),
+                "bag_topics": None if bag_topics is None else tuple(bag_topics),
             }
             for d in drives
         ]
@@ -546,6 +560,15 @@ def _print_table(rows: Iterable[DriveResult]) -> None:
         print("| " + " | ".join(cell(d[c]) for c in cols) + " |")
 
 
+def _topics(text: Optional[str]) -> Optional[Tuple[str, str]]:
+    if text is None:
+        return None
+    parts = [t.strip() for t in text.split(",")]
+    if len(parts) != 2 or not all(parts):
+        raise FleetError(f"--bag-topics: expected LEFT,RIGHT, got {text!r}")
+    return parts[0], parts[1]
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """The ``slam-fleet`` command."""
     p = argparse.ArgumentParser(
@@ -553,7 +576,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         description="Map many drives at once on a Ray cluster: one task per drive running slam-app run; "
         "the results and a summary table (CSV and Parquet) in one folder.",
     )
-    p.add_argument("drives", nargs="*", help="drive folders (any KITTI stereo layout slam-app run reads)")
+    p.add_argument("drives", nargs="*", help="drives: folders of any KITTI stereo layout slam-app run reads, or ROS bags")
     p.add_argument("--list", dest="list_file", help="a file of drives: one a line, its path then its own slam-app run options")
     p.add_argument("--out", required=True, help="the fleet's output folder")
     p.add_argument("--address", help="an existing Ray cluster (as ray start --head prints it, or auto); default: a local one")
@@ -562,6 +585,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--retries", type=int, default=1, help="further attempts at a failed drive (default 1)")
     p.add_argument("--cpus-per-task", type=float, default=1.0, help="CPUs reserved for each run (default 1)")
     p.add_argument("--run-options", default="", help="slam-app run options for every drive, as one string")
+    p.add_argument("--bag-topics", help="LEFT,RIGHT: the image topics of drives that are ROS bags")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     a = p.parse_args(argv)
     try:
@@ -580,6 +604,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             cpus_per_task=a.cpus_per_task,
             options=shlex.split(a.run_options),
             progress=not a.no_progress,
+            bag_topics=_topics(a.bag_topics),
         )
     except (FleetError, RunError) as e:
         print(f"slam-fleet: error: {e}", file=sys.stderr)
