@@ -168,7 +168,7 @@ def to_kitti(
     pairs = _pair(images[left], images[right], int(max_skew * 1e9), bag)
     (seq / "image_0").mkdir(parents=True)
     (seq / "image_1").mkdir()
-    for k, ((stamp, l_png), (_, r_png)) in enumerate(pairs):
+    for k, ((_, l_png), (_, r_png)) in enumerate(pairs):
         (seq / "image_0" / f"{k:06}.png").write_bytes(l_png)
         (seq / "image_1" / f"{k:06}.png").write_bytes(r_png)
     p0, p1 = infos[info_topic[left]], infos[info_topic[right]]
@@ -176,7 +176,7 @@ def to_kitti(
         "".join(f"{name}: {' '.join(f'{v:.12e}' for v in p)}\n" for name, p in (("P0", p0), ("P1", p1)))
     )
     t0 = pairs[0][0][0]
-    (seq / "times.txt").write_text("".join(f"{(l[0] - t0) * 1e-9:.9e}\n" for l, _ in pairs))
+    (seq / "times.txt").write_text("".join(f"{(first[0] - t0) * 1e-9:.9e}\n" for first, _ in pairs))
     return seq
 
 
