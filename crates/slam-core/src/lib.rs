@@ -28,8 +28,7 @@ pub use detection::{ClassId, Detection, Mask, Region, TrackId, COCO_NAMES};
 pub use source::{DetectError, DetectionSource, Image};
 pub use tracking::{
     BoxQuery, FramePoint, KeyframeId, KeyframePoint, Map, MovingRegion, NewKeyframe, PointId, SegmentJoin, Sightings,
-    StageTimes,
-    StereoTracker, TrackError, TrackState, TrackedFrame,
+    StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
 };
 
 /// The map crate, re-exported so that users of the tracking seam need one dependency.
