@@ -1,7 +1,8 @@
 """Shared fixtures of the Python tests (run by tools/test.sh against the installed wheel).
 
-They need the repository (fixtures/, the oracle vectors), cargo (the Rust side of the oracle comparison)
-and a built slam-app: ``$SLAM_APP``, else ``target/release/slam-app``.
+They need the repository (fixtures/, the oracle vectors), the Rust side of the oracle comparison
+(``$ORACLE_VALUES``, else cargo builds it) and a built slam-app: ``$SLAM_APP``, else
+``target/release/slam-app``.
 """
 
 from __future__ import annotations
@@ -38,16 +39,21 @@ def oracle() -> dict:
 
 @pytest.fixture(scope="session")
 def rust_values(tmp_path_factory) -> dict:
-    """The geometry crate's own values on the oracle's inputs (its example oracle_values)."""
-    cargo = shutil.which("cargo")
-    if cargo is None:
-        pytest.fail("cargo not found: the oracle comparison runs the Rust side with it")
+    """The geometry crate's own values on the oracle's inputs (its example oracle_values): the executable
+    named by ``$ORACLE_VALUES`` (tools/test.sh passes the one its cargo test built, so that the crate is not
+    built a second time with other features), else built and run by cargo."""
     out = tmp_path_factory.mktemp("rust") / "values.json"
-    subprocess.run(
-        [cargo, "run", "--release", "-q", "-p", "slam-quadric", "--example", "oracle_values", "--", str(out)],
-        cwd=REPO,
-        check=True,
-    )
+    given = os.environ.get("ORACLE_VALUES")
+    if given:
+        if not (Path(given).is_file() and os.access(given, os.X_OK)):
+            pytest.fail(f"ORACLE_VALUES={given}: not an executable")
+        command = [given, str(out)]
+    else:
+        cargo = shutil.which("cargo")
+        if cargo is None:
+            pytest.fail("cargo not found: the oracle comparison runs the Rust side with it")
+        command = [cargo, "run", "--release", "-q", "-p", "slam-quadric", "--example", "oracle_values", "--", str(out)]
+    subprocess.run(command, cwd=REPO, check=True)
     with open(out, encoding="utf-8") as f:
         return json.load(f)
 

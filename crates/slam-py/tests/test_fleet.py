@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import csv
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -55,8 +56,16 @@ def cluster():
     tmp = tempfile.mkdtemp(prefix="rt", dir="/tmp")  # Ray's socket paths must stay short
     # workers at niceness 0 (Ray's default 15 makes the runs yield to anything else on the machine); no
     # token authentication on this loopback-only cluster (Ray turns it on when ~/.ray/auth_token exists, and
-    # the driver in this process must then hold the same token)
-    env = dict(os.environ, RAY_TMPDIR=tmp, RAY_USAGE_STATS_ENABLED="0", RAY_worker_niceness="0", RAY_AUTH_MODE="disabled")
+    # the driver in this process must then hold the same token); stopped at once (on SIGTERM a node first
+    # asks the head to drain it, for up to 30 s, which with the head stopped at the same time is 30 s lost)
+    env = dict(
+        os.environ,
+        RAY_TMPDIR=tmp,
+        RAY_USAGE_STATS_ENABLED="0",
+        RAY_worker_niceness="0",
+        RAY_AUTH_MODE="disabled",
+        RAY_GRACEFUL_SHUTDOWN_DRAIN_TIMEOUT_S="0",
+    )
     saved_mode = os.environ.get("RAY_AUTH_MODE")
     os.environ["RAY_AUTH_MODE"] = "disabled"
     port = free_port()
@@ -104,6 +113,7 @@ def cluster():
             except subprocess.TimeoutExpired:
                 os.killpg(p.pid, signal.SIGKILL)
         logs.close()
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def sequential(repo, slam_app, tmp_path):
