@@ -200,13 +200,31 @@ def test_drive_lists_and_names(tmp_path):
         fleet.read_drive_list(bad)
 
 
-def test_an_output_folder_of_something_else_is_refused(tmp_path):
+def test_an_output_folder_of_something_else_is_refused(tmp_path, slam_app):
     (tmp_path / "mine.txt").write_text("keep me")
     with pytest.raises(fleet.FleetError, match="was not written by slam-fleet"):
-        fleet.map_drives([fleet.Drive("/data/06")], tmp_path)
+        fleet.map_drives([fleet.Drive("/data/06")], tmp_path, slam_app=slam_app)
     assert (tmp_path / "mine.txt").read_text() == "keep me"
 
 
 def test_the_command_line_reports_usage_errors(tmp_path, capsys):
     assert fleet.main(["--out", str(tmp_path / "o"), "--list", str(tmp_path / "none.txt")]) == 2
     assert "cannot read the drive list" in capsys.readouterr().err
+
+
+def test_a_local_cluster_without_slam_app_is_refused_before_it_starts(tmp_path, monkeypatch, capsys):
+    # the local cluster's runs would run slam-app on this machine: none there is one error up front, not
+    # every drive failing twice; nothing is written and Ray is not started
+    monkeypatch.delenv("SLAM_APP", raising=False)
+    monkeypatch.setenv("PATH", "/usr/bin:/bin")
+    out = tmp_path / "fleet"
+    with pytest.raises(fleet.FleetError, match=r"slam-app: not found on PATH .*--slam-app to slam-fleet\); the local cluster"):
+        fleet.map_drives([fleet.Drive("/data/06")], out)
+    with pytest.raises(fleet.FleetError, match=r"/no/slam-app: not an executable slam-app"):
+        fleet.map_drives([fleet.Drive("/data/06")], out, slam_app="/no/slam-app")
+    assert fleet.main(["/data/06", "/data/07", "--out", str(out), "--slam-app", str(tmp_path)]) == 2
+    assert f"slam-fleet: error: {tmp_path}: not an executable slam-app" in capsys.readouterr().err
+    assert not out.exists()
+    import ray
+
+    assert not ray.is_initialized()

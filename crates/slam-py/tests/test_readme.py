@@ -52,7 +52,8 @@ def test_the_readme_plot_example_runs(main_job, tmp_path, monkeypatch):
     code = example("plot")
     assert 'qs.load_run("out/run")' in code
     monkeypatch.chdir(tmp_path)
+    (tmp_path / "out").mkdir()
     exec(compile(code.replace('"out/run"', repr(str(main_job))), "README.md", "exec"), {})
-    png = tmp_path / "run.png"
+    png = tmp_path / "out" / "run.png"
     assert png.is_file() and png.stat().st_size > 20_000
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

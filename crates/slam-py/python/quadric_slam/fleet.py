@@ -395,7 +395,8 @@ def map_drives(
         One row per drive, in the order given (also written to ``summary.csv`` and ``summary.parquet``).
 
     Raises:
-        FleetError: no drive, a name given twice, an output folder it may not write, Ray missing.
+        FleetError: no drive, a name given twice, an output folder it may not write, Ray missing, or
+            (for a local cluster) no slam-app on this machine.
     """
     if not drives:
         raise FleetError("no drive to map")
@@ -403,6 +404,12 @@ def map_drives(
         raise FleetError("retries must be >= 0 and cpus_per_task > 0")
     names = drive_names(drives)
     ray = _ray()
+    if address is None and not ray.is_initialized():
+        # the local cluster's runs run here: a slam-app missing here would fail every drive twice
+        try:
+            slam_app = find_slam_app(slam_app)
+        except RunError as e:
+            raise FleetError(f"{e}; the local cluster's runs need it on this machine") from None
     out = Path(out_dir)
     _prepare_output(out, names)
     started_here = False

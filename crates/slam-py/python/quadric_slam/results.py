@@ -392,7 +392,7 @@ def find_slam_app(slam_app: Optional[PathLike] = None) -> str:
     if found is None:
         raise RunError(
             "slam-app: not found on PATH (build it with `cargo build --release -p slam-app` and put target/release "
-            "on PATH, set SLAM_APP, or pass slam_app=)"
+            "on PATH, or set SLAM_APP, or name it: slam_app= in Python, --slam-app to slam-fleet)"
         )
     return found
 
