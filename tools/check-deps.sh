@@ -9,7 +9,9 @@
 #  5. slam-eval and everything below the front end stay free of OpenCV; slam-viz (pictures, above the
 #     front end) is used by slam-runner and slam-app only;
 #  6. slam-runner (the run-related commands' work, and the names of the implementations behind the seams)
-#     sits directly under slam-app: nothing else depends on it.
+#     sits directly under slam-app: nothing else depends on it;
+#  7. slam-py (the Python module quadric_slam) depends on slam-quadric, pyo3 and numpy only, so that its
+#     wheel builds without OpenCV or ONNX Runtime; nothing depends on it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export CARGO_NET_OFFLINE=true
@@ -126,3 +128,25 @@ if echo "$rerun_deps" | tr ' ' '\n' | grep -q '^re_'; then
   exit 1
 fi
 echo "check-deps: slam-rerun depends on [ $(echo "$rerun_deps" | tr ' ' '\n' | grep '^slam-' | tr '\n' ' ')] (+ rerun's crates with its feature rerun), and only slam-app depends on it: ok"
+
+# slam-py, the Python module of the geometry: slam-quadric, pyo3 and numpy only (the wheel builds on a machine
+# without OpenCV, ONNX Runtime or any other crate of the system), and no crate depends on it.
+py_deps=$(direct -p slam-py --all-features)
+if [ "$py_deps" != "numpy pyo3 slam-quadric " ]; then
+  echo "check-deps: slam-py must depend on slam-quadric, pyo3 and numpy only; found: $py_deps" >&2
+  exit 1
+fi
+for dep in $(cargo tree -q -p slam-py --all-features -e normal --prefix none | awk '{print $1}' | sort -u); do
+  case "$dep" in
+    opencv|ort|re_*) echo "check-deps: slam-py must not depend on $dep (the wheel needs no OpenCV, ONNX Runtime or rerun)" >&2; exit 1 ;;
+    slam-py|slam-quadric) ;;
+    slam-*) echo "check-deps: slam-py must not depend on $dep (only the geometry crate)" >&2; exit 1 ;;
+  esac
+done
+for crate in $(cargo metadata -q --offline --no-deps --format-version 1 | python3 -c 'import json,sys; print(" ".join(p["name"] for p in json.load(sys.stdin)["packages"]))'); do
+  if [ "$crate" != slam-py ] && workspace_deps "$crate" | tr ' ' '\n' | grep -qx slam-py; then
+    echo "check-deps: $crate must not depend on slam-py (the Python module is a leaf)" >&2
+    exit 1
+  fi
+done
+echo "check-deps: slam-py depends on [ $py_deps] (no OpenCV, no ONNX Runtime, no other slam crate), and no crate depends on it: ok"

@@ -9,6 +9,9 @@
 #     reads it (ORT_DYLIB_PATH, when set, takes precedence). Where nvidia-smi lists a GPU (or with
 #     SLAM_ORT_GPU=1) also the `onnxruntime-gpu` wheel with its CUDA and cuDNN wheels in .ort/gpu, recorded in
 #     .ort/gpu.path, and the folders of those CUDA libraries in .ort/gpu.libs (for --device cuda).
+#   - Python tools for the quadric_slam wheel (crates/slam-py, issue 49), pinned, each in a virtual environment
+#     of .py/: build (maturin and ziglang: tools/wheel.sh links the wheel through zig against glibc 2.17) and
+#     test (numpy, pytest, ray, pyarrow, matplotlib, rosbags: the Python tests that tools/test.sh runs).
 # Prints one line per component and does nothing when everything is present.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -103,3 +106,36 @@ if [ "${SLAM_ORT_GPU:-}" = 1 ] || { command -v nvidia-smi >/dev/null 2>&1 && nvi
 else
   echo "setup: no GPU found (nvidia-smi lists none): the GPU runtime is not installed (SLAM_ORT_GPU=1 installs it)" >&2
 fi
+
+# Python environments of the quadric_slam wheel (issue 49). Pinned: the versions the wheel was built and tested
+# with. ray's wheel is the large one (about 70 MB to download, 500 MB installed with its dependencies).
+PY_BUILD="maturin==1.16.0 ziglang==0.17.1"
+PY_TEST="numpy==2.4.6 pytest==9.2.0 ray==2.60.0 pyarrow==26.0.1 matplotlib==3.11.2 rosbags==0.11.9"
+
+# install_python_env NAME REQUIREMENTS: a virtual environment .py/NAME holding them, recorded in .py/NAME/installed
+install_python_env() {
+  local name=$1 requirements=$2
+  local venv
+  venv=$(pwd)/.py/$name
+  if [ -f "$venv/installed" ] && [ "$(cat "$venv/installed")" = "$requirements" ] && [ -x "$venv/bin/python" ]; then
+    echo "setup: Python environment .py/$name present ($requirements)" >&2
+    return
+  fi
+  echo "setup: installing $requirements into .py/$name" >&2
+  rm -rf "$venv"
+  mkdir -p "$(dirname "$venv")"
+  if ! python3 -m venv "$venv" >/dev/null 2>&1; then
+    SUDO=""
+    if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends python3-venv >/dev/null
+    rm -rf "$venv"
+    python3 -m venv "$venv"
+  fi
+  # shellcheck disable=SC2086
+  "$venv/bin/pip" install -q --disable-pip-version-check $requirements
+  echo "$requirements" >"$venv/installed"
+}
+
+install_python_env build "$PY_BUILD"
+install_python_env test "$PY_TEST"
