@@ -16,6 +16,7 @@ pub mod detection;
 pub mod figure;
 pub mod files;
 pub mod memory;
+pub mod rig;
 pub mod rng;
 pub mod source;
 pub mod tracking;
@@ -28,8 +29,7 @@ pub use detection::{ClassId, Detection, Mask, Region, TrackId, COCO_NAMES};
 pub use source::{DetectError, DetectionSource, Image};
 pub use tracking::{
     BoxQuery, FramePoint, KeyframeId, KeyframePoint, Map, MovingRegion, NewKeyframe, PointId, SegmentJoin, Sightings,
-    StageTimes,
-    StereoTracker, TrackError, TrackState, TrackedFrame,
+    StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
 };
 
 /// The map crate, re-exported so that users of the tracking seam need one dependency.
