@@ -32,9 +32,11 @@ pub mod inspect;
 pub mod map_bench;
 pub mod objects_bench;
 pub mod report;
+pub mod ros_output;
 pub mod run;
 pub mod settings;
 pub mod simulation;
+pub mod source;
 pub mod stereo;
 #[cfg(feature = "console")]
 pub mod studies;
@@ -47,4 +49,5 @@ pub use run::{
     prepare, AssociatorFactory, ObserverFactory, OptimizerFactory, Outcome, Prepared, RunObserver, RunSettings,
 };
 pub use settings::RunConfig;
+pub use source::SourceArgs;
 pub use wiring::{AssociatorKind, Method, OptimizerKind, Shape, Wiring};
