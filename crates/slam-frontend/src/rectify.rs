@@ -2,7 +2,7 @@
 //! applied to every frame: OpenCV's stereo rectification (`stereoRectify`, or its fisheye form for the
 //! equidistant model) when the rig is given by the right camera's pose, each camera's rectification as
 //! given otherwise (ORB-SLAM's `LEFT/RIGHT.R, P`, ROS's `CameraInfo` `R, P`); then one remap table per
-//! camera (`initUndistortRectifyMap`), applied with bilinear interpolation.
+//! camera (`initUndistortRectifyMap`, positions as floats), applied with bilinear interpolation.
 //!
 //! The rectified pair keeps the raw image size. Stereo rectification is asked for the largest images
 //! that hold only pixels the cameras saw (`alpha` 0, fisheye `balance` 0): a black border would give
@@ -94,15 +94,18 @@ fn size_of(c: &RawCamera) -> core::Size {
     core::Size::new(c.size.0 as i32, c.size.1 as i32)
 }
 
-/// The remap tables of one camera: raw pixel positions for every rectified pixel (fixed point).
+/// The remap tables of one camera: raw pixel positions for every rectified pixel, as 32-bit floats
+/// (OpenCV's fixed-point tables round positions to 1/32 px, up to a sixth of the 0.1 px sub-pixel
+/// stereo resolves; on the distorted odometry 06 of docs/datasets.md the rounding alone moved the
+/// aligned ATE by a third).
 fn tables(c: &RawCamera, r: &Matrix3<f64>, p: &Matrix3x4<f64>) -> Result<(Mat, Mat), FrontendError> {
     let (k, d, r, p) = (mat3(&c.k)?, coefficients(&c.distortion)?, mat3(r)?, mat34(p)?);
     let (mut m1, mut m2) = (Mat::default(), Mat::default());
     if fisheye(c) {
         let p3 = p.col_range(&core::Range::new(0, 3)?)?.try_clone()?;
-        calib3d::fisheye_init_undistort_rectify_map(&k, &d, &r, &p3, size_of(c), core::CV_16SC2, &mut m1, &mut m2)?;
+        calib3d::fisheye_init_undistort_rectify_map(&k, &d, &r, &p3, size_of(c), core::CV_32FC1, &mut m1, &mut m2)?;
     } else {
-        calib3d::init_undistort_rectify_map(&k, &d, &r, &p, size_of(c), core::CV_16SC2, &mut m1, &mut m2)?;
+        calib3d::init_undistort_rectify_map(&k, &d, &r, &p, size_of(c), core::CV_32FC1, &mut m1, &mut m2)?;
     }
     Ok((m1, m2))
 }
@@ -123,7 +126,7 @@ impl Rectifier {
                 }
                 let rot = right_from_left.rotation.to_rotation_matrix().into_inner();
                 let t: Vector3<f64> = right_from_left.translation.vector;
-                let (r, tv) = (mat3(&rot)?, Mat::from_slice(&[t.x, t.y, t.z])?.try_clone()?);
+                let (r, tv) = (mat3(&rot)?, Mat::from_slice_2d(&[[t.x], [t.y], [t.z]])?);
                 let (kl, dl, kr, dr) = (
                     mat3(&left.k)?,
                     coefficients(&left.distortion)?,
@@ -225,6 +228,38 @@ impl Rectifier {
     }
 }
 
+/// Where raw pixels `points` of `camera` (whose rectification is `r`, `p`) land in the rectified image:
+/// OpenCV's iterative `undistortPoints`, iterated to 1e-10 px.
+pub fn rectified_positions(
+    points: &[(f64, f64)],
+    camera: &RawCamera,
+    r: &Matrix3<f64>,
+    p: &Matrix3x4<f64>,
+) -> Result<Vec<(f64, f64)>, FrontendError> {
+    let pixels: core::Vector<core::Point2f> =
+        points.iter().map(|&(x, y)| core::Point2f::new(x as f32, y as f32)).collect();
+    let out = undistorted(&pixels, camera, r, p)?;
+    Ok(out.iter().map(|q| (f64::from(q.x), f64::from(q.y))).collect())
+}
+
+fn undistorted(
+    pixels: &core::Vector<core::Point2f>,
+    camera: &RawCamera,
+    r: &Matrix3<f64>,
+    p: &Matrix3x4<f64>,
+) -> Result<core::Vector<core::Point2f>, FrontendError> {
+    let (k, d, rm, pm) = (mat3(&camera.k)?, coefficients(&camera.distortion)?, mat3(r)?, mat34(p)?);
+    let mut out = core::Vector::<core::Point2f>::new();
+    let criteria = core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 200, 1e-10)?;
+    if fisheye(camera) {
+        let p3 = pm.col_range(&core::Range::new(0, 3)?)?.try_clone()?;
+        calib3d::fisheye_undistort_points(pixels, &mut out, &k, &d, &rm, &p3, criteria)?;
+    } else {
+        calib3d::undistort_points_iter(pixels, &mut out, &k, &d, &rm, &pm, criteria)?;
+    }
+    Ok(out)
+}
+
 /// The image a raw camera (`camera`, whose rectification is `r`, `p`) would have taken of the scene a
 /// rectified image shows: what rectifying undoes. Each raw pixel is undistorted and rotated into the
 /// rectified camera (OpenCV's iterative `undistortPoints`, iterated to 1e-10 px) and the rectified image
@@ -242,15 +277,7 @@ pub fn raw_from_rectified(
             pixels.push(core::Point2f::new(x as f32, y as f32));
         }
     }
-    let (k, d, rm, pm) = (mat3(&camera.k)?, coefficients(&camera.distortion)?, mat3(r)?, mat34(p)?);
-    let mut out = core::Vector::<core::Point2f>::new();
-    if fisheye(camera) {
-        let p3 = pm.col_range(&core::Range::new(0, 3)?)?.try_clone()?;
-        calib3d::fisheye_undistort_points(&pixels, &mut out, &k, &d, &rm, &p3, core::TermCriteria::default()?)?;
-    } else {
-        let criteria = core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 200, 1e-10)?;
-        calib3d::undistort_points_iter(&pixels, &mut out, &k, &d, &rm, &pm, criteria)?;
-    }
+    let out = undistorted(&pixels, camera, r, p)?;
     let mut map_x = Mat::new_rows_cols_with_default(h as i32, w as i32, core::CV_32FC1, core::Scalar::all(0.0))?;
     let mut map_y = map_x.clone();
     for (i, q) in out.iter().enumerate() {

@@ -31,6 +31,7 @@ pub mod in_map;
 pub mod inspect;
 pub mod map_bench;
 pub mod objects_bench;
+pub mod raw_rig;
 pub mod report;
 pub mod ros_output;
 pub mod run;
