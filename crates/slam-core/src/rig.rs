@@ -40,6 +40,8 @@ pub struct RawCamera {
 }
 
 /// What a calibration says about a stereo rig.
+// one value per run: the rectified variant's smaller size saves nothing worth a box
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum RigCalibration {
     /// The images are a rectified pair: used as they are.

@@ -239,7 +239,8 @@ fn read_kalibr_doc(path: &Path, doc: &Yaml) -> Result<CalibrationFile, DatasetEr
     );
     // camera 1's centre in camera 0's frame, −Rᵀt: the right camera lies to the right (positive x)
     let centre = -(r.transpose() * t);
-    if !(centre.x > 0.0) {
+    // (NaN refused too)
+    if centre.x.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return Err(keys.err(
             "cam1.T_cn_cnm1",
             format!("camera 1 lies at x = {:.4} m from camera 0: the right camera lies to the right of the left one (cameras swapped?)", centre.x),
@@ -329,7 +330,7 @@ fn read_orbslam_doc(path: &Path, doc: &Yaml) -> Result<CalibrationFile, DatasetE
     }
     let bf = n("Camera.bf")?;
     let baseline = bf / intrinsics[0];
-    if !(baseline > 0.0) {
+    if baseline.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return Err(keys.err("Camera.bf", format!("{bf}: fx times the baseline is positive")));
     }
     let size = match (&doc["Camera.width"], &doc["Camera.height"]) {

@@ -297,59 +297,6 @@ fn tag(m: &mut Mat, text: &str, org: core::Point, c: [u8; 3], scale: f64) -> Res
     Ok(())
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn overlay_draws_a_legend_panel_and_labels_on_their_colour() {
-        let white = Image::new(320, 120, 1, vec![255; 320 * 120]).expect("image");
-        let bbox = slam_core::geometry::BBox::new(150.0, 60.0, 300.0, 110.0);
-        let overlay = Overlay {
-            boxes: vec![(bbox, [40, 170, 60], "#3 car 0.91".into())],
-            legend: vec![([40, 170, 60], "static object".into()), ([40, 30, 220], "moving object".into())],
-            ..Overlay::default()
-        };
-        let out = draw_overlay(&white, &overlay).expect("draws");
-        assert_eq!(out.channels, 3);
-        let px = |x: usize, y: usize| {
-            let k = 3 * (y * out.width as usize + x);
-            [out.data[k], out.data[k + 1], out.data[k + 2]]
-        };
-        // the panel darkens the image behind the legend; its first swatch has the first entry's colour
-        assert_eq!(px(100, 10), [89, 89, 89], "dark panel (0.35 × 255)");
-        assert_eq!(px(15, 14), [40, 170, 60]);
-        assert_eq!(px(15, 32), [40, 30, 220]);
-        // outside the panel and the box the image is untouched
-        assert_eq!(px(100, 100), [255, 255, 255]);
-        // the box label sits on a filled tag of the box's colour, just above the box
-        let tag = (150..230).filter(|&x| px(x, 50) == [40, 170, 60]).count();
-        assert!(tag > 20, "{tag} tag pixels");
-    }
-
-    /// A JPEG of a grey gradient decodes (through OpenCV's reader) to the same size and grey layout,
-    /// within a few grey levels of the original: JPEG is lossy, and at quality 90 a smooth gradient
-    /// keeps its values to within about 2 levels.
-    #[test]
-    fn jpeg_encoding_keeps_size_and_grey_levels() {
-        let (w, h) = (96u32, 40u32);
-        let data: Vec<u8> = (0..h).flat_map(|_| (0..w).map(|x| (x * 2) as u8)).collect();
-        let grey = Image::new(w, h, 1, data.clone()).expect("image");
-        let bytes = encode_jpeg(&grey, 90).expect("encodes");
-        assert_eq!(&bytes[..3], &[0xFF, 0xD8, 0xFF], "a JPEG starts with SOI and a marker");
-        let dir = std::env::temp_dir().join(format!("slam-frontend-jpeg-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).expect("dir");
-        let path = dir.join("g.jpg");
-        std::fs::write(&path, &bytes).expect("writes");
-        let back = read_image(&path, false).expect("decodes");
-        std::fs::remove_dir_all(&dir).ok();
-        assert_eq!((back.width, back.height, back.channels), (w, h, 1));
-        let worst = back.data.iter().zip(&data).map(|(a, b)| a.abs_diff(*b)).max().unwrap_or(255);
-        assert!(worst <= 4, "largest difference {worst} grey levels");
-        assert!(bytes.len() < data.len(), "compressed: {} bytes for {} pixels", bytes.len(), data.len());
-    }
-}
-
 /// Why an image message could not be decoded.
 fn message_error(what: &str, message: String) -> FrontendError {
     FrontendError::ImageRead { path: PathBuf::from(what), message }
@@ -436,5 +383,58 @@ pub fn encode_png(image: &Image) -> Result<Vec<u8>, FrontendError> {
         Ok(bytes.to_vec())
     } else {
         Err(FrontendError::OpenCv("the PNG encoder refused the image".into()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn overlay_draws_a_legend_panel_and_labels_on_their_colour() {
+        let white = Image::new(320, 120, 1, vec![255; 320 * 120]).expect("image");
+        let bbox = slam_core::geometry::BBox::new(150.0, 60.0, 300.0, 110.0);
+        let overlay = Overlay {
+            boxes: vec![(bbox, [40, 170, 60], "#3 car 0.91".into())],
+            legend: vec![([40, 170, 60], "static object".into()), ([40, 30, 220], "moving object".into())],
+            ..Overlay::default()
+        };
+        let out = draw_overlay(&white, &overlay).expect("draws");
+        assert_eq!(out.channels, 3);
+        let px = |x: usize, y: usize| {
+            let k = 3 * (y * out.width as usize + x);
+            [out.data[k], out.data[k + 1], out.data[k + 2]]
+        };
+        // the panel darkens the image behind the legend; its first swatch has the first entry's colour
+        assert_eq!(px(100, 10), [89, 89, 89], "dark panel (0.35 × 255)");
+        assert_eq!(px(15, 14), [40, 170, 60]);
+        assert_eq!(px(15, 32), [40, 30, 220]);
+        // outside the panel and the box the image is untouched
+        assert_eq!(px(100, 100), [255, 255, 255]);
+        // the box label sits on a filled tag of the box's colour, just above the box
+        let tag = (150..230).filter(|&x| px(x, 50) == [40, 170, 60]).count();
+        assert!(tag > 20, "{tag} tag pixels");
+    }
+
+    /// A JPEG of a grey gradient decodes (through OpenCV's reader) to the same size and grey layout,
+    /// within a few grey levels of the original: JPEG is lossy, and at quality 90 a smooth gradient
+    /// keeps its values to within about 2 levels.
+    #[test]
+    fn jpeg_encoding_keeps_size_and_grey_levels() {
+        let (w, h) = (96u32, 40u32);
+        let data: Vec<u8> = (0..h).flat_map(|_| (0..w).map(|x| (x * 2) as u8)).collect();
+        let grey = Image::new(w, h, 1, data.clone()).expect("image");
+        let bytes = encode_jpeg(&grey, 90).expect("encodes");
+        assert_eq!(&bytes[..3], &[0xFF, 0xD8, 0xFF], "a JPEG starts with SOI and a marker");
+        let dir = std::env::temp_dir().join(format!("slam-frontend-jpeg-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        let path = dir.join("g.jpg");
+        std::fs::write(&path, &bytes).expect("writes");
+        let back = read_image(&path, false).expect("decodes");
+        std::fs::remove_dir_all(&dir).ok();
+        assert_eq!((back.width, back.height, back.channels), (w, h, 1));
+        let worst = back.data.iter().zip(&data).map(|(a, b)| a.abs_diff(*b)).max().unwrap_or(255);
+        assert!(worst <= 4, "largest difference {worst} grey levels");
+        assert!(bytes.len() < data.len(), "compressed: {} bytes for {} pixels", bytes.len(), data.len());
     }
 }

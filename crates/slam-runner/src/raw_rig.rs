@@ -125,15 +125,7 @@ pub fn write_raw_rig(seq: &Path, out: &Path, frames: Option<usize>, spec: &RawRi
     write("times.txt", &times)?;
     // Kalibr: x_right = T · x_left with T = [Q | −Q (b, 0, 0)]
     let t = -(q * Vector3::new(b, 0.0, 0.0));
-    let row = |r: usize| {
-        format!(
-            "  - [{}, {}, {}, {:.12e}]\n",
-            format!("{:.12e}", q[(r, 0)]),
-            format!("{:.12e}", q[(r, 1)]),
-            format!("{:.12e}", q[(r, 2)]),
-            t[r]
-        )
-    };
+    let row = |r: usize| format!("  - [{:.12e}, {:.12e}, {:.12e}, {:.12e}]\n", q[(r, 0)], q[(r, 1)], q[(r, 2)], t[r]);
     let cam = |name: &str, d: &[f64; 5], extra: &str| {
         format!(
             "{name}:\n{extra}  camera_model: pinhole\n  distortion_model: radtan\n  distortion_coeffs: [{}]\n  intrinsics: [{fx}, {fy}, {cx}, {cy}]\n  resolution: [{}, {}]\n",
