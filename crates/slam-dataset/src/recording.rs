@@ -219,7 +219,8 @@ pub fn choose_topics(bag: &Bag, opts: &SourceOptions, calib: Option<&Calibration
     let mut notes = Vec::new();
     for t in &images {
         let ns = camera_namespace(t).to_string();
-        let has_info = bag.topic(&camera_info_topic(t)).is_some_and(|i| i.schema == CAMERA_INFO);
+        // a camera-info topic with a readable message (a channel without messages says nothing)
+        let has_info = bag.camera_infos.contains_key(&camera_info_topic(t));
         if calib.is_none() && !has_info {
             continue;
         }

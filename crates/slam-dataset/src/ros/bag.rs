@@ -214,6 +214,9 @@ struct Records<R> {
     r: R,
     pos: u64,
     size: u64,
+    /// The file ends with MCAP's closing magic: it was closed, so a record running past its end is
+    /// damaged, not cut short.
+    whole: bool,
 }
 
 /// How reading a record ended when it did not give one.
@@ -243,6 +246,12 @@ impl<R: Read> Records<R> {
         let opcode = head[0];
         let len = u64::from_le_bytes(head[1..].try_into().unwrap_or_default());
         let body_at = offset + 9;
+        if len > self.size.saturating_sub(body_at) && self.whole {
+            return Err(Stop::Error(invalid(
+                path,
+                format!("the record at byte {offset} declares {len} bytes, past the end of a file that was closed whole (it ends with MCAP's closing magic): the record is damaged"),
+            )));
+        }
         if len > self.size.saturating_sub(body_at) {
             return Err(Stop::Cut(
                 offset,
@@ -283,15 +292,21 @@ fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
 }
 
 fn open_records(path: &Path) -> Result<Records<BufReader<File>>, DatasetError> {
-    let file = File::open(path).map_err(|e| io(path, e))?;
+    let mut file = File::open(path).map_err(|e| io(path, e))?;
     let size = file.metadata().map_err(|e| io(path, e))?.len();
+    let mut tail = [0u8; 8];
+    let whole = size >= 16
+        && file.seek(SeekFrom::Start(size - 8)).is_ok()
+        && read_full(&mut file, &mut tail).is_ok_and(|n| n == 8)
+        && &tail == MAGIC;
+    file.seek(SeekFrom::Start(0)).map_err(|e| io(path, e))?;
     let mut r = BufReader::with_capacity(1 << 20, file);
     let mut magic = [0u8; 8];
     let got = read_full(&mut r, &mut magic).map_err(|e| io(path, e))?;
     if got < 8 || &magic != MAGIC {
         return Err(invalid(path, "not an MCAP file: it does not start with MCAP's magic bytes".into()));
     }
-    Ok(Records { r, pos: 8, size })
+    Ok(Records { r, pos: 8, size, whole })
 }
 
 impl Scan<'_> {
@@ -445,21 +460,26 @@ impl Bag {
                 };
                 match rec.opcode {
                     op::CHUNK => scan.chunk(&rec)?,
-                    op::SCHEMA => match mcap::parse_record(op::SCHEMA, &rec.body).map_err(bad_record)? {
-                        Record::Schema { header, .. } => scan.schema(header),
-                        _ => {}
-                    },
-                    op::CHANNEL => match mcap::parse_record(op::CHANNEL, &rec.body).map_err(bad_record)? {
-                        Record::Channel(c) => scan.channel(c),
-                        _ => {}
-                    },
-                    op::MESSAGE => match mcap::parse_record(op::MESSAGE, &rec.body).map_err(bad_record)? {
-                        Record::Message { header, data } => {
+                    op::SCHEMA => {
+                        if let Record::Schema { header, .. } =
+                            mcap::parse_record(op::SCHEMA, &rec.body).map_err(bad_record)?
+                        {
+                            scan.schema(header)
+                        }
+                    }
+                    op::CHANNEL => {
+                        if let Record::Channel(c) = mcap::parse_record(op::CHANNEL, &rec.body).map_err(bad_record)? {
+                            scan.channel(c)
+                        }
+                    }
+                    op::MESSAGE => {
+                        if let Record::Message { header, data } =
+                            mcap::parse_record(op::MESSAGE, &rec.body).map_err(bad_record)?
+                        {
                             let at = MessageRef { file: k as u32, record: rec.offset, inner: 0 };
                             scan.message(&header, &data, at).map_err(|m| invalid(file, m))?
                         }
-                        _ => {}
-                    },
+                    }
                     // the data ends here: the summary after it repeats what was read
                     op::DATA_END | op::FOOTER => break,
                     _ => {}
@@ -520,7 +540,7 @@ impl BagReader {
         };
         let size = f.metadata().map_err(|e| io(&path, e))?.len();
         f.seek(SeekFrom::Start(offset)).map_err(|e| io(&path, e))?;
-        let mut records = Records { r: BufReader::with_capacity(64 << 10, &*f), pos: offset, size };
+        let mut records = Records { r: BufReader::with_capacity(64 << 10, &*f), pos: offset, size, whole: false };
         match records.next(&path) {
             Ok(r) => Ok((path, r)),
             Err(Stop::Error(e)) => Err(e),
@@ -534,7 +554,7 @@ impl BagReader {
     pub fn message(&mut self, at: MessageRef) -> Result<Vec<u8>, DatasetError> {
         let key = (at.file, at.record);
         if let Some(k) = self.chunks.iter().position(|(c, _)| *c == key) {
-            return self.from_chunk(k, at);
+            return self.in_chunk(k, at);
         }
         let (path, rec) = self.record(at.file, at.record)?;
         let bad = |e: String| invalid(&path, format!("the record at byte {}: {e}", at.record));
@@ -559,13 +579,13 @@ impl BagReader {
                     self.chunks.remove(0);
                 }
                 self.chunks.push((key, messages));
-                self.from_chunk(self.chunks.len() - 1, at)
+                self.in_chunk(self.chunks.len() - 1, at)
             }
             other => Err(bad(format!("opcode {other:#04x} holds no message"))),
         }
     }
 
-    fn from_chunk(&self, k: usize, at: MessageRef) -> Result<Vec<u8>, DatasetError> {
+    fn in_chunk(&self, k: usize, at: MessageRef) -> Result<Vec<u8>, DatasetError> {
         let path = self.files.get(at.file as usize).cloned().unwrap_or_default();
         self.chunks[k].1.get(at.inner as usize).and_then(|m| m.as_ref()).map(|(_, d)| d.clone()).ok_or_else(|| {
             invalid(&path, format!("the chunk at byte {} has no message at place {}", at.record, at.inner))
