@@ -31,6 +31,8 @@ pub struct Rectifier {
     pub baseline: f64,
     /// Rectified-left from raw-left: `x_rectified = R · x_raw`.
     pub left_rotation: Matrix3<f64>,
+    /// Rectified-right from raw-right.
+    pub right_rotation: Matrix3<f64>,
 }
 
 impl std::fmt::Debug for Rectifier {
@@ -199,6 +201,7 @@ impl Rectifier {
             intrinsics: [fx, p_left[(1, 1)], p_left[(0, 2)], p_left[(1, 2)]],
             baseline,
             left_rotation: r_left,
+            right_rotation: r_right,
         }))
     }
 

@@ -20,6 +20,7 @@
 //!
 //! Only `slam-app` depends on this crate (`tools/check-deps.sh`).
 
+pub mod bag_edit;
 pub mod bench;
 #[cfg(feature = "console")]
 pub mod console;

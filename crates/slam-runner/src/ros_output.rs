@@ -11,7 +11,8 @@
 //!
 //! `slam_map` is the left camera of the first frame (the raw one when the run rectified its images), as
 //! in the trajectory files. The file is written atomically (`slam_core::files::AtomicWrite`), without
-//! compression threads so that the same run gives the same bytes.
+//! compression threads and without the summary's repeated schemas and channels (written in hash order
+//! by the `mcap` crate) so that the same run gives the same bytes.
 
 use std::{collections::BTreeMap, path::Path};
 
@@ -107,6 +108,11 @@ pub fn write_results_mcap(o: &Outcome, path: &Path) -> Result<String> {
         .library("quadric-slam")
         .compression(Some(mcap::Compression::Zstd))
         .compression_threads(0)
+        // the crate repeats schemas and channels in the summary in hash order, which differs from run to
+        // run; without the repeats the file is the same for the same run (readers take them from the
+        // data section: Foxglove then reads the file through rather than by its index)
+        .repeat_channels(false)
+        .repeat_schemas(false)
         .create(std::io::BufWriter::new(f))
         .map_err(|e| err(e.to_string()))?;
     let mut channels = BTreeMap::new();
