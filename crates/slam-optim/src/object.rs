@@ -199,6 +199,41 @@ pub fn box_residual(v: &BoxView, image: &ImageSize, e: &Ellipsoid, shape: BoxSha
     }
 }
 
+/// Box noise σ of each view's four sides (pixels) from an ellipsoid's misfit, for the re-weighted
+/// passes: a view's error (its pose, a partial box) and a side's (the detector's bias on that side of
+/// this object across views, e.g. a part of a large vehicle it leaves out) multiply, so side `s` of
+/// view `v` gets `σ² = σ_v² σ_s² / σ²` (the view's mean square over its sides, the side's over the
+/// views, the overall), never below half the overall RMS (one view or side cannot claim to be much
+/// better than the data as a whole), clamped to `[min_sigma, max_sigma_px]`. `None` when the ellipsoid
+/// does not project into a view.
+fn side_sigmas(
+    views: &[BoxView],
+    image: &ImageSize,
+    e: &Ellipsoid,
+    config: &RefineConfig,
+    min_sigma: f64,
+) -> Option<Vec<[f64; 4]>> {
+    let r: Vec<Vector4<f64>> =
+        views.iter().map(|v| box_residual(v, image, e, config.box_shape)).collect::<Option<_>>()?;
+    let n = r.len().max(1) as f64;
+    let all = r.iter().map(|x| x.norm_squared()).sum::<f64>() / (4.0 * n);
+    let side: Vec<f64> = (0..4).map(|k| r.iter().map(|x| x[k] * x[k]).sum::<f64>() / n).collect();
+    let floor = 0.5 * all.sqrt();
+    Some(
+        r.iter()
+            .map(|x| {
+                let view = x.norm_squared() / 4.0;
+                let mut out = [0.0; 4];
+                for k in 0..4 {
+                    let var = if all > 0.0 { view * side[k] / all } else { 0.0 };
+                    out[k] = var.sqrt().max(floor).clamp(min_sigma, config.max_sigma_px);
+                }
+                out
+            })
+            .collect(),
+    )
+}
+
 /// RMS box error (pixels) of an ellipsoid in each view; `None` when it does not project into a view.
 fn box_rms(views: &[BoxView], image: &ImageSize, e: &Ellipsoid, shape: BoxShape) -> Option<Vec<f64>> {
     views.iter().map(|v| Some((box_residual(v, image, e, shape)?.norm_squared() / 4.0).sqrt())).collect()
@@ -239,7 +274,7 @@ pub fn optimise_object(
     start: Ellipsoid,
     optimizer: &dyn Optimizer,
 ) -> Option<(Ellipsoid, f64)> {
-    let sigmas = vec![config.box_sigma_px; views.len()];
+    let sigmas = vec![[config.box_sigma_px; 4]; views.len()];
     optimise_object_weighted(
         views,
         image,
@@ -253,7 +288,8 @@ pub fn optimise_object(
 /// What one optimisation stage uses besides the views: one box σ per view (pixels), the pose drift
 /// (`None`: cameras fixed), the cues and the optimiser.
 struct Stage<'a> {
-    sigmas: &'a [f64],
+    /// Box noise σ of each view's four sides, pixels.
+    sigmas: &'a [[f64; 4]],
     drift: Option<f64>,
     cues: Cues<'a>,
     optimizer: &'a dyn Optimizer,
@@ -291,7 +327,7 @@ fn optimise_object_weighted(
     };
     let first = views.first()?.camera.world_from_camera;
     let rot_sigma = config.pose_rot_sigma_deg.to_radians();
-    for (i, (v, &sigma)) in views.iter().zip(sigmas).enumerate() {
+    for (i, (v, sigma)) in views.iter().zip(sigmas).enumerate() {
         let pose = v.camera.world_from_camera;
         let kp = values.add(Var::Pose(pose));
         match drift {
@@ -304,7 +340,9 @@ fn optimise_object_weighted(
                 graph.fix(kp);
             }
         }
-        let (noise, huber) = (NoiseModel::Isotropic(sigma), Huber(config.huber_px / sigma));
+        // Huber at `huber_px` of the view's mean σ (its four sides whitened by their own σ)
+        let mean = (sigma.iter().map(|s| s * s).sum::<f64>() / 4.0).sqrt();
+        let (noise, huber) = (NoiseModel::Diagonal(sigma.to_vec()), Huber(config.huber_px / mean));
         match config.box_shape.final_model() {
             BoxShape::Ellipse | BoxShape::TwoStage => graph.add(
                 BoxFactor::new(kp, ko, v.camera.intrinsics, v.bbox, BoundsModel::Clipped(*image)),
@@ -441,7 +479,7 @@ pub fn refine_with_cues(
             YawCue { direction: e1.rotation() * Vector3::x(), sigma_rad: config.hold_yaw_sigma_deg.to_radians() };
         let second = RefineConfig { box_shape: BoxShape::Ellipse, ..*config };
         let held = Cues { yaw: Some(held), ..cues };
-        let sigmas = vec![config.box_sigma_px; views.len()];
+        let sigmas = vec![[config.box_sigma_px; 4]; views.len()];
         let started = optimise_object_weighted(
             views,
             image,
@@ -483,7 +521,7 @@ pub fn refine_with_cues(
     // Pass 1 from every start at the configured σ; the best result goes on to the re-weighted passes.
     let mut best: Option<(Ellipsoid, f64)> = None;
     for s in starts {
-        let sigmas = vec![config.box_sigma_px; views.len()];
+        let sigmas = vec![[config.box_sigma_px; 4]; views.len()];
         if let Some((e, cost)) = optimise_object_weighted(
             views,
             image,
@@ -523,11 +561,7 @@ fn polish(
     let min_sigma =
         if cues.planes.is_empty() { config.min_sigma_px } else { config.min_sigma_px.max(config.plane_box_floor_px) };
     for _ in 1..config.passes {
-        let Some(rms) = box_rms(views, image, &e, config.box_shape) else { break };
-        // per view: its own misfit, but never below the overall RMS / 2 (one view cannot claim to be
-        // much better than the data as a whole)
-        let all = (rms.iter().map(|r| r * r).sum::<f64>() / rms.len().max(1) as f64).sqrt();
-        let sigmas: Vec<f64> = rms.iter().map(|r| r.max(0.5 * all).clamp(min_sigma, config.max_sigma_px)).collect();
+        let Some(sigmas) = side_sigmas(views, image, &e, config, min_sigma) else { break };
         match optimise_object_weighted(
             views,
             image,
@@ -549,7 +583,7 @@ fn polish(
         // the edges independently. Free the cameras only when the misfit is mostly such shifts.
         let (shift, size) = shift_and_size_rms(views, image, &e, config.box_shape).unwrap_or((0.0, 0.0));
         if all > config.consistent_rms_px && shift > config.shift_ratio * size {
-            let sigmas: Vec<f64> = rms.iter().map(|r| r.max(0.5 * all).clamp(min_sigma, config.max_sigma_px)).collect();
+            let Some(sigmas) = side_sigmas(views, image, &e, config, min_sigma) else { return e };
             if let Some(j) = optimise_object_weighted(
                 views,
                 image,

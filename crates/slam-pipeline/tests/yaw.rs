@@ -122,7 +122,7 @@ fn the_points_decide_a_yaw_the_boxes_cannot() {
         assert!(wrong_yaw > 30.0, "held at the mirrored yaw: {wrong_yaw:.1}°");
         // exact boxes, yet the misfit is a fraction of a pixel: far below a detector's box noise
         let wrong_rms = rms(&exact, &held_wrong);
-        assert!(wrong_rms < 0.5, "the mirrored yaw fits the boxes to {wrong_rms:.2} px RMS");
+        assert!(wrong_rms < 1.0, "the mirrored yaw fits the boxes to {wrong_rms:.2} px RMS");
         // the points decide
         let camera = cameras().last().expect("cameras").world_from_camera.translation.vector;
         let found = point_yaw(&points(&truth), &up, &camera, &ObjectPrior::car(), K.fx, B, &PointYawConfig::default());
