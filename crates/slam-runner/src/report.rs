@@ -24,10 +24,6 @@ use slam_pipeline::{
 /// The world of a rectified run's trajectory and object files.
 pub const RAW_LEFT_WORLD: &str = "world = the raw (unrectified) left camera of the first frame: x right, y down, z forward, metres; poses world from camera";
 
-/// The world of a rectified run's map file: the frame the tracker worked in (a later `run --map` tracks
-/// in it again).
-pub const RECTIFIED_WORLD: &str = "world = the rectified left camera of the first frame (the run rectified its images; trajectory and objects files are in the raw left camera's frame): x right, y down, z forward, metres; poses world from rectified camera";
-
 use crate::{
     error::{Context, Result, RunnerError},
     run::{played_ids, Outcome},

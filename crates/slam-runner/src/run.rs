@@ -35,6 +35,10 @@ use crate::{
     source::{rectifier_of, FrameReader},
 };
 
+/// The world of a rectified run's map file: the frame the tracker worked in (a later `run --map` tracks
+/// in it again).
+pub const RECTIFIED_WORLD: &str = "world = the rectified left camera of the first frame (the run rectified its images; trajectory and objects files are in the raw left camera's frame): x right, y down, z forward, metres; poses world from rectified camera";
+
 /// A fresh optimiser backend for each run.
 pub type OptimizerFactory = Arc<dyn Fn() -> SharedOptimizer + Send + Sync>;
 /// A fresh associator for each run, given ODA's projected-ellipsoid gate (`SystemConfig::projected_gate`).
@@ -449,7 +453,7 @@ impl Prepared {
             .run(on_frame)?;
         let elapsed = start.elapsed().as_secs_f64();
         if rectifier.is_some() {
-            out.map.frame = crate::report::RECTIFIED_WORLD.to_string();
+            out.map.frame = RECTIFIED_WORLD.to_string();
         }
         // the map's world in the ground truth: the loaded map's, else this run's first frame's
         out.map.ground_truth_world = match &loaded {
