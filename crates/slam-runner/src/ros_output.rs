@@ -11,8 +11,9 @@
 //!
 //! `slam_map` is the left camera of the first frame (the raw one when the run rectified its images), as
 //! in the trajectory files. The file is written atomically (`slam_core::files::AtomicWrite`), without
-//! compression threads and without the summary's repeated schemas and channels (written in hash order
-//! by the `mcap` crate) so that the same run gives the same bytes.
+//! compression threads. Its summary repeats the schemas and channels, which readers that go by the index
+//! need (the Python `mcap` package's, Foxglove's older versions); the `mcap` crate writes those in hash
+//! order, so two writes of the same run hold the same messages but not always the same bytes.
 
 use std::{collections::BTreeMap, path::Path};
 
@@ -108,11 +109,6 @@ pub fn write_results_mcap(o: &Outcome, path: &Path) -> Result<String> {
         .library("quadric-slam")
         .compression(Some(mcap::Compression::Zstd))
         .compression_threads(0)
-        // the crate repeats schemas and channels in the summary in hash order, which differs from run to
-        // run; without the repeats the file is the same for the same run (readers take them from the
-        // data section: Foxglove then reads the file through rather than by its index)
-        .repeat_channels(false)
-        .repeat_schemas(false)
         .create(std::io::BufWriter::new(f))
         .map_err(|e| err(e.to_string()))?;
     let mut channels = BTreeMap::new();
