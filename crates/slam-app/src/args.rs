@@ -17,8 +17,9 @@ use crate::detect_cmd::ModelArgs;
 #[derive(Args, Debug, Clone)]
 pub struct SequenceArgs {
     /// A KITTI stereo sequence: odometry (`sequences/NN` or a root with `sequences/`), raw drive
-    /// (`<date>/<drive>_sync`) or tracking (`training/image_02/NNNN`). Default: the shipped odometry
-    /// sequence 06, frames 0–50.
+    /// (`<date>/<drive>_sync`) or tracking (`training/image_02/NNNN`); a ROS 2 bag (an .mcap file or a
+    /// rosbag2 folder with metadata.yaml); or a folder with left/ and right/ images (with --calib).
+    /// Default: the shipped odometry sequence 06, frames 0–50.
     pub path: Option<PathBuf>,
     /// Frame ids to play (the numbers in the image file names): A..B (A to B-1), A..=B, A.. or ..B.
     /// Ground truth, labels and detections follow the ids, so they stay aligned.
@@ -30,6 +31,8 @@ pub struct SequenceArgs {
     /// Process at most this many frames (after --frames and --stride)
     #[arg(long)]
     pub max_frames: Option<usize>,
+    #[command(flatten)]
+    pub source: slam_runner::SourceArgs,
 }
 
 /// A range of frame ids given on the command line (`--frames`).
@@ -165,6 +168,11 @@ pub struct OutputArgs {
     /// Overlay image format: png (default), or jpg for files about ten times smaller (implies --overlays)
     #[arg(long, value_parser = ["png", "jpg"])]
     pub overlay_format: Option<String>,
+    /// Also write the run as an MCAP file for ROS tools (Foxglove): /tf of the camera, the trajectory
+    /// (nav_msgs/Path), the objects (visualization_msgs/MarkerArray: ellipsoids with class and id) and
+    /// the map points (sensor_msgs/PointCloud2), on the input's own time line (a bag's stamps)
+    #[arg(long, value_name = "FILE.mcap")]
+    pub mcap: Option<PathBuf>,
 }
 
 impl OutputArgs {
@@ -186,7 +194,7 @@ impl SequenceArgs {
         detector: DetectorChoice,
         labels: Option<PathBuf>,
     ) -> slam_runner::RunSettings {
-        slam_runner::RunSettings::new(
+        let mut s = slam_runner::RunSettings::new(
             self.path(),
             self.selection(),
             self.max_frames,
@@ -194,6 +202,8 @@ impl SequenceArgs {
             wiring.wiring(),
             detector,
             labels,
-        )
+        );
+        s.source = self.source.options();
+        s
     }
 }

@@ -67,11 +67,14 @@ enum Command {
     TrajectoryEval(run_cmd::TrajEvalArgs),
     /// Estimate the stereo rig's disparity offset (a rectification error that scales depth) from the
     /// sequence itself: tracks the frames, then scans offsets for the least two-view adjustment cost.
-    StereoCheck(run_cmd::StereoCheckArgs),
+    StereoCheck(slam_runner::stereo::StereoCheckArgs),
     /// Compare the tracker's stereo depth with the Velodyne scans of a KITTI raw drive (default: the
     /// shipped drive 0005, scans of frames 0-4): our disparity minus the lidar's by depth and ORB pyramid
     /// level, at keypoints where the scan shows a plane.
     DepthCheck(run_cmd::DepthCheckArgs),
+    /// List a ROS 2 bag's topics (types, message counts, rates, image encodings, camera infos) and say
+    /// which stereo pair `run BAG` would read and why (--left/--right/--calib as for run).
+    Inspect(run_cmd::InspectArgs),
     /// Inspect a saved map (counts, objects) and export it (PLY points, a 3-D scene, trajectory, top-down picture).
     Map(run_cmd::MapArgs),
     /// Compare object associators (ODA vs IoU-only): ID switches on simulated crossings and on real
@@ -148,6 +151,7 @@ fn run() -> anyhow::Result<()> {
     match cli.command {
         Command::Run(a) => run_cmd::run(&a),
         Command::Map(a) => run_cmd::map(&a),
+        Command::Inspect(a) => run_cmd::inspect_bag(&a),
         Command::StereoCheck(a) => run_cmd::stereo_check(&a),
         Command::DepthCheck(a) => run_cmd::depth_check(&a),
         Command::TrajectoryEval(a) => run_cmd::trajectory_eval(&a),

@@ -100,8 +100,10 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     inputs.extend(a.detector.detections.as_deref().map(|p| ("--detections", p)));
     inputs.extend(a.detector.labels.as_deref().map(|p| ("--labels", p)));
     inputs.extend(a.detector.model.files());
+    inputs.extend(a.seq.source.files());
     let mut outputs = vec![Written::Folder("--out", out)];
     outputs.extend(a.rerun.as_deref().map(|p| Written::File("--rerun", p)));
+    outputs.extend(a.output.mcap.as_deref().map(|p| Written::File("--mcap", p)));
     refuse_overwriting_inputs(&inputs, &outputs)?;
     let dir = slam_dataset::output::OutputDir::create(out, "--out", "run")?;
     let mut s = a.seq.run_settings(&cfg, &a.wiring, a.detector.choice()?, a.detector.labels.clone());
@@ -124,6 +126,9 @@ pub fn run(a: &RunArgs) -> anyhow::Result<()> {
     println!("{last}");
     if let Some(line) = recorded {
         println!("{line}");
+    }
+    if let Some(path) = &a.output.mcap {
+        println!("{}", slam_runner::ros_output::write_results_mcap(&o, path)?);
     }
     // the output is written, but a run that tracked no frame failed
     o.nothing_tracked().map_or(Ok(()), |e| Err(e.into()))
@@ -232,53 +237,24 @@ pub fn trajectory_eval(a: &TrajEvalArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Arguments of `slam-app stereo-check`.
-#[derive(clap::Args, Debug)]
-pub struct StereoCheckArgs {
-    /// KITTI stereo sequence folder (odometry, raw or tracking layout); default: the shipped sequence.
-    pub path: Option<PathBuf>,
-    /// Frames tracked to collect frame pairs, from the first (a count, as `run --max-frames`).
-    #[arg(long = "max-frames", default_value_t = 51)]
-    pub frames: usize,
-    /// Largest residual offset scanned either side of zero, pixels.
-    #[arg(long, default_value_t = 0.6)]
-    pub range: f64,
-    /// Scan step, pixels.
-    #[arg(long, default_value_t = 0.05)]
-    pub step: f64,
-    /// Most rounds of (track with the offset found so far, estimate the residual).
-    #[arg(long, default_value_t = 4)]
-    pub rounds: usize,
-    /// Print the cost curve of the last round.
-    #[arg(long)]
-    pub curve: bool,
-    /// Settings file (its `[tracking]` table is used; its `disparity_offset` is the starting point).
-    #[arg(long)]
-    pub config: Option<PathBuf>,
+#[derive(Args, Debug)]
+pub struct InspectArgs {
+    /// A ROS 2 bag: an .mcap file or a rosbag2 folder (metadata.yaml beside its .mcap files)
+    bag: PathBuf,
+    #[command(flatten)]
+    source: slam_runner::SourceArgs,
+}
+
+/// `slam-app inspect`: a bag's topics and the pair a run would read.
+pub fn inspect_bag(a: &InspectArgs) -> anyhow::Result<()> {
+    println!("{}", slam_runner::ros_output::inspect_bag(&a.bag, &a.source.options())?);
+    Ok(())
 }
 
 /// `slam-app stereo-check`: estimate the rig's disparity offset from the sequence itself, in rounds
 /// (`slam_runner::stereo`).
-pub fn stereo_check(a: &StereoCheckArgs) -> anyhow::Result<()> {
-    let cfg = RunConfig::load(a.config.as_deref())?;
-    let check = stereo::StereoCheck {
-        path: a.path.clone().unwrap_or_else(|| crate::fixture(crate::SHIPPED)),
-        frames: a.frames,
-        range: a.range,
-        step: a.step,
-        rounds: a.rounds,
-        tracking: cfg.tracking,
-        optimizer: std::sync::Arc::new(|| slam_runner::OptimizerKind::default().build()),
-    };
-    let mut number = 0;
-    check.validate()?;
-    let header = &mut |header: &str| println!("{header}\n{}", stereo::ROUND_HEADER);
-    let report = stereo::stereo_check(&check, header, &mut |round| {
-        number += 1;
-        println!("{}", round.row(number));
-    })?;
-    println!("{}", report.conclusion(a.curve));
-    Ok(())
+pub fn stereo_check(a: &stereo::StereoCheckArgs) -> anyhow::Result<()> {
+    Ok(a.run(crate::fixture(crate::SHIPPED), &mut |line| println!("{line}"))?)
 }
 
 /// Arguments of `slam-app depth-check`.

@@ -1329,3 +1329,45 @@ fn device_cuda_without_a_gpu_runtime_or_gpu_is_a_clear_error() {
     // without the GPU runtime: how to get it; with one (ORT_DYLIB_PATH, or SLAM_ORT_GPU=1): no GPU
     assert!(err.contains("onnxruntime-gpu") || err.contains("CUDA execution provider"), "{err}");
 }
+
+/// Issue 48: a ROS 2 bag is inspected and run as a KITTI folder is, its run written for ROS tools;
+/// a calibration file given for a KITTI folder is refused, naming the options.
+#[test]
+fn a_bag_is_inspected_and_run_with_its_results_as_mcap() {
+    let bag = "fixtures/ros2_bag_0005/drive_0005_frames_0-4.mcap";
+    let o = app().args(["inspect", bag]).output().expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("| /kitti/camera_gray_left/image_raw | sensor_msgs/msg/Image | cdr | 5 |"), "{text}");
+    assert!(
+        text.contains(
+            "a run would read left /kitti/camera_gray_left/image_raw and right /kitti/camera_gray_right/image_raw"
+        ),
+        "{text}"
+    );
+    let dir = std::env::temp_dir().join(format!("slam-app-bag-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let mcap = dir.join("run.mcap");
+    let o = app()
+        .args(["run", bag, "--detector", "none", "--out"])
+        .arg(dir.join("out"))
+        .arg("--mcap")
+        .arg(&mcap)
+        .output()
+        .expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("(Bag layout, 5 frames") && text.contains("input: ROS 2 bag"), "{text}");
+    assert!(text.contains("wrote") && text.contains("/tf (5 poses)"), "{text}");
+    let tum = std::fs::read_to_string(dir.join("out/trajectory.tum.txt")).expect("tum");
+    assert_eq!(tum.lines().count(), 5);
+    assert!(std::fs::metadata(&mcap).map(|m| m.len() > 1000).unwrap_or(false));
+    let o = app()
+        .args(["run", "fixtures/kitti_odom_06/sequences/06", "--calib", "x.yaml", "--out"])
+        .arg(dir.join("kitti"))
+        .output()
+        .expect("runs");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("--calib, --left, --right and --rate are for a ROS 2 bag"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -16,6 +16,7 @@ pub mod detection;
 pub mod figure;
 pub mod files;
 pub mod memory;
+pub mod rig;
 pub mod rng;
 pub mod source;
 pub mod tracking;

@@ -159,6 +159,9 @@ pub fn calibration_file(seq: &StereoSequence) -> PathBuf {
             let name = seq.dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
             seq.dir.parent().and_then(|p| p.parent()).unwrap_or(&seq.dir).join("calib").join(format!("{name}.txt"))
         }
+        Layout::Bag | Layout::Folder => {
+            seq.recording.as_ref().map_or_else(|| seq.dir.clone(), |r| r.calibration.clone())
+        }
     }
 }
 

@@ -11,6 +11,9 @@ pub mod folders;
 pub mod kitti;
 pub mod layout;
 pub mod output;
+pub mod recording;
+pub mod rig;
+pub mod ros;
 pub mod trajectory;
 
 use std::path::{Path, PathBuf};

@@ -6,6 +6,7 @@
 use std::path::Path;
 
 use opencv::{core, features2d, prelude::*};
+use slam_core::Image;
 
 use crate::{
     image_io::image_to_mat,
@@ -60,6 +61,21 @@ pub fn diagnose_pair(left: &Path, right: &Path) -> Result<PairDiagnosis, Fronten
     let header = image_header(left)
         .map_err(|e| FrontendError::ImageRead { path: left.to_path_buf(), message: e.to_string() })?;
     let (l, r) = (read_image(left, false)?, read_image(right, false)?);
+    diagnose_images(&l, &r, header)
+}
+
+/// [`diagnose_pair`] on images already read (colour ones are looked at in grey), whose source has
+/// samples of `header`'s bit depth (a bag's messages: their encoding's).
+pub fn diagnose_images(l: &Image, r: &Image, header: ImageHeader) -> Result<PairDiagnosis, FrontendError> {
+    let grey = |i: &Image| -> Result<Image, FrontendError> {
+        if i.channels == 1 {
+            return Ok(i.clone());
+        }
+        let mut g = Mat::default();
+        opencv::imgproc::cvt_color_def(&image_to_mat(i)?, &mut g, opencv::imgproc::COLOR_BGR2GRAY)?;
+        crate::image_io::mat_to_image(&g)
+    };
+    let (l, r) = (grey(l)?, grey(r)?);
     let mut hist = [0usize; 256];
     for &v in &l.data {
         hist[v as usize] += 1;

@@ -297,6 +297,95 @@ fn tag(m: &mut Mat, text: &str, org: core::Point, c: [u8; 3], scale: f64) -> Res
     Ok(())
 }
 
+/// Why an image message could not be decoded.
+fn message_error(what: &str, message: String) -> FrontendError {
+    FrontendError::ImageRead { path: PathBuf::from(what), message }
+}
+
+/// A raw image message's pixels (ROS `sensor_msgs/msg/Image`: `mono8`, `rgb8`, `bgr8`, `mono16`, rows of
+/// `step` bytes) as an [`Image`]: BGR when `colour` (a grey image repeated in the three channels, as
+/// OpenCV reads a grey PNG in colour), else grey (colour converted as OpenCV converts); 16-bit pixels
+/// keep their high byte, as OpenCV reads a 16-bit PNG into 8 bits. `what` names the message in errors.
+#[allow(clippy::too_many_arguments)]
+pub fn decode_raw_image(
+    what: &str,
+    (width, height): (u32, u32),
+    encoding: &str,
+    big_endian: bool,
+    step: u32,
+    data: &[u8],
+    colour: bool,
+) -> Result<Image, FrontendError> {
+    let err = |m: String| message_error(what, m);
+    if width == 0 || height == 0 || u64::from(width) * u64::from(height) > crate::image_size::MAX_PIXELS {
+        return Err(err(format!("{width}×{height} pixels: an image has 1 to 8192 × 8192")));
+    }
+    let (channels, bytes) = match encoding {
+        "mono8" => (1usize, 1usize),
+        "mono16" => (1, 2),
+        "rgb8" | "bgr8" => (3, 1),
+        other => return Err(err(format!("encoding '{other}' is not decoded (mono8, rgb8, bgr8, mono16 are)"))),
+    };
+    let (w, h, step) = (width as usize, height as usize, step as usize);
+    let row = w * channels * bytes;
+    if step < row || data.len() < step * h {
+        return Err(err(format!(
+            "{w}×{h} {encoding} needs rows of {row} bytes; the message has step {step} and {} bytes",
+            data.len()
+        )));
+    }
+    let mut pixels = Vec::with_capacity(w * h * channels);
+    for y in 0..h {
+        let line = &data[y * step..y * step + row];
+        if bytes == 2 {
+            let high = usize::from(!big_endian);
+            pixels.extend(line.chunks_exact(2).map(|p| p[high]));
+        } else {
+            pixels.extend_from_slice(line);
+        }
+    }
+    let typ = if channels == 3 { core::CV_8UC3 } else { core::CV_8UC1 };
+    let mut m = Mat::new_rows_cols_with_default(h as i32, w as i32, typ, core::Scalar::all(0.0))?;
+    m.data_bytes_mut()?.copy_from_slice(&pixels);
+    let code = match (channels, encoding, colour) {
+        (1, _, true) => Some(opencv::imgproc::COLOR_GRAY2BGR),
+        (3, "rgb8", true) => Some(opencv::imgproc::COLOR_RGB2BGR),
+        (3, "rgb8", false) => Some(opencv::imgproc::COLOR_RGB2GRAY),
+        (3, _, false) => Some(opencv::imgproc::COLOR_BGR2GRAY),
+        _ => None,
+    };
+    if let Some(code) = code {
+        let mut c = Mat::default();
+        opencv::imgproc::cvt_color_def(&m, &mut c, code)?;
+        m = c;
+    }
+    mat_to_image(&m)
+}
+
+/// A compressed image message's file (PNG or JPEG; its header checked as [`read_image`] checks a file's)
+/// as an [`Image`], BGR when `colour`, else grey. `what` names the message in errors.
+pub fn decode_compressed_image(what: &str, data: &[u8], colour: bool) -> Result<Image, FrontendError> {
+    let err = |m: String| message_error(what, m);
+    crate::image_size::ImageHeader::parse(&mut std::io::Cursor::new(data)).map_err(err)?;
+    let flag = if colour { imgcodecs::IMREAD_COLOR } else { imgcodecs::IMREAD_GRAYSCALE };
+    let m = imgcodecs::imdecode(&core::Vector::<u8>::from_slice(data), flag).map_err(|e| err(e.to_string()))?;
+    if m.empty() {
+        return Err(err("could not decode (corrupt or unsupported data)".into()));
+    }
+    mat_to_image(&m).map_err(|e| err(e.to_string()))
+}
+
+/// Encode an image as PNG in memory (lossless; for bags with compressed images).
+pub fn encode_png(image: &Image) -> Result<Vec<u8>, FrontendError> {
+    let m = image_to_mat(image)?;
+    let mut bytes = core::Vector::<u8>::new();
+    if imgcodecs::imencode(".png", &m, &mut bytes, &core::Vector::new())? {
+        Ok(bytes.to_vec())
+    } else {
+        Err(FrontendError::OpenCv("the PNG encoder refused the image".into()))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

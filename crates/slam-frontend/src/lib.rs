@@ -24,6 +24,7 @@ pub mod model;
 pub mod odometry;
 pub mod onnx;
 mod pose_only;
+pub mod rectify;
 mod settings;
 pub mod stereo_vo;
 

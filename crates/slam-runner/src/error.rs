@@ -72,6 +72,7 @@ from_errors!(
     slam_viz::VizError,
     slam_pipeline::settings::SettingsError,
     slam_core::check::InvalidValue,
+    slam_core::files::WriteError,
     std::io::Error
 );
 

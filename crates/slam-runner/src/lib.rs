@@ -20,6 +20,7 @@
 //!
 //! Only `slam-app` depends on this crate (`tools/check-deps.sh`).
 
+pub mod bag_edit;
 pub mod bench;
 #[cfg(feature = "console")]
 pub mod console;
@@ -31,10 +32,13 @@ pub mod in_map;
 pub mod inspect;
 pub mod map_bench;
 pub mod objects_bench;
+pub mod raw_rig;
 pub mod report;
+pub mod ros_output;
 pub mod run;
 pub mod settings;
 pub mod simulation;
+pub mod source;
 pub mod stereo;
 #[cfg(feature = "console")]
 pub mod studies;
@@ -47,4 +51,5 @@ pub use run::{
     prepare, AssociatorFactory, ObserverFactory, OptimizerFactory, Outcome, Prepared, RunObserver, RunSettings,
 };
 pub use settings::RunConfig;
+pub use source::SourceArgs;
 pub use wiring::{AssociatorKind, Method, OptimizerKind, Shape, Wiring};

@@ -21,6 +21,9 @@ use slam_pipeline::{
     system::RunOutput,
 };
 
+/// The world of a rectified run's trajectory and object files.
+pub const RAW_LEFT_WORLD: &str = "world = the raw (unrectified) left camera of the first frame: x right, y down, z forward, metres; poses world from camera";
+
 use crate::{
     error::{Context, Result, RunnerError},
     run::{played_ids, Outcome},
@@ -60,10 +63,31 @@ impl Outcome {
         let n = self.seq.len();
         let mut positions = vec![0, n / 2, n.saturating_sub(1)];
         positions.dedup();
-        let looked: Vec<slam_frontend::diagnosis::PairDiagnosis> = positions
-            .into_iter()
-            .filter_map(|i| slam_frontend::diagnosis::diagnose_pair(&self.seq.left[i], &self.seq.right[i]).ok())
-            .collect();
+        let looked: Vec<slam_frontend::diagnosis::PairDiagnosis> = match &self.seq.recording {
+            None => positions
+                .into_iter()
+                .filter_map(|i| slam_frontend::diagnosis::diagnose_pair(&self.seq.left[i], &self.seq.right[i]).ok())
+                .collect(),
+            Some(_) => {
+                // the images as tracked (decoded, rectified), the bit depth of their source
+                let mut reader = crate::source::FrameReader::new(&self.seq, self.colour, self.rectifier.clone());
+                positions
+                    .into_iter()
+                    .filter_map(|i| {
+                        let (l, r) = reader.pair(i).ok()?;
+                        let header = slam_frontend::image_size::image_header(&self.seq.left[i]).unwrap_or(
+                            slam_frontend::image_size::ImageHeader {
+                                width: l.width,
+                                height: l.height,
+                                bit_depth: self.source_bit_depth(),
+                                format: "ROS image message",
+                            },
+                        );
+                        slam_frontend::diagnosis::diagnose_images(&l, &r, header).ok()
+                    })
+                    .collect()
+            }
+        };
         let head = format!("most frames were not tracked ({tracked} of the {after} after the first)");
         let Some(first) = looked.first().copied() else {
             return vec![format!("{head}; no pair of images could be read to say why")];
@@ -113,7 +137,7 @@ impl Outcome {
         // a frame not placed in a loaded map has no pose: left out of both files
         let placed = |k: &usize| out.placed.get(*k).copied().unwrap_or(true);
         let keep: Vec<usize> = (0..out.poses.len()).filter(placed).collect();
-        let poses: Vec<Isometry3<f64>> = keep.iter().map(|&k| out.poses[k]).collect();
+        let poses: Vec<Isometry3<f64>> = keep.iter().map(|&k| self.raw_left(&out.poses[k])).collect();
         let times: Vec<f64> = keep.iter().filter_map(|&k| self.seq.times.get(k).copied()).collect();
         write_kitti_poses(dir.join("trajectory.kitti.txt"), &poses)?;
         write_tum(
@@ -125,10 +149,74 @@ impl Outcome {
         std::fs::write(dir.join("tracking.csv"), csv)
             .context_with(|| format!("writing {}", dir.join("tracking.csv").display()))?;
         out.map.save(&dir.join("map.json"))?;
-        let objects: Vec<&MappedObject> = out.objects.iter().collect();
-        slam_pipeline::objects::write_object_map_in(&dir.join("objects.json"), &objects, slam_pipeline::map::MAP_WORLD)
+        let objects: Vec<MappedObject> = self.objects_in_raw_left();
+        let objects: Vec<&MappedObject> = objects.iter().collect();
+        let world = if self.rectifier.is_some() { RAW_LEFT_WORLD } else { slam_pipeline::map::MAP_WORLD };
+        slam_pipeline::objects::write_object_map_in(&dir.join("objects.json"), &objects, world)
             .context_with(|| format!("writing {}", shown.join("objects.json").display()))?;
         Ok(())
+    }
+
+    /// The world from raw-left-camera frame change of a rectified run: `x_raw = Rᵀ x_rectified`, `R` the
+    /// rectification's rotation of the left camera (identity without one).
+    fn raw_from_rectified(&self) -> Isometry3<f64> {
+        match &self.rectifier {
+            Some(r) => {
+                let rot = nalgebra::Rotation3::from_matrix_unchecked(r.left_rotation.transpose());
+                Isometry3::from_parts(
+                    nalgebra::Translation3::identity(),
+                    nalgebra::UnitQuaternion::from_rotation_matrix(&rot),
+                )
+            }
+            None => Isometry3::identity(),
+        }
+    }
+
+    /// A tracked camera pose (world from rectified left camera, world = the rectified left camera of the
+    /// first frame) as written: the raw left camera's, in the raw left camera of the first frame. The
+    /// pose itself without a rectification.
+    pub fn raw_left(&self, pose: &Isometry3<f64>) -> Isometry3<f64> {
+        if self.rectifier.is_none() {
+            return *pose;
+        }
+        let c = self.raw_from_rectified();
+        c * pose * c.inverse()
+    }
+
+    /// The objects with their ellipsoids in the world of [`Outcome::raw_left`].
+    pub fn objects_in_raw_left(&self) -> Vec<MappedObject> {
+        let c = self.raw_from_rectified();
+        self.out
+            .objects
+            .iter()
+            .map(|o| {
+                let mut o = o.clone();
+                if let Some(e) = &mut o.ellipsoid {
+                    e.world_from_quadric = c * e.world_from_quadric;
+                }
+                o
+            })
+            .collect()
+    }
+
+    /// A map point in the world of [`Outcome::raw_left`].
+    pub fn point_in_raw_left(&self, p: &nalgebra::Point3<f64>) -> nalgebra::Point3<f64> {
+        self.raw_from_rectified() * p
+    }
+
+    /// Bits per sample of the images as recorded (16 for a bag of `mono16` images, else 8).
+    fn source_bit_depth(&self) -> u8 {
+        let deep = self
+            .seq
+            .recording
+            .as_ref()
+            .and_then(|r| r.bag.as_ref())
+            .is_some_and(|b| b.bag.topic(&b.topics.0).is_some_and(|t| t.layouts.contains("mono16")));
+        if deep {
+            16
+        } else {
+            8
+        }
     }
 
     /// The run's summary as printed: speed, counts, tracking states, map, stage table, errors against
@@ -333,14 +421,11 @@ impl Outcome {
             Err(e) => return Err(e.into()),
         };
         let Some(o) = overlays else { return Ok(written) };
-        let opts = slam_viz::OverlayOptions {
-            left: &self.seq.left,
-            colour: self.colour,
-            k: self.k,
-            image: self.image,
-            every: o.every,
-            format: &o.format,
-        };
+        let reader =
+            std::cell::RefCell::new(crate::source::FrameReader::new(&self.seq, self.colour, self.rectifier.clone()));
+        let left = |k: usize| reader.borrow_mut().pair(k).map(|p| p.0);
+        let opts =
+            slam_viz::OverlayOptions { left: &left, k: self.k, image: self.image, every: o.every, format: &o.format };
         let count = slam_viz::write_overlays(out, &opts, &dir.join("overlays"))?;
         written.push_str(&format!(", {count} overlays in overlays/"));
         Ok(written)

@@ -8,14 +8,16 @@ use slam_core::{Associator, DetectionSource, Image};
 use slam_dataset::{
     check::{calibration, calibration_file, declared_size, first_pair},
     kitti::{
-        stereo::{open_stereo, FrameSelection, Layout, StereoSequence},
+        stereo::{FrameSelection, Layout, StereoSequence},
         tracking::{read_tracking_labels, TrackingLabel},
     },
+    recording::{open_sequence, SourceOptions},
 };
 use slam_eval::LabelGeometry;
 use slam_frontend::{
     detectors::{DetectionCounts, DetectionGuard},
-    read_image, StereoRig, StereoVo, VoConfig,
+    rectify::Rectifier,
+    StereoRig, StereoVo, VoConfig,
 };
 use slam_optim::SharedOptimizer;
 use slam_pipeline::{
@@ -30,7 +32,12 @@ use slam_frontend::image_size::stereo_pair;
 use crate::{
     detector::DetectorChoice,
     error::{Result, RunnerError},
+    source::{rectifier_of, FrameReader},
 };
+
+/// The world of a rectified run's map file: the frame the tracker worked in (a later `run --map` tracks
+/// in it again).
+pub const RECTIFIED_WORLD: &str = "world = the rectified left camera of the first frame (the run rectified its images; trajectory and objects files are in the raw left camera's frame): x right, y down, z forward, metres; poses world from rectified camera";
 
 /// A fresh optimiser backend for each run.
 pub type OptimizerFactory = Arc<dyn Fn() -> SharedOptimizer + Send + Sync>;
@@ -40,8 +47,11 @@ pub type AssociatorFactory = Arc<dyn Fn(Option<f64>) -> Box<dyn Associator> + Se
 /// Everything a run needs, filled by the app from its options and settings file.
 #[derive(Clone)]
 pub struct RunSettings {
-    /// The sequence folder (odometry, raw or tracking layout).
+    /// The sequence: a KITTI folder (odometry, raw or tracking layout), a ROS 2 bag, or a folder of
+    /// `left/` and `right/` images.
     pub path: PathBuf,
+    /// How to read a recording that is not KITTI's (calibration file, a bag's topics, a folder's rate).
+    pub source: SourceOptions,
     /// Frame ids to play.
     pub selection: FrameSelection,
     /// Play at most this many frames (after the selection); `Some(0)` is refused.
@@ -136,6 +146,8 @@ pub struct Prepared {
     pub image: ImageSize,
     /// The same, with the frames of another size.
     pub sizes: SequenceSize,
+    /// The rectification of a rig whose images are not a rectified pair, computed once.
+    pub rectifier: Option<Arc<Rectifier>>,
     selection: FrameSelection,
 }
 
@@ -176,13 +188,15 @@ pub struct Outcome {
     pub stages: slam_pipeline::report::StagesOn,
     /// The map the run started from (`run --map`).
     pub loaded: Option<MapLoad>,
+    /// The rectification the images went through (raw cameras), if any.
+    pub rectifier: Option<Arc<Rectifier>>,
 }
 
 /// Open the sequence, apply the selection and `max_frames`, and check image sizes and calibration before
 /// the first frame (a right camera of another size would make every frame unreadable). The sequence's
 /// input warnings are logged.
 pub fn prepare(s: &RunSettings) -> Result<Prepared> {
-    let full = open_stereo(&s.path)?;
+    let full = open_sequence(&s.path, &s.source)?;
     for w in &full.warnings {
         tracing::warn!("{w}");
     }
@@ -193,11 +207,69 @@ pub fn prepare(s: &RunSettings) -> Result<Prepared> {
         }
         seq.truncate(n);
     }
-    let sizes = checked_size(&seq)?;
-    let [fx, fy, cx, cy] = seq.intrinsics;
+    let rectifier = rectifier_of(&mut seq)?;
     let colour = seq.layout != Layout::Odometry;
+    let sizes = match &seq.recording {
+        Some(_) => recording_size(&seq, colour, rectifier.clone())?,
+        None => checked_size(&seq)?,
+    };
+    let [fx, fy, cx, cy] = seq.intrinsics;
     let image = ImageSize::new(f64::from(sizes.size.0), f64::from(sizes.size.1));
-    Ok(Prepared { seq, k: Intrinsics::new(fx, fy, cx, cy), colour, image, sizes, selection: s.selection })
+    Ok(Prepared { seq, k: Intrinsics::new(fx, fy, cx, cy), colour, image, sizes, rectifier, selection: s.selection })
+}
+
+/// The image size of a recording that is not KITTI's, checked before the run: the first pair decoded
+/// (and rectified) must be one size, the calibration's size when it says one, and fit the calibration
+/// ([`calibration`]); a bag's raw images of another size (their headers say) are played as unreadable.
+pub fn recording_size(seq: &StereoSequence, colour: bool, rectifier: Option<Arc<Rectifier>>) -> Result<SequenceSize> {
+    let recording = seq.recording.as_ref().ok_or_else(|| RunnerError::Invalid("not a recording".into()))?;
+    let mut reader = FrameReader::new(seq, colour, None);
+    let (l, r) =
+        reader.pair(0).map_err(|e| RunnerError::Invalid(format!("{}: the first frame: {e}", seq.dir.display())))?;
+    if (l.width, l.height) != (r.width, r.height) {
+        return Err(RunnerError::Invalid(format!(
+            "{}: the first frame's left image is {}×{} and its right image {}×{}: a stereo pair has one size",
+            seq.dir.display(),
+            l.width,
+            l.height,
+            r.width,
+            r.height
+        )));
+    }
+    let size = (l.width, l.height);
+    if let Some(c) = recording.calibrated_size.filter(|c| *c != size) {
+        return Err(RunnerError::Invalid(format!(
+            "{}: the calibration is for {}×{} images, and the first frame's are {}×{} ({})",
+            recording.calibration.display(),
+            c.0,
+            c.1,
+            size.0,
+            size.1,
+            seq.dir.display()
+        )));
+    }
+    if let Some(rect) = &rectifier {
+        debug_assert_eq!(rect.size(), size);
+    }
+    let odd: Vec<usize> = match recording.bag.as_ref() {
+        Some(b) => (0..b.frames.len())
+            .filter(|&k| [b.frames[k].left.size, b.frames[k].right.size].iter().flatten().any(|s| *s != size))
+            .collect(),
+        None => Vec::new(),
+    };
+    if let Some(&i) = odd.first() {
+        tracing::warn!(
+            "{} of {} frames have images of another size than the first frame's {}×{} (first: frame {}): played as unreadable",
+            odd.len(),
+            seq.len(),
+            size.0,
+            size.1,
+            seq.ids[i]
+        );
+    }
+    let reference = seq.left.first().cloned().unwrap_or_else(|| seq.dir.clone());
+    calibration(&calibration_file(seq), seq.intrinsics, seq.baseline, &reference, size)?;
+    Ok(SequenceSize { size, odd })
 }
 
 /// The image size of a sequence and the frames that do not have it.
@@ -286,6 +358,15 @@ impl Prepared {
             s.names.0,
             s.names.1,
         );
+        if let Some(r) = &seq.recording {
+            text.push_str(&format!("\ninput: {}", r.source));
+        }
+        if let Some(r) = &self.rectifier {
+            text.push_str(&format!(
+                "\nrectified once for the run: fx {:.2} px, baseline {:.4} m (the tracked pair's; outputs in the raw left camera's frame)",
+                r.intrinsics[0], r.baseline
+            ));
+        }
         if let Some(&i) = self.sizes.odd.first() {
             text.push_str(&format!(
                 "\ninput: {} frame(s) of another image size than the others' {}×{} (first: frame {}), played as unreadable",
@@ -309,7 +390,7 @@ impl Prepared {
     /// recording); `stop` is polled before each frame is read (Ctrl-C: the input ends, the system
     /// finishes what it has).
     pub fn run(self, s: &RunSettings, on_frame: &mut dyn FnMut(&FrameView<'_>), stop: fn() -> bool) -> Result<Outcome> {
-        let Prepared { seq, k, colour, selection, image, sizes, .. } = self;
+        let Prepared { seq, k, colour, selection, image, sizes, rectifier, .. } = self;
         let mut tracking = s.tracking;
         if tracking.frame_period_s <= 0.0 {
             let n = seq.len().min(seq.times.len());
@@ -352,7 +433,7 @@ impl Prepared {
         for note in &notes {
             tracing::warn!("{note}");
         }
-        let frames = frame_source(&seq, colour, sizes, stop);
+        let frames = frame_source(FrameReader::new(&seq, colour, rectifier.clone()), &seq, sizes, stop);
         let start = std::time::Instant::now();
         let mut sys = s.system;
         sys.objects.image = image;
@@ -371,6 +452,9 @@ impl Prepared {
             .build()?
             .run(on_frame)?;
         let elapsed = start.elapsed().as_secs_f64();
+        if rectifier.is_some() {
+            out.map.frame = RECTIFIED_WORLD.to_string();
+        }
         // the map's world in the ground truth: the loaded map's, else this run's first frame's
         out.map.ground_truth_world = match &loaded {
             Some(l) => l.ground_truth_world,
@@ -380,7 +464,21 @@ impl Prepared {
             objects: detections.is_some(),
             bundle_adjustment: sys.mapping.bundle_adjustment,
         };
-        Ok(Outcome { out, labels, seq, elapsed, k, image, colour, detections, notes, selection, stages, loaded })
+        Ok(Outcome {
+            out,
+            labels,
+            seq,
+            elapsed,
+            k,
+            image,
+            colour,
+            detections,
+            notes,
+            selection,
+            stages,
+            loaded,
+            rectifier,
+        })
     }
 }
 
@@ -435,14 +533,11 @@ fn guarded(
 }
 
 /// Both images of a frame, of one size and of the size most of the sequence's frames have.
-fn read_pair(
-    l: &std::path::Path,
-    r: &std::path::Path,
-    colour: bool,
+fn checked_pair(
+    (li, ri): (Image, Image),
+    (l, r): (&std::path::Path, &std::path::Path),
     first: &SequenceSize,
 ) -> std::result::Result<(Image, Image), String> {
-    let (li, ri) =
-        read_image(l, colour).and_then(|li| read_image(r, colour).map(|ri| (li, ri))).map_err(|e| e.to_string())?;
     if (li.width, li.height) != (ri.width, ri.height) {
         Err(format!(
             "left {} is {}×{}, right {} is {}×{}",
@@ -468,19 +563,18 @@ fn read_pair(
     }
 }
 
-/// The frames as the system reads them; the input ends early when `stop()` turns true.
+/// The frames as the system reads them (through `reader`: files or a bag, rectified when the rig needs
+/// it); the input ends early when `stop()` turns true.
 fn frame_source(
+    mut reader: FrameReader,
     seq: &StereoSequence,
-    colour: bool,
     first: SequenceSize,
     stop: fn() -> bool,
 ) -> Box<dyn Iterator<Item = FrameInput> + Send> {
-    let pairs: Vec<(usize, PathBuf, PathBuf)> =
+    let entries: Vec<(usize, PathBuf, PathBuf)> =
         (0..seq.len()).map(|k| (seq.ids[k], seq.left[k].clone(), seq.right[k].clone())).collect();
-    Box::new(
-        pairs
-            .into_iter()
-            .take_while(move |_| !stop())
-            .map(move |(i, l, r)| FrameInput { index: i, images: read_pair(&l, &r, colour, &first) }),
-    )
+    Box::new(entries.into_iter().enumerate().take_while(move |_| !stop()).map(move |(k, (i, l, r))| FrameInput {
+        index: i,
+        images: reader.pair(k).and_then(|p| checked_pair(p, (&l, &r), &first)),
+    }))
 }

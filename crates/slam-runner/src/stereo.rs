@@ -37,6 +37,63 @@ pub struct StereoCheck {
     pub optimizer: OptimizerFactory,
 }
 
+/// Arguments of `slam-app stereo-check` (a `clap` group with the feature `clap`).
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+pub struct StereoCheckArgs {
+    /// KITTI stereo sequence folder (odometry, raw or tracking layout); default: the shipped sequence.
+    pub path: Option<PathBuf>,
+    /// Frames tracked to collect frame pairs, from the first (a count, as `run --max-frames`).
+    #[cfg_attr(feature = "clap", arg(long = "max-frames", default_value_t = 51))]
+    pub frames: usize,
+    /// Largest residual offset scanned either side of zero, pixels.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 0.6))]
+    pub range: f64,
+    /// Scan step, pixels.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 0.05))]
+    pub step: f64,
+    /// Most rounds of (track with the offset found so far, estimate the residual).
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 4))]
+    pub rounds: usize,
+    /// Print the cost curve of the last round.
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub curve: bool,
+    /// Settings file (its `[tracking]` table is used; its `disparity_offset` is the starting point).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub config: Option<PathBuf>,
+}
+
+impl StereoCheckArgs {
+    /// The whole command: the check of these options on `path` (else `default`), its rounds and its
+    /// conclusion, each line given to `print` as it is made.
+    pub fn run(&self, default: PathBuf, print: &mut dyn FnMut(&str)) -> Result<()> {
+        let cfg = crate::RunConfig::load(self.config.as_deref())?;
+        let check = StereoCheck {
+            path: self.path.clone().unwrap_or(default),
+            frames: self.frames,
+            range: self.range,
+            step: self.step,
+            rounds: self.rounds,
+            tracking: cfg.tracking,
+            optimizer: std::sync::Arc::new(|| crate::OptimizerKind::default().build()),
+        };
+        check.validate()?;
+        // both callbacks print as the check goes
+        let print = std::cell::RefCell::new(print);
+        let mut number = 0;
+        let report = stereo_check(
+            &check,
+            &mut |header: &str| (print.borrow_mut())(&format!("{header}\n{ROUND_HEADER}")),
+            &mut |round| {
+                number += 1;
+                (print.borrow_mut())(&round.row(number));
+            },
+        )?;
+        (print.borrow_mut())(&report.conclusion(self.curve));
+        Ok(())
+    }
+}
+
 /// One round: the offset applied while tracking and the residual estimated from its frame pairs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Round {

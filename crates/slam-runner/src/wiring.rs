@@ -146,6 +146,7 @@ impl RunSettings {
         let Wiring { optimizer, associator, method } = wiring;
         RunSettings {
             path,
+            source: Default::default(),
             selection,
             max_frames,
             tracking: cfg.tracking,

@@ -1,10 +1,10 @@
 //! The per-frame overlay of a run: what the system saw and built, drawn on the frame's left image.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use nalgebra::{Isometry3, Point3};
 use slam_core::{Detection, Image, TrackId};
-use slam_frontend::{draw_overlay, ellipse_outline, read_image, write_image, Overlay};
+use slam_frontend::{draw_overlay, ellipse_outline, write_image, Overlay};
 use slam_pipeline::{
     objects::MappedObject,
     system::{FrameRecord, RunOutput},
@@ -132,10 +132,9 @@ pub fn overlay_of(frame: &FrameState<'_>, k: Intrinsics, image: ImageSize) -> Ov
 
 /// What [`write_overlays`] draws and where.
 pub struct OverlayOptions<'a> {
-    /// The played frames' left images, in the order of the run's records.
-    pub left: &'a [PathBuf],
-    /// Read the images in colour (else grey).
-    pub colour: bool,
+    /// The left image of the played frame at a position in the run's records, as it was tracked (read,
+    /// decoded, rectified); an error says why it cannot be had.
+    pub left: &'a dyn Fn(usize) -> Result<Image, String>,
     /// The run's camera.
     pub k: Intrinsics,
     /// The run's image size.
@@ -157,7 +156,7 @@ pub fn write_overlays(out: &RunOutput, opts: &OverlayOptions<'_>, dir: &Path) ->
             continue;
         }
         // records are in input order: entry i of the played sequence is frame id rec.index
-        let img: Image = match read_image(&opts.left[i], opts.colour) {
+        let img: Image = match (opts.left)(i) {
             Ok(img) => img,
             Err(e) => {
                 tracing::warn!("overlay of frame {}: {e}", rec.index);

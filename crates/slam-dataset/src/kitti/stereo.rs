@@ -30,6 +30,10 @@ pub enum Layout {
     Raw,
     /// Tracking benchmark: `training/{image_02,image_03}/NNNN`, `training/calib/NNNN.txt`.
     Tracking,
+    /// A ROS 2 bag (`crate::recording`): an `.mcap` file or a rosbag2 folder.
+    Bag,
+    /// A folder of `left/` and `right/` images with a calibration file (`crate::recording`).
+    Folder,
 }
 
 /// Where a sequence's ground-truth poses come from.
@@ -99,6 +103,9 @@ pub struct StereoSequence {
     /// What was odd about the input and how it was handled, one sentence each (the caller logs them and
     /// prints their count).
     pub warnings: Vec<String>,
+    /// A recording that is not KITTI's (a bag, a folder with a calibration file): where its frames are,
+    /// the rig to rectify, the calibration's source; `None` for the KITTI layouts.
+    pub recording: Option<crate::recording::Recording>,
 }
 
 /// Which frames to play: ids in `[first, end)` (either side open), every `stride`-th id from the
@@ -219,6 +226,7 @@ impl StereoSequence {
             } else {
                 self.truth_source.map(TruthSource::for_a_subset)
             },
+            recording: self.recording.as_ref().map(|r| r.select(&keep)),
             ..self.clone()
         })
     }
@@ -229,6 +237,9 @@ impl StereoSequence {
             self.truth_source = self.truth_source.map(TruthSource::for_a_subset);
         }
         self.ids.truncate(n);
+        if let Some(r) = &mut self.recording {
+            r.truncate(n);
+        }
         self.left.truncate(n);
         self.right.truncate(n);
         self.times.truncate(n);
@@ -292,6 +303,7 @@ fn open_odometry(dir: &Path) -> Result<StereoSequence, DatasetError> {
         gaps: seq.gaps,
         one_camera: seq.one_camera,
         warnings: seq.warnings,
+        recording: None,
     })
 }
 
@@ -426,6 +438,7 @@ fn open_raw(dir: &Path) -> Result<StereoSequence, DatasetError> {
         gaps: pairs.gaps,
         one_camera: pairs.one_camera,
         warnings,
+        recording: None,
     })
 }
 
@@ -456,6 +469,7 @@ fn open_tracking(training: &Path, seq: &str) -> Result<StereoSequence, DatasetEr
         one_camera: pairs.one_camera,
         // KITTI's tracking benchmark ships no poses
         warnings: [pairs.warnings, vec![no_truth("the tracking layout has no poses (no ATE/RPE)")]].concat(),
+        recording: None,
     })
 }
 

@@ -16,6 +16,7 @@ pub fn fixture(rel: &str) -> PathBuf {
 pub fn settings(sequence: &str, selection: FrameSelection, max_frames: Option<usize>) -> RunSettings {
     RunSettings {
         path: fixture(sequence),
+        source: Default::default(),
         selection,
         max_frames,
         tracking: slam_frontend::VoConfig::default(),
