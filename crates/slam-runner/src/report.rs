@@ -13,17 +13,18 @@ use slam_dataset::{
     },
     trajectory::{write_kitti_poses, write_tum},
 };
-use slam_eval::LabelGeometry;
-use slam_pipeline::{
-    eval::{errors_from, interpolated_stretches, largest_step_error, trajectory_errors, INTERPOLATED_TURN_DEG},
-    objects::MappedObject,
-    report::{median_fps, stages_run, tracking_csv},
-    system::RunOutput,
+use slam_eval::{
+    trajectory_errors::{
+        errors_from, interpolated_stretches, largest_step_error, trajectory_errors, INTERPOLATED_TURN_DEG,
+    },
+    LabelGeometry,
 };
+use slam_pipeline::{objects::MappedObject, system::RunOutput};
 
 use crate::{
     error::{Context, Result, RunnerError},
     run::{played_ids, Outcome},
+    run_summary::{median_fps, stages_run, tracking_csv},
 };
 
 /// Overlay images to draw: every `every`-th frame, as `format` (`png` or `jpg`).

@@ -20,7 +20,6 @@ use slam_frontend::{
 use slam_optim::SharedOptimizer;
 use slam_pipeline::{
     objects::FitMethod,
-    report::frame_period,
     system::{FrameInput, FrameView, RunOutput, SystemBuilder, SystemConfig},
 };
 use slam_quadric::{ImageSize, Intrinsics};
@@ -30,6 +29,7 @@ use slam_frontend::image_size::stereo_pair;
 use crate::{
     detector::DetectorChoice,
     error::{Result, RunnerError},
+    run_summary::frame_period,
 };
 
 /// A fresh optimiser backend for each run.
@@ -173,7 +173,7 @@ pub struct Outcome {
     /// The frame selection, for the summary.
     pub selection: FrameSelection,
     /// The optional stages the run switched on (for the timing table).
-    pub stages: slam_pipeline::report::StagesOn,
+    pub stages: crate::run_summary::StagesOn,
     /// The map the run started from (`run --map`).
     pub loaded: Option<MapLoad>,
 }
@@ -376,7 +376,7 @@ impl Prepared {
             Some(l) => l.ground_truth_world,
             None => ground_truth_world(&out.map, &seq),
         };
-        let stages = slam_pipeline::report::StagesOn {
+        let stages = crate::run_summary::StagesOn {
             objects: detections.is_some(),
             bundle_adjustment: sys.mapping.bundle_adjustment,
         };
