@@ -13,17 +13,16 @@
 //! * [`ObjectTracker`]: keeps tracks, predicts them, calls any [`Associator`], creates tracks for
 //!   unmatched detections and retires tracks after missed frames.
 //! * [`conformance`]: checks any [`Associator`] must pass.
-//! * [`eval`]: simulated multi-object scenes and CLEAR-MOT style counters.
+//!
+//! The simulated scenes that compare associators, and the `slam-app assoc` study, are in `slam-studies`.
 
 #![warn(missing_docs)]
 
 pub mod conformance;
-pub mod eval;
 mod hungarian;
 mod iou;
 mod kalman;
 mod oda;
-pub mod study;
 mod tracker;
 
 pub use hungarian::{assign, Cost};
