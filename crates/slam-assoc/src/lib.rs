@@ -22,12 +22,12 @@ pub mod conformance;
 mod hungarian;
 mod iou;
 mod kalman;
+mod object_tracks;
 mod oda;
-mod tracker;
 
 pub use hungarian::{assign, Cost};
 pub use iou::{IouAssociator, IouConfig};
 pub use kalman::KalmanBoxFilter;
+pub use object_tracks::{ObjectTracker, OwnedRegion, Track, TrackerConfig, TrackerInput, TrackerOutput};
 pub use oda::{Oda, OdaConfig, OdaWeights};
 pub use slam_core::{Assignment, AssociationInput, Associator, PointPair, TrackView};
-pub use tracker::{ObjectTracker, OwnedRegion, Track, TrackerConfig, TrackerInput, TrackerOutput};

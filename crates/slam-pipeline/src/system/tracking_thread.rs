@@ -25,8 +25,8 @@ use crate::{
     },
 };
 
-/// The tracking thread's state: what one [`Tracking::step`] per frame reads and updates.
-pub struct Tracking {
+/// The tracking thread's state: what one [`TrackingThread::step`] per frame reads and updates.
+pub struct TrackingThread {
     pub(crate) tracker: Box<dyn StereoTracker>,
     /// The live map: the tracker reads it, keyframes go in here, local mapping's edits are applied here.
     pub(crate) map: Map,
@@ -65,7 +65,7 @@ pub struct Tracking {
     segment_reference: Option<(KeyframeId, (KeyframeId, Isometry3<f64>))>,
 }
 
-impl Tracking {
+impl TrackingThread {
     /// Tracking state talking to local mapping through `requests` and `replies`.
     pub(crate) fn new(
         tracker: Box<dyn StereoTracker>,
@@ -209,7 +209,7 @@ impl Tracking {
         Ok(())
     }
 
-    /// Stop local mapping (after [`Tracking::drain_replies`]).
+    /// Stop local mapping (after [`TrackingThread::drain_replies`]).
     pub(crate) fn stop_mapping(&self) {
         // the thread may have stopped already; joining it reports that
         let _ = self.requests.send(MapperRequest::Finish);
