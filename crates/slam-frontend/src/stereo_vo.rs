@@ -227,18 +227,7 @@ impl StereoVo {
         let t2 = Instant::now();
         let times = |t3: Instant| StageTimes { extraction, stereo, tracking: (t3 - t2).as_secs_f64() * 1e3 };
         let stereo_points = frame.points.len();
-        // localising only, a frame lost for longer than a new segment would wait is no longer placed:
-        // it is localised again from scratch rather than predicted on and on
-        let period = self.config().period();
-        if self.config().localise_only
-            && self.started
-            && self.motion.failed
-            && frame_index.saturating_sub(self.motion.measured_index) as f64 * period > self.config().max_lost_s
-        {
-            tracing::warn!(frame = frame_index, "lost in the loaded map: localising again from scratch");
-            (self.started, self.reference, self.unplaced_since) = (false, None, None);
-            self.last_matched.clear();
-        }
+        self.unplace_if_lost_long(frame_index);
         let Some(reference) = self.reference.filter(|r| map.keyframe_pose(*r).is_some()) else {
             let mut tf = if !self.started && map.keyframe_count() > 0 {
                 self.localise(frame, frame_index, map)?
@@ -257,16 +246,8 @@ impl StereoVo {
         tracing::debug!(frame = frame_index, reference, predicted = ?predicted.inverse().translation.vector.as_slice(), last = ?self.motion.kf_from_last.translation.vector.as_slice(), velocity = ?self.motion.velocity.translation.vector.as_slice(), "prediction");
         let (found, fallback, retrieved) = self.find_pose(map, &local, &frame, &predicted)?;
         let route = found.as_ref().map(|f| f.2);
-        // a retrieved keyframe becomes the reference, and the map its inliers index the local map
-        let (reference, world_from_ref, local) = match (route, retrieved) {
-            (Some(Route::Retrieved(id)), Some(m)) => {
-                let world_from_new = map.keyframe_pose(id).unwrap_or(world_from_ref);
-                self.motion.rebase_to(&(world_from_new.inverse() * world_from_ref));
-                self.reference = Some(id);
-                (id, world_from_new, m)
-            }
-            _ => (reference, world_from_ref, local),
-        };
+        let (reference, world_from_ref, local) =
+            self.adopt_retrieved(map, (route, retrieved), (reference, world_from_ref, local));
         let (state, curr_from_ref, refined, support) = self.decide(frame_index, found, &frame, predicted);
         let kf_from_curr = curr_from_ref.inverse();
         let measured = refined.is_some();
@@ -281,34 +262,12 @@ impl StereoVo {
             Some(_) => self.in_view(&local, &curr_from_ref),
             None => Vec::new(),
         };
-        let sightings = refined
-            .as_ref()
-            .map(|r| Sightings {
-                visible: local.ids.iter().zip(&seen).filter(|(_, s)| s.is_some()).map(|(id, _)| *id).collect(),
-                found: r.inliers.iter().map(|&(i, _)| local.ids[i]).collect(),
-            })
-            .unwrap_or_default();
+        let sightings = refined.as_ref().map(|r| sightings_of(&local, &seen, r)).unwrap_or_default();
         if let Some(r) = &refined {
             self.last_matched = r.inliers.iter().map(|&(i, _)| local.ids[i]).collect();
         }
         if let Some(r) = refined.as_ref().filter(|_| tracing::enabled!(tracing::Level::DEBUG)) {
-            let near = self.config().far_baselines * self.pose_search.rig.baseline;
-            let far_inliers = r
-                .inliers
-                .iter()
-                .filter(|&&(i, _)| (r.pose * nalgebra::Point3::from(local.points[i])).z >= near)
-                .count();
-            let mono_map = local.views.iter().filter(|v| v.iter().all(|(_, o)| o[2].is_nan())).count();
-            tracing::debug!(
-                frame = frame_index,
-                local = local.len(),
-                keyframes = local.slots.len(),
-                mono_map,
-                visible = seen.iter().filter(|s| s.is_some()).count(),
-                inliers = r.inliers.len(),
-                far_inliers,
-                "tracked"
-            );
+            self.log_tracked(frame_index, r, &local, &seen);
         }
         let since_measured = self.motion.since_measured;
         let view = View { frame: &frame, map: &local, refined: refined.as_ref(), seen: &seen };
@@ -371,6 +330,59 @@ impl StereoVo {
             segment: self.segment,
             joined: None,
         })
+    }
+
+    /// A retrieved keyframe becomes the reference, and the map its inliers index the local map; else
+    /// the reference, its pose and the local map stay.
+    fn adopt_retrieved(
+        &mut self,
+        map: &Map,
+        (route, retrieved): (Option<Route>, Option<LocalMap>),
+        (reference, world_from_ref, local): (KeyframeId, Isometry3<f64>, LocalMap),
+    ) -> (KeyframeId, Isometry3<f64>, LocalMap) {
+        match (route, retrieved) {
+            (Some(Route::Retrieved(id)), Some(m)) => {
+                let world_from_new = map.keyframe_pose(id).unwrap_or(world_from_ref);
+                self.motion.rebase_to(&(world_from_new.inverse() * world_from_ref));
+                self.reference = Some(id);
+                (id, world_from_new, m)
+            }
+            _ => (reference, world_from_ref, local),
+        }
+    }
+
+    /// Localising only, a frame lost for longer than a new segment would wait is no longer placed: it is
+    /// localised again from scratch rather than predicted on and on.
+    fn unplace_if_lost_long(&mut self, frame_index: usize) {
+        let period = self.config().period();
+        if self.config().localise_only
+            && self.started
+            && self.motion.failed
+            && frame_index.saturating_sub(self.motion.measured_index) as f64 * period > self.config().max_lost_s
+        {
+            tracing::warn!(frame = frame_index, "lost in the loaded map: localising again from scratch");
+            (self.started, self.reference, self.unplaced_since) = (false, None, None);
+            self.last_matched.clear();
+        }
+    }
+
+    /// The debug line of a tracked frame: the local map, its points seen only from one camera, those in
+    /// view, and the inliers (far ones apart).
+    fn log_tracked(&self, frame_index: usize, r: &Refined, local: &LocalMap, seen: &[Option<(f64, f64)>]) {
+        let near = self.config().far_baselines * self.pose_search.rig.baseline;
+        let far_inliers =
+            r.inliers.iter().filter(|&&(i, _)| (r.pose * nalgebra::Point3::from(local.points[i])).z >= near).count();
+        let mono_map = local.views.iter().filter(|v| v.iter().all(|(_, o)| o[2].is_nan())).count();
+        tracing::debug!(
+            frame = frame_index,
+            local = local.len(),
+            keyframes = local.slots.len(),
+            mono_map,
+            visible = seen.iter().filter(|s| s.is_some()).count(),
+            inliers = r.inliers.len(),
+            far_inliers,
+            "tracked"
+        );
     }
 
     /// Where each local-map point is seen from `curr_from_ref` when it is in the view: inside the image,
@@ -806,6 +818,15 @@ impl StereoVo {
         let points = box_stereo::box_points(left, right, &self.stereo.rig, self.stereo.disparity_offset, queries)?;
         self.flow.add_flow_keypoints(points.iter().flatten().map(|p| (p.observation[0], p.observation[1])));
         Ok(points)
+    }
+}
+
+/// The map points a tracked frame's view held (`seen`, from [`StereoVo::in_view`]) and those its
+/// refined pose kept.
+fn sightings_of(local: &LocalMap, seen: &[Option<(f64, f64)>], r: &Refined) -> Sightings {
+    Sightings {
+        visible: local.ids.iter().zip(seen).filter(|(_, s)| s.is_some()).map(|(id, _)| *id).collect(),
+        found: r.inliers.iter().map(|&(i, _)| local.ids[i]).collect(),
     }
 }
 
