@@ -5,7 +5,8 @@
 #  3. the seam crates (slam-map, slam-core, slam-optim) depend on no implementation crate;
 #  4. implementation crates depend on seams only (slam-quadric, slam-map, slam-core, slam-optim), never on
 #     each other.
-# Composition crates (slam-pipeline, slam-sim, slam-eval, slam-viz, slam-runner, slam-app) may combine implementations;
+# Composition crates (slam-pipeline, slam-sim, slam-eval, slam-studies, slam-viz, slam-runner, slam-app) may combine
+# implementations;
 #  5. slam-eval and everything below the front end stay free of OpenCV; slam-viz (pictures, above the
 #     front end) is used by slam-runner and slam-app only;
 #  6. slam-runner (the run-related commands' work, and the names of the implementations behind the seams)
@@ -31,7 +32,7 @@ fi
 echo "check-deps: slam-quadric depends on [ ${plain}] (+ serde with the serde feature): ok"
 
 # Nothing below the front end links OpenCV or ONNX Runtime: the detector's runtimes stay in slam-frontend.
-for crate in slam-quadric slam-map slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-eval; do
+for crate in slam-quadric slam-map slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-studies slam-eval; do
   tree=$(cargo tree -q -p "$crate" --all-features -e normal --prefix none)
   for lib in opencv ort; do
     if echo "$tree" | grep -q "^$lib "; then
@@ -79,8 +80,13 @@ for crate in slam-assoc slam-dataset slam-frontend slam-lm slam-dogleg; do
 done
 echo "check-deps: implementation crates (slam-assoc, slam-dataset, slam-frontend, slam-lm, slam-dogleg) depend on seams only: ok"
 
+# slam-studies (the benchmarks and studies of the reusable crates) composes the optimiser seam and the
+# associators only: the libraries it studies stay free of it, and it of the running system.
+check_only slam-studies slam-quadric slam-core slam-optim slam-assoc
+echo "check-deps: slam-studies depends on [ $(workspace_deps slam-studies)]: ok"
+
 # slam-viz sits near the top, under slam-runner, slam-rerun and the app only: no other library crate depends on it.
-for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-eval slam-frontend; do
+for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-studies slam-eval slam-frontend; do
   if workspace_deps "$crate" | tr ' ' '\n' | grep -qx slam-viz; then
     echo "check-deps: $crate must not depend on slam-viz (pictures are for the app)" >&2
     exit 1
@@ -90,7 +96,7 @@ check_only slam-viz slam-quadric slam-core slam-sim slam-pipeline slam-frontend
 echo "check-deps: slam-viz depends on [ $(workspace_deps slam-viz)] and only slam-runner, slam-rerun and slam-app depend on it: ok"
 
 # slam-runner sits directly under the app: no library crate depends on it.
-for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-eval slam-frontend slam-viz; do
+for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-studies slam-eval slam-frontend slam-viz; do
   if workspace_deps "$crate" | tr ' ' '\n' | grep -qx slam-runner; then
     echo "check-deps: $crate must not depend on slam-runner (only slam-app may)" >&2
     exit 1
@@ -105,7 +111,7 @@ echo "check-deps: slam-runner depends on [ $(workspace_deps slam-runner)] and on
 # and it composes the pipeline, the pictures' rules and the front end's image encoding only. Its rerun
 # crates are optional (feature rerun), so its own checks read its default dependencies: a machine that
 # never built the feature has not downloaded them.
-for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-eval slam-frontend slam-viz slam-runner; do
+for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-studies slam-eval slam-frontend slam-viz slam-runner; do
   if workspace_deps "$crate" | tr ' ' '\n' | grep -qx slam-rerun; then
     echo "check-deps: $crate must not depend on slam-rerun (only slam-app may)" >&2
     exit 1

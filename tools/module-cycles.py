@@ -4,12 +4,14 @@
 Each .rs file is a module (`a.rs` or `a/mod.rs` is `a`, `a/b.rs` is `a::b`). A file's code, without its
 comments, string and character literals and test-only items (an item under `#[cfg(test)]` or
 `#[cfg(all(test, ...))]`), names other modules through `crate::...`, `super::...` and `self::...` paths,
-`use` trees with nested groups included. A name a module re-exports (`pub use x::Name`, any visibility)
-is followed to the module that defines it, so `use crate::Name` counts as an import of that module. A
-reference between a module and one of its ancestors is the module tree itself (a parent declares and
-re-exports its children; a child may use its parent's own items) and is not counted; every other
-reference is an edge. A circle of edges is printed with the files on it and the exit status is 1;
-without one the script prints one line per crate and exits 0.
+`use` trees with nested groups included, and through paths that start at one of its own child
+modules by the bare name (`pub use builder::System`). A name a module re-exports (`pub use x::Name`,
+any visibility) is followed to the module that defines it, so `use crate::Name` counts as an import of
+that module. A module's reference to one of its ancestors is not counted (a child may use its
+parent's own items: that is the module tree); every other reference is an edge, the parent's use of a
+child's items (re-exports included) too, so a parent that uses its child while the child, through
+other files, uses the parent is a circle. A circle of edges is printed with the files on it and the
+exit status is 1; without one the script prints one line per crate and exits 0.
 """
 import re
 import sys
@@ -93,13 +95,18 @@ def use_tree(code: str, i: int, prefix: list, out: list) -> int:
         return i
 
 
-def paths(module: tuple, code: str) -> list:
-    """Every `crate::`/`super::`/`self::` path in the code, as (absolute segments, exported name)."""
+def paths(module: tuple, code: str, children: tuple = ()) -> list:
+    """Every `crate::`/`super::`/`self::` path in the code, and every path that starts at one of the
+    module's `children` by its bare name (`pub use builder::System`), as (absolute segments, exported
+    name)."""
     found = []
-    for m in ROOT.finditer(code):
-        base = [] if m.group(1) == "crate" else list(module) if m.group(1) == "self" else list(module[:-1])
+    starts = [(m.start(), m.end(), m.group(1)) for m in ROOT.finditer(code)]
+    for child in children:
+        starts += [(m.start(), m.start() + len(child), "child") for m in re.finditer(rf"(?<![\w:]){child}\s*::", code)]
+    for start, end, root in sorted(starts):
+        base = [] if root == "crate" else list(module) if root in ("self", "child") else list(module[:-1])
         raw = []
-        use_tree(code, m.end(), [], raw)
+        use_tree(code, start if root == "child" else end, [], raw)
         for segs, name in raw:
             b = list(base)
             while segs and segs[0] == "super":
@@ -147,8 +154,10 @@ def resolve(path: list, known: set, exported: dict, depth: int = 0) -> tuple:
     return target
 
 
-def ancestor(a: tuple, b: tuple) -> bool:
-    return a == b[: len(a)] or b == a[: len(b)]
+def within(m: tuple, t: tuple) -> bool:
+    """Whether `t` is `m` itself or one of its ancestors: the references a module makes to its own
+    ancestors (the module tree) are not edges; those to its descendants are."""
+    return t == m[: len(t)]
 
 
 def cycles(src: Path) -> list:
@@ -158,8 +167,9 @@ def cycles(src: Path) -> list:
     exported = {m: reexports(m, c, known) for m, c in codes.items()}
     edges = {}
     for m, code in codes.items():
-        targets = {resolve(p, known, exported) for p, _ in paths(m, code)}
-        edges[m] = sorted(t for t in targets if not ancestor(m, t))
+        children = tuple(k[-1] for k in known if k[:-1] == m and len(k) == len(m) + 1)
+        targets = {resolve(p, known, exported) for p, _ in paths(m, code, children)}
+        edges[m] = sorted(t for t in targets if not within(m, t))
     found, state, stack = [], {}, []
 
     def visit(m):

@@ -1,4 +1,4 @@
-//! `slam-app assoc …`: association accuracy studies (`slam_assoc::study`).
+//! `slam-app assoc …`: association accuracy studies (`slam_studies::assoc_study`).
 
 use std::path::PathBuf;
 
@@ -45,7 +45,7 @@ pub fn run(cmd: AssocCommand) -> anyhow::Result<()> {
 fn sim(a: &SimArgs) -> anyhow::Result<()> {
     slam_core::check::count("--scenes", a.scenes as usize, 1, 100_000)?;
     slam_core::check::count("--frames", a.frames, 1, 1_000_000)?;
-    slam_assoc::study::simulated_table(a.scenes, a.frames, &mut |l| println!("{l}"));
+    slam_studies::assoc_study::simulated_table(a.scenes, a.frames, &mut |l| println!("{l}"));
     Ok(())
 }
 

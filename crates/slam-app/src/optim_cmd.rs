@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
-use slam_optim::bench::{self, ANCHORS};
+use slam_studies::optim_bench::{self as bench, ANCHORS};
 
 use slam_runner::OptimizerKind;
 

@@ -6,9 +6,10 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use slam_assoc::{eval::SimRng, IouAssociator, Oda};
+use slam_assoc::{IouAssociator, Oda};
 use slam_core::{
-    geometry::BBox, AssociationInput, Associator, ClassId, Detection, PointPair, Region, TrackId, TrackView,
+    geometry::BBox, rng::SimRng, AssociationInput, Associator, ClassId, Detection, PointPair, Region, TrackId,
+    TrackView,
 };
 
 fn scene(n: usize) -> (Vec<Detection>, Vec<TrackView<'static>>, Vec<PointPair>) {

@@ -9,7 +9,7 @@ use slam_core::{
     geometry::BBox, Assignment, AssociationInput, Associator, ClassId, Detection, PointPair, Region, TrackId, TrackView,
 };
 
-use crate::eval::SimRng;
+use slam_core::rng::SimRng;
 
 /// A factory of fresh associators (associators may keep state between frames).
 pub type Factory<'a> = &'a mut dyn FnMut() -> Box<dyn Associator>;

@@ -13,22 +13,21 @@
 //! * [`ObjectTracker`]: keeps tracks, predicts them, calls any [`Associator`], creates tracks for
 //!   unmatched detections and retires tracks after missed frames.
 //! * [`conformance`]: checks any [`Associator`] must pass.
-//! * [`eval`]: simulated multi-object scenes and CLEAR-MOT style counters.
+//!
+//! The simulated scenes that compare associators, and the `slam-app assoc` study, are in `slam-studies`.
 
 #![warn(missing_docs)]
 
 pub mod conformance;
-pub mod eval;
 mod hungarian;
 mod iou;
 mod kalman;
+mod object_tracks;
 mod oda;
-pub mod study;
-mod tracker;
 
 pub use hungarian::{assign, Cost};
 pub use iou::{IouAssociator, IouConfig};
 pub use kalman::KalmanBoxFilter;
+pub use object_tracks::{ObjectTracker, OwnedRegion, Track, TrackerConfig, TrackerInput, TrackerOutput};
 pub use oda::{Oda, OdaConfig, OdaWeights};
 pub use slam_core::{Assignment, AssociationInput, Associator, PointPair, TrackView};
-pub use tracker::{ObjectTracker, OwnedRegion, Track, TrackerConfig, TrackerInput, TrackerOutput};

@@ -4,7 +4,8 @@
 //! [`assoc::Associator`], `slam-frontend` implements [`tracking::StereoTracker`] and
 //! [`source::DetectionSource`], and the pipeline holds `Box<dyn …>` values chosen from configuration.
 //! The crate is deliberately small: typed ids, object classes, detections with optional instance masks,
-//! images, the association, detection and tracking contracts, and the rules every file reader and writer
+//! images, the association, detection and tracking contracts (the tracking one with its conformance
+//! suite, [`tracker_conformance`]), and the rules every file reader and writer
 //! follows ([`files`]: regular files only, a size cap, atomic writes), figures of sets that may be empty
 //! ([`figure`]: a dash, never NaN) and the memory a command may still take ([`memory`]). Geometry comes from `slam-quadric`, re-exported as [`geometry`].
 
@@ -19,6 +20,7 @@ pub mod memory;
 pub mod rig;
 pub mod rng;
 pub mod source;
+pub mod tracker_conformance;
 pub mod tracking;
 
 /// The geometry crate, re-exported so that users of the seams need one dependency.

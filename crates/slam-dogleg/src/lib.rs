@@ -68,6 +68,15 @@ impl DogLeg {
         Self { params }
     }
 
+    /// The two steps at a linearisation: Gauss-Newton (damped by `mu` where the system needs it) and
+    /// steepest descent scaled to the minimum of the model along the gradient (Cauchy's point).
+    fn steps(&self, sys: &LinearSystem, graph: &Graph, lin: &Linearization, mu: &mut f64) -> (Option<Step>, Step) {
+        let g = sys.gradient(lin);
+        let jg = sys.jacobian_norm_squared(graph, lin, &g);
+        let alpha = if jg > 0.0 { g.norm_squared() / jg } else { 0.0 };
+        (self.gauss_newton(sys, lin, mu), g.scaled(-alpha))
+    }
+
     /// The Gauss–Newton step (regularised), raising `mu` until the factorisation succeeds.
     fn gauss_newton(&self, sys: &LinearSystem, lin: &Linearization, mu: &mut f64) -> Option<Step> {
         let p = &self.params;
@@ -79,6 +88,19 @@ impl DogLeg {
             *mu *= 10.0;
         }
         None
+    }
+}
+
+/// The trust region after a step of length `step_norm` whose cost fell by `rho` times the model's
+/// prediction: grown (to three steps, at most `max_radius`) after a good step, shrunk to a quarter of
+/// it after a poor one, kept otherwise.
+fn next_radius(radius: f64, rho: f64, step_norm: f64, p: &DogLegParams) -> f64 {
+    if rho > 0.75 {
+        radius.max(3.0 * step_norm).min(p.max_radius)
+    } else if rho < 0.25 {
+        0.25 * step_norm.min(radius)
+    } else {
+        radius
     }
 }
 
@@ -136,12 +158,7 @@ impl Optimizer for DogLeg {
             summary.iterations += 1;
             let (gn, sd) = match cached.take() {
                 Some(c) => c,
-                None => {
-                    let g = sys.gradient(&lin);
-                    let jg = sys.jacobian_norm_squared(graph, &lin, &g);
-                    let alpha = if jg > 0.0 { g.norm_squared() / jg } else { 0.0 };
-                    (self.gauss_newton(&sys, &lin, &mut mu), g.scaled(-alpha))
-                }
+                None => self.steps(&sys, graph, &lin, &mut mu),
             };
             let step = dogleg_step(gn.as_ref(), &sd, radius);
             let step_norm = step.norm();
@@ -199,13 +216,7 @@ impl Optimizer for DogLeg {
             if !accepted {
                 cached = Some((gn, sd));
             }
-            radius = if rho > 0.75 {
-                radius.max(3.0 * step_norm).min(p.max_radius)
-            } else if rho < 0.25 {
-                0.25 * step_norm.min(radius)
-            } else {
-                radius
-            };
+            radius = next_radius(radius, rho, step_norm, &p);
             info.accepted = accepted;
             tracing::trace!(iteration = info.iteration, cost = info.cost, radius, accepted, "dog-leg iteration");
             if let Some(obs) = observer.as_deref_mut() {

@@ -1,10 +1,10 @@
 //! `slam-app assoc kitti`: the associators compared on KITTI tracking labels (true track ids hidden),
-//! per sequence and condition ([`slam_assoc::study`]), as a table and CSV.
+//! per sequence and condition ([`slam_studies::assoc_study`]), as a table and CSV.
 
 use std::path::PathBuf;
 
-use slam_assoc::study::{compared_associators, label_study, labelled_frames, CONDITIONS};
 use slam_dataset::kitti::tracking::read_tracking_labels;
+use slam_studies::assoc_study::{compared_associators, label_study, labelled_frames, CONDITIONS};
 
 use crate::EvalError;
 

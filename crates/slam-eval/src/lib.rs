@@ -1,7 +1,7 @@
 //! Evaluation of a run's object map against KITTI tracking labels ([`score`]), with the labels'
 //! geometry in the run's camera ([`labels`]); and the image-free object study on KITTI tracking
 //! sequences, label boxes as detections ([`labelled`]); a trajectory file against ground truth
-//! ([`trajectory`]). Used by `slam-app run --labels`, `objects`, `eval` and `trajectory-eval`; kept out
+//! ([`trajectory`]) and the errors themselves, ATE, RPE and drift ([`trajectory_errors`]). Used by `slam-app run --labels`, `objects`, `eval` and `trajectory-eval`; kept out
 //! of the app so that every front end scores the same way.
 
 #![warn(missing_docs)]
@@ -14,6 +14,7 @@ pub mod score;
 pub mod street;
 pub mod study;
 pub mod trajectory;
+pub mod trajectory_errors;
 
 use std::path::Path;
 

@@ -1,13 +1,14 @@
 //! A trajectory file against ground truth (`slam-app trajectory-eval`): KITTI or TUM files, matched by
 //! time (two TUM files) or by line, both started at the identity at the first matched pair, then ATE,
-//! drift and RPE ([`slam_pipeline::eval::trajectory_errors`]).
+//! drift and RPE ([`crate::trajectory_errors::trajectory_errors`]).
 
 use std::{collections::BTreeMap, path::Path};
 
+use crate::{
+    trajectory_errors::{trajectory_errors, TrajectoryErrors},
+    EvalError,
+};
 use nalgebra::Isometry3;
-use slam_pipeline::eval::{trajectory_errors, TrajectoryErrors};
-
-use crate::EvalError;
 
 /// A pose file: KITTI poses, or TUM times and poses.
 pub enum PoseFile {

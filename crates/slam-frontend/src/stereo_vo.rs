@@ -45,11 +45,11 @@ mod grey;
 mod keyframe_policy;
 mod local_map;
 mod motion;
+mod pose_search;
 mod refine;
 mod relocaliser;
 #[cfg(test)]
 mod synthetic;
-mod tracker;
 
 pub use checks::{motion_consistent, motion_limits, support, Support};
 pub use config::{StereoRig, VoConfig};
@@ -63,9 +63,9 @@ use grey::GreyView;
 use keyframe_policy::{new_keyframe, KeyframePolicy, View};
 use local_map::LocalMap;
 use motion::MotionModel;
+use pose_search::{PoseSearch, Route};
 use refine::Refined;
 use relocaliser::{Context, Relocalisation, Relocaliser};
-use tracker::{Route, Tracker};
 
 /// Stereo visual odometry against a map.
 pub struct StereoVo {
@@ -76,7 +76,7 @@ pub struct StereoVo {
     /// Stereo matching of each frame.
     stereo: StereoMatcher,
     /// Pose search and refinement (holds the rig, the settings, the optimiser, the image size).
-    tracker: Tracker,
+    pose_search: PoseSearch,
     /// The constant-velocity motion model and its frame gaps (poses relative to the reference).
     motion: MotionModel,
     /// The reference keyframe: the one the last frame shared the most points with (or the last
@@ -131,7 +131,7 @@ impl StereoVo {
             features: Extractor::new(config.features, config.spread_features)?,
             features_right: Extractor::new(config.features, config.spread_features)?,
             stereo: StereoMatcher::new(rig, &config),
-            tracker: Tracker { rig, config, optimizer, image_size: (1.0, 1.0) },
+            pose_search: PoseSearch { rig, config, optimizer, image_size: (1.0, 1.0) },
             motion: MotionModel::default(),
             reference: None,
             last_matched: Vec::new(),
@@ -147,7 +147,7 @@ impl StereoVo {
 
     /// The settings.
     fn config(&self) -> &VoConfig {
-        &self.tracker.config
+        &self.pose_search.config
     }
 
     /// The map's point-creation policy that goes with these settings: stereo points nearer than
@@ -227,18 +227,7 @@ impl StereoVo {
         let t2 = Instant::now();
         let times = |t3: Instant| StageTimes { extraction, stereo, tracking: (t3 - t2).as_secs_f64() * 1e3 };
         let stereo_points = frame.points.len();
-        // localising only, a frame lost for longer than a new segment would wait is no longer placed:
-        // it is localised again from scratch rather than predicted on and on
-        let period = self.config().period();
-        if self.config().localise_only
-            && self.started
-            && self.motion.failed
-            && frame_index.saturating_sub(self.motion.measured_index) as f64 * period > self.config().max_lost_s
-        {
-            tracing::warn!(frame = frame_index, "lost in the loaded map: localising again from scratch");
-            (self.started, self.reference, self.unplaced_since) = (false, None, None);
-            self.last_matched.clear();
-        }
+        self.unplace_if_lost_long(frame_index);
         let Some(reference) = self.reference.filter(|r| map.keyframe_pose(*r).is_some()) else {
             let mut tf = if !self.started && map.keyframe_count() > 0 {
                 self.localise(frame, frame_index, map)?
@@ -257,16 +246,8 @@ impl StereoVo {
         tracing::debug!(frame = frame_index, reference, predicted = ?predicted.inverse().translation.vector.as_slice(), last = ?self.motion.kf_from_last.translation.vector.as_slice(), velocity = ?self.motion.velocity.translation.vector.as_slice(), "prediction");
         let (found, fallback, retrieved) = self.find_pose(map, &local, &frame, &predicted)?;
         let route = found.as_ref().map(|f| f.2);
-        // a retrieved keyframe becomes the reference, and the map its inliers index the local map
-        let (reference, world_from_ref, local) = match (route, retrieved) {
-            (Some(Route::Retrieved(id)), Some(m)) => {
-                let world_from_new = map.keyframe_pose(id).unwrap_or(world_from_ref);
-                self.motion.rebase_to(&(world_from_new.inverse() * world_from_ref));
-                self.reference = Some(id);
-                (id, world_from_new, m)
-            }
-            _ => (reference, world_from_ref, local),
-        };
+        let (reference, world_from_ref, local) =
+            self.adopt_retrieved(map, (route, retrieved), (reference, world_from_ref, local));
         let (state, curr_from_ref, refined, support) = self.decide(frame_index, found, &frame, predicted);
         let kf_from_curr = curr_from_ref.inverse();
         let measured = refined.is_some();
@@ -281,40 +262,18 @@ impl StereoVo {
             Some(_) => self.in_view(&local, &curr_from_ref),
             None => Vec::new(),
         };
-        let sightings = refined
-            .as_ref()
-            .map(|r| Sightings {
-                visible: local.ids.iter().zip(&seen).filter(|(_, s)| s.is_some()).map(|(id, _)| *id).collect(),
-                found: r.inliers.iter().map(|&(i, _)| local.ids[i]).collect(),
-            })
-            .unwrap_or_default();
+        let sightings = refined.as_ref().map(|r| sightings_of(&local, &seen, r)).unwrap_or_default();
         if let Some(r) = &refined {
             self.last_matched = r.inliers.iter().map(|&(i, _)| local.ids[i]).collect();
         }
         if let Some(r) = refined.as_ref().filter(|_| tracing::enabled!(tracing::Level::DEBUG)) {
-            let near = self.config().far_baselines * self.tracker.rig.baseline;
-            let far_inliers = r
-                .inliers
-                .iter()
-                .filter(|&&(i, _)| (r.pose * nalgebra::Point3::from(local.points[i])).z >= near)
-                .count();
-            let mono_map = local.views.iter().filter(|v| v.iter().all(|(_, o)| o[2].is_nan())).count();
-            tracing::debug!(
-                frame = frame_index,
-                local = local.len(),
-                keyframes = local.slots.len(),
-                mono_map,
-                visible = seen.iter().filter(|s| s.is_some()).count(),
-                inliers = r.inliers.len(),
-                far_inliers,
-                "tracked"
-            );
+            self.log_tracked(frame_index, r, &local, &seen);
         }
         let since_measured = self.motion.since_measured;
         let view = View { frame: &frame, map: &local, refined: refined.as_ref(), seen: &seen };
-        let rig = self.tracker.rig;
+        let rig = self.pose_search.rig;
         let wants = !self.config().localise_only
-            && self.policy.wants(&self.tracker.config, &rig, support, &view, map, since_measured);
+            && self.policy.wants(&self.pose_search.config, &rig, support, &view, map, since_measured);
         // a segment in a frame of its own tries to place itself in the map wherever it would take a
         // keyframe (a view the map may not hold yet, at a fully supported pose): placed, it joins it
         if let (Some(root), true) = (self.segment, wants && support == Support::Full) {
@@ -339,7 +298,7 @@ impl StereoVo {
             let kf = new_keyframe(
                 (map.next_keyframe_id(), frame_index),
                 &frame,
-                self.tracker.image_size,
+                self.pose_search.image_size,
                 (world_from_kf, parent),
                 refined.as_ref().map(|r| (r, &local)),
             );
@@ -373,14 +332,67 @@ impl StereoVo {
         })
     }
 
+    /// A retrieved keyframe becomes the reference, and the map its inliers index the local map; else
+    /// the reference, its pose and the local map stay.
+    fn adopt_retrieved(
+        &mut self,
+        map: &Map,
+        (route, retrieved): (Option<Route>, Option<LocalMap>),
+        (reference, world_from_ref, local): (KeyframeId, Isometry3<f64>, LocalMap),
+    ) -> (KeyframeId, Isometry3<f64>, LocalMap) {
+        match (route, retrieved) {
+            (Some(Route::Retrieved(id)), Some(m)) => {
+                let world_from_new = map.keyframe_pose(id).unwrap_or(world_from_ref);
+                self.motion.rebase_to(&(world_from_new.inverse() * world_from_ref));
+                self.reference = Some(id);
+                (id, world_from_new, m)
+            }
+            _ => (reference, world_from_ref, local),
+        }
+    }
+
+    /// Localising only, a frame lost for longer than a new segment would wait is no longer placed: it is
+    /// localised again from scratch rather than predicted on and on.
+    fn unplace_if_lost_long(&mut self, frame_index: usize) {
+        let period = self.config().period();
+        if self.config().localise_only
+            && self.started
+            && self.motion.failed
+            && frame_index.saturating_sub(self.motion.measured_index) as f64 * period > self.config().max_lost_s
+        {
+            tracing::warn!(frame = frame_index, "lost in the loaded map: localising again from scratch");
+            (self.started, self.reference, self.unplaced_since) = (false, None, None);
+            self.last_matched.clear();
+        }
+    }
+
+    /// The debug line of a tracked frame: the local map, its points seen only from one camera, those in
+    /// view, and the inliers (far ones apart).
+    fn log_tracked(&self, frame_index: usize, r: &Refined, local: &LocalMap, seen: &[Option<(f64, f64)>]) {
+        let near = self.config().far_baselines * self.pose_search.rig.baseline;
+        let far_inliers =
+            r.inliers.iter().filter(|&&(i, _)| (r.pose * nalgebra::Point3::from(local.points[i])).z >= near).count();
+        let mono_map = local.views.iter().filter(|v| v.iter().all(|(_, o)| o[2].is_nan())).count();
+        tracing::debug!(
+            frame = frame_index,
+            local = local.len(),
+            keyframes = local.slots.len(),
+            mono_map,
+            visible = seen.iter().filter(|s| s.is_some()).count(),
+            inliers = r.inliers.len(),
+            far_inliers,
+            "tracked"
+        );
+    }
+
     /// Where each local-map point is seen from `curr_from_ref` when it is in the view: inside the image,
     /// in front of the camera, within its distance range and viewing angle.
     fn in_view(&self, local: &LocalMap, curr_from_ref: &Isometry3<f64>) -> Vec<Option<(f64, f64)>> {
         let centre = curr_from_ref.inverse().translation.vector;
-        let (w, h) = self.tracker.image_size;
+        let (w, h) = self.pose_search.image_size;
         (0..local.len())
             .map(|i| {
-                let ((u, v), ..) = self.tracker.projection(local, i, curr_from_ref, &centre)?;
+                let ((u, v), ..) = self.pose_search.projection(local, i, curr_from_ref, &centre)?;
                 (u >= 0.0 && v >= 0.0 && u < w && v < h).then_some((u, v))
             })
             .collect()
@@ -396,7 +408,7 @@ impl StereoVo {
     fn prepare(&mut self, left: &Image, right: &Image, exclude: &[MovingRegion]) -> Result<Prepared, FrontendError> {
         let t0 = Instant::now();
         let (lm, rm) = (Self::grey_of(left)?, Self::grey_of(right)?);
-        self.tracker.image_size = (lm.cols().max(1) as f64, lm.rows().max(1) as f64);
+        self.pose_search.image_size = (lm.cols().max(1) as f64, lm.rows().max(1) as f64);
         let (lf, rf) = if self.config().parallel_extraction {
             let (left_x, right_x) = (&mut self.features, &mut self.features_right);
             std::thread::scope(|s| {
@@ -448,7 +460,7 @@ impl StereoVo {
         let kf = new_keyframe(
             (map.next_keyframe_id(), frame_index),
             &frame,
-            self.tracker.image_size,
+            self.pose_search.image_size,
             (Isometry3::identity(), None),
             None,
         );
@@ -485,7 +497,7 @@ impl StereoVo {
         if self.relocaliser.index.is_empty() {
             self.index_map(map);
         }
-        let cx = Context { tracker: &self.tracker, motion: &self.motion, map, among: 0..KeyframeId::MAX };
+        let cx = Context { pose_search: &self.pose_search, motion: &self.motion, map, among: 0..KeyframeId::MAX };
         let Some((r, ransac, id, local)) = self.relocaliser.retrieve(&cx, &frame)? else {
             let since = *self.unplaced_since.get_or_insert(frame_index);
             let waited = (frame_index.saturating_sub(since) + 1) as f64 * self.config().period();
@@ -564,7 +576,7 @@ impl StereoVo {
         world_from_curr: &Isometry3<f64>,
         map: &Map,
     ) -> Result<Option<TrackedFrame>, FrontendError> {
-        let cx = Context { tracker: &self.tracker, motion: &self.motion, map, among: 0..root };
+        let cx = Context { pose_search: &self.pose_search, motion: &self.motion, map, among: 0..root };
         let Some((r, ransac, id, local)) = self.relocaliser.retrieve(&cx, frame)? else {
             tracing::debug!(frame = frame_index, "segment not placed in the loaded map yet");
             return Ok(None);
@@ -630,7 +642,7 @@ impl StereoVo {
         let mut fallback = None;
         let wider = (bounds.0 + m.velocity.translation.vector.norm(), bounds.1 + m.velocity.rotation.angle());
         for (guess, b) in [(*predicted, bounds), (m.kf_from_last.inverse(), wider)] {
-            if let Some((r, ransac)) = self.tracker.track_from(map, frame, &guess, b, &m.kf_from_measured)? {
+            if let Some((r, ransac)) = self.pose_search.track_from(map, frame, &guess, b, &m.kf_from_measured)? {
                 fallback.get_or_insert(r.pose);
                 if accept(&r, Route::Motion) {
                     return Ok((Some((r, ransac, Route::Motion)), fallback, None));
@@ -640,7 +652,7 @@ impl StereoVo {
         // a segment in a frame of its own relocalises in itself: a keyframe of the map would put the
         // frame in another frame (the segment joins the map through a placement, `StereoVo::join`)
         let among = self.segment.unwrap_or(0)..KeyframeId::MAX;
-        let cx = Context { tracker: &self.tracker, motion: m, map: whole, among };
+        let cx = Context { pose_search: &self.pose_search, motion: m, map: whole, among };
         let (found, first, retrieved) = self.relocaliser.relocalise(&cx, map, frame, &accept)?;
         Ok((found, fallback.or(first), retrieved))
     }
@@ -767,7 +779,7 @@ impl StereoVo {
         }
         let (frame, ..) = self.prepare(left, right, &[])?;
         let motion = MotionModel::default();
-        let cx = Context { tracker: &self.tracker, motion: &motion, map, among: 0..KeyframeId::MAX };
+        let cx = Context { pose_search: &self.pose_search, motion: &motion, map, among: 0..KeyframeId::MAX };
         Ok(self.relocaliser.retrieve(&cx, &frame)?.and_then(|(r, _, id, _)| {
             let world_from_kf = map.keyframe_pose(id)?;
             Some((id, world_from_kf * r.pose.inverse(), r.inliers.len()))
@@ -786,7 +798,7 @@ impl StereoVo {
 
     /// Whether a refined pose found by `route` is accepted ([`checks`]).
     fn judge(&self, r: &Refined, route: Route, frame: &Frame) -> Support {
-        judge(self.config(), self.tracker.image_size, &self.motion, r, route, frame)
+        judge(self.config(), self.pose_search.image_size, &self.motion, r, route, frame)
     }
 
     /// Forward-backward Lucas-Kanade flow of the previous frame's keypoints inside `regions` into the
@@ -806,6 +818,15 @@ impl StereoVo {
         let points = box_stereo::box_points(left, right, &self.stereo.rig, self.stereo.disparity_offset, queries)?;
         self.flow.add_flow_keypoints(points.iter().flatten().map(|p| (p.observation[0], p.observation[1])));
         Ok(points)
+    }
+}
+
+/// The map points a tracked frame's view held (`seen`, from [`StereoVo::in_view`]) and those its
+/// refined pose kept.
+fn sightings_of(local: &LocalMap, seen: &[Option<(f64, f64)>], r: &Refined) -> Sightings {
+    Sightings {
+        visible: local.ids.iter().zip(seen).filter(|(_, s)| s.is_some()).map(|(id, _)| *id).collect(),
+        found: r.inliers.iter().map(|&(i, _)| local.ids[i]).collect(),
     }
 }
 
@@ -907,14 +928,14 @@ mod tests {
         let optimizer = std::sync::Arc::new(slam_lm::LevenbergMarquardt::default());
         let rig = StereoRig { k: s.k, baseline: s.b };
         let mut vo = StereoVo::new(rig, VoConfig::default(), optimizer).expect("ORB");
-        vo.tracker.image_size = (1241.0, 376.0);
+        vo.pose_search.image_size = (1241.0, 376.0);
         let mut map = Map::new(rig, ScalePyramid::default());
         let every = CreationPolicy { near_baselines: f64::INFINITY, min_points: 0 };
         let f0 = keyframe_of(&s.k, s.b, &in_camera(&world_from(0.0), &s.world), &s.desc);
-        let kf0 = new_keyframe((0, 0), &f0, vo.tracker.image_size, (world_from(0.0), None), None);
+        let kf0 = new_keyframe((0, 0), &f0, vo.pose_search.image_size, (world_from(0.0), None), None);
         map.insert_keyframe(kf0, &every).expect("keyframe 0");
         let f1 = keyframe_of(&s.k, s.b, &in_camera(&world_from(1.2), &s.world[..s.seen]), &s.desc[..s.seen]);
-        let mut kf1 = new_keyframe((1, 1), &f1, vo.tracker.image_size, (world_from(1.2), Some(0)), None);
+        let mut kf1 = new_keyframe((1, 1), &f1, vo.pose_search.image_size, (world_from(1.2), Some(0)), None);
         let first = map.keyframe(0).expect("keyframe 0").points.clone();
         kf1.matched = first[..s.seen].to_vec();
         map.insert_keyframe(kf1, &every).expect("keyframe 1");
@@ -941,7 +962,7 @@ mod tests {
             let taken = vec![false; frame.keypoints.len()];
             // the prediction is off by 0.3 m and a little turn
             let guess = Isometry3::new(Vector3::new(0.1, 0.0, 0.3), Vector3::new(0.0, 0.01, 0.0)) * curr_from_ref;
-            let t = &vo.tracker;
+            let t = &vo.pose_search;
             let matches = t.search(&map, &guess, &frame, &|c, l| t.window(c, l, (0.35, 0.03)), (&skip, &taken));
             let recovered: Vec<usize> =
                 matches.iter().map(|&(i, _)| ids_of_world[&map.ids[i]]).filter(|&w| w >= s.seen).collect();
@@ -953,8 +974,11 @@ mod tests {
                 continue;
             }
             assert_eq!(recovered.len(), 30, "all the points the reference missed");
-            let r =
-                vo.tracker.refiner().refine(&map, &frame, &matches, &guess, &Isometry3::identity()).expect("refined");
+            let r = vo
+                .pose_search
+                .refiner()
+                .refine(&map, &frame, &matches, &guess, &Isometry3::identity())
+                .expect("refined");
             let err = r.pose * curr_from_ref.inverse();
             assert!(err.translation.vector.norm() < 1e-3 && err.rotation.angle() < 1e-5, "{err:?}");
             assert_eq!(r.inliers.len(), s.world.len(), "all inliers");
@@ -987,7 +1011,7 @@ mod tests {
         let (mut vo, map) = tracker_of(&s);
         let local = LocalMap::of(&map, 1, &[1, 0]);
         let (skip, taken) = (vec![false; local.len()], vec![false; frame.keypoints.len()]);
-        let t = &vo.tracker;
+        let t = &vo.pose_search;
         let matches = t.search(&local, &curr_from_ref, &frame, &|c, l| t.window(c, l, (0.35, 0.03)), (&skip, &taken));
         let full =
             t.refiner().refine(&local, &frame, &matches, &curr_from_ref, &Isometry3::identity()).expect("refined");
@@ -1003,7 +1027,7 @@ mod tests {
         assert_eq!(vo.judge(&full, Route::Motion, &frame), Support::Full, "full support within the speed limit");
         let seen = vec![None; local.len()];
         let c = *vo.config();
-        let rig = vo.tracker.rig;
+        let rig = vo.pose_search.rig;
         for (r, support, wanted) in [(&weak, Support::Weak, false), (&full, Support::Full, true)] {
             let view = View { frame: &frame, map: &local, refined: Some(r), seen: &seen };
             let mut policy = KeyframePolicy::default();
@@ -1089,7 +1113,7 @@ mod tests {
             let optimizer = std::sync::Arc::new(slam_lm::LevenbergMarquardt::default());
             let config = VoConfig { localise_only, ..VoConfig::default() };
             let mut vo = StereoVo::new(StereoRig { k: s.k, baseline: s.b }, config, optimizer).expect("ORB");
-            vo.tracker.image_size = (1241.0, 376.0);
+            vo.pose_search.image_size = (1241.0, 376.0);
             vo.load_map(&map);
             vo
         };

@@ -47,8 +47,8 @@ fn pose_graph_iterations() {
 #[test]
 fn the_benchmarks_generated_solve_agrees_on_both_paths() {
     let lm = LevenbergMarquardt::default();
-    let dense = slam_optim::bench::generated_solve(&lm, 6, 2, true).expect("dense");
-    let sparse = slam_optim::bench::generated_solve(&lm, 6, 2, false).expect("sparse");
+    let dense = slam_studies::optim_bench::generated_solve(&lm, 6, 2, true).expect("dense");
+    let sparse = slam_studies::optim_bench::generated_solve(&lm, 6, 2, false).expect("sparse");
     assert!(!dense.sparse && sparse.sparse, "{dense:?} {sparse:?}");
     assert!(dense.final_cost < dense.initial && sparse.final_cost < sparse.initial);
     assert!((dense.final_cost - sparse.final_cost).abs() <= 1e-6 * dense.final_cost.max(1.0));

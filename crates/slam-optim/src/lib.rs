@@ -18,12 +18,10 @@
 //!   every backend passes.
 //! * [`linear`] is the linear algebra the trust-region backends share: Schur complement of the
 //!   eliminated variables, reduced system factorised densely or with faer's sparse Cholesky.
-//! * [`bench`] holds what benchmark commands need (CPU time, peak memory, a generated large BA).
 //! * [`io`] reads BAL and g2o problems; [`object`] fits one ellipsoid from its boxes with any backend.
 
 #![warn(missing_docs)]
 
-pub mod bench;
 pub mod conformance;
 mod error;
 pub mod factor;

@@ -741,34 +741,7 @@ fn damped_step(
 ) -> Option<(DVector<f64>, Vec<DVector<f64>>)> {
     let n_red: usize = layout.reduced.iter().map(|r| r.2).sum();
     let mut rhs = ne.g.clone();
-    // Assemble the damped reduced matrix: dense, or CSC values following the pattern.
-    let mut dense = None;
-    let mut vals = Vec::new();
-    match (&ne.h, pattern) {
-        (Reduced::Dense(m), _) => {
-            let mut m = m.clone();
-            for i in 0..n_red {
-                let v = m[(i, i)];
-                m[(i, i)] += damp(v);
-            }
-            dense = Some(m);
-        }
-        (Reduced::Sparse(blocks), Some(pat)) => {
-            vals = vec![0.0; pat.symbolic.row_idx().len()];
-            for (blk, pos) in blocks.iter().zip(&pat.positions) {
-                for (v, &q) in blk.iter().zip(pos) {
-                    if q != usize::MAX {
-                        vals[q] += v;
-                    }
-                }
-            }
-            for &q in &pat.diag {
-                let v = vals[q];
-                vals[q] += damp(v);
-            }
-        }
-        (Reduced::Sparse(_), None) => return None,
-    }
+    let (mut dense, mut vals) = damped_reduced(n_red, ne, &damp, pattern)?;
     // Schur complement of the eliminated variables (dense path: into contiguous blocks when small).
     let mut blocked = match &dense {
         Some(m) if !layout.eliminated.is_empty() && n_red <= BLOCKED_SCHUR_MAX => Some(BlockLower::new(m, layout)),
@@ -784,22 +757,7 @@ fn damped_step(
         // this variable's links: (reduced var, C block)
         let links = (layout.link_start[ev]..layout.link_start[ev + 1])
             .map(|l| (layout.link_var[l], &ne.c[layout.link_off[l]..layout.link_off[l + 1]]));
-        // H_ee⁻¹ (damped), fixed-size for points
-        let hinv = if de == 3 {
-            let mut h = nalgebra::Matrix3::from_column_slice(hee);
-            for i in 0..3 {
-                let x = h[(i, i)];
-                h[(i, i)] += damp(x);
-            }
-            HInv::Three(h.cholesky()?.inverse())
-        } else {
-            let mut h = DMatrix::from_column_slice(de, de, hee);
-            for i in 0..de {
-                let x = h[(i, i)];
-                h[(i, i)] += damp(x);
-            }
-            HInv::Dyn(h.cholesky()?.inverse())
-        };
+        let hinv = damped_inverse(hee, de, &damp)?;
         let hg: Vec<f64> = hinv.mul_vec(ge);
         let n_links = layout.link_start[ev + 1] - layout.link_start[ev];
         while vt.len() < n_links {
@@ -855,9 +813,72 @@ fn damped_step(
     if !dred.iter().all(|v| v.is_finite()) {
         return None;
     }
-    // Back-substitution.
+    let delim = back_substitute(layout, ne, &hinvs, &dred);
+    Some((dred, delim))
+}
+
+/// The damped reduced matrix of [`damped_step`]: dense, or the CSC values following the sparse
+/// pattern (`None` for a sparse system without one).
+fn damped_reduced(
+    n_red: usize,
+    ne: &Normal,
+    damp: &impl Fn(f64) -> f64,
+    pattern: Option<&Pattern>,
+) -> Option<(Option<DMatrix<f64>>, Vec<f64>)> {
+    let mut dense = None;
+    let mut vals = Vec::new();
+    match (&ne.h, pattern) {
+        (Reduced::Dense(m), _) => {
+            let mut m = m.clone();
+            for i in 0..n_red {
+                let v = m[(i, i)];
+                m[(i, i)] += damp(v);
+            }
+            dense = Some(m);
+        }
+        (Reduced::Sparse(blocks), Some(pat)) => {
+            vals = vec![0.0; pat.symbolic.row_idx().len()];
+            for (blk, pos) in blocks.iter().zip(&pat.positions) {
+                for (v, &q) in blk.iter().zip(pos) {
+                    if q != usize::MAX {
+                        vals[q] += v;
+                    }
+                }
+            }
+            for &q in &pat.diag {
+                let v = vals[q];
+                vals[q] += damp(v);
+            }
+        }
+        (Reduced::Sparse(_), None) => return None,
+    }
+    Some((dense, vals))
+}
+
+/// `H_ee⁻¹` of one eliminated variable with its diagonal damped, fixed-size for points (`None` when
+/// the damped block is not positive definite).
+fn damped_inverse(hee: &[f64], de: usize, damp: &impl Fn(f64) -> f64) -> Option<HInv> {
+    Some(if de == 3 {
+        let mut h = nalgebra::Matrix3::from_column_slice(hee);
+        for i in 0..3 {
+            let x = h[(i, i)];
+            h[(i, i)] += damp(x);
+        }
+        HInv::Three(h.cholesky()?.inverse())
+    } else {
+        let mut h = DMatrix::from_column_slice(de, de, hee);
+        for i in 0..de {
+            let x = h[(i, i)];
+            h[(i, i)] += damp(x);
+        }
+        HInv::Dyn(h.cholesky()?.inverse())
+    })
+}
+
+/// The eliminated variables' steps from the reduced one: `δ_e = −H_ee⁻¹ (g_e + Σ C δ_r)`.
+fn back_substitute(layout: &Layout, ne: &Normal, hinvs: &[HInv], dred: &DVector<f64>) -> Vec<DVector<f64>> {
     let mut delim = Vec::with_capacity(layout.eliminated.len());
-    for ((ev, &(_, de)), hinv) in layout.eliminated.iter().enumerate().zip(&hinvs) {
+    for ((ev, &(_, de)), hinv) in layout.eliminated.iter().enumerate().zip(hinvs) {
         let go = layout.elim_off[ev].1;
         let mut t = DVector::from_column_slice(&ne.ge[go..go + de]);
         for l in layout.link_start[ev]..layout.link_start[ev + 1] {
@@ -867,7 +888,7 @@ fn damped_step(
         let x = hinv.mul_vec(t.as_slice());
         delim.push(-DVector::from_vec(x));
     }
-    Some((dred, delim))
+    delim
 }
 
 /// `m[ra.., rb..] += alpha · Aᵀ B` on a column-major buffer with leading dimension `ld`, where `at` holds

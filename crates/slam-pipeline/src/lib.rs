@@ -8,11 +8,9 @@
 
 #![warn(missing_docs)]
 
-pub mod eval;
 pub mod map;
 pub mod mapping;
 pub mod objects;
-pub mod report;
 pub mod serde_forms;
 pub mod settings;
 pub mod system;

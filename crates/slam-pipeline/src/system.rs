@@ -30,7 +30,7 @@
 
 mod builder;
 mod threads;
-mod tracking;
+mod tracking_thread;
 
 pub use builder::{FrameSource, System, SystemBuilder};
 use nalgebra::Isometry3;
@@ -39,7 +39,7 @@ use slam_core::{
 };
 use slam_optim::SharedOptimizer;
 pub use threads::MapperRequest;
-pub use tracking::Tracking;
+pub use tracking_thread::TrackingThread;
 
 use crate::{
     map::Map,

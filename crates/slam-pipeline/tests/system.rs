@@ -133,7 +133,7 @@ fn stepping_frame_by_frame_gives_what_run_gives() {
     let mut seen = Vec::new();
     for f in frames() {
         seen.push(decisions(system.step(f).expect("steps")));
-        assert_eq!(system.tracking().records().len(), seen.len());
+        assert_eq!(system.tracking_thread().records().len(), seen.len());
     }
     let stepped = system.finish().expect("finishes");
     assert_eq!(seen, ran.frames.iter().map(decisions).collect::<Vec<_>>(), "per-frame decisions");

@@ -6,15 +6,13 @@ use std::path::PathBuf;
 
 use slam_core::figure::{cell, median, DASH};
 use slam_dataset::{kitti::stereo::TruthSource, layout::Order};
-use slam_pipeline::{
-    eval::trajectory_errors,
-    report::{median_fps, stage_table, state_counts, STATE_NAMES},
-};
+use slam_eval::trajectory_errors::trajectory_errors;
 
 use crate::{
     detector::DetectorChoice,
     error::{Context, Result, RunnerError},
     run::{prepare, ObserverFactory, Outcome, RunSettings},
+    run_summary::{median_fps, stage_table, state_counts, STATE_NAMES},
 };
 
 /// Run `s` once without printing or progress (followed by the observer `observe` makes, finished after

@@ -3,9 +3,10 @@
 //! took to place a frame against the time of a tracked one.
 
 use nalgebra::Isometry3;
+use slam_core::figure::median;
 use slam_core::TrackState;
 use slam_dataset::kitti::stereo::StereoSequence;
-use slam_pipeline::{map::pose_from_array, report::median, system::RunOutput};
+use slam_pipeline::{map::pose_from_array, system::RunOutput};
 
 use crate::run::{MapLoad, Outcome};
 
@@ -104,7 +105,7 @@ pub fn in_map(out: &RunOutput, seq: &StereoSequence, load: &MapLoad) -> InMap {
     let trying: Vec<usize> = (0..n).filter(|&k| !out.placed[k] || Some(k) == first).collect();
     let tracked: Vec<usize> =
         (0..n).filter(|&k| matches!(out.frames[k].state, Some(TrackState::Tracked { .. }))).collect();
-    let med = |ks: &[usize]| (!ks.is_empty()).then(|| median(&mut ks.iter().map(|&k| frame_ms(k)).collect::<Vec<_>>()));
+    let med = |ks: &[usize]| median(&mut ks.iter().map(|&k| frame_ms(k)).collect::<Vec<_>>());
     InMap {
         frames: n,
         placed: placed.len(),

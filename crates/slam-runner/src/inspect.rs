@@ -15,6 +15,26 @@ use crate::error::{Result, RunnerError};
 /// RPE segment lengths of `trajectory-eval`, metres (KITTI's 100-800 m and shorter ones for excerpts).
 pub const RPE_LENGTHS_M: [f64; 7] = [10.0, 20.0, 40.0, 100.0, 200.0, 400.0, 800.0];
 
+/// The markdown table of `trajectory-eval`: poses compared, path, both ATEs, drift, scale and RPE.
+fn error_table(e: &slam_eval::trajectory_errors::TrajectoryErrors) -> Vec<String> {
+    let mut lines = vec!["| metric | value |\n|---|---:|".to_string()];
+    lines.push(format!("| poses compared | {} |\n| path (ground truth) | {:.1} m |", e.frames, e.path_m));
+    lines.push(format!(
+        "| ATE (first poses aligned) | {:.3} m |\n| ATE (rigid alignment) | {:.3} m |",
+        e.ate_m, e.ate_aligned_m
+    ));
+    // a ground truth that does not move has no path to divide by; without motion in both, no scale
+    let scale = if e.scale.is_finite() { format!("{:.4}", e.scale) } else { "– (a trajectory does not move)".into() };
+    lines.push(format!(
+        "| end-point drift | {} |\n| scale (similarity fit) | {scale} |",
+        crate::report::drift_text(e.end_drift_pct)
+    ));
+    for &(len, t, r, count) in &e.rpe {
+        lines.push(format!("| RPE {len:.0} m ({count} segments) | {t:.2} % / {r:.2} deg/100 m |"));
+    }
+    lines
+}
+
 /// The `trajectory-eval` table of `estimate` against `truth` (TUM pairs matched within `max_diff` s):
 /// a line on the matching, then a markdown table.
 pub fn trajectory_eval(
@@ -115,21 +135,7 @@ pub fn trajectory_eval(
             }
         ))
     })?;
-    lines.push("| metric | value |\n|---|---:|".into());
-    lines.push(format!("| poses compared | {} |\n| path (ground truth) | {:.1} m |", e.frames, e.path_m));
-    lines.push(format!(
-        "| ATE (first poses aligned) | {:.3} m |\n| ATE (rigid alignment) | {:.3} m |",
-        e.ate_m, e.ate_aligned_m
-    ));
-    // a ground truth that does not move has no path to divide by; without motion in both, no scale
-    let scale = if e.scale.is_finite() { format!("{:.4}", e.scale) } else { "– (a trajectory does not move)".into() };
-    lines.push(format!(
-        "| end-point drift | {} |\n| scale (similarity fit) | {scale} |",
-        crate::report::drift_text(e.end_drift_pct)
-    ));
-    for (len, t, r, count) in e.rpe {
-        lines.push(format!("| RPE {len:.0} m ({count} segments) | {t:.2} % / {r:.2} deg/100 m |"));
-    }
+    lines.extend(error_table(&e));
     let matched = |v: &[nalgebra::Isometry3<f64>], first: bool| -> Vec<nalgebra::Isometry3<f64>> {
         c.pairs.iter().map(|&(i, j)| v[if first { i } else { j }]).collect()
     };

@@ -5,6 +5,8 @@
 //! - [`run`]: one run of the whole system on a KITTI stereo sequence ([`RunSettings`] → [`prepare`] →
 //!   [`Prepared::run`] → [`Outcome`]);
 //! - [`report`]: the run's output files, summary, object score and pictures;
+//! - [`run_summary`]: figures of a finished run (frames per second, per-stage medians, frame period,
+//!   tracking states, `tracking.csv`);
 //! - [`bench`]: the `run-bench` and `track-bench` runs and table rows;
 //! - [`objects_bench`]: `objects-bench`, the object map of every dev case (labelled drive at several
 //!   strides, the image-free study, the main job's street);
@@ -36,6 +38,7 @@ pub mod raw_rig;
 pub mod report;
 pub mod ros_output;
 pub mod run;
+pub mod run_summary;
 pub mod settings;
 pub mod simulation;
 pub mod source;

@@ -7,9 +7,9 @@
 use std::path::{Path, PathBuf};
 
 use slam_core::figure::cell;
+use slam_core::figure::median;
 use slam_dataset::{kitti::stereo::FrameSelection, layout::Order};
 use slam_frontend::{read_image, StereoRig, StereoVo};
-use slam_pipeline::report::median;
 
 use crate::{
     error::{Context, Result, RunnerError},
@@ -112,7 +112,7 @@ fn cases(
         sizes[1] as f64 / 1e6,
         kfs,
         (sizes[0] + sizes[1]) as f64 / 1e3 / kfs.max(1) as f64,
-        cell(Some(median(&mut load_s)), 3),
+        cell(median(&mut load_s), 3),
     ));
     let dense_kfs = dense_run.out.map.stats().keyframes;
     print(format!("placing a frame: in the map of {kfs} keyframes {place}; in a map of {dense_kfs} keyframes (a keyframe every frame) {dense_place}"));
@@ -148,7 +148,7 @@ fn placement(file: &Path, first: &Outcome, tracking: slam_frontend::VoConfig) ->
         .filter(|f| matches!(f.state, Some(slam_core::TrackState::Tracked { .. })))
         .map(|f| f.times.extraction + f.times.stereo + f.times.tracking)
         .collect();
-    let (p, t) = (median(&mut ms), median(&mut tracked));
+    let (p, t) = (median(&mut ms).unwrap_or(f64::NAN), median(&mut tracked).unwrap_or(f64::NAN));
     let worst = errors.iter().copied().fold(0.0, f64::max);
     if !p.is_finite() || !t.is_finite() {
         return Err(RunnerError::Invalid("placement: no frame timed".into()));

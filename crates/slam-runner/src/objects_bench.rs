@@ -12,18 +12,16 @@ use slam_core::figure::{cell, median, DASH};
 use slam_eval::{
     labelled::{Figures, LabelNoise, VehicleCriteria},
     street::against_street,
+    trajectory_errors::trajectory_errors,
     RunScore,
 };
-use slam_pipeline::{
-    eval::trajectory_errors,
-    objects::{MapperConfig, ObjectMapper},
-    report::median_fps,
-};
+use slam_pipeline::objects::{MapperConfig, ObjectMapper};
 use slam_quadric::ImageSize;
 
 use crate::{
     error::{Context, Result},
     run::{prepare, RunSettings},
+    run_summary::median_fps,
 };
 
 /// Where the bench's cases live.

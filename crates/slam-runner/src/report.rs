@@ -13,13 +13,13 @@ use slam_dataset::{
     },
     trajectory::{write_kitti_poses, write_tum},
 };
-use slam_eval::LabelGeometry;
-use slam_pipeline::{
-    eval::{errors_from, interpolated_stretches, largest_step_error, trajectory_errors, INTERPOLATED_TURN_DEG},
-    objects::MappedObject,
-    report::{median_fps, stages_run, tracking_csv},
-    system::RunOutput,
+use slam_eval::{
+    trajectory_errors::{
+        errors_from, interpolated_stretches, largest_step_error, trajectory_errors, INTERPOLATED_TURN_DEG,
+    },
+    LabelGeometry,
 };
+use slam_pipeline::{objects::MappedObject, system::RunOutput};
 
 /// The world of a rectified run's trajectory and object files.
 pub const RAW_LEFT_WORLD: &str = "world = the raw (unrectified) left camera of the first frame: x right, y down, z forward, metres; poses world from camera";
@@ -27,6 +27,7 @@ pub const RAW_LEFT_WORLD: &str = "world = the raw (unrectified) left camera of t
 use crate::{
     error::{Context, Result, RunnerError},
     run::{played_ids, Outcome},
+    run_summary::{median_fps, stages_run, tracking_csv},
 };
 
 /// Overlay images to draw: every `every`-th frame, as `format` (`png` or `jpg`).

@@ -22,7 +22,6 @@ use slam_frontend::{
 use slam_optim::SharedOptimizer;
 use slam_pipeline::{
     objects::FitMethod,
-    report::frame_period,
     system::{FrameInput, FrameView, RunOutput, SystemBuilder, SystemConfig},
 };
 use slam_quadric::{ImageSize, Intrinsics};
@@ -32,6 +31,7 @@ use slam_frontend::image_size::stereo_pair;
 use crate::{
     detector::DetectorChoice,
     error::{Result, RunnerError},
+    run_summary::frame_period,
     source::{rectifier_of, FrameReader},
 };
 
@@ -185,7 +185,7 @@ pub struct Outcome {
     /// The frame selection, for the summary.
     pub selection: FrameSelection,
     /// The optional stages the run switched on (for the timing table).
-    pub stages: slam_pipeline::report::StagesOn,
+    pub stages: crate::run_summary::StagesOn,
     /// The map the run started from (`run --map`).
     pub loaded: Option<MapLoad>,
     /// The rectification the images went through (raw cameras), if any.
@@ -460,7 +460,7 @@ impl Prepared {
             Some(l) => l.ground_truth_world,
             None => ground_truth_world(&out.map, &seq),
         };
-        let stages = slam_pipeline::report::StagesOn {
+        let stages = crate::run_summary::StagesOn {
             objects: detections.is_some(),
             bundle_adjustment: sys.mapping.bundle_adjustment,
         };

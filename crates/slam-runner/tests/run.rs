@@ -65,7 +65,7 @@ fn a_track_bench_row_replaces_path_stride_and_detector() {
 /// 0005's OXTS poses, which are measured throughout (their step rotations change by 0.037° or more).
 #[test]
 fn the_ground_truth_check_tells_interpolated_from_measured_poses() {
-    use slam_pipeline::eval::interpolated_stretches;
+    use slam_eval::trajectory_errors::interpolated_stretches;
     let fixtures = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures");
     let odometry = slam_dataset::kitti::stereo::open_stereo(fixtures.join("kitti_odom_06/sequences/06")).expect("06");
     assert_eq!(interpolated_stretches(&odometry.truth_from_first().expect("06 poses")), vec![(0, 11)]);

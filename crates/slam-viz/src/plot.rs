@@ -336,6 +336,43 @@ where
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
         }
     }
+    draw_objects(&mut chart, &shown)?;
+    if moving > 0 {
+        let c = RGBColor(220, 30, 40);
+        chart
+            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
+            .map_err(err)?
+            .label(format!("{moving} moving object(s): not mapped, not drawn"))
+            .legend(move |(x, y)| Cross::new((x + 9, y), 5, c.stroke_width(2)));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperLeft)
+        .draw()
+        .map_err(err)?;
+    if let (Some(e), Some(t), Some(side)) = (&errors, m.truth, side) {
+        draw_error_inset(side, e, t)?;
+    }
+    root.present().map_err(err)?;
+    Ok(())
+}
+
+/// The static and dynamic objects of a top-down map: filled outlines in their state's colour, each
+/// labelled at its far end, one legend entry per state shown.
+fn draw_objects<DB: DrawingBackend>(
+    chart: &mut ChartContext<
+        '_,
+        DB,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+    shown: &[&MapShape],
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| format!("{e:?}");
     for state in [ObjectState::Static, ObjectState::Dynamic] {
         let [r, g, b] = state.rgb();
         let colour = RGBColor(r, g, b);
@@ -368,54 +405,49 @@ where
             }
         }
     }
-    if moving > 0 {
-        let c = RGBColor(220, 30, 40);
-        chart
-            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
-            .map_err(err)?
-            .label(format!("{moving} moving object(s): not mapped, not drawn"))
-            .legend(move |(x, y)| Cross::new((x + 9, y), 5, c.stroke_width(2)));
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperLeft)
-        .draw()
-        .map_err(err)?;
-    // inset: position error over the distance travelled (ground truth)
-    if let (Some(e), Some(t), Some(side)) = (&errors, m.truth, side) {
-        if e.len() >= 2 {
-            let mut dist = vec![0.0];
-            for w in t.windows(2) {
-                let last = dist.last().copied().unwrap_or(0.0);
-                dist.push(last + ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt());
-            }
-            let (pw, ph) = side.dim_in_pixel();
-            let inset = side.shrink((0, ph / 8), (pw, ph / 2));
-            let dmax = dist.last().copied().unwrap_or(1.0).max(1e-3);
-            let emax = e.iter().cloned().fold(0.0, f64::max).max(1e-3) * 1.1;
-            let mut c = ChartBuilder::on(&inset)
-                .caption("estimate: position error over distance", ("sans-serif", 16))
-                .margin(12)
-                .x_label_area_size(32)
-                .y_label_area_size(44)
-                .build_cartesian_2d(0f64..dmax, 0f64..emax)
-                .map_err(err)?;
-            c.configure_mesh()
-                .light_line_style(WHITE)
-                .x_desc("distance (m)")
-                .y_desc("error (m)")
-                .label_style(("sans-serif", 13))
-                .draw()
-                .map_err(err)?;
-            c.draw_series(dist.windows(2).zip(e.windows(2)).map(|(d, v)| {
-                PathElement::new(vec![(d[0], v[0]), (d[1], v[1])], error_colour(v[1] / (emax / 1.1)).stroke_width(3))
-            }))
-            .map_err(err)?;
+    Ok(())
+}
+
+/// The inset of a top-down map with ground truth: the estimate's position error `e` over the distance
+/// travelled along the truth `t`, coloured as the trajectory is.
+fn draw_error_inset<DB: DrawingBackend>(
+    side: DrawingArea<DB, plotters::coord::Shift>,
+    e: &[f64],
+    t: &[[f64; 2]],
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| format!("{e:?}");
+    if e.len() >= 2 {
+        let mut dist = vec![0.0];
+        for w in t.windows(2) {
+            let last = dist.last().copied().unwrap_or(0.0);
+            dist.push(last + ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt());
         }
+        let (pw, ph) = side.dim_in_pixel();
+        let inset = side.shrink((0, ph / 8), (pw, ph / 2));
+        let dmax = dist.last().copied().unwrap_or(1.0).max(1e-3);
+        let emax = e.iter().cloned().fold(0.0, f64::max).max(1e-3) * 1.1;
+        let mut c = ChartBuilder::on(&inset)
+            .caption("estimate: position error over distance", ("sans-serif", 16))
+            .margin(12)
+            .x_label_area_size(32)
+            .y_label_area_size(44)
+            .build_cartesian_2d(0f64..dmax, 0f64..emax)
+            .map_err(err)?;
+        c.configure_mesh()
+            .light_line_style(WHITE)
+            .x_desc("distance (m)")
+            .y_desc("error (m)")
+            .label_style(("sans-serif", 13))
+            .draw()
+            .map_err(err)?;
+        c.draw_series(dist.windows(2).zip(e.windows(2)).map(|(d, v)| {
+            PathElement::new(vec![(d[0], v[0]), (d[1], v[1])], error_colour(v[1] / (emax / 1.1)).stroke_width(3))
+        }))
+        .map_err(err)?;
     }
-    root.present().map_err(err)?;
     Ok(())
 }
 

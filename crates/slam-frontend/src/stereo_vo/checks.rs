@@ -7,8 +7,8 @@ use nalgebra::Isometry3;
 use super::config::VoConfig;
 use super::frame::Frame;
 use super::motion::{scaled, MotionModel};
+use super::pose_search::Route;
 use super::refine::Refined;
-use super::tracker::Route;
 
 /// Support of a pose: what [`support`] found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -13,8 +13,8 @@ use super::checks::{judge, motion_limits, Support};
 use super::frame::Frame;
 use super::local_map::LocalMap;
 use super::motion::{scaled, MotionModel};
+use super::pose_search::{PoseSearch, Route};
 use super::refine::Refined;
-use super::tracker::{Route, Tracker};
 use crate::image_io::FrontendError;
 use crate::keyframe_index::KeyframeIndex;
 
@@ -48,7 +48,7 @@ pub(crate) struct Relocaliser {
 /// keyframes retrieval may place a frame against (by id: those of one map segment, or of the map but a
 /// segment).
 pub(crate) struct Context<'a> {
-    pub(crate) tracker: &'a Tracker,
+    pub(crate) pose_search: &'a PoseSearch,
     pub(crate) motion: &'a MotionModel,
     pub(crate) map: &'a Map,
     pub(crate) among: std::ops::Range<KeyframeId>,
@@ -79,8 +79,9 @@ impl Relocaliser {
     ) -> Result<Relocalisation, FrontendError> {
         let mut first = None;
         {
-            let all = cx.tracker.match_all(map, frame);
-            let found = cx.tracker.pnp_ransac(map, frame, &all, (2.0 * cx.tracker.config.ransac_px, 5000, 12))?;
+            let all = cx.pose_search.match_all(map, frame);
+            let found =
+                cx.pose_search.pnp_ransac(map, frame, &all, (2.0 * cx.pose_search.config.ransac_px, 5000, 12))?;
             if let Some((pose, _)) = found {
                 first.get_or_insert(pose);
                 if let Some(found) = Self::verify(cx, map, frame, &pose, Route::Descriptors, accept)? {
@@ -89,14 +90,14 @@ impl Relocaliser {
             }
         }
         // each hypothesis of k − 1 dropped frames covers half a step either side of its prediction
-        let (t1, r1) = motion_limits(&cx.motion.step_config(&cx.tracker.config), 1.0);
+        let (t1, r1) = motion_limits(&cx.motion.step_config(&cx.pose_search.config), 1.0);
         let bounds =
             (t1 + 0.5 * cx.motion.velocity.translation.vector.norm(), r1 + 0.5 * cx.motion.velocity.rotation.angle());
         for k in 2usize..=16 {
             let guess = (cx.motion.kf_from_last
                 * scaled(&cx.motion.velocity, cx.motion.steps(cx.motion.gap) - 1.0 + k as f64))
             .inverse();
-            if let Some((r, n)) = cx.tracker.track_from(map, frame, &guess, bounds, &cx.motion.kf_from_measured)? {
+            if let Some((r, n)) = cx.pose_search.track_from(map, frame, &guess, bounds, &cx.motion.kf_from_measured)? {
                 tracing::debug!(steps = k, inliers = r.inliers.len(), "relocalisation along the motion");
                 first.get_or_insert(r.pose);
                 if accept(&r, Route::Along(k)) {
@@ -125,7 +126,7 @@ impl Relocaliser {
         cx: &Context<'_>,
         frame: &Frame,
     ) -> Result<Option<(Refined, usize, KeyframeId, LocalMap)>, FrontendError> {
-        if frame.points.len() < cx.tracker.config.min_inliers {
+        if frame.points.len() < cx.pose_search.config.min_inliers {
             return Ok(None);
         }
         let t0 = Instant::now();
@@ -138,10 +139,10 @@ impl Relocaliser {
             }
             let t0 = Instant::now();
             let own = LocalMap::of(cx.map, id, &[id]);
-            let all = cx.tracker.match_all(&own, frame);
+            let all = cx.pose_search.match_all(&own, frame);
             let matched = t0.elapsed().as_secs_f64() * 1e3;
-            let ransac = (2.0 * cx.tracker.config.ransac_px, RETRIEVAL_ITERATIONS, 12);
-            let found = cx.tracker.pnp_ransac(&own, frame, &all, ransac)?;
+            let ransac = (2.0 * cx.pose_search.config.ransac_px, RETRIEVAL_ITERATIONS, 12);
+            let found = cx.pose_search.pnp_ransac(&own, frame, &all, ransac)?;
             let pnp = t0.elapsed().as_secs_f64() * 1e3 - matched;
             tracing::debug!(
                 keyframe = id,
@@ -153,11 +154,12 @@ impl Relocaliser {
                 "retrieved keyframe"
             );
             let Some((pose, _)) = found else { continue };
-            let around: Vec<KeyframeId> =
-                std::iter::once(id).chain(cx.map.covisibility().best(id, cx.tracker.config.local_neighbours)).collect();
+            let around: Vec<KeyframeId> = std::iter::once(id)
+                .chain(cx.map.covisibility().best(id, cx.pose_search.config.local_neighbours))
+                .collect();
             let map = LocalMap::of(cx.map, id, &around);
             let accept = |r: &Refined, route: Route| {
-                judge(&cx.tracker.config, cx.tracker.image_size, cx.motion, r, route, frame) == Support::Full
+                judge(&cx.pose_search.config, cx.pose_search.image_size, cx.motion, r, route, frame) == Support::Full
             };
             if let Some((r, n, _)) = Self::verify(cx, &map, frame, &pose, Route::Retrieved(id), &accept)? {
                 tracing::debug!(
@@ -185,19 +187,20 @@ impl Relocaliser {
     ) -> Result<Option<(Refined, usize, Route)>, FrontendError> {
         let skip = vec![false; map.len()];
         let taken = vec![false; frame.keypoints.len()];
-        let radius = 2.0 * cx.tracker.config.local_radius;
+        let radius = 2.0 * cx.pose_search.config.local_radius;
         let scale = slam_map::ScalePyramid::default();
-        let matches = cx.tracker.search(map, pose, frame, &|_, l| radius * scale.scale(l), (&skip, &taken));
-        let Some((pose, inliers)) = cx.tracker.pnp_ransac(
+        let matches = cx.pose_search.search(map, pose, frame, &|_, l| radius * scale.scale(l), (&skip, &taken));
+        let Some((pose, inliers)) = cx.pose_search.pnp_ransac(
             map,
             frame,
             &matches,
-            (cx.tracker.config.ransac_px, 200, cx.tracker.config.weak_inliers),
+            (cx.pose_search.config.ransac_px, 200, cx.pose_search.config.weak_inliers),
         )?
         else {
             return Ok(None);
         };
-        let Some((r, n)) = cx.tracker.extend_and_refine(map, frame, &pose, inliers, &cx.motion.kf_from_measured) else {
+        let Some((r, n)) = cx.pose_search.extend_and_refine(map, frame, &pose, inliers, &cx.motion.kf_from_measured)
+        else {
             return Ok(None);
         };
         tracing::debug!(inliers = r.inliers.len(), ?route, "relocalisation candidate");

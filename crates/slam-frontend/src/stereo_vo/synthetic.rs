@@ -134,7 +134,7 @@ pub(crate) fn track_map(
 ) -> (Vec<Isometry3<f64>>, Map, Vec<usize>, Vec<slam_core::TrackState>) {
     let optimizer = std::sync::Arc::new(slam_lm::LevenbergMarquardt::default());
     let mut vo = StereoVo::new(RIG, config, optimizer).expect("ORB");
-    vo.tracker.image_size = SIZE;
+    vo.pose_search.image_size = SIZE;
     let mut map = Map::new(RIG, ScalePyramid::default());
     let mut rng = SimRng::new(seed);
     let mut keyframes = Vec::new();

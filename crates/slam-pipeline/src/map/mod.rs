@@ -649,41 +649,36 @@ impl Map {
     /// length, rotations orthonormal, semi-axes positive, every id referring to something, frames in
     /// increasing order. Returns the first offending field and what is wrong with it.
     pub fn check(&self) -> Result<(), (String, String)> {
-        fn position(field: String, p: &[f64]) -> Result<(), (String, String)> {
-            if !p.iter().all(|v| v.is_finite()) {
-                return Err((field, format!("not finite: {p:?}")));
-            }
-            if let Some(v) = p.iter().find(|v| v.abs() > MAX_COORDINATE_M) {
-                return Err((
-                    field,
-                    format!(
-                        "coordinate {v:.3e} m: a map stays within {MAX_COORDINATE_M:.1e} m of its origin (the Earth's diameter)"
-                    ),
-                ));
-            }
-            Ok(())
-        }
-        fn pose(field: String, p: &PoseArray) -> Result<(), (String, String)> {
-            if !p.iter().all(|v| v.is_finite()) {
-                return Err((field, format!("not finite: {p:?}")));
-            }
-            position(field.clone(), &p[4..])?;
-            let n = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]).sqrt();
-            // written maps hold unit quaternions to 1e-15; 1e-3 allows values rounded by hand
-            if (n - 1.0).abs() > 1e-3 {
-                let what = if n == 0.0 { "zero quaternion".to_string() } else { format!("quaternion of length {n}") };
-                return Err((field, format!("{what} (expected unit length)")));
-            }
-            Ok(())
-        }
         // ids are counted up from 0; one near the top of the range is a corrupt number, and the next
         // id after it would wrap around
         let ids = self.keyframes.keys().chain(self.points.keys()).chain(self.objects.iter().map(|o| &o.id));
         if let Some(id) = ids.copied().find(|&id| id >= MAX_ID) {
             return Err(("id".into(), format!("{id} is not an id of a map (at most {MAX_ID})")));
         }
+        self.check_keyframes()?;
+        for (id, p) in &self.points {
+            check_position(format!("points.{id}.position"), &p.position)?;
+            if let Some(k) = p.observed_by.iter().find(|k| !self.keyframes.contains_key(k)) {
+                return Err((format!("points.{id}.observed_by"), format!("keyframe {k} does not exist")));
+            }
+        }
+        self.check_both_sides()?;
+        if let Some(c) = &self.camera {
+            slam_core::check::stereo_camera([c.fx, c.fy, c.cx, c.cy], c.baseline, (c.width, c.height))
+                .map_err(|e| (format!("camera.{}", e.key), format!("{}: must be {}", e.value, e.valid)))?;
+        }
+        self.check_objects()?;
+        if let Some(w) = &self.ground_truth_world {
+            check_pose("ground_truth_world.pose".into(), &w.pose)?;
+        }
+        self.check_trajectory()
+    }
+
+    /// The keyframes of [`Map::check`]: poses, parents that exist and lead back without a cycle,
+    /// observations of points that exist.
+    fn check_keyframes(&self) -> Result<(), (String, String)> {
         for (id, k) in &self.keyframes {
-            pose(format!("keyframes.{id}.pose"), &k.pose)?;
+            check_pose(format!("keyframes.{id}.pose"), &k.pose)?;
             if let Some(p) = k.parent {
                 if !self.keyframes.contains_key(&p) {
                     return Err((format!("keyframes.{id}.parent"), format!("keyframe {p} does not exist")));
@@ -711,17 +706,12 @@ impl Map {
                 }
             }
         }
-        for (id, p) in &self.points {
-            position(format!("points.{id}.position"), &p.position)?;
-            if let Some(k) = p.observed_by.iter().find(|k| !self.keyframes.contains_key(k)) {
-                return Err((format!("points.{id}.observed_by"), format!("keyframe {k} does not exist")));
-            }
-        }
-        self.check_both_sides()?;
-        if let Some(c) = &self.camera {
-            slam_core::check::stereo_camera([c.fx, c.fy, c.cx, c.cy], c.baseline, (c.width, c.height))
-                .map_err(|e| (format!("camera.{}", e.key), format!("{}: must be {}", e.value, e.valid)))?;
-        }
+        Ok(())
+    }
+
+    /// The objects of [`Map::check`]: unique ids, finite centres inside the map, positive bounded
+    /// semi-axes, points that exist, views with poses and boxes, rotations.
+    fn check_objects(&self) -> Result<(), (String, String)> {
         let mut ids = std::collections::BTreeSet::new();
         for (i, o) in self.objects.iter().enumerate() {
             let at = |f: &str| format!("objects[{i}].{f}");
@@ -731,7 +721,7 @@ impl Map {
             if !o.center.iter().chain(&o.rotation).all(|v| v.is_finite()) {
                 return Err((at("center/rotation"), "not finite".into()));
             }
-            position(at("center"), &o.center)?;
+            check_position(at("center"), &o.center)?;
             // no object a map holds is a kilometre long: larger is a corrupt number or other units
             if !o.semi_axes.iter().all(|a| a.is_finite() && *a > 0.0 && *a <= 1e3) {
                 return Err((
@@ -747,7 +737,7 @@ impl Map {
             }
             for (j, v) in o.views.iter().enumerate() {
                 let at = |f: &str| format!("objects[{i}].views[{j}].{f}");
-                pose(at("pose"), &v.pose)?;
+                check_pose(at("pose"), &v.pose)?;
                 let [x0, y0, x1, y1] = v.bbox;
                 if !(v.bbox.iter().all(|x| x.is_finite()) && x0 < x1 && y0 < y1) {
                     return Err((at("bbox"), format!("not a box: {:?}", v.bbox)));
@@ -756,7 +746,7 @@ impl Map {
                     if !self.keyframes.contains_key(k) {
                         return Err((at("reference"), format!("keyframe {k} does not exist")));
                     }
-                    pose(at("reference"), rel)?;
+                    check_pose(at("reference"), rel)?;
                 }
             }
             let r = nalgebra::Matrix3::from_row_slice(&o.rotation);
@@ -768,15 +758,18 @@ impl Map {
                 ));
             }
         }
-        if let Some(w) = &self.ground_truth_world {
-            pose("ground_truth_world.pose".into(), &w.pose)?;
-        }
+        Ok(())
+    }
+
+    /// The trajectory of [`Map::check`]: keyframes that exist, poses, known states, frames in
+    /// increasing order; and every object's frames among them.
+    fn check_trajectory(&self) -> Result<(), (String, String)> {
         let mut last = None;
         for (i, f) in self.trajectory.iter().enumerate() {
             if let Some(k) = f.keyframe.filter(|k| !self.keyframes.contains_key(k)) {
                 return Err((format!("trajectory[{i}].keyframe"), format!("keyframe {k} does not exist")));
             }
-            pose(format!("trajectory[{i}].relative"), &f.relative)?;
+            check_pose(format!("trajectory[{i}].relative"), &f.relative)?;
             if !crate::tracking_states::STATE_NAMES.contains(&f.state.as_str()) {
                 return Err((
                     format!("trajectory[{i}].state"),
@@ -820,6 +813,36 @@ impl Map {
         }
         Ok(slam_core::files::write_atomic(path, s.as_bytes())?)
     }
+}
+
+/// A position in a map: finite and within [`MAX_COORDINATE_M`] of its origin.
+fn check_position(field: String, p: &[f64]) -> Result<(), (String, String)> {
+    if !p.iter().all(|v| v.is_finite()) {
+        return Err((field, format!("not finite: {p:?}")));
+    }
+    if let Some(v) = p.iter().find(|v| v.abs() > MAX_COORDINATE_M) {
+        return Err((
+            field,
+            format!(
+                "coordinate {v:.3e} m: a map stays within {MAX_COORDINATE_M:.1e} m of its origin (the Earth's diameter)"
+            ),
+        ));
+    }
+    Ok(())
+}
+/// A pose in a map: finite, its position a [`check_position`], its quaternion of unit length.
+fn check_pose(field: String, p: &PoseArray) -> Result<(), (String, String)> {
+    if !p.iter().all(|v| v.is_finite()) {
+        return Err((field, format!("not finite: {p:?}")));
+    }
+    check_position(field.clone(), &p[4..])?;
+    let n = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]).sqrt();
+    // written maps hold unit quaternions to 1e-15; 1e-3 allows values rounded by hand
+    if (n - 1.0).abs() > 1e-3 {
+        let what = if n == 0.0 { "zero quaternion".to_string() } else { format!("quaternion of length {n}") };
+        return Err((field, format!("{what} (expected unit length)")));
+    }
+    Ok(())
 }
 
 /// Ids of keyframes, points and objects stay below 2⁴⁸: a map made at 10 Hz for a century, with a

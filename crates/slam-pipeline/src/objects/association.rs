@@ -73,7 +73,7 @@ pub fn predict_box(o: &MappedObject, frame: usize, camera: &Camera, image: &Imag
         }
         let axis = |k: usize| {
             let mut v: Vec<f64> = recent.iter().map(|(_, gap, f)| f.motion[k] / (*gap).max(1) as f64).collect();
-            crate::report::median(&mut v)
+            slam_core::figure::median(&mut v).unwrap_or(f64::NAN)
         };
         Vector3::new(axis(0), axis(1), axis(2))
     } else {

@@ -5,8 +5,8 @@
 
 use std::collections::BTreeMap;
 
-use crate::report::median;
 use nalgebra::Vector3;
+use slam_core::figure::median;
 use slam_core::{geometry::BBox, Detection, FramePoint, TrackId};
 use slam_optim::object::SurfaceCue;
 use slam_quadric::{project, Camera, Ellipsoid};
@@ -126,8 +126,13 @@ pub(super) fn with_centroids(obj: &MappedObject) -> Vec<&Observation> {
 /// Where the stereo points of `with` (observations with a centroid, at least one) put the object: the
 /// per-axis median of their centroids, and the median of their depth σ.
 pub(super) fn median_centroid(with: &[&Observation]) -> (Vector3<f64>, f64) {
-    let axis = |k: usize| median(&mut with.iter().filter_map(|o| o.centroid.map(|c| c[k])).collect::<Vec<_>>());
-    (Vector3::new(axis(0), axis(1), axis(2)), median(&mut with.iter().map(|o| o.depth_sigma).collect::<Vec<_>>()))
+    let axis = |k: usize| {
+        median(&mut with.iter().filter_map(|o| o.centroid.map(|c| c[k])).collect::<Vec<_>>()).unwrap_or(f64::NAN)
+    };
+    (
+        Vector3::new(axis(0), axis(1), axis(2)),
+        median(&mut with.iter().map(|o| o.depth_sigma).collect::<Vec<_>>()).unwrap_or(f64::NAN),
+    )
 }
 
 /// Whether an ellipsoid lies where the object's stereo points put it (see

@@ -2,8 +2,8 @@
 //! ([`ObjectMapper::add_points`]), the scene flow of its points between frames
 //! ([`ObjectMapper::add_flow`], [`scene_flow`]), and the flow that refutes a trend.
 
-use crate::report::median;
 use nalgebra::Vector3;
+use slam_core::figure::median;
 use slam_core::{PointId, TrackId};
 
 use super::{class_prior, object::TrendFlag, ObjectMapper, PointsCentroid};
@@ -245,7 +245,8 @@ pub fn scene_flow(points: &[FlowedPoint], camera: &Vector3<f64>) -> Option<Scene
     if n < MIN_FLOW_POINTS {
         return None;
     }
-    let axis_median = |f: &dyn Fn(&FlowedPoint) -> f64| median(&mut points.iter().map(f).collect::<Vec<_>>());
+    let axis_median =
+        |f: &dyn Fn(&FlowedPoint) -> f64| median(&mut points.iter().map(f).collect::<Vec<_>>()).unwrap_or(f64::NAN);
     let motion = Vector3::new(
         axis_median(&|p| p.now.x - p.before.x),
         axis_median(&|p| p.now.y - p.before.y),
@@ -256,7 +257,9 @@ pub fn scene_flow(points: &[FlowedPoint], camera: &Vector3<f64>) -> Option<Scene
     let rms = |f: &dyn Fn(&FlowedPoint) -> f64| (points.iter().map(|p| f(p).powi(2)).sum::<f64>() / n as f64).sqrt();
     // the points' scatter about the median motion, along and across the ray
     let spread = |f: &dyn Fn(&Vector3<f64>) -> f64| {
-        1.4826 * median(&mut points.iter().map(|p| f(&(p.now - p.before - motion)).abs()).collect::<Vec<_>>())
+        1.4826
+            * median(&mut points.iter().map(|p| f(&(p.now - p.before - motion)).abs()).collect::<Vec<_>>())
+                .unwrap_or(f64::NAN)
     };
     let along = rms(&|p| p.sigma_along).max(spread(&|d| d.dot(&ray)));
     let across = rms(&|p| p.sigma_across).max(spread(&|d| (d - ray * d.dot(&ray)).norm()));
@@ -309,7 +312,7 @@ pub(super) const MIN_MOTION_CENTROIDS: usize = 4;
 
 /// Median depth σ of centroids.
 fn median_sigma(c: &[(usize, Vector3<f64>, f64)]) -> f64 {
-    median(&mut c.iter().map(|p| p.2).collect::<Vec<_>>())
+    median(&mut c.iter().map(|p| p.2).collect::<Vec<_>>()).unwrap_or(f64::NAN)
 }
 
 /// The displacement of an object over centroids `c` (the latest [`TREND_CENTROIDS`] of its track)
@@ -327,13 +330,13 @@ fn trend(c: &[(usize, Vector3<f64>, f64)]) -> Vector3<f64> {
             to_others.clear();
             to_others.extend(c.iter().filter(|b| b.0 != a.0).map(|b| (b.1[k] - a.1[k]) / (b.0 as f64 - a.0 as f64)));
             if !to_others.is_empty() {
-                per_point.push(median(&mut to_others));
+                per_point.push(median(&mut to_others).unwrap_or(f64::NAN));
             }
         }
         if per_point.is_empty() {
             0.0
         } else {
-            median(&mut per_point)
+            median(&mut per_point).unwrap_or(f64::NAN)
         }
     };
     Vector3::new(slope(0), slope(1), slope(2)) * span

@@ -10,7 +10,7 @@ use slam_optim::SharedOptimizer;
 
 use super::{
     threads::{detection_thread, mapping_thread, Detected},
-    tracking::Tracking,
+    tracking_thread::TrackingThread,
     FrameInput, FrameRecord, FrameView, RunOutput, SystemConfig, SystemError,
 };
 use crate::{
@@ -188,7 +188,7 @@ impl SystemBuilder {
         if map.keyframe_count() > 0 {
             tracker.load_map(&map);
         }
-        let tracking = Tracking::new(tracker, map, objects, config, req_tx, reply_rx);
+        let tracking = TrackingThread::new(tracker, map, objects, config, req_tx, reply_rx);
         Ok(System { source: self.source, frames: Some(frame_tx), detected: Some(det_rx), detection, mapping, tracking })
     }
 }
@@ -203,12 +203,12 @@ pub struct System {
     detected: Option<Receiver<Detected>>,
     detection: JoinHandle<()>,
     mapping: JoinHandle<()>,
-    tracking: Tracking,
+    tracking: TrackingThread,
 }
 
 impl System {
     /// Track one frame (its detection runs first, on the detection thread); returns its record. The
-    /// record's local-mapping times are filled in later (see [`Tracking::records`]).
+    /// record's local-mapping times are filled in later (see [`TrackingThread::records`]).
     pub fn step(&mut self, frame: FrameInput) -> Result<&FrameRecord, SystemError> {
         let (Some(frames), Some(detected)) = (&self.frames, &self.detected) else {
             return Err(SystemError::Thread("detection"));
@@ -219,7 +219,7 @@ impl System {
     }
 
     /// The tracking state so far (records, counts, objects).
-    pub fn tracking(&self) -> &Tracking {
+    pub fn tracking_thread(&self) -> &TrackingThread {
         &self.tracking
     }
 

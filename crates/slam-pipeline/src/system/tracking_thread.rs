@@ -6,6 +6,7 @@ use std::{collections::VecDeque, time::Instant};
 use crossbeam_channel::{Receiver, Sender};
 use nalgebra::{Isometry3, Point3, Vector3};
 use slam_core::{
+    figure::median,
     geometry::{BBox, Camera, ImageSize, Intrinsics},
     BoxQuery, ClassId, DetectError, Detection, FramePoint, KeyframeId, KeyframePoint, Map, MovingRegion, PointPair,
     StereoTracker, TrackState, TrackedFrame,
@@ -22,11 +23,10 @@ use crate::{
         class_prior, scene_flow, suppress_duplicate_boxes, FlowedPoint, ObjectMapper, PointsCentroid, SceneFlow,
         StereoNoise,
     },
-    report::median,
 };
 
-/// The tracking thread's state: what one [`Tracking::step`] per frame reads and updates.
-pub struct Tracking {
+/// The tracking thread's state: what one [`TrackingThread::step`] per frame reads and updates.
+pub struct TrackingThread {
     pub(crate) tracker: Box<dyn StereoTracker>,
     /// The live map: the tracker reads it, keyframes go in here, local mapping's edits are applied here.
     pub(crate) map: Map,
@@ -65,7 +65,7 @@ pub struct Tracking {
     segment_reference: Option<(KeyframeId, (KeyframeId, Isometry3<f64>))>,
 }
 
-impl Tracking {
+impl TrackingThread {
     /// Tracking state talking to local mapping through `requests` and `replies`.
     pub(crate) fn new(
         tracker: Box<dyn StereoTracker>,
@@ -209,7 +209,7 @@ impl Tracking {
         Ok(())
     }
 
-    /// Stop local mapping (after [`Tracking::drain_replies`]).
+    /// Stop local mapping (after [`TrackingThread::drain_replies`]).
     pub(crate) fn stop_mapping(&self) {
         // the thread may have stopped already; joining it reports that
         let _ = self.requests.send(MapperRequest::Finish);
@@ -887,10 +887,10 @@ fn object_points<'a, P: BoxPoint>(
         .collect();
     // a centroid needs a few points: one stray point of the background would fake a motion
     let centroid = (world.len() >= MIN_OBJECT_POINTS).then(|| {
-        let m = |k: usize| median(&mut world.iter().map(|p| p.0[k]).collect::<Vec<_>>());
+        let m = |k: usize| median(&mut world.iter().map(|p| p.0[k]).collect::<Vec<_>>()).unwrap_or(f64::NAN);
         PointsCentroid {
             position: Vector3::new(m(0), m(1), m(2)),
-            depth_sigma: sigma_z(median(&mut world.iter().map(|p| p.1).collect::<Vec<_>>())),
+            depth_sigma: sigma_z(median(&mut world.iter().map(|p| p.1).collect::<Vec<_>>()).unwrap_or(f64::NAN)),
         }
     });
     (kept.to_vec(), centroid)

@@ -6,7 +6,7 @@
 
 use std::{path::Path, time::Duration};
 
-use crate::{
+use slam_optim::{
     conformance,
     io::{read_bal, read_g2o, Problem, ProblemError},
     Graph, OptimError, Optimizer, Options, Summary, Values,
@@ -530,12 +530,12 @@ mod tests {
             }
             fn optimize(
                 &self,
-                _: &crate::Graph,
+                _: &slam_optim::Graph,
                 _: &mut Values,
                 _: &Options,
-                _: Option<&mut dyn crate::Observer>,
-            ) -> Result<crate::Summary, crate::OptimError> {
-                Err(crate::OptimError::NonFiniteCost)
+                _: Option<&mut dyn slam_optim::Observer>,
+            ) -> Result<slam_optim::Summary, slam_optim::OptimError> {
+                Err(slam_optim::OptimError::NonFiniteCost)
             }
         }
         let e = generated_solve(&Unused, 100_000, 1, true).expect_err("dense refused");
@@ -582,7 +582,8 @@ mod tests {
         let (v2, g2) = generated_ba(400, 2, 5);
         assert_eq!(v, v2);
         assert_eq!(g.len(), g2.len());
-        let sys = crate::linear::LinearSystem::new(&g, &v, crate::Options::default().dense_limit).expect("layout");
+        let sys =
+            slam_optim::linear::LinearSystem::new(&g, &v, slam_optim::Options::default().dense_limit).expect("layout");
         assert_eq!(sys.reduced_dim(), 6 * 398);
         assert!(sys.is_sparse());
     }

@@ -1,8 +1,8 @@
-//! The tracker: finds a frame's pose against the local map. The local map's points are projected from
+//! The pose search: finds a frame's pose against the local map. The local map's points are projected from
 //! a guessed pose and matched to the frame's keypoints inside windows sized by the guess's
-//! uncertainty ([`Tracker::search`]), PnP RANSAC solves the pose ([`Tracker::pnp_ransac`]), a second
-//! search at that pose adds matches, and the refinement ([`Tracker::refine`], in `refine.rs`) gives the
-//! final pose and its inliers. Descriptor matching without a guess ([`Tracker::match_all`]) serves
+//! uncertainty ([`PoseSearch::search`]), PnP RANSAC solves the pose ([`PoseSearch::pnp_ransac`]), a second
+//! search at that pose adds matches, and the refinement ([`PoseSearch::refine`], in `refine.rs`) gives the
+//! final pose and its inliers. Descriptor matching without a guess ([`PoseSearch::match_all`]) serves
 //! relocalisation.
 
 use std::collections::HashSet;
@@ -45,7 +45,7 @@ pub(crate) type Solved = (Isometry3<f64>, Vec<(usize, usize)>);
 
 /// The pose search and refinement of one rig with its settings; `image_size` is that of the frames
 /// being tracked (set by the first frame).
-pub(crate) struct Tracker {
+pub(crate) struct PoseSearch {
     pub(crate) rig: StereoRig,
     pub(crate) config: VoConfig,
     /// Solves the last refinement round (points free with their keyframe observations).
@@ -72,7 +72,7 @@ pub(crate) fn orientation_filter(matches: Vec<(usize, usize, f32)>) -> Vec<(usiz
     matches.into_iter().filter(|m| keep.contains(&bin(m.2))).map(|m| (m.0, m.1)).collect()
 }
 
-impl Tracker {
+impl PoseSearch {
     /// The refinement of this rig and settings.
     pub(crate) fn refiner(&self) -> Refiner<'_> {
         Refiner { rig: &self.rig, config: &self.config, optimizer: &self.optimizer }

@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 
 use slam_core::{geometry::BBox, ClassId, Detection, Mask, PointPair, TrackId};
 
-use crate::tracker::{ObjectTracker, TrackerInput};
+use slam_assoc::{ObjectTracker, TrackerInput};
 
 /// The seeded generator used by the simulations (from `slam-core`).
 pub use slam_core::rng::SimRng;

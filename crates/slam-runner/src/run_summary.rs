@@ -1,7 +1,7 @@
 //! Summaries of a finished run for reports: frames per second, per-stage medians, the frame period of
 //! a sequence's timestamps, and the per-frame `tracking.csv`.
 
-use crate::system::{FrameRecord, FrameTimes, RunOutput};
+use slam_pipeline::system::{FrameRecord, FrameTimes, RunOutput};
 
 /// Frames per second from the median interval between consecutive tracked frames (start-up and the
 /// first frame excluded; unreadable frames are not timed, their interval 0, and would make it infinite);
@@ -9,16 +9,6 @@ use crate::system::{FrameRecord, FrameTimes, RunOutput};
 pub fn median_fps(out: &RunOutput) -> Option<f64> {
     let mut v: Vec<f64> = out.frames.iter().filter(|f| f.state.is_some()).skip(1).map(|f| f.times.interval).collect();
     slam_core::figure::median(&mut v).filter(|&m| m > 0.0).map(|m| 1000.0 / m)
-}
-
-/// The upper median (the element at `len / 2` after sorting); NaN for none. Sorts `v`.
-pub fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(|a, b| a.total_cmp(b));
-    if v.is_empty() {
-        f64::NAN
-    } else {
-        v[v.len() / 2]
-    }
 }
 
 /// What a stage needs to run at all.
@@ -110,12 +100,7 @@ pub fn stages_run(out: &RunOutput, on: StagesOn) -> Vec<(&'static str, Option<f6
 pub fn frame_period(stamped: &[(usize, f64)]) -> f64 {
     let mut d: Vec<f64> =
         stamped.windows(2).filter(|w| w[1].0 > w[0].0).map(|w| (w[1].1 - w[0].1) / (w[1].0 - w[0].0) as f64).collect();
-    let m = median(&mut d);
-    if m.is_finite() && m > 0.0 {
-        m
-    } else {
-        0.1
-    }
+    slam_core::figure::median(&mut d).filter(|m| m.is_finite() && *m > 0.0).unwrap_or(0.1)
 }
 
 /// `tracking.csv`: one row per input frame (frame, state, inliers, tracked map points, RMS
@@ -142,7 +127,7 @@ pub fn tracking_csv(out: &RunOutput) -> Result<String, csv::Error> {
     Ok(String::from_utf8_lossy(&bytes).into_owned())
 }
 
-pub use crate::tracking_states::STATE_NAMES;
+pub use slam_pipeline::tracking_states::STATE_NAMES;
 
 /// The state of a frame as `tracking.csv` names it ("unreadable": the images could not be read).
 pub fn state_name(r: &FrameRecord) -> &'static str {
@@ -163,8 +148,8 @@ pub fn state_counts(frames: &[FrameRecord]) -> [usize; STATE_NAMES.len()] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::system::FrameRecord;
     use slam_core::TrackState;
+    use slam_pipeline::system::FrameRecord;
 
     fn record(index: usize, interval: f64, keyframe: bool, state: Option<TrackState>) -> FrameRecord {
         FrameRecord {
@@ -203,7 +188,7 @@ mod tests {
             record(3, 100.0, false, None),
         ];
         let out = RunOutput {
-            map: crate::map::Map::default(),
+            map: slam_pipeline::map::Map::default(),
             poses: Vec::new(),
             placed: Vec::new(),
             objects: Vec::new(),
@@ -228,7 +213,7 @@ mod tests {
         let mut frames = out.frames.clone();
         frames[1].times.detector_forward = 3.0;
         let network = RunOutput {
-            map: crate::map::Map::default(),
+            map: slam_pipeline::map::Map::default(),
             poses: Vec::new(),
             placed: Vec::new(),
             objects: Vec::new(),
@@ -243,7 +228,7 @@ mod tests {
         );
         // every other frame unreadable (interval 0): the median is over the frames tracked
         let alternating = RunOutput {
-            map: crate::map::Map::default(),
+            map: slam_pipeline::map::Map::default(),
             poses: Vec::new(),
             placed: Vec::new(),
             objects: Vec::new(),

@@ -7,10 +7,9 @@ use std::collections::BTreeMap;
 
 use slam_core::{geometry::BBox, Associator, Detection};
 
-use crate::{
-    eval::{run, simulate, IdSwitchCounter, MotCounts, SimConfig, SimRng},
-    IouAssociator, ObjectTracker, Oda, TrackerConfig, TrackerInput,
-};
+use slam_assoc::{IouAssociator, ObjectTracker, Oda, TrackerConfig, TrackerInput};
+
+use crate::assoc_sim::{run, simulate, IdSwitchCounter, MotCounts, SimConfig, SimRng};
 
 /// Builds a fresh associator.
 pub type MakeAssociator = fn() -> Box<dyn Associator>;
@@ -194,7 +193,7 @@ pub fn label_study(frames: &LabelledFrames, n_frames: usize, seed: u64) -> Vec<[
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{IouAssociator, Oda};
+    use slam_assoc::{IouAssociator, Oda};
     use slam_core::ClassId;
 
     /// Two cars driving apart, one box each per frame.
