@@ -121,6 +121,61 @@ pub fn known_format(format: &str) -> bool {
 
 /// Choose a bag's left and right image topics (module doc), or say why none can be chosen.
 pub fn choose_topics(bag: &Bag, opts: &SourceOptions, calib: Option<&CalibrationFile>) -> Result<TopicChoice, String> {
+    if let Some(given) = given_topics(bag, opts, calib)? {
+        return Ok(given);
+    }
+    let images = image_topics(bag);
+    if images.is_empty() {
+        return Err(format!(
+            "no image topic ({IMAGE} or {COMPRESSED_IMAGE}, CDR) in the bag; its topics: {}",
+            bag.topics.iter().map(|t| format!("{} ({})", t.name, t.schema)).collect::<Vec<_>>().join(", ")
+        ));
+    }
+    let (cameras, notes) = cameras_of(bag, &images, calib);
+    let missing_info = || {
+        let looked: Vec<String> = images.iter().map(|t| format!("{t} (looked for {})", camera_info_topic(t))).collect();
+        format!(
+            "no {CAMERA_INFO} beside the image topics {}: give the rig's calibration with --calib FILE (a Kalibr camchain or ORB-SLAM's stereo settings)",
+            looked.join(", ")
+        )
+    };
+    let (a, b) = match cameras.len() {
+        0 => return Err(missing_info()),
+        1 => {
+            let extra =
+                if calib.is_none() && images.len() > 1 { format!(" ({})", missing_info()) } else { String::new() };
+            return Err(format!(
+                "one camera only: {}; a stereo run needs a left and a right camera{extra}",
+                cameras[0].1
+            ));
+        }
+        2 => (cameras[0].1.clone(), cameras[1].1.clone()),
+        _ => {
+            return Err(format!(
+                "{} cameras ({}): name the pair with --left TOPIC --right TOPIC",
+                cameras.len(),
+                cameras.iter().map(|c| c.1.as_str()).collect::<Vec<_>>().join(", ")
+            ))
+        }
+    };
+    let (a_left, why) = which_is_left(bag, &a, &b)?;
+    let (left, right) = if a_left { (a, b) } else { (b, a) };
+    let mut why = format!(
+        "the only two cameras{}, left and right {why}",
+        if calib.is_none() { " with a CameraInfo" } else { "" }
+    );
+    if !notes.is_empty() {
+        why.push_str(&format!("; {}", notes.join("; ")));
+    }
+    Ok(TopicChoice { left, right, why })
+}
+
+/// The pair named by `--left`/`--right` or by the calibration file, when either names one.
+fn given_topics(
+    bag: &Bag,
+    opts: &SourceOptions,
+    calib: Option<&CalibrationFile>,
+) -> Result<Option<TopicChoice>, String> {
     let image = |name: &str, flag: &str| -> Result<(), String> {
         match bag.topic(name) {
             Some(t) if t.is_image() => Ok(()),
@@ -135,7 +190,11 @@ pub fn choose_topics(bag: &Bag, opts: &SourceOptions, calib: Option<&Calibration
         (Some(l), Some(r)) => {
             image(l, "--left")?;
             image(r, "--right")?;
-            return Ok(TopicChoice { left: l.clone(), right: r.clone(), why: "given with --left and --right".into() });
+            return Ok(Some(TopicChoice {
+                left: l.clone(),
+                right: r.clone(),
+                why: "given with --left and --right".into(),
+            }));
         }
         (Some(_), None) | (None, Some(_)) => {
             return Err("--left and --right go together: name both image topics".into())
@@ -145,24 +204,22 @@ pub fn choose_topics(bag: &Bag, opts: &SourceOptions, calib: Option<&Calibration
     if let Some((l, r)) = calib.and_then(|c| c.topics.as_ref()) {
         if bag.topic(l).is_some_and(|t| t.is_image()) && bag.topic(r).is_some_and(|t| t.is_image()) {
             let file = calib.map(|c| c.path.display().to_string()).unwrap_or_default();
-            return Ok(TopicChoice {
+            return Ok(Some(TopicChoice {
                 left: l.clone(),
                 right: r.clone(),
                 why: format!("the topics {file} names (rostopic)"),
-            });
+            }));
         }
     }
-    let images = image_topics(bag);
-    if images.is_empty() {
-        return Err(format!(
-            "no image topic ({IMAGE} or {COMPRESSED_IMAGE}, CDR) in the bag; its topics: {}",
-            bag.topics.iter().map(|t| format!("{} ({})", t.name, t.schema)).collect::<Vec<_>>().join(", ")
-        ));
-    }
-    // one topic per camera: with a CameraInfo beside it unless a calibration file is given
+    Ok(None)
+}
+
+/// One image topic per camera namespace (with a CameraInfo beside it unless a calibration file is
+/// given; raw images preferred over compressed ones), and a note for each topic left out.
+fn cameras_of(bag: &Bag, images: &[String], calib: Option<&CalibrationFile>) -> (Vec<(String, String)>, Vec<String>) {
     let mut cameras: Vec<(String, String)> = Vec::new();
     let mut notes = Vec::new();
-    for t in &images {
+    for t in images {
         let ns = camera_namespace(t).to_string();
         // a camera-info topic with a readable message (a channel without messages says nothing)
         let has_info = bag.camera_infos.contains_key(&camera_info_topic(t));
@@ -182,66 +239,34 @@ pub fn choose_topics(bag: &Bag, opts: &SourceOptions, calib: Option<&Calibration
             None => cameras.push((ns, t.clone())),
         }
     }
-    let missing_info = || {
-        let looked: Vec<String> = images.iter().map(|t| format!("{t} (looked for {})", camera_info_topic(t))).collect();
-        format!(
-            "no {CAMERA_INFO} beside the image topics {}: give the rig's calibration with --calib FILE (a Kalibr camchain or ORB-SLAM's stereo settings)",
-            looked.join(", ")
-        )
-    };
-    let pick = match cameras.len() {
-        0 => return Err(missing_info()),
-        1 => {
-            let extra =
-                if calib.is_none() && images.len() > 1 { format!(" ({})", missing_info()) } else { String::new() };
-            return Err(format!(
-                "one camera only: {}; a stereo run needs a left and a right camera{extra}",
-                cameras[0].1
-            ));
-        }
-        2 => (cameras[0].1.clone(), cameras[1].1.clone()),
-        _ => {
-            return Err(format!(
-                "{} cameras ({}): name the pair with --left TOPIC --right TOPIC",
-                cameras.len(),
-                cameras.iter().map(|c| c.1.as_str()).collect::<Vec<_>>().join(", ")
-            ))
-        }
-    };
-    let (a, b) = pick;
+    (cameras, notes)
+}
+
+/// Whether camera `a` of the pair is the left one, and why: by the namespaces' names and by the sign of
+/// each CameraInfo's P[0][3]; an error when neither says or they disagree.
+fn which_is_left(bag: &Bag, a: &str, b: &str) -> Result<(bool, String), String> {
     let named = |t: &str, w: &str| camera_namespace(t).to_ascii_lowercase().contains(w);
     let tx = |t: &str| bag.camera_infos.get(&camera_info_topic(t)).map(|i| i.p[3]);
-    let by_p = match (tx(&a), tx(&b)) {
+    let by_p = match (tx(a), tx(b)) {
         (Some(x), Some(y)) if x == 0.0 && y < 0.0 => Some(true),
         (Some(x), Some(y)) if y == 0.0 && x < 0.0 => Some(false),
         _ => None,
     };
-    let by_name = match (named(&a, "left") && named(&b, "right"), named(&b, "left") && named(&a, "right")) {
+    let by_name = match (named(a, "left") && named(b, "right"), named(b, "left") && named(a, "right")) {
         (true, false) => Some(true),
         (false, true) => Some(false),
         _ => None,
     };
-    let (a_left, why) = match (by_name, by_p) {
-        (Some(n), Some(p)) if n != p => {
-            return Err(format!(
-                "{a} and {b}: their names and their CameraInfo P (the right camera has P[0][3] = −fx·B < 0) disagree on which is left; name the pair with --left and --right"
-            ))
-        }
-        (Some(n), _) => (n, "by their names (left, right)".to_string()),
-        (None, Some(p)) => (p, "by their CameraInfo P: the right camera's P[0][3] = −fx·B is negative".to_string()),
-        (None, None) => {
-            return Err(format!("two cameras, {a} and {b}, and neither their names nor a CameraInfo says which is left: name them with --left and --right"))
-        }
-    };
-    let (left, right) = if a_left { (a, b) } else { (b, a) };
-    let mut why = format!(
-        "the only two cameras{}, left and right {why}",
-        if calib.is_none() { " with a CameraInfo" } else { "" }
-    );
-    if !notes.is_empty() {
-        why.push_str(&format!("; {}", notes.join("; ")));
+    match (by_name, by_p) {
+        (Some(n), Some(p)) if n != p => Err(format!(
+            "{a} and {b}: their names and their CameraInfo P (the right camera has P[0][3] = −fx·B < 0) disagree on which is left; name the pair with --left and --right"
+        )),
+        (Some(n), _) => Ok((n, "by their names (left, right)".to_string())),
+        (None, Some(p)) => Ok((p, "by their CameraInfo P: the right camera's P[0][3] = −fx·B is negative".to_string())),
+        (None, None) => Err(format!(
+            "two cameras, {a} and {b}, and neither their names nor a CameraInfo says which is left: name them with --left and --right"
+        )),
     }
-    Ok(TopicChoice { left, right, why })
 }
 
 fn image_topics(bag: &Bag) -> Vec<String> {
