@@ -320,73 +320,96 @@ fn label_ellipsoid(l: &TrackingLabel, pose: &Isometry3<f64>, centre: Vector3<f64
     Ellipsoid::new(Isometry3::from_parts(Translation3::from(centre), rot), Vector3::new(len / 2.0, h / 2.0, w / 2.0))
 }
 
-/// Score a run's objects. `poses`: world from the run's camera, one per played frame; `frame_ids`: the
-/// sequence's frame id of each (a run with `--frames 20..60` starts at id 20), the ids that labels and
-/// the objects' `frames` use. Labels of frames the run did not play are ignored.
-pub fn score_run(
-    labels: &[TrackingLabel],
-    poses: &[Isometry3<f64>],
-    frame_ids: &[usize],
-    geometry: &LabelGeometry,
-    objects: &[ScoredInput],
-    config: &ScoreConfig,
-) -> RunScore {
-    let k = geometry.intrinsics();
-    let image = geometry.image();
-    let n = poses.len();
-    let pose_of: BTreeMap<usize, Isometry3<f64>> = frame_ids.iter().copied().zip(poses.iter().copied()).collect();
-    let played = |f: usize| pose_of.contains_key(&f);
-    // label tracks and DontCare regions inside the run
-    let mut by_track: BTreeMap<i64, Vec<&TrackingLabel>> = BTreeMap::new();
-    let mut dont_care: BTreeMap<usize, Vec<BBox>> = BTreeMap::new();
-    let mut boxes: BTreeMap<usize, Vec<(i64, BBox)>> = BTreeMap::new();
-    for l in labels.iter().filter(|l| played(l.frame)) {
-        if l.is_dont_care() {
-            if let Some(b) = geometry.label_box(l) {
-                dont_care.entry(l.frame).or_default().push(b);
-            }
-            continue;
-        }
-        if l.track_id < 0 {
-            continue;
-        }
-        by_track.entry(l.track_id).or_default().push(l);
-        if let Some(b) = geometry.label_box(l) {
-            boxes.entry(l.frame).or_default().push((l.track_id, b));
-        }
-    }
-    let tracks: BTreeMap<i64, Track> = by_track
-        .into_iter()
-        .map(|(id, labels)| {
-            let centres: Vec<Vector3<f64>> =
-                labels.iter().map(|l| LabelGeometry::to_world(&pose_of[&l.frame], &geometry.centre(l))).collect();
-            let mean = centres.iter().sum::<Vector3<f64>>() / centres.len() as f64;
-            let spread = centres.iter().map(|c| (c - mean).norm()).fold(0.0, f64::max);
-            (id, Track { labels, spread, mean })
-        })
-        .collect();
-    let is_moving = |t: i64| tracks.get(&t).is_some_and(|t| t.spread > config.moving_m);
+/// The labels inside the run: each played frame's pose, the label tracks with their world centres, the
+/// label boxes and the DontCare regions of each frame.
+struct LabelScene<'a> {
+    pose_of: BTreeMap<usize, Isometry3<f64>>,
+    tracks: BTreeMap<i64, Track<'a>>,
+    dont_care: BTreeMap<usize, Vec<BBox>>,
+    boxes: BTreeMap<usize, Vec<(i64, BBox)>>,
+}
 
-    // each object's vote
-    #[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-    enum Vote {
-        Track(i64),
-        DontCare,
-        Nothing,
+impl<'a> LabelScene<'a> {
+    fn new(
+        labels: &'a [TrackingLabel],
+        poses: &[Isometry3<f64>],
+        frame_ids: &[usize],
+        geometry: &LabelGeometry,
+    ) -> Self {
+        let pose_of: BTreeMap<usize, Isometry3<f64>> = frame_ids.iter().copied().zip(poses.iter().copied()).collect();
+        let mut by_track: BTreeMap<i64, Vec<&TrackingLabel>> = BTreeMap::new();
+        let mut dont_care: BTreeMap<usize, Vec<BBox>> = BTreeMap::new();
+        let mut boxes: BTreeMap<usize, Vec<(i64, BBox)>> = BTreeMap::new();
+        for l in labels.iter().filter(|l| pose_of.contains_key(&l.frame)) {
+            if l.is_dont_care() {
+                if let Some(b) = geometry.label_box(l) {
+                    dont_care.entry(l.frame).or_default().push(b);
+                }
+                continue;
+            }
+            if l.track_id < 0 {
+                continue;
+            }
+            by_track.entry(l.track_id).or_default().push(l);
+            if let Some(b) = geometry.label_box(l) {
+                boxes.entry(l.frame).or_default().push((l.track_id, b));
+            }
+        }
+        let tracks: BTreeMap<i64, Track> = by_track
+            .into_iter()
+            .map(|(id, labels)| {
+                let centres: Vec<Vector3<f64>> =
+                    labels.iter().map(|l| LabelGeometry::to_world(&pose_of[&l.frame], &geometry.centre(l))).collect();
+                let mean = centres.iter().sum::<Vector3<f64>>() / centres.len() as f64;
+                let spread = centres.iter().map(|c| (c - mean).norm()).fold(0.0, f64::max);
+                (id, Track { labels, spread, mean })
+            })
+            .collect();
+        Self { pose_of, tracks, dont_care, boxes }
     }
-    // (object index, majority vote with its count, frames)
-    type Voted = (usize, Option<(Vote, usize)>, usize);
+
+    fn is_moving(&self, track: i64, config: &ScoreConfig) -> bool {
+        self.tracks.get(&track).is_some_and(|t| t.spread > config.moving_m)
+    }
+}
+
+/// What the frames of an object's detections say it is.
+#[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum Vote {
+    Track(i64),
+    DontCare,
+    Nothing,
+}
+
+/// (object index, majority vote with its count, frames scored)
+type Voted = (usize, Option<(Vote, usize)>, usize);
+
+/// The best static object of each track: its (votes, reversed id, object index); the most votes win,
+/// then the lower id.
+type BestOf = BTreeMap<i64, (usize, std::cmp::Reverse<u64>, usize)>;
+
+/// Each object projected into the frames of its detections votes there for the label box it overlaps
+/// most, else DontCare, else nothing; the majority decides (ties: a label track, the lower id, then
+/// DontCare).
+fn vote_objects(
+    scene: &LabelScene,
+    objects: &[ScoredInput],
+    geometry: &LabelGeometry,
+    config: &ScoreConfig,
+) -> Vec<Voted> {
+    let (k, image) = (geometry.intrinsics(), geometry.image());
     let mut voted: Vec<Voted> = Vec::new();
     for (oi, o) in objects.iter().enumerate() {
         let mut votes: BTreeMap<Vote, usize> = BTreeMap::new();
         let mut scored = 0;
-        for (&f, pose) in o.frames.iter().filter_map(|f| Some((f, pose_of.get(f)?))) {
+        for (&f, pose) in o.frames.iter().filter_map(|f| Some((f, scene.pose_of.get(f)?))) {
             let cam = Camera::new(k, *pose);
             let Some(b) = project(&o.ellipsoid, &cam).ok().and_then(|c| c.clipped_bounds(&image).ok()) else {
                 continue;
             };
             scored += 1;
-            let best = boxes
+            let best = scene
+                .boxes
                 .get(&f)
                 .into_iter()
                 .flatten()
@@ -395,7 +418,8 @@ pub fn score_run(
                 .max_by(|a, b| a.0.total_cmp(&b.0).then(b.1.cmp(&a.1)));
             let vote = if let Some((_, t)) = best {
                 Vote::Track(t)
-            } else if dont_care
+            } else if scene
+                .dont_care
                 .get(&f)
                 .into_iter()
                 .flatten()
@@ -411,9 +435,12 @@ pub fn score_run(
         let majority = votes.into_iter().max_by(|a, b| a.1.cmp(&b.1).then(b.0.cmp(&a.0)));
         voted.push((oi, majority, scored));
     }
-    // the best static object of each track: the most votes, then the lower id
-    let mut best_of: BTreeMap<i64, (usize, std::cmp::Reverse<u64>, usize)> = BTreeMap::new();
-    for &(oi, m, _) in &voted {
+    voted
+}
+
+fn best_static_of(voted: &[Voted], objects: &[ScoredInput]) -> BestOf {
+    let mut best_of = BestOf::new();
+    for &(oi, m, _) in voted {
         let o = &objects[oi];
         if let (false, Some((Vote::Track(t), v))) = (o.dynamic, m) {
             let key = (v, std::cmp::Reverse(o.id), oi);
@@ -422,14 +449,25 @@ pub fn score_run(
             }
         }
     }
+    best_of
+}
+
+/// Each object's fate and the census of the map's objects; the dynamic objects on each label track.
+fn census_of(
+    scene: &LabelScene,
+    voted: &[Voted],
+    objects: &[ScoredInput],
+    best_of: &BestOf,
+    config: &ScoreConfig,
+) -> (Census, Vec<ObjectScore>, BTreeMap<i64, Vec<u64>>) {
     let mut census = Census::default();
     let mut scores = Vec::new();
     let mut flagged: BTreeMap<i64, Vec<u64>> = BTreeMap::new();
-    for &(oi, m, scored) in &voted {
+    for &(oi, m, scored) in voted {
         let o = &objects[oi];
         let (fate, track, votes) = match m {
             None => (Fate::Unscored, None, 0),
-            Some((Vote::Track(t), v)) if is_moving(t) => (Fate::Moving, Some(t), v),
+            Some((Vote::Track(t), v)) if scene.is_moving(t, config) => (Fate::Moving, Some(t), v),
             Some((Vote::Track(t), v)) if !o.dynamic && best_of.get(&t).is_some_and(|b| b.2 != oi) => {
                 (Fate::Duplicate, Some(t), v)
             }
@@ -464,14 +502,27 @@ pub fn score_run(
         }
         scores.push(ObjectScore { id: o.id, class: o.class, dynamic: o.dynamic, fate, track, votes, frames: scored });
     }
+    (census, scores, flagged)
+}
 
-    // vehicles
+/// The static labelled vehicles: found or not, and the figures of the best object of each found one
+/// beside what the ground-truth ellipsoids score.
+fn vehicle_scores(
+    scene: &LabelScene,
+    objects: &[ScoredInput],
+    best_of: &BestOf,
+    mut flagged: BTreeMap<i64, Vec<u64>>,
+    geometry: &LabelGeometry,
+    config: &ScoreConfig,
+) -> (VehicleFigures, Vec<TrackScore>) {
+    let (k, image) = (geometry.intrinsics(), geometry.image());
+    let pose_of = &scene.pose_of;
     let mut figures = VehicleFigures::default();
     let (mut iou_sum, mut et_sum, mut ea_sum, mut ey_sum, mut within) = (0.0, 0.0, 0.0, 0.0, 0usize);
     // box IoU2D, and both IoUs of the ground truth
     let (mut box_sum, mut iou_truth_sum, mut box_truth_sum) = (0.0, 0.0, 0.0);
     let mut track_scores = Vec::new();
-    for (&id, t) in &tracks {
+    for (&id, t) in &scene.tracks {
         let kind = t.labels[0].kind.clone();
         let motion = if t.spread <= config.static_m {
             "static"
@@ -481,7 +532,7 @@ pub fn score_run(
             "unclear"
         };
         let vehicle = (kind == "Car" || kind == "Van") && motion == "static" && t.labels.len() >= config.min_frames;
-        let object = best_of.get(&id).filter(|_| !is_moving(id)).map(|b| objects[b.2].id);
+        let object = best_of.get(&id).filter(|_| !scene.is_moving(id, config)).map(|b| objects[b.2].id);
         let mut ts = TrackScore {
             track: id,
             kind,
@@ -550,14 +601,33 @@ pub fn score_run(
     } else {
         (figures.iou2d_truth, figures.box_iou2d_truth) = (f64::NAN, f64::NAN);
     }
+    (figures, track_scores)
+}
+
+/// Score a run's objects. `poses`: world from the run's camera, one per played frame; `frame_ids`: the
+/// sequence's frame id of each (a run with `--frames 20..60` starts at id 20), the ids that labels and
+/// the objects' `frames` use. Labels of frames the run did not play are ignored.
+pub fn score_run(
+    labels: &[TrackingLabel],
+    poses: &[Isometry3<f64>],
+    frame_ids: &[usize],
+    geometry: &LabelGeometry,
+    objects: &[ScoredInput],
+    config: &ScoreConfig,
+) -> RunScore {
+    let scene = LabelScene::new(labels, poses, frame_ids, geometry);
+    let voted = vote_objects(&scene, objects, geometry, config);
+    let best_of = best_static_of(&voted, objects);
+    let (census, scores, flagged) = census_of(&scene, &voted, objects, &best_of, config);
+    let (vehicles, tracks) = vehicle_scores(&scene, objects, &best_of, flagged, geometry, config);
     RunScore {
         version: 1,
         config: *config,
-        frames: n,
+        frames: poses.len(),
         census,
-        vehicles: figures,
+        vehicles,
         objects: scores,
-        tracks: track_scores,
+        tracks,
         association: None,
     }
 }
