@@ -411,15 +411,10 @@ pub fn open_bag(path: &Path, opts: &SourceOptions) -> Result<StereoSequence, Dat
     let left: Vec<PathBuf> = frames.iter().map(|f| file_of(&f.left)).collect();
     let right: Vec<PathBuf> = frames.iter().map(|f| file_of(&f.right)).collect();
     let schema = |t: &str| bag.topic(t).map(|t| t.schema.clone()).unwrap_or_default();
-    let (intrinsics, baseline) = rig.rectified().unwrap_or_else(|| rig.raw());
-    let calibrated_size = rig.size();
-    let rectify = rig.rectified().is_none().then_some(rig);
+    let (intrinsics, baseline, calibrated_size, rectify, rectified_here) = tracked_geometry(rig);
     let source = format!(
-        "ROS 2 bag, left {} and right {} ({}), {calib_text}{}",
-        choice.left,
-        choice.right,
-        choice.why,
-        if rectify.is_some() { ", rectified here (distortion or cameras not row-aligned)" } else { "" }
+        "ROS 2 bag, left {} and right {} ({}), {calib_text}{rectified_here}",
+        choice.left, choice.right, choice.why
     );
     let bag_frames = BagFrames {
         topics: (choice.left.clone(), choice.right.clone()),
@@ -445,6 +440,20 @@ pub fn open_bag(path: &Path, opts: &SourceOptions) -> Result<StereoSequence, Dat
         warnings,
         recording: Some(Recording { bag: Some(bag_frames), rectify, calibration, calibrated_size, source }),
     })
+}
+
+/// What a run tracks on with rig `rig`: the rectified pair's intrinsics and baseline (the rig's own when
+/// it is rectified already, else those its rectification gives), the size it was calibrated at, the rig
+/// to rectify with (none when rectified already) and the words that say so in the source's description.
+#[allow(clippy::type_complexity)]
+fn tracked_geometry(
+    rig: slam_core::rig::RigCalibration,
+) -> ([f64; 4], f64, Option<(u32, u32)>, Option<slam_core::rig::RigCalibration>, &'static str) {
+    let (intrinsics, baseline) = rig.rectified().unwrap_or_else(|| rig.raw());
+    let calibrated_size = rig.size();
+    let rectify = rig.rectified().is_none().then_some(rig);
+    let words = if rectify.is_some() { ", rectified here (distortion or cameras not row-aligned)" } else { "" };
+    (intrinsics, baseline, calibrated_size, rectify, words)
 }
 
 /// The image files of a folder, sorted by name.
@@ -522,15 +531,11 @@ pub fn open_folder(path: &Path, opts: &SourceOptions) -> Result<StereoSequence, 
                     .into(),
             )),
         };
-    let rig = calib.rig.clone();
-    let (intrinsics, baseline) = rig.rectified().unwrap_or_else(|| rig.raw());
-    let calibrated_size = rig.size();
-    let rectify = rig.rectified().is_none().then_some(rig);
+    let (intrinsics, baseline, calibrated_size, rectify, rectified_here) = tracked_geometry(calib.rig.clone());
     let source = format!(
-        "left/ and right/ images, calibration from {} ({}){}",
+        "left/ and right/ images, calibration from {} ({}){rectified_here}",
         calib.path.display(),
-        calib.format,
-        if rectify.is_some() { ", rectified here (distortion or cameras not row-aligned)" } else { "" }
+        calib.format
     );
     Ok(StereoSequence {
         layout: Layout::Folder,

@@ -536,15 +536,32 @@ impl StereoVo {
         (self.motion.kf_from_last, self.motion.kf_from_measured) = (kf_from_curr, kf_from_curr);
         self.policy.reset();
         self.last_matched = r.inliers.iter().map(|&(i, _)| local.ids[i]).collect();
-        let seen = self.in_view(&local, &r.pose);
+        let world_from_kf = map.keyframe_pose(id).unwrap_or_else(Isometry3::identity);
+        Ok(self.placed_by_retrieval(&frame, &r, ransac, &local, (id, kf_from_curr), world_from_kf * kf_from_curr, None))
+    }
+
+    /// The record of a frame placed in the map by retrieval ([`Relocaliser::retrieve`]: refined pose `r`
+    /// against keyframe `reference.0`, `ransac` RANSAC inliers, the retrieved keyframe's local map):
+    /// relocalised, with what it saw of that local map; `joined` when a segment joins the map with it.
+    #[allow(clippy::too_many_arguments)]
+    fn placed_by_retrieval(
+        &self,
+        frame: &Frame,
+        r: &Refined,
+        ransac: usize,
+        local: &LocalMap,
+        reference: (KeyframeId, Isometry3<f64>),
+        world_from_camera: Isometry3<f64>,
+        joined: Option<SegmentJoin>,
+    ) -> TrackedFrame {
+        let seen = self.in_view(local, &r.pose);
         let sightings = Sightings {
             visible: local.ids.iter().zip(&seen).filter(|(_, s)| s.is_some()).map(|(id, _)| *id).collect(),
             found: self.last_matched.clone(),
         };
-        let world_from_kf = map.keyframe_pose(id).unwrap_or_else(Isometry3::identity);
-        Ok(TrackedFrame {
-            world_from_camera: world_from_kf * kf_from_curr,
-            reference: (id, kf_from_curr),
+        TrackedFrame {
+            world_from_camera,
+            reference,
             state: TrackState::Relocalised { inliers: ransac },
             stereo_points: frame.points.len(),
             points: Vec::new(),
@@ -556,8 +573,8 @@ impl StereoVo {
             times: StageTimes::default(),
             placed: true,
             segment: None,
-            joined: None,
-        })
+            joined,
+        }
     }
 
     /// A frame tracked in a segment of its own frame (the segment from keyframe `root` on, the frame at
@@ -597,27 +614,8 @@ impl StereoVo {
         (self.motion.kf_from_last, self.motion.kf_from_measured) = (kf_from_curr, kf_from_curr);
         self.policy.reset();
         self.last_matched = r.inliers.iter().map(|&(i, _)| local.ids[i]).collect();
-        let seen = self.in_view(&local, &r.pose);
-        let sightings = Sightings {
-            visible: local.ids.iter().zip(&seen).filter(|(_, s)| s.is_some()).map(|(id, _)| *id).collect(),
-            found: self.last_matched.clone(),
-        };
-        Ok(Some(TrackedFrame {
-            world_from_camera: world_from_placed,
-            reference: (id, kf_from_curr),
-            state: TrackState::Relocalised { inliers: ransac },
-            stereo_points: frame.points.len(),
-            points: Vec::new(),
-            masked_points: Vec::new(),
-            tracked_map_points: r.inliers.len(),
-            reprojection_rms_px: r.rms,
-            keyframe: None,
-            sightings,
-            times: StageTimes::default(),
-            placed: true,
-            segment: None,
-            joined: Some(SegmentJoin { root, map_from_segment, anchor: id }),
-        }))
+        let joined = Some(SegmentJoin { root, map_from_segment, anchor: id });
+        Ok(Some(self.placed_by_retrieval(frame, &r, ransac, &local, (id, kf_from_curr), world_from_placed, joined)))
     }
 
     /// The frame's pose: 1. the local map searched from the constant-velocity prediction
