@@ -119,7 +119,7 @@ pub fn draw_detections(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use slam_core::{geometry::BBox, ClassId, Image};
+    use slam_core::{geometry::BBox, ClassId};
 
     /// One box per frame, the frame id as its left edge.
     struct OneBox;

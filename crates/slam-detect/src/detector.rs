@@ -14,7 +14,6 @@ use std::{path::Path, time::Instant};
 
 use opencv::{core, dnn, imgproc, prelude::*};
 use slam_core::{geometry::BBox, ClassId, DetectError, Detection, DetectionSource, Image};
-
 use slam_frontend::image_io::image_to_mat;
 
 use crate::{
