@@ -1,10 +1,13 @@
 #!/usr/bin/env bash
 # Layering checks (docs/architecture.md), on normal (not dev-) dependencies, from Cargo.lock alone:
 #  1. slam-quadric's normal dependencies are nalgebra only, plus serde behind its feature;
-#  2. nothing below the front end links OpenCV or ONNX Runtime (the `ort` crate);
+#  2. nothing below the front end links OpenCV or ONNX Runtime (the `ort` crate); ONNX Runtime is the
+#     detector's (slam-detect) alone: the tracker (slam-frontend) and the crates that use it without the
+#     detector (slam-viz, slam-rerun) link none, and no crate but slam-detect names `ort` itself;
 #  3. the seam crates (slam-map, slam-core, slam-optim) depend on no implementation crate;
 #  4. implementation crates depend on seams only (slam-quadric, slam-map, slam-core, slam-optim), never on
-#     each other.
+#     each other, but for the detector (slam-detect), which reads and converts its images through the
+#     front end's image I/O (slam-frontend::image_io) rather than keeping a second copy of it.
 # Composition crates (slam-pipeline, slam-sim, slam-eval, slam-studies, slam-viz, slam-runner, slam-app) may combine
 # implementations;
 #  5. slam-eval and everything below the front end stay free of OpenCV; slam-viz (pictures, above the
@@ -31,7 +34,7 @@ if [ "$with_serde" != "nalgebra serde " ]; then
 fi
 echo "check-deps: slam-quadric depends on [ ${plain}] (+ serde with the serde feature): ok"
 
-# Nothing below the front end links OpenCV or ONNX Runtime: the detector's runtimes stay in slam-frontend.
+# Nothing below the front end links OpenCV or ONNX Runtime: the detector's runtimes stay in slam-detect.
 for crate in slam-quadric slam-map slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-studies slam-eval; do
   tree=$(cargo tree -q -p "$crate" --all-features -e normal --prefix none)
   for lib in opencv ort; do
@@ -41,15 +44,22 @@ for crate in slam-quadric slam-map slam-core slam-assoc slam-optim slam-lm slam-
     fi
   done
 done
-# and of the crates above it, only slam-frontend uses ort directly (default features: rerun's crates are
-# downloaded only where that feature was built)
-for crate in slam-viz slam-runner slam-rerun slam-app; do
-  if direct -p "$crate" | tr ' ' '\n' | grep -qx ort; then
-    echo "check-deps: $crate must not depend on ort directly (ONNX Runtime belongs to slam-frontend)" >&2
+# The tracker and the crates that use it without the detector link no ONNX Runtime at all (default
+# features: rerun's crates are downloaded only where that feature was built)
+for crate in slam-frontend slam-viz slam-rerun; do
+  if cargo tree -q -p "$crate" -e normal --prefix none | grep -q "^ort "; then
+    echo "check-deps: $crate must not depend on ort (ONNX Runtime belongs to the detector, slam-detect)" >&2
     exit 1
   fi
 done
-echo "check-deps: no OpenCV or ONNX Runtime below slam-frontend (nor in slam-eval), ort used by slam-frontend only: ok"
+# and of the crates above the detector, none uses ort directly: they reach it through slam-detect's API
+for crate in slam-runner slam-app; do
+  if direct -p "$crate" | tr ' ' '\n' | grep -qx ort; then
+    echo "check-deps: $crate must not depend on ort directly (ONNX Runtime belongs to slam-detect)" >&2
+    exit 1
+  fi
+done
+echo "check-deps: no OpenCV or ONNX Runtime below slam-frontend (nor in slam-eval), no ONNX Runtime in slam-frontend, slam-viz or slam-rerun, ort used by slam-detect only: ok"
 
 # Workspace crates a crate depends on directly (normal dependencies, all features).
 workspace_deps() { direct -p "$1" --all-features | tr ' ' '\n' | grep '^slam-' | tr '\n' ' ' || true; }
@@ -78,7 +88,11 @@ for crate in slam-assoc slam-dataset slam-frontend slam-lm slam-dogleg; do
   # shellcheck disable=SC2086
   check_only "$crate" $seams
 done
-echo "check-deps: implementation crates (slam-assoc, slam-dataset, slam-frontend, slam-lm, slam-dogleg) depend on seams only: ok"
+# the detector reads and converts its images through the tracker's crate (slam-frontend::image_io), one
+# way only: slam-frontend knows nothing of it
+# shellcheck disable=SC2086
+check_only slam-detect $seams slam-frontend
+echo "check-deps: implementation crates (slam-assoc, slam-dataset, slam-frontend, slam-lm, slam-dogleg) depend on seams only, slam-detect on seams and slam-frontend: ok"
 
 # slam-studies (the benchmarks and studies of the reusable crates) composes the optimiser seam and the
 # associators only: the libraries it studies stay free of it, and it of the running system.
@@ -86,7 +100,7 @@ check_only slam-studies slam-quadric slam-core slam-optim slam-assoc
 echo "check-deps: slam-studies depends on [ $(workspace_deps slam-studies)]: ok"
 
 # slam-viz sits near the top, under slam-runner, slam-rerun and the app only: no other library crate depends on it.
-for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-studies slam-eval slam-frontend; do
+for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-studies slam-eval slam-frontend slam-detect; do
   if workspace_deps "$crate" | tr ' ' '\n' | grep -qx slam-viz; then
     echo "check-deps: $crate must not depend on slam-viz (pictures are for the app)" >&2
     exit 1
@@ -96,14 +110,14 @@ check_only slam-viz slam-quadric slam-core slam-sim slam-pipeline slam-frontend
 echo "check-deps: slam-viz depends on [ $(workspace_deps slam-viz)] and only slam-runner, slam-rerun and slam-app depend on it: ok"
 
 # slam-runner sits directly under the app: no library crate depends on it.
-for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-studies slam-eval slam-frontend slam-viz; do
+for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-studies slam-eval slam-frontend slam-detect slam-viz; do
   if workspace_deps "$crate" | tr ' ' '\n' | grep -qx slam-runner; then
     echo "check-deps: $crate must not depend on slam-runner (only slam-app may)" >&2
     exit 1
   fi
 done
 # (it names the implementations behind the seams, `wiring`: the backends and associators it may build)
-check_only slam-runner slam-quadric slam-map slam-core slam-optim slam-dataset slam-frontend slam-pipeline slam-eval slam-viz \
+check_only slam-runner slam-quadric slam-map slam-core slam-optim slam-dataset slam-frontend slam-detect slam-pipeline slam-eval slam-viz \
   slam-sim slam-assoc slam-lm slam-dogleg
 echo "check-deps: slam-runner depends on [ $(workspace_deps slam-runner)] and only slam-app depends on it: ok"
 
@@ -111,7 +125,7 @@ echo "check-deps: slam-runner depends on [ $(workspace_deps slam-runner)] and on
 # and it composes the pipeline, the pictures' rules and the front end's image encoding only. Its rerun
 # crates are optional (feature rerun), so its own checks read its default dependencies: a machine that
 # never built the feature has not downloaded them.
-for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-studies slam-eval slam-frontend slam-viz slam-runner; do
+for crate in slam-quadric slam-core slam-assoc slam-optim slam-lm slam-dogleg slam-dataset slam-sim slam-pipeline slam-studies slam-eval slam-frontend slam-detect slam-viz slam-runner; do
   if workspace_deps "$crate" | tr ' ' '\n' | grep -qx slam-rerun; then
     echo "check-deps: $crate must not depend on slam-rerun (only slam-app may)" >&2
     exit 1

@@ -25,9 +25,9 @@ if [ "${SLAM_TEST_RERUN:-1}" != 0 ]; then
 fi
 cargo test --release --workspace --features "$features" "$@"
 if command -v nvidia-smi >/dev/null 2>&1 && nvidia-smi -L 2>/dev/null | grep -q '^GPU '; then
-  cargo test --release -p slam-frontend --test gpu -- --ignored
+  cargo test --release -p slam-detect --test gpu -- --ignored
 else
-  echo "test.sh: the detector's CUDA test (slam-frontend, tests/gpu.rs) skipped: no GPU found (nvidia-smi lists none)"
+  echo "test.sh: the detector's CUDA test (slam-detect, tests/gpu.rs) skipped: no GPU found (nvidia-smi lists none)"
 fi
 # the Python module and the fleet, against the wheel as a user installs it
 start=$(date +%s)

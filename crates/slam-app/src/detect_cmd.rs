@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use slam_core::DetectionSource;
-use slam_frontend::{
+use slam_detect::{
     parse_input_size, Device, DnnDetector, FamilyName, InputSize, ModeName, ModelError, ModelSpec, ShippedModel,
 };
 

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use opencv::{core, imgcodecs, prelude::*};
 use slam_core::Image;
 
-/// Errors of the front end.
+/// Errors of the front end (image I/O, OpenCV, the tracker's worker threads).
 #[derive(Debug, thiserror::Error)]
 pub enum FrontendError {
     /// An image file could not be read or decoded.
@@ -24,26 +24,12 @@ pub enum FrontendError {
         /// Why.
         message: String,
     },
-    /// The detector model could not be loaded.
-    #[error("cannot load detector model {path}: {message}")]
-    Model {
-        /// Model file.
-        path: PathBuf,
-        /// Why.
-        message: String,
-    },
     /// OpenCV failed while running.
     #[error("OpenCV: {0}")]
     OpenCv(String),
     /// A worker thread of the front end stopped without an answer (it panicked).
     #[error("the {0} thread stopped without an answer")]
     Thread(&'static str),
-    /// ONNX Runtime: not found, not loadable, or failed on a forward pass.
-    #[error(transparent)]
-    Onnx(#[from] crate::onnx::OnnxError),
-    /// A network's output is not what its family says.
-    #[error("{0}")]
-    Network(String),
 }
 
 impl From<opencv::Error> for FrontendError {
@@ -108,7 +94,9 @@ pub fn encode_jpeg(image: &Image, quality: u8) -> Result<Vec<u8>, FrontendError>
     }
 }
 
-pub(crate) fn mat_to_image(m: &Mat) -> Result<Image, FrontendError> {
+/// An OpenCV matrix of 8-bit pixels (one or three channels) as an owned [`Image`]. Public for
+/// `slam-detect`, which calls OpenCV on its frames itself.
+pub fn mat_to_image(m: &Mat) -> Result<Image, FrontendError> {
     let channels = m.channels();
     let cont = if m.is_continuous() { m.clone() } else { m.try_clone()? };
     let data = cont.data_bytes()?.to_vec();
@@ -116,50 +104,13 @@ pub(crate) fn mat_to_image(m: &Mat) -> Result<Image, FrontendError> {
         .ok_or_else(|| FrontendError::OpenCv(format!("unexpected image layout: {channels} channels")))
 }
 
-pub(crate) fn image_to_mat(image: &Image) -> Result<Mat, FrontendError> {
+/// An [`Image`] as an OpenCV matrix (`CV_8UC1` or `CV_8UC3`), copying its pixels. Public for
+/// `slam-detect`, which calls OpenCV on its frames itself.
+pub fn image_to_mat(image: &Image) -> Result<Mat, FrontendError> {
     let typ = if image.channels == 3 { core::CV_8UC3 } else { core::CV_8UC1 };
     let mut m = Mat::new_rows_cols_with_default(image.height as i32, image.width as i32, typ, core::Scalar::all(0.0))?;
     m.data_bytes_mut()?.copy_from_slice(&image.data);
     Ok(m)
-}
-
-/// Draw detections (boxes and `name score` labels) on a copy of an image.
-pub fn draw_detections(
-    image: &Image,
-    dets: &[slam_core::Detection],
-    name: impl Fn(slam_core::ClassId) -> String,
-) -> Result<Image, FrontendError> {
-    let mut m = image_to_mat(image)?;
-    if m.channels() == 1 {
-        let mut c = Mat::default();
-        opencv::imgproc::cvt_color_def(&m, &mut c, opencv::imgproc::COLOR_GRAY2BGR)?;
-        m = c;
-    }
-    for d in dets {
-        let b = d.bbox;
-        let colour = core::Scalar::new(
-            40.0 + (d.class.0 as f64 * 73.0) % 200.0,
-            200.0,
-            255.0 - (d.class.0 as f64 * 41.0) % 200.0,
-            0.0,
-        );
-        let rect = core::Rect::new(b.xmin as i32, b.ymin as i32, b.width().max(1.0) as i32, b.height().max(1.0) as i32);
-        opencv::imgproc::rectangle(&mut m, rect, colour, 2, opencv::imgproc::LINE_8, 0)?;
-        let label = format!("{} {:.2}", name(d.class), d.score);
-        let org = core::Point::new(b.xmin as i32, (b.ymin as i32 - 4).max(12));
-        opencv::imgproc::put_text(
-            &mut m,
-            &label,
-            org,
-            opencv::imgproc::FONT_HERSHEY_SIMPLEX,
-            0.45,
-            colour,
-            1,
-            opencv::imgproc::LINE_AA,
-            false,
-        )?;
-    }
-    mat_to_image(&m)
 }
 
 /// A polyline of an [`Overlay`]: points, `closed` when the last point joins the first, BGR colour, line

@@ -1,6 +1,6 @@
 //! Stereo visual odometry against the map, in parts a reader finds by name:
 //!
-//! - [`config`]: the rig and the settings;
+//! - [`config`]: the rig and the settings; `settings`: their valid ranges;
 //! - `features`: ORB features of each image, spread over it; `frame`: the stereo frame: stereo matching
 //!   along rectified rows (mutual best, sub-pixel);
 //! - `local_map`: the points of the keyframes around the view (those observing what the last frame
@@ -11,10 +11,11 @@
 //!   outlier rejection (keyframes fixed, points free with their keyframe observations);
 //! - `motion`: the constant-velocity motion model; `checks`: every pose is checked for support and
 //!   for consistency with a vehicle's motion before it is accepted ([`TrackState`]);
+//! - `pose_only`: the small Gauss–Newton solver `refine` calls for one pose with its points held;
 //! - `relocaliser`: when the prediction fails: along the motion, by descriptors against the local map,
-//!   by retrieval of any keyframe of the map;
-//! - `keyframe_policy`: when a frame becomes a keyframe and what it hands over; `flow`: optical flow
-//!   for the association and the scene flow.
+//!   by retrieval of any keyframe of the map (`keyframe_index`: the descriptor index of every keyframe);
+//! - `keyframe_policy`: when a frame becomes a keyframe and what it hands over (`keyframe_motion`: whether
+//!   the view moved since the keyframe); `flow`: optical flow for the association and the scene flow.
 //!
 //! [`StereoVo`] holds one of each and runs them per frame ([`StereoVo::process`]) against a map it
 //! reads but never changes ([`slam_map::Map`]: its owner inserts the keyframes handed over and applies
@@ -42,12 +43,16 @@ mod features;
 mod flow;
 mod frame;
 mod grey;
+mod keyframe_index;
+mod keyframe_motion;
 mod keyframe_policy;
 mod local_map;
 mod motion;
+mod pose_only;
 mod pose_search;
 mod refine;
 mod relocaliser;
+mod settings;
 #[cfg(test)]
 mod synthetic;
 

@@ -12,8 +12,9 @@ use slam_dataset::{
     detections::DetectionFile,
     output::{refuse_overwriting_inputs, AtomicFile, OutputDir, Written},
 };
+use slam_detect::batch::detect_images;
 use slam_eval::recall::{Counts, RecallSet};
-use slam_frontend::{batch::detect_images, read_image};
+use slam_frontend::read_image;
 
 use crate::error::{Result, RunnerError};
 

@@ -199,7 +199,7 @@ impl DetectorChoice {
                     }
                 }
                 let per_frame = file.frames.iter().map(|(&f, d)| (f, d.len()));
-                notes.extend(slam_frontend::detectors::unused_frames(&path.display().to_string(), per_frame, &seq.ids));
+                notes.extend(slam_detect::detectors::unused_frames(&path.display().to_string(), per_frame, &seq.ids));
                 Some(Box::new(file))
             }
             DetectorChoice::Labels { noise } => {
@@ -211,7 +211,7 @@ impl DetectorChoice {
                 })?;
                 let truth = geometry.detections(labels);
                 let per_frame = truth.iter().map(|(&f, d)| (f, d.len()));
-                notes.extend(slam_frontend::detectors::unused_frames("labels", per_frame, &seq.ids));
+                notes.extend(slam_detect::detectors::unused_frames("labels", per_frame, &seq.ids));
                 let noise = GroundTruthNoise { box_sigma: *noise, ..GroundTruthNoise::default() };
                 Some(Box::new(GroundTruthDetections::new(truth, noise, [image.width, image.height])))
             }

@@ -64,7 +64,7 @@ from_errors!(
     slam_dataset::check::CheckError,
     slam_dataset::output::OutputError,
     slam_frontend::FrontendError,
-    slam_frontend::ModelError,
+    slam_detect::ModelError,
     slam_frontend::image_size::ImageSizeError,
     slam_pipeline::system::SystemError,
     slam_pipeline::map::MapError,

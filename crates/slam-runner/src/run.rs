@@ -13,12 +13,9 @@ use slam_dataset::{
     },
     recording::{open_sequence, SourceOptions},
 };
+use slam_detect::detectors::{DetectionCounts, DetectionGuard};
 use slam_eval::LabelGeometry;
-use slam_frontend::{
-    detectors::{DetectionCounts, DetectionGuard},
-    rectify::Rectifier,
-    StereoRig, StereoVo, VoConfig,
-};
+use slam_frontend::{rectify::Rectifier, StereoRig, StereoVo, VoConfig};
 use slam_optim::SharedOptimizer;
 use slam_pipeline::{
     objects::FitMethod,
@@ -419,7 +416,7 @@ impl Prepared {
                     *per_frame.entry(label.frame).or_default() += 1;
                 }
                 let source = path.display().to_string();
-                let unused = slam_frontend::detectors::unused_frames(&source, per_frame.into_iter(), &seq.ids);
+                let unused = slam_detect::detectors::unused_frames(&source, per_frame.into_iter(), &seq.ids);
                 notes.extend(unused.map(|n| format!("unused labels: {}", n.replace(" boxes)", " labels)"))));
             }
         }

@@ -1,5 +1,5 @@
 //! The rig and the tracker's settings (the `[tracking]` table of `slam-app run --config`; their valid
-//! ranges are in `crate::settings`).
+//! ranges are in `stereo_vo::settings`).
 
 /// A rectified stereo rig: the map's stereo camera ([`slam_map::StereoCamera`]: intrinsics of both
 /// cameras, baseline in metres, the right camera at +x of the left one).

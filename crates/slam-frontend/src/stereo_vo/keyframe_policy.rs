@@ -129,9 +129,9 @@ fn unmapped_near_keypoints(view: &View<'_>, near: f64, radius: f64) -> usize {
 }
 
 /// Whether the frame's tracked points moved in the image since the reference keyframe saw them
-/// ([`crate::keyframe_motion`]).
+/// ([`super::keyframe_motion`]).
 fn moved(view: &View<'_>, r: &Refined) -> bool {
-    crate::keyframe_motion::moved(r.inliers.iter().filter_map(|&(i, c)| {
+    super::keyframe_motion::moved(r.inliers.iter().filter_map(|&(i, c)| {
         let (_, o) = view.map.views[i].iter().find(|v| v.0 == 0)?;
         Some(((o[0], o[1]), *view.frame.keypoints.get(c)?))
     }))

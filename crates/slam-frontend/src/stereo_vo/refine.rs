@@ -14,7 +14,7 @@ use slam_optim::{
 use super::config::{StereoRig, VoConfig};
 use super::frame::Frame;
 use super::local_map::LocalMap;
-use crate::pose_only;
+use super::pose_only;
 
 /// σ floor of the vehicle-motion prior's sideways step, metres: the camera's sway on the body's
 /// suspension within one frame (body roll of a car: a few degrees at most, about a centimetre at roof

@@ -1,6 +1,6 @@
 //! Relocalisation when the motion model gives no accepted pose: along the motion (dropped frames), by
 //! descriptors against the local map (no prediction: where the motion model broke), and by retrieval
-//! from a descriptor index of every keyframe of the run ([`crate::keyframe_index`]) that is still in
+//! from a descriptor index of every keyframe of the run ([`super::keyframe_index`]) that is still in
 //! the map.
 
 use std::time::Instant;
@@ -11,12 +11,12 @@ use slam_map::Map;
 
 use super::checks::{judge, motion_limits, Support};
 use super::frame::Frame;
+use super::keyframe_index::KeyframeIndex;
 use super::local_map::LocalMap;
 use super::motion::{scaled, MotionModel};
 use super::pose_search::{PoseSearch, Route};
 use super::refine::Refined;
 use crate::image_io::FrontendError;
-use crate::keyframe_index::KeyframeIndex;
 
 /// What relocalisation found: the accepted candidate (refined pose, RANSAC inliers, route), the
 /// first candidate pose whether accepted or not, and for a retrieved keyframe, the map its inliers
@@ -112,7 +112,7 @@ impl Relocaliser {
     }
 
     /// Relocalisation by retrieval: the [`RETRIEVAL_CANDIDATES`] keyframes of the map that the
-    /// descriptor index ([`crate::keyframe_index`]) ranks best for the frame's descriptors, each tried
+    /// descriptor index ([`super::keyframe_index`]) ranks best for the frame's descriptors, each tried
     /// alone: the points the keyframe observes matched by descriptors (a keyframe's own points, as
     /// ORB-SLAM2 relocalises, rather than its neighbourhood's: a fifth of the matching), PnP RANSAC
     /// with [`RETRIEVAL_ITERATIONS`] at most, then the keyframe's local map (it and its best

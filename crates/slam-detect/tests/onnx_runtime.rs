@@ -5,10 +5,8 @@
 use std::{ops::Range, path::PathBuf};
 
 use sha2::{Digest, Sha256};
-use slam_frontend::{
-    onnx::{OnnxNet, RuntimeOptions},
-    read_image,
-};
+use slam_detect::onnx::{OnnxNet, RuntimeOptions};
+use slam_frontend::read_image;
 
 fn repo(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..").join(rel)

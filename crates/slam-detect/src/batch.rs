@@ -7,9 +7,12 @@ use std::{
     path::{Path, PathBuf},
 };
 
-use slam_core::{DetectError, Detection, DetectionSource};
-
-use crate::{draw_detections, read_image, write_image, FrontendError};
+use opencv::{core, prelude::*};
+use slam_core::{DetectError, Detection, DetectionSource, Image};
+use slam_frontend::{
+    image_io::{image_to_mat, mat_to_image},
+    read_image, write_image, FrontendError,
+};
 
 /// Errors of [`detect_images`].
 #[derive(Debug, thiserror::Error)]
@@ -74,10 +77,49 @@ pub fn detect_images(
     Ok(out)
 }
 
+/// Draw detections (boxes and `name score` labels) on a copy of an image.
+pub fn draw_detections(
+    image: &Image,
+    dets: &[slam_core::Detection],
+    name: impl Fn(slam_core::ClassId) -> String,
+) -> Result<Image, FrontendError> {
+    let mut m = image_to_mat(image)?;
+    if m.channels() == 1 {
+        let mut c = Mat::default();
+        opencv::imgproc::cvt_color_def(&m, &mut c, opencv::imgproc::COLOR_GRAY2BGR)?;
+        m = c;
+    }
+    for d in dets {
+        let b = d.bbox;
+        let colour = core::Scalar::new(
+            40.0 + (d.class.0 as f64 * 73.0) % 200.0,
+            200.0,
+            255.0 - (d.class.0 as f64 * 41.0) % 200.0,
+            0.0,
+        );
+        let rect = core::Rect::new(b.xmin as i32, b.ymin as i32, b.width().max(1.0) as i32, b.height().max(1.0) as i32);
+        opencv::imgproc::rectangle(&mut m, rect, colour, 2, opencv::imgproc::LINE_8, 0)?;
+        let label = format!("{} {:.2}", name(d.class), d.score);
+        let org = core::Point::new(b.xmin as i32, (b.ymin as i32 - 4).max(12));
+        opencv::imgproc::put_text(
+            &mut m,
+            &label,
+            org,
+            opencv::imgproc::FONT_HERSHEY_SIMPLEX,
+            0.45,
+            colour,
+            1,
+            opencv::imgproc::LINE_AA,
+            false,
+        )?;
+    }
+    mat_to_image(&m)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use slam_core::{geometry::BBox, ClassId, Image};
+    use slam_core::{geometry::BBox, ClassId};
 
     /// One box per frame, the frame id as its left edge.
     struct OneBox;

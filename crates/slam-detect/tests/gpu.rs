@@ -6,7 +6,8 @@
 use std::path::PathBuf;
 
 use slam_core::{geometry::BBox, DetectionSource};
-use slam_frontend::{read_image, DetectorConfig, Device, DnnDetector, RuntimeOptions};
+use slam_detect::{DetectorConfig, Device, DnnDetector, RuntimeOptions};
+use slam_frontend::read_image;
 
 fn repo(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..").join(rel)
@@ -21,7 +22,7 @@ fn cuda_finds_the_van() {
     let runtime = RuntimeOptions { device: Device::Cuda, ..RuntimeOptions::cpu(repo(".ort")) };
     let mut det = DnnDetector::from_onnx(&model, DetectorConfig::yolox(), &runtime).unwrap_or_else(|e| panic!("{e}"));
     let d = det.detect(50, Some(&img)).expect("runs");
-    // as on the CPU (tests/frontend.rs): the parked van, once, and only valid boxes
+    // as on the CPU (tests/detector.rs): the parked van, once, and only valid boxes
     let van = BBox::new(844.1 - 1.8, 150.9, 990.2 - 1.8, 225.0);
     let found: Vec<_> = d.iter().filter(|x| x.bbox.iou(&van) > 0.8).collect();
     assert!(found.len() == 1 && found[0].class.group() == 2 && found[0].score > 0.6, "{d:?}");

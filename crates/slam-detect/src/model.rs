@@ -9,7 +9,7 @@ use slam_core::check::{count, number, InvalidValue, Range};
 
 use crate::{
     onnx::{Device, RuntimeOptions, DEFAULT_THREADS, MAX_THREADS},
-    DetectorConfig, DnnDetector, FrontendError, InputMode, ModelFamily,
+    DetectorConfig, DetectorError, DnnDetector, InputMode, ModelFamily,
 };
 
 /// Largest network input side accepted, pixels. Memory and time grow with the input's area (the input
@@ -112,7 +112,7 @@ pub enum ModelError {
     RuntimeWithDarknet(&'static str),
     /// The model files could not be loaded.
     #[error(transparent)]
-    Load(#[from] FrontendError),
+    Load(#[from] DetectorError),
 }
 
 /// A [`ModelError`] in a command line's words, where each setting is an option (`tiles` is `--tiles`,
@@ -127,7 +127,7 @@ pub enum OptionError {
     Conflict(String),
     /// The model files could not be loaded.
     #[error(transparent)]
-    Load(FrontendError),
+    Load(DetectorError),
 }
 
 impl ModelError {

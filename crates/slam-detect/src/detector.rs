@@ -14,10 +14,11 @@ use std::{path::Path, time::Instant};
 
 use opencv::{core, dnn, imgproc, prelude::*};
 use slam_core::{geometry::BBox, ClassId, DetectError, Detection, DetectionSource, Image};
+use slam_frontend::image_io::image_to_mat;
 
 use crate::{
-    image_io::{image_to_mat, FrontendError},
     onnx::{OnnxError, OnnxNet, RuntimeOptions},
+    DetectorError,
 };
 
 /// How frames are fed to the network.
@@ -251,14 +252,14 @@ fn decode(
     shape: &[i64],
     values: &[f32],
     config: &DetectorConfig,
-) -> Result<Vec<Detection>, FrontendError> {
+) -> Result<Vec<Detection>, DetectorError> {
     let row_len = shape.last().copied().unwrap_or(0).max(0) as usize;
     // a network computes finite numbers from a finite image: NaN or infinity in its output is a model
     // whose weights or arithmetic broke, and no box of that pass can be trusted (it is not a frame
     // without objects)
     let broken = values.iter().filter(|v| !v.is_finite()).count();
     if broken > 0 {
-        return Err(FrontendError::Network(format!(
+        return Err(DetectorError::Network(format!(
             "{broken} of the network's {} output values are not finite numbers (NaN or infinite): a model whose \
              weights or arithmetic are broken; none of this pass's boxes is used",
             values.len()
@@ -268,7 +269,7 @@ fn decode(
     match family {
         ModelFamily::Rows => Ok(decode_rows(values, row_len, config.input, threshold, classes)),
         ModelFamily::Yolox => decode_yolox(values, row_len, config.input, threshold, classes)
-            .map_err(|m| FrontendError::Network(format!("the network's output is not YOLOX's (--family yolox): {m}"))),
+            .map_err(|m| DetectorError::Network(format!("the network's output is not YOLOX's (--family yolox): {m}"))),
     }
 }
 
@@ -277,14 +278,14 @@ fn decode(
 /// Darknet's rows family wants RGB in 0–1, YOLOX BGR (OpenCV's order) in 0–255; a grey image gives three
 /// equal channels. (What `cv::dnn::blobFromImage` gives for the padded 3-channel
 /// image, without making that image.)
-fn input_blob(image: &Mat, [width, height]: [usize; 2], family: ModelFamily) -> Result<Vec<f32>, FrontendError> {
+fn input_blob(image: &Mat, [width, height]: [usize; 2], family: ModelFamily) -> Result<Vec<f32>, DetectorError> {
     let (scale, order) = match family {
         ModelFamily::Rows => (1.0 / 255.0, [2, 1, 0]),
         ModelFamily::Yolox => (1.0, [0, 1, 2]),
     };
     let (cols, rows, channels) = (image.cols() as usize, image.rows() as usize, image.channels() as usize);
     if cols > width || rows > height || !matches!(channels, 1 | 3) || image.depth() != core::CV_8U {
-        return Err(FrontendError::Network(format!(
+        return Err(DetectorError::Network(format!(
             "a {cols}x{rows} image of {channels} channels (depth {}) does not fit a {width}x{height} input",
             image.depth()
         )));
@@ -332,8 +333,8 @@ const BLOB_REUSE: f64 = 0.25;
 
 /// A model file OpenCV may open: a regular file (a pipe would block the loader, a device never end)
 /// of at most the model limit ([`slam_core::files::MODEL`]).
-fn model_file(p: &Path) -> Result<(), FrontendError> {
-    slam_core::files::check_readable(p, &slam_core::files::MODEL).map_err(|e| FrontendError::Model {
+fn model_file(p: &Path) -> Result<(), DetectorError> {
+    slam_core::files::check_readable(p, &slam_core::files::MODEL).map_err(|e| DetectorError::Model {
         path: p.to_path_buf(),
         message: match &e {
             slam_core::files::ReadError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
@@ -350,21 +351,21 @@ impl DnnDetector {
         cfg: impl AsRef<Path>,
         weights: impl AsRef<Path>,
         config: DetectorConfig,
-    ) -> Result<Self, FrontendError> {
+    ) -> Result<Self, DetectorError> {
         let (cfg, weights) = (cfg.as_ref(), weights.as_ref());
         for p in [cfg, weights] {
             model_file(p)?;
         }
         // OpenCV reads as many numbers as the cfg's layers ask for, whatever the file holds
         crate::darknet::check_weights(cfg, weights)
-            .map_err(|(path, message)| FrontendError::Model { path, message })?;
+            .map_err(|(path, message)| DetectorError::Model { path, message })?;
         let utf8 = |p: &Path| {
             p.to_str()
                 .map(str::to_string)
-                .ok_or(FrontendError::Model { path: p.to_path_buf(), message: "path is not UTF-8".into() })
+                .ok_or(DetectorError::Model { path: p.to_path_buf(), message: "path is not UTF-8".into() })
         };
         // OpenCV's message does not say which of the two files it could not read: name both
-        let net = dnn::read_net_from_darknet(&utf8(cfg)?, &utf8(weights)?).map_err(|e| FrontendError::Model {
+        let net = dnn::read_net_from_darknet(&utf8(cfg)?, &utf8(weights)?).map_err(|e| DetectorError::Model {
             path: cfg.to_path_buf(),
             message: format!("this .cfg with the weights {} does not load: {e}", weights.display()),
         })?;
@@ -376,18 +377,18 @@ impl DnnDetector {
         model: impl AsRef<Path>,
         config: DetectorConfig,
         runtime: &RuntimeOptions,
-    ) -> Result<Self, FrontendError> {
+    ) -> Result<Self, DetectorError> {
         let model = model.as_ref();
         model_file(model)?;
         let net = OnnxNet::load(model, runtime).map_err(|e| match e {
-            OnnxError::Model { path, message } => FrontendError::Model { path, message },
-            other => FrontendError::Onnx(other),
+            OnnxError::Model { path, message } => DetectorError::Model { path, message },
+            other => DetectorError::Onnx(other),
         })?;
         tracing::debug!(model = %model.display(), device = runtime.device.name(), threads = runtime.threads, "detector on ONNX Runtime");
         let mut net = net;
         // one pass on a blank input: the output must have the shape the decode reads
         let [w, h] = config.input;
-        let err = |message: String| FrontendError::Model { path: model.to_path_buf(), message };
+        let err = |message: String| DetectorError::Model { path: model.to_path_buf(), message };
         let blank = vec![0f32; 3 * w as usize * h as usize];
         let shape = net
             .forward(&blank, [w as usize, h as usize], |shape, _| shape.iter().map(|&d| d as i32).collect::<Vec<i32>>())
@@ -397,8 +398,8 @@ impl DnnDetector {
         Ok(Self { backend: Backend::Onnx(net), last_forward_ms: None, last_clipped: 0, config })
     }
 
-    fn from_net(mut net: dnn::Net, config: DetectorConfig, path: &Path) -> Result<Self, FrontendError> {
-        let err = |message: String| FrontendError::Model { path: path.to_path_buf(), message };
+    fn from_net(mut net: dnn::Net, config: DetectorConfig, path: &Path) -> Result<Self, DetectorError> {
+        let err = |message: String| DetectorError::Model { path: path.to_path_buf(), message };
         if net.empty()? {
             return Err(err("empty network".into()));
         }
@@ -440,7 +441,7 @@ impl DnnDetector {
 
     /// Run the network on one crop (grey or BGR), letterboxed or squashed into the input; boxes in crop
     /// pixels, clipped to the crop, each with whether it was.
-    fn run_crop(&mut self, crop: &Mat, letterbox: bool) -> Result<Vec<(Detection, bool)>, FrontendError> {
+    fn run_crop(&mut self, crop: &Mat, letterbox: bool) -> Result<Vec<(Detection, bool)>, DetectorError> {
         let [nw_in, nh_in] = self.config.input;
         let (w, h) = (crop.cols() as f64, crop.rows() as f64);
         let (sx, sy, size) = if letterbox {
@@ -473,7 +474,7 @@ impl DnnDetector {
             Backend::Onnx(net) => {
                 let found = net
                     .forward(&blob, [nw, nh], |shape, values| decode(family, shape, values, config))
-                    .map_err(FrontendError::Onnx)??;
+                    .map_err(DetectorError::Onnx)??;
                 *self.last_forward_ms.get_or_insert(0.0) += net.take_forward_ms();
                 dets.extend(found);
             }
@@ -497,7 +498,7 @@ impl DnnDetector {
     }
 
     /// Detect objects in an image.
-    pub fn detect_image(&mut self, image: &Image) -> Result<Vec<Detection>, FrontendError> {
+    pub fn detect_image(&mut self, image: &Image) -> Result<Vec<Detection>, DetectorError> {
         (self.last_forward_ms, self.last_clipped) = (None, 0);
         // a grey frame (KITTI's cameras 0 and 1) stays grey until the input blob, which repeats it in
         // all three channels: resizing one channel instead of three equal ones gives the same values

@@ -2,7 +2,7 @@
 
 use slam_core::check::{count, number, InvalidValue, Range};
 
-use crate::VoConfig;
+use super::config::VoConfig;
 
 impl VoConfig {
     /// Check every range-limited setting; the error names the field (e.g. `ransac_px`, or

@@ -6,7 +6,7 @@
 
 use std::{path::Path, process::Command};
 
-use slam_frontend::onnx::open_runtime;
+use slam_detect::onnx::open_runtime;
 
 /// Build `source` (C) as a shared library `name` in `dir`.
 fn library(dir: &Path, name: &str, source: &str) -> std::path::PathBuf {
