@@ -175,47 +175,11 @@ impl SavedMap {
             return Err(CameraMismatch(differences).into());
         }
         let moved = !differences.is_empty();
-        let (sx, sy) = (run.fx / made.fx, run.fy / made.fy);
-        let disparity = (run.fx * run.baseline) / (made.fx * made.baseline);
-        let mut keyframes = Vec::with_capacity(self.keyframe_features.len());
         let pyramid = slam_core::map::ScalePyramid::default();
+        let mut keyframes = Vec::with_capacity(self.keyframe_features.len());
         for (&id, f) in &self.keyframe_features {
             let Some(k) = self.keyframes.get(&id) else { continue };
-            let bad = |why: String| slam_core::map::RestoreError::Keyframe { id, why };
-            if f.size != (made.width, made.height) {
-                return Err(bad(format!(
-                    "features of a {}×{} image, the map's camera {}×{}",
-                    f.size.0, f.size.1, made.width, made.height
-                ))
-                .into());
-            }
-            if let Some(kp) = f.keypoints.iter().find(|kp| kp.level >= pyramid.levels) {
-                return Err(bad(format!(
-                    "a keypoint of pyramid level {}, the map has {} levels",
-                    kp.level, pyramid.levels
-                ))
-                .into());
-            }
-            let mut keypoints = f.keypoints.clone();
-            if moved {
-                for kp in &mut keypoints {
-                    let d = kp.u - kp.u_right;
-                    kp.u = sx * (kp.u - made.cx) + run.cx;
-                    kp.v = sy * (kp.v - made.cy) + run.cy;
-                    kp.u_right = kp.u - d * disparity;
-                }
-            }
-            let size = if moved { (run.width, run.height) } else { f.size };
-            let features = Features::new(keypoints, f.descriptors.clone(), size).ok_or_else(|| {
-                slam_core::map::RestoreError::Keyframe { id, why: "keypoints and descriptors differ in number".into() }
-            })?;
-            let mut kf = Keyframe::new(id, k.frame, pose_from_array(&k.pose), k.parent, Arc::new(features));
-            for &(kp, p) in &f.observations {
-                if let Some(slot) = kf.points.get_mut(kp as usize) {
-                    *slot = Some(p);
-                }
-            }
-            keyframes.push(kf);
+            keyframes.push(live_keyframe(id, k, f, &made, moved.then_some(run), pyramid.levels)?);
         }
         let points: Vec<SavedPoint> = self
             .points
@@ -243,6 +207,52 @@ impl SavedMap {
             ground_truth_world: self.ground_truth_world,
         })
     }
+}
+
+/// One keyframe of the live map, from its saved pose and features: checked against the camera the map
+/// was made with (`made`: the image size) and the pyramid's `levels`, its keypoints re-expressed for
+/// the run's camera `to` when it differs ([`SavedMap::to_live`]), its observations put in their
+/// keypoints' slots.
+fn live_keyframe(
+    id: KeyframeId,
+    k: &SavedKeyframe,
+    f: &SavedFeatures,
+    made: &MapCamera,
+    to: Option<&MapCamera>,
+    levels: u8,
+) -> Result<Keyframe, ToLiveError> {
+    let bad = |why: String| slam_core::map::RestoreError::Keyframe { id, why };
+    if f.size != (made.width, made.height) {
+        return Err(bad(format!(
+            "features of a {}×{} image, the map's camera {}×{}",
+            f.size.0, f.size.1, made.width, made.height
+        ))
+        .into());
+    }
+    if let Some(kp) = f.keypoints.iter().find(|kp| kp.level >= levels) {
+        return Err(bad(format!("a keypoint of pyramid level {}, the map has {} levels", kp.level, levels)).into());
+    }
+    let mut keypoints = f.keypoints.clone();
+    if let Some(run) = to {
+        let (sx, sy) = (run.fx / made.fx, run.fy / made.fy);
+        let disparity = (run.fx * run.baseline) / (made.fx * made.baseline);
+        for kp in &mut keypoints {
+            let d = kp.u - kp.u_right;
+            kp.u = sx * (kp.u - made.cx) + run.cx;
+            kp.v = sy * (kp.v - made.cy) + run.cy;
+            kp.u_right = kp.u - d * disparity;
+        }
+    }
+    let size = to.map_or(f.size, |run| (run.width, run.height));
+    let features = Features::new(keypoints, f.descriptors.clone(), size)
+        .ok_or_else(|| bad("keypoints and descriptors differ in number".into()))?;
+    let mut kf = Keyframe::new(id, k.frame, pose_from_array(&k.pose), k.parent, Arc::new(features));
+    for &(kp, p) in &f.observations {
+        if let Some(slot) = kf.points.get_mut(kp as usize) {
+            *slot = Some(p);
+        }
+    }
+    Ok(kf)
 }
 
 #[cfg(test)]
