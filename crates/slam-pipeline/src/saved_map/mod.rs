@@ -9,12 +9,12 @@
 //! folder). A later run reads one back ([`SavedMap::load`]) and turns it into the live map it starts
 //! from ([`SavedMap::to_live`], handed to [`crate::system::SystemBuilder::map`]).
 //!
-//! - [`format`](self::format): the serde structs of the file and the versions they read;
-//! - [`contents`](self::contents): what a saved map holds, read back (poses, counts);
-//! - [`file`](self::file): saving and loading, atomically, with the features file beside it;
-//! - [`check`](self::check): the checks of a map read from a file;
+//! - `format`: the serde structs of the file and the versions they read;
+//! - `contents`: what a saved map holds, read back (poses, counts);
+//! - `file`: saving and loading, atomically, with the features file beside it;
+//! - `check`: the checks of a map read from a file;
 //! - [`features`]: the binary features file (keypoints, descriptors, observations);
-//! - [`live`](self::live): live map to file and back.
+//! - `live`: live map to file and back.
 
 mod check;
 mod contents;
