@@ -10,7 +10,7 @@ use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 use slam_core::{KeyframeId, PointId};
 
-use super::{FeaturesRef, MapCamera, SavedFeatures};
+use super::{FeaturesRef, SavedFeatures};
 
 /// Format name written into every map file.
 pub const MAP_FORMAT: &str = "quadric-slam-map";
@@ -212,6 +212,27 @@ pub struct FramePose {
     pub relative: PoseArray,
     /// Tracking state as text (`tracked`, `lost`, `relocalised`, `initialised`, `unreadable`).
     pub state: String,
+}
+
+/// The stereo camera a map was made with: the left camera's intrinsics, the baseline and the image
+/// size.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapCamera {
+    /// Focal lengths and principal point, pixels.
+    pub fx: f64,
+    /// See `fx`.
+    pub fy: f64,
+    /// See `fx`.
+    pub cx: f64,
+    /// See `fx`.
+    pub cy: f64,
+    /// Baseline, metres.
+    pub baseline: f64,
+    /// Image width, pixels.
+    pub width: f64,
+    /// Image height, pixels.
+    pub height: f64,
 }
 
 /// A saved map: its keyframes, points, objects and per-frame trajectory as the file holds them (the

@@ -6,34 +6,14 @@
 use std::sync::Arc;
 
 use nalgebra::{Isometry3, Vector3};
-use serde::{Deserialize, Serialize};
 use slam_core::{
     map::{Features, Keyframe, SavedPoint, StereoCamera},
     KeyframeId,
 };
 
-use super::{pose_from_array, pose_to_array, SavedFeatures, SavedKeyframe, SavedMap, SavedMapPoint, SavedObject};
-
-/// The stereo camera a map was made with: the left camera's intrinsics, the baseline and the image
-/// size.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MapCamera {
-    /// Focal lengths and principal point, pixels.
-    pub fx: f64,
-    /// See `fx`.
-    pub fy: f64,
-    /// See `fx`.
-    pub cx: f64,
-    /// See `fx`.
-    pub cy: f64,
-    /// Baseline, metres.
-    pub baseline: f64,
-    /// Image width, pixels.
-    pub width: f64,
-    /// Image height, pixels.
-    pub height: f64,
-}
+use super::{
+    pose_from_array, pose_to_array, MapCamera, SavedFeatures, SavedKeyframe, SavedMap, SavedMapPoint, SavedObject,
+};
 
 impl MapCamera {
     /// The camera of a rig with images of `size` (width, height).

@@ -30,7 +30,7 @@ pub use contents::SavedMapStats;
 pub use features::{FeaturesRef, SavedFeatures};
 pub use file::{features_path, features_places, SavedMapError};
 pub use format::{
-    pose_from_array, pose_to_array, FramePose, GroundTruthWorld, ObjectView, PoseArray, SavedKeyframe, SavedMap,
-    SavedMapPoint, SavedObject, MAP_FORMAT, MAP_VERSION, MAP_WORLD,
+    pose_from_array, pose_to_array, FramePose, GroundTruthWorld, MapCamera, ObjectView, PoseArray, SavedKeyframe,
+    SavedMap, SavedMapPoint, SavedObject, MAP_FORMAT, MAP_VERSION, MAP_WORLD,
 };
-pub use live::{CameraMismatch, LoadedMap, MapCamera, ToLiveError};
+pub use live::{CameraMismatch, LoadedMap, ToLiveError};
