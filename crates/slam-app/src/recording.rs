@@ -6,7 +6,7 @@ use std::path::Path;
 #[cfg(feature = "rerun")]
 use std::path::PathBuf;
 
-use slam_pipeline::map::Map;
+use slam_pipeline::saved_map::SavedMap;
 use slam_runner::{Prepared, RunObserver};
 
 /// How to get a program that records.
@@ -66,7 +66,7 @@ impl RunObserver for Recording {
 
 /// The line saying what a recording holds.
 /// Write a saved map as a recording; returns the line saying what it holds.
-pub fn record_map(map: &Map, path: &Path) -> anyhow::Result<String> {
+pub fn record_map(map: &SavedMap, path: &Path) -> anyhow::Result<String> {
     #[cfg(feature = "rerun")]
     {
         let stats = slam_rerun::record_map(map, path)?;

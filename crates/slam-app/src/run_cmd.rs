@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 use slam_dataset::output::{refuse_overwriting_inputs, Written};
-use slam_pipeline::{map::Map, system::FrameView};
+use slam_pipeline::{saved_map::SavedMap, system::FrameView};
 use slam_runner::{
     bench,
     console::{catch_interrupt, interrupted, Interrupted, Progress},
@@ -332,7 +332,7 @@ pub fn map(a: &MapArgs) -> anyhow::Result<()> {
     };
     exports.refuse_overwriting(&a.map, a.rerun.as_deref())?;
     let exports = exports.prepare()?;
-    let map = Map::load_without_features(&a.map)?;
+    let map = SavedMap::load_without_features(&a.map)?;
     println!("{}", inspect::map_summary(&map, &a.map));
     inspect::export_map(&map, &a.map, exports, &mut |line| println!("{line}"))?;
     if let Some(path) = &a.rerun {

@@ -1,5 +1,6 @@
 //! Composition of the SLAM parts: the threaded system ([`system`]: detection, tracking and local
-//! mapping threads talking through channels), the map database ([`map`]), local bundle adjustment
+//! mapping threads talking through channels; the tracking thread owns the live map), the saved map
+//! ([`saved_map`]: the file form of a run's map, written once the run ends), local bundle adjustment
 //! ([`mapping`]), the object mapper ([`objects`]: association, ellipsoid initialisation and
 //! optimisation) and the objects' texture planes ([`texture`]).
 //!
@@ -8,9 +9,9 @@
 
 #![warn(missing_docs)]
 
-pub mod map;
 pub mod mapping;
 pub mod objects;
+pub mod saved_map;
 pub mod serde_forms;
 pub mod settings;
 pub mod system;

@@ -21,7 +21,8 @@
 //! input frame just before it tracks the `(k + correction_lag)`-th, or before it inserts the next
 //! keyframe if that comes first (waiting for it if need be), never "whenever it arrives": every
 //! snapshot holds all earlier work, and a run gives the same output however the threads are
-//! scheduled. The map [`RunOutput::map`] holds is written from the live map at the end.
+//! scheduled. [`RunOutput::map`] is the saved form of the live map ([`SavedMap::from_live`]), made
+//! once in [`System::finish`]; the caller writes it ([`SavedMap::save`]).
 //!
 //! Frame identity: [`FrameInput::index`] is the frame's id in its sequence (the number in the file
 //! names), not its position: records, the map's trajectory and keyframes, and the detector's `frame`
@@ -42,9 +43,9 @@ pub use threads::MapperRequest;
 pub use tracking_thread::TrackingThread;
 
 use crate::{
-    map::Map,
     mapping::MappingConfig,
     objects::{MappedObject, MapperConfig, ObjectMapper},
+    saved_map::SavedMap,
     texture::TextureConfig,
 };
 
@@ -258,8 +259,9 @@ pub struct RunCounts {
 
 /// Everything a run produced.
 pub struct RunOutput {
-    /// The map: keyframes, points, objects, per-frame trajectory.
-    pub map: Map,
+    /// The saved map (made from the live map when the run ended): keyframes, points, objects,
+    /// per-frame trajectory.
+    pub map: SavedMap,
     /// Pose of every input frame (left camera, world from camera), following the refined keyframes
     /// (the identity for a frame not placed in a loaded map: see `placed`).
     pub poses: Vec<Isometry3<f64>>,

@@ -315,7 +315,7 @@ fn a_car_of_a_loaded_map_keeps_its_id_and_is_refined_by_both_runs() {
         ids
     };
     drive(&mut first, 0..22, None);
-    let saved: Vec<_> = first.objects().filter_map(|o| o.to_map_object()).collect();
+    let saved: Vec<_> = first.objects().filter_map(|o| o.to_saved_object()).collect();
     assert_eq!(saved.len(), 1, "one car mapped");
     let (id, views) = (saved[0].id, saved[0].views.len());
     assert!(views >= 10, "{views} views saved");
@@ -330,7 +330,7 @@ fn a_car_of_a_loaded_map_keeps_its_id_and_is_refined_by_both_runs() {
     assert!(parked_ids.iter().all(|&t| t == id), "the loaded car's id every frame: {parked_ids:?}");
     let new_ids: Vec<u64> = ids.iter().filter_map(|f| f.get(1).copied().flatten()).map(|t| t.0).collect();
     assert!(!new_ids.is_empty() && new_ids.iter().all(|&t| t > id), "a new car gets a new id: {new_ids:?}");
-    let back = second.object(slam_core::TrackId(id)).expect("kept").to_map_object().expect("ellipsoid");
+    let back = second.object(slam_core::TrackId(id)).expect("kept").to_saved_object().expect("ellipsoid");
     assert_eq!((back.earlier_views, back.views.len()), (views, views + 22));
     assert_eq!(back.frames, (100..122).collect::<Vec<_>>(), "frames: this run's only");
     let e = second.object(slam_core::TrackId(id)).and_then(|o| o.ellipsoid).expect("ellipsoid");

@@ -21,7 +21,7 @@ use re_sdk_types::{
     datatypes::Quaternion,
 };
 use slam_core::files::AtomicWrite;
-use slam_pipeline::{map::Map, objects::MappedObject, system::FrameView};
+use slam_pipeline::{objects::MappedObject, saved_map::SavedMap, system::FrameView};
 
 use crate::scene::{
     estimate_block, keyframe_points, path, position, rotation_columns, state_level, state_log_level, FrameScene,
@@ -208,7 +208,7 @@ impl Drop for Recorder {
 /// on the `frame` timeline with its final pose and state, each keyframe's map points (bounded) at its
 /// frame, each object's final ellipsoid from the frame it was first seen in. No images or frustum
 /// (a map file keeps no camera intrinsics).
-pub fn record_map(map: &Map, path: &Path) -> Result<RecordingStats, RecordError> {
+pub fn record_map(map: &SavedMap, path: &Path) -> Result<RecordingStats, RecordError> {
     let file = start(path)?;
     let mut writer = Writer::new(open(&file)?, path);
     writer.log_static(path::WORLD, &ViewCoordinates::RDF())?;

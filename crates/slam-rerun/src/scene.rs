@@ -1,5 +1,5 @@
 //! What a recording shows, as plain data and without rerun: the entity paths, one frame's content
-//! ([`FrameScene`], made from a running system's [`FrameView`] or from a saved [`Map`]), and the rules
+//! ([`FrameScene`], made from a running system's [`FrameView`] or from a [`SavedMap`]), and the rules
 //! that keep a recording's size proportional to the run's length (trajectory blocks, a bound on the map
 //! points recorded per keyframe).
 
@@ -8,8 +8,8 @@ use std::collections::HashSet;
 use nalgebra::{Isometry3, Matrix3, Rotation3, UnitQuaternion, Vector3};
 use slam_core::{Image, KeyframeId, PointId, TrackId};
 use slam_pipeline::{
-    map::{Map, MapObject},
     objects::MappedObject,
+    saved_map::{SavedMap, SavedObject},
     system::FrameView,
 };
 use slam_quadric::{Camera, ImageSize, Intrinsics};
@@ -184,7 +184,7 @@ impl ObjectShape {
     }
 
     /// A saved map's object.
-    pub fn of_map(o: &MapObject) -> Self {
+    pub fn of_map(o: &SavedObject) -> Self {
         Self::new(
             o.id,
             o.class,
@@ -428,7 +428,7 @@ impl FrameScene {
     /// The frames of a saved map, in trajectory order: each frame's final pose and state, the points
     /// of the keyframe made at that frame (new ones only, bounded) and the objects first seen by then
     /// (their final ellipsoids: a map keeps no history). No images, boxes or times.
-    pub fn of_map(map: &Map) -> impl Iterator<Item = FrameScene> + '_ {
+    pub fn of_map(map: &SavedMap) -> impl Iterator<Item = FrameScene> + '_ {
         let poses = map.frame_poses();
         let mut recorded = NewPoints::default();
         let objects: Vec<(usize, ObjectShape)> =
@@ -499,7 +499,7 @@ pub fn rotation_columns(p: &Isometry3<f64>) -> [[f32; 3]; 3] {
 #[cfg(test)]
 mod tests {
     use nalgebra::{Translation3, UnitQuaternion};
-    use slam_pipeline::map::{pose_to_array, FramePose, MapKeyframe, MapPoint};
+    use slam_pipeline::saved_map::{pose_to_array, FramePose, SavedKeyframe, SavedMapPoint};
 
     use super::*;
 
@@ -585,7 +585,7 @@ mod tests {
         assert!(close(cols[0], [0.0, 1.0, 0.0]), "x turns into y: {cols:?}");
         assert!(close(cols[1], [-1.0, 0.0, 0.0]), "{cols:?}");
         assert_eq!(position(&pose), [1.0, 2.0, 3.0]);
-        let o = MapObject {
+        let o = SavedObject {
             id: 7,
             class: 2,
             class_name: "car".into(),
@@ -614,23 +614,24 @@ mod tests {
     /// points at its frame, each object from the first frame it was seen in.
     #[test]
     fn a_saved_map_is_played_frame_by_frame() {
-        let mut map = Map::default();
+        let mut map = SavedMap::default();
         for (id, frame, z) in [(0u64, 0usize, 0.0), (1, 2, 2.0)] {
             let pose = Isometry3::translation(0.0, 0.0, z);
             let observations = (0..3).map(|k| (10 * id + k, [1.0, 2.0, 3.0])).collect();
             map.keyframes.insert(
                 id,
-                MapKeyframe { frame, pose: pose_to_array(&pose), parent: None, observations, culled: false },
+                SavedKeyframe { frame, pose: pose_to_array(&pose), parent: None, observations, culled: false },
             );
             for k in 0..3 {
-                map.points.insert(10 * id + k, MapPoint { position: [k as f64, 0.0, 10.0 + z], observed_by: vec![id] });
+                map.points
+                    .insert(10 * id + k, SavedMapPoint { position: [k as f64, 0.0, 10.0 + z], observed_by: vec![id] });
             }
         }
         for (frame, kf, state) in [(0, 0, "initialised"), (1, 0, "tracked"), (2, 1, "tracked"), (3, 1, "lost")] {
             let relative = pose_to_array(&Isometry3::translation(0.0, 0.0, if frame % 2 == 1 { 1.0 } else { 0.0 }));
             map.trajectory.push(FramePose { frame, keyframe: Some(kf), relative, state: state.into() });
         }
-        map.objects.push(MapObject {
+        map.objects.push(SavedObject {
             id: 3,
             class: 2,
             class_name: "car".into(),

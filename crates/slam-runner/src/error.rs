@@ -67,7 +67,7 @@ from_errors!(
     slam_detect::ModelError,
     slam_frontend::image_size::ImageSizeError,
     slam_pipeline::system::SystemError,
-    slam_pipeline::map::MapError,
+    slam_pipeline::saved_map::SavedMapError,
     slam_eval::EvalError,
     slam_viz::VizError,
     slam_pipeline::settings::SettingsError,

@@ -6,7 +6,7 @@ use nalgebra::Isometry3;
 use slam_core::figure::median;
 use slam_core::TrackState;
 use slam_dataset::kitti::stereo::StereoSequence;
-use slam_pipeline::{map::pose_from_array, system::RunOutput};
+use slam_pipeline::{saved_map::pose_from_array, system::RunOutput};
 
 use crate::run::{MapLoad, Outcome};
 

@@ -8,7 +8,7 @@ use slam_dataset::{
     trajectory::write_kitti_poses,
 };
 use slam_eval::trajectory::PoseFile;
-use slam_pipeline::map::Map;
+use slam_pipeline::saved_map::SavedMap;
 
 use crate::error::{Result, RunnerError};
 
@@ -183,7 +183,7 @@ fn ground_truth_times(truth: &Path, ids: &[usize]) -> Result<(Vec<f64>, String)>
 }
 
 /// A saved map's description: format, counts, and one line per object.
-pub fn map_summary(map: &Map, path: &Path) -> String {
+pub fn map_summary(map: &SavedMap, path: &Path) -> String {
     let s = map.stats();
     let mut lines = vec![
         format!("{} (format {} v{})", path.display(), map.format, map.version),
@@ -267,7 +267,7 @@ impl MapExports {
         outputs.extend(pictures.iter().map(|p| Written::File("--picture", p)));
         outputs.extend(rerun.map(|p| Written::File("--rerun", p)));
         // the features file is read beside the file the path leads to or under the map's own name
-        let features = slam_pipeline::map::features_places(map, "map.features");
+        let features = slam_pipeline::saved_map::features_places(map, "map.features");
         let mut inputs = vec![("the map", map)];
         inputs.extend(features.iter().map(|f| ("the map's features", f.as_path())));
         Ok(refuse_overwriting_inputs(&inputs, &outputs)?)
@@ -292,14 +292,14 @@ impl MapExports {
 }
 
 /// Write the exports of `map` (loaded from `path`); `wrote` gets a line per file written, as it is.
-pub fn export_map(map: &Map, path: &Path, x: PreparedExports, wrote: &mut dyn FnMut(String)) -> Result<()> {
+pub fn export_map(map: &SavedMap, path: &Path, x: PreparedExports, wrote: &mut dyn FnMut(String)) -> Result<()> {
     if let Some((p, f)) = x.ply {
-        f.write_with(|tmp| map.export_ply(tmp))?;
+        f.write_with(|tmp| crate::map_export::export_points_ply(map, tmp))?;
         wrote(format!("wrote {}", p.display()));
     }
     if let Some((p, f)) = x.scene {
         let mut counts = None;
-        f.write_with(|tmp| map.export_scene_ply(tmp).map(|s| counts = Some(s)))?;
+        f.write_with(|tmp| crate::map_export::export_scene_ply(map, tmp).map(|s| counts = Some(s)))?;
         if let Some(s) = counts {
             wrote(format!(
                 "wrote {}: {} ellipsoids, {} camera frusta, {} trajectory vertices, {} points ({} vertices, {} faces, {} edges)",

@@ -13,6 +13,7 @@
 //! - [`stereo`]: `stereo-check`, the rig's disparity offset in rounds;
 //! - [`depth`]: `depth-check`, the stereo depth against a raw drive's Velodyne scans;
 //! - [`inspect`]: `map` (a saved map's summary and exports) and `trajectory-eval`;
+//! - [`map_export`]: a saved map's PLY exports (its points, and the scene as a coloured mesh);
 //! - [`detect`]: `detect` (a detector over a folder into a detection file) and `detect-recall`;
 //! - [`settings`]: the run's settings from TOML over the libraries' defaults ([`RunConfig`]);
 //! - [`simulation`]: `sim`, the paper's simulation sweep into an output folder;
@@ -33,6 +34,7 @@ pub mod error;
 pub mod in_map;
 pub mod inspect;
 pub mod map_bench;
+pub mod map_export;
 pub mod objects_bench;
 pub mod raw_rig;
 pub mod report;

@@ -48,7 +48,7 @@ fn cases(
     let first = play(&s).context_with(|| "the map run (06 frames 0-50)".to_string())?;
     let file = folder.join("map.json");
     first.out.map.save(&file)?;
-    let sizes = [file.clone(), slam_pipeline::map::features_path(&file)]
+    let sizes = [file.clone(), slam_pipeline::saved_map::features_path(&file)]
         .map(|p| std::fs::metadata(&p).map(|m| m.len()).unwrap_or(0));
     let kfs = first.out.map.stats().keyframes;
     let max_id = first.out.map.objects.iter().map(|o| o.id).max();

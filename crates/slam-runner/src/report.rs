@@ -152,7 +152,7 @@ impl Outcome {
         out.map.save(&dir.join("map.json"))?;
         let objects: Vec<MappedObject> = self.objects_in_raw_left();
         let objects: Vec<&MappedObject> = objects.iter().collect();
-        let world = if self.rectifier.is_some() { RAW_LEFT_WORLD } else { slam_pipeline::map::MAP_WORLD };
+        let world = if self.rectifier.is_some() { RAW_LEFT_WORLD } else { slam_pipeline::saved_map::MAP_WORLD };
         slam_pipeline::objects::write_object_map_in(&dir.join("objects.json"), &objects, world)
             .context_with(|| format!("writing {}", shown.join("objects.json").display()))?;
         Ok(())

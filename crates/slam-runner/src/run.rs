@@ -91,7 +91,7 @@ pub struct MapLoad {
     /// The frame whose camera is the map's world (its first keyframe's).
     pub first_frame: Option<usize>,
     /// The map's world in the ground truth of the run that made it, when the map records it.
-    pub ground_truth_world: Option<slam_pipeline::map::GroundTruthWorld>,
+    pub ground_truth_world: Option<slam_pipeline::saved_map::GroundTruthWorld>,
 }
 
 /// Read a map file and rebuild it as the live map of a run with `rig` and images of `image` size;
@@ -101,12 +101,12 @@ pub fn load_map(
     rig: &StereoRig,
     image: ImageSize,
     localise_only: bool,
-) -> Result<(slam_pipeline::map::LoadedMap, MapLoad)> {
+) -> Result<(slam_pipeline::saved_map::LoadedMap, MapLoad)> {
     let t0 = std::time::Instant::now();
-    let file = slam_pipeline::map::Map::load(path)?;
-    let camera = slam_pipeline::map::MapCamera::of(rig, (image.width, image.height));
+    let file = slam_pipeline::saved_map::SavedMap::load(path)?;
+    let camera = slam_pipeline::saved_map::MapCamera::of(rig, (image.width, image.height));
     let loaded = file.to_live(&camera, localise_only).map_err(|e| {
-        let hint = if matches!(e, slam_pipeline::map::ToLiveError::Camera(_)) {
+        let hint = if matches!(e, slam_pipeline::saved_map::ToLiveError::Camera(_)) {
             " (a map is extended only with the camera it was made with; --localise-only re-expresses its keyframes in this camera)"
         } else {
             ""
@@ -482,13 +482,13 @@ impl Prepared {
 /// Where a map made by a run over `seq` lies in the sequence's ground truth: its first frame and that
 /// frame's ground-truth pose (none without ground truth or keyframes).
 fn ground_truth_world(
-    map: &slam_pipeline::map::Map,
+    map: &slam_pipeline::saved_map::SavedMap,
     seq: &StereoSequence,
-) -> Option<slam_pipeline::map::GroundTruthWorld> {
+) -> Option<slam_pipeline::saved_map::GroundTruthWorld> {
     let frame = map.first_frame()?;
     let k = seq.ids.iter().position(|&id| id == frame)?;
     let pose = seq.ground_truth.as_ref()?.get(k)?;
-    Some(slam_pipeline::map::GroundTruthWorld { frame, pose: slam_pipeline::map::pose_to_array(pose) })
+    Some(slam_pipeline::saved_map::GroundTruthWorld { frame, pose: slam_pipeline::saved_map::pose_to_array(pose) })
 }
 
 /// The run's labels: the `--labels` file, else the tracking layout's own; with their camera geometry.

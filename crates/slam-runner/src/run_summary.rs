@@ -188,7 +188,7 @@ mod tests {
             record(3, 100.0, false, None),
         ];
         let out = RunOutput {
-            map: slam_pipeline::map::Map::default(),
+            map: slam_pipeline::saved_map::SavedMap::default(),
             poses: Vec::new(),
             placed: Vec::new(),
             objects: Vec::new(),
@@ -213,7 +213,7 @@ mod tests {
         let mut frames = out.frames.clone();
         frames[1].times.detector_forward = 3.0;
         let network = RunOutput {
-            map: slam_pipeline::map::Map::default(),
+            map: slam_pipeline::saved_map::SavedMap::default(),
             poses: Vec::new(),
             placed: Vec::new(),
             objects: Vec::new(),
@@ -228,7 +228,7 @@ mod tests {
         );
         // every other frame unreadable (interval 0): the median is over the frames tracked
         let alternating = RunOutput {
-            map: slam_pipeline::map::Map::default(),
+            map: slam_pipeline::saved_map::SavedMap::default(),
             poses: Vec::new(),
             placed: Vec::new(),
             objects: Vec::new(),

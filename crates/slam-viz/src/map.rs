@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Isometry3, Matrix2, Vector2};
 use slam_core::geometry::Ellipse2;
 use slam_frontend::ellipse_outline;
-use slam_pipeline::map::{Map, MapObject};
+use slam_pipeline::saved_map::{SavedMap, SavedObject};
 
 use crate::{
     plot::{topdown_figure, MapShape, ObjectState, TopDown},
@@ -14,7 +14,7 @@ use crate::{
 };
 
 /// Top-view outline (x, z) of a stored object's ellipsoid: its orthographic projection along y.
-pub fn footprint(o: &MapObject) -> Vec<[f64; 2]> {
+pub fn footprint(o: &SavedObject) -> Vec<[f64; 2]> {
     let r = nalgebra::Matrix3::from_row_slice(&o.rotation);
     let a = nalgebra::Vector3::from(o.semi_axes);
     let s = r * nalgebra::Matrix3::from_diagonal(&a.map(|a| a * a)) * r.transpose();
@@ -27,7 +27,7 @@ pub const MAP_PICTURE_FILES: [&str; 2] = ["map.svg", "map.png"];
 
 /// The top-down picture (`map.svg`, `map.png` in `dir`) of a map, its frame poses and ground truth.
 pub fn map_picture(
-    map: &Map,
+    map: &SavedMap,
     poses: &[Isometry3<f64>],
     truth: Option<&[Isometry3<f64>]>,
     dir: &Path,
@@ -67,7 +67,7 @@ mod tests {
             nalgebra::Vector3::new(2.0, 0.8, 1.0),
         );
         let r = e.rotation();
-        let f = footprint(&MapObject {
+        let f = footprint(&SavedObject {
             id: 1,
             class: 2,
             class_name: "car".into(),

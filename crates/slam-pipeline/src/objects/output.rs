@@ -1,4 +1,4 @@
-//! The object map on disk (`objects.json`, version 1) and the map database's form of an object.
+//! The object map on disk (`objects.json`, version 1) and the saved map's form of an object.
 
 use std::path::Path;
 
@@ -33,11 +33,11 @@ struct MapJson<'a> {
 impl MappedObject {
     /// The stored form (`None` without an ellipsoid): centre, semi-axes, rotation (3×3 row-major, world
     /// from object), frames, dynamic flag and map points.
-    pub fn to_map_object(&self) -> Option<crate::map::MapObject> {
+    pub fn to_saved_object(&self) -> Option<crate::saved_map::SavedObject> {
         let e = self.ellipsoid.as_ref()?;
         let r = e.rotation();
         let kept = views_to_keep(&self.observations);
-        Some(crate::map::MapObject {
+        Some(crate::saved_map::SavedObject {
             id: self.id.0,
             class: self.class.0,
             class_name: self.class.name().to_string(),
@@ -54,7 +54,7 @@ impl MappedObject {
     }
 }
 
-/// The observations of an object a map keeps ([`MappedObject::to_map_object`]), by index, in order: one
+/// The observations of an object a map keeps ([`MappedObject::to_saved_object`]), by index, in order: one
 /// per reference keyframe, the one taken nearest that keyframe (the latest on a tie), and every one
 /// without a reference. The frames between two keyframes see the object from about the same place; a
 /// map used day after day over one road would otherwise keep each run's boxes of it (18, 28, 38, 48, 58
@@ -102,7 +102,7 @@ pub fn write_object_map_in(path: &Path, objects: &[&MappedObject], frame: &str) 
 pub fn object_map_text(objects: &[&MappedObject], frame: &str) -> std::io::Result<String> {
     let objects = objects
         .iter()
-        .filter_map(|o| o.to_map_object())
+        .filter_map(|o| o.to_saved_object())
         .map(|m| ObjectJson {
             id: m.id,
             class: m.class,
@@ -158,7 +158,7 @@ mod tests {
         o.earlier = o.observations.len();
         // this run over the same keyframes: frame 10 as near keyframe 1 as frame 0 was, frame 11 farther
         o.observations.extend([seen(10, Some((1, 0.0))), seen(11, Some((2, 0.6))), seen(12, Some((3, 0.0)))]);
-        let m = o.to_map_object().expect("an ellipsoid");
+        let m = o.to_saved_object().expect("an ellipsoid");
         let frames: Vec<usize> = m.views.iter().map(|v| v.frame).collect();
         assert_eq!(frames, [3, 5, 10, 12], "keyframe 1: frame 10 (a tie with 0, the latest), keyframe 2: frame 3");
         assert_eq!(m.earlier_views, 2, "frames 3 and 5 come from the earlier run");
@@ -166,6 +166,6 @@ mod tests {
         // the same run again over the same keyframes keeps as many views
         let mut again = o.clone();
         again.observations.extend([seen(20, Some((1, 0.5))), seen(21, Some((2, 0.9))), seen(22, Some((3, 0.2)))]);
-        assert_eq!(again.to_map_object().expect("an ellipsoid").views.len(), 4);
+        assert_eq!(again.to_saved_object().expect("an ellipsoid").views.len(), 4);
     }
 }

@@ -7,12 +7,12 @@ use slam_core::{geometry::BBox, ClassId, TrackId};
 use slam_quadric::{Camera, Ellipsoid, Intrinsics};
 
 use super::{MappedObject, ObjectMapper, Observation};
-use crate::map::{pose_from_array, pose_to_array, MapObject, ObjectView};
+use crate::saved_map::{pose_from_array, pose_to_array, ObjectView, SavedObject};
 
 impl ObjectMapper {
     /// Take the objects of a loaded map (`k`: the run's left camera, for their views); new objects
     /// get ids after the highest loaded one. Returns how many were restored with an ellipsoid.
-    pub fn restore(&mut self, objects: &[MapObject], k: Intrinsics) -> usize {
+    pub fn restore(&mut self, objects: &[SavedObject], k: Intrinsics) -> usize {
         let mut restored = 0;
         for o in objects {
             let id = TrackId(o.id);

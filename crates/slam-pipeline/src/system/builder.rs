@@ -1,5 +1,10 @@
 //! Wiring a [`System`] from its parts ([`SystemBuilder`]), and driving it frame by frame
 //! ([`System::step`]) or over a whole source ([`System::run`]).
+//!
+//! The live map ([`slam_core::Map`]) is made here, empty or rebuilt from a saved map
+//! ([`SystemBuilder::map`]), and moved into the tracking thread, which owns it for the whole run;
+//! [`System::finish`] turns it into the run's [`SavedMap`], which the caller writes
+//! ([`SavedMap::save`]).
 
 use std::thread::JoinHandle;
 
@@ -14,9 +19,9 @@ use super::{
     FrameInput, FrameRecord, FrameView, RunOutput, SystemConfig, SystemError,
 };
 use crate::{
-    map::{LoadedMap, Map},
     mapping::LocalMapper,
     objects::{FitMethod, MappedObject, ObjectMapper},
+    saved_map::{LoadedMap, SavedMap},
 };
 
 /// A source of input frames, in increasing id order.
@@ -95,7 +100,7 @@ impl SystemBuilder {
         }
     }
 
-    /// Start from a map loaded from an earlier run ([`Map::to_live`]): its keyframes, points and
+    /// Start from a map loaded from an earlier run ([`SavedMap::to_live`]): its keyframes, points and
     /// objects; the tracker localises in it before it tracks, and what the run adds extends it
     /// (nothing with [`SystemConfig::localise_only`]).
     pub fn map(mut self, loaded: Option<LoadedMap>) -> Self {
@@ -260,9 +265,9 @@ impl System {
         let Self { detection, mapping, tracking, .. } = self;
         detection.join().map_err(|_| SystemError::Thread("detection"))?;
         mapping.join().map_err(|_| SystemError::Thread("local mapping"))?;
-        let mut map = Map::from_live(&tracking.map);
+        let mut map = SavedMap::from_live(&tracking.map);
         map.trajectory = tracking.trajectory;
-        map.objects = tracking.objects.objects().filter_map(MappedObject::to_map_object).collect();
+        map.objects = tracking.objects.objects().filter_map(MappedObject::to_saved_object).collect();
         // local mapping culls points no keyframe observes any more; an object keeps the ids it was
         // given, so only those still in the map go into the file (which refers to nothing else)
         for o in &mut map.objects {

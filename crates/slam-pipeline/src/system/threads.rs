@@ -1,5 +1,7 @@
-//! The system's worker threads: detection (ahead of tracking) and local mapping (the map's only
-//! owner), with the messages they exchange with the tracking thread.
+//! The system's worker threads: detection (ahead of tracking) and local mapping, with the messages
+//! they exchange with the tracking thread. Local mapping never holds the live map (the tracking
+//! thread owns it): it works on the snapshot of a keyframe's window it is sent and replies with the
+//! snapshot's edits, which the tracking thread applies.
 
 use std::time::Instant;
 

@@ -1,5 +1,10 @@
 //! The tracking thread's state and its per-frame step: the stereo tracker, the object mapper's
 //! association and the hand-over of keyframes to local mapping.
+//!
+//! This thread owns the live map ([`slam_core::Map`]): its tracker reads it, the keyframes it hands
+//! over are inserted into it, and local mapping's edits (made on snapshots) are applied to it here;
+//! nothing else changes it. When the run ends it becomes the run's saved map
+//! ([`crate::saved_map::SavedMap::from_live`], in [`super::System::finish`]).
 
 use std::{collections::VecDeque, time::Instant};
 
@@ -17,12 +22,12 @@ use super::{
     FrameInput, FrameRecord, FrameTimes, FrameView, RunCounts, SystemConfig, SystemError,
 };
 use crate::{
-    map::{pose_to_array, FramePose},
     mapping::LocalMapper,
     objects::{
         class_prior, scene_flow, suppress_duplicate_boxes, FlowedPoint, ObjectMapper, PointsCentroid, SceneFlow,
         StereoNoise,
     },
+    saved_map::{pose_to_array, FramePose},
 };
 
 /// The tracking thread's state: what one [`TrackingThread::step`] per frame reads and updates.

@@ -1,38 +1,19 @@
-//! The map database and the live map of a run ([`slam_core::Map`]): the file's form of a run's map
-//! ([`Map::from_live`]), and a live map rebuilt from a file for a later run to track against and
-//! extend ([`Map::to_live`]), after checking that the run's camera is the one the map was made with.
+//! Live map to file and back: the saved form of a run's live map ([`slam_core::Map`], which the
+//! tracking thread owns), made when the run ends ([`SavedMap::from_live`]), and a live map rebuilt from
+//! a saved map for a later run to track against and extend ([`SavedMap::to_live`]), after checking
+//! that the run's camera is the one the map was made with.
 
 use std::sync::Arc;
 
 use nalgebra::{Isometry3, Vector3};
-use serde::{Deserialize, Serialize};
 use slam_core::{
     map::{Features, Keyframe, SavedPoint, StereoCamera},
     KeyframeId,
 };
 
-use super::{pose_from_array, pose_to_array, Map, MapKeyframe, MapObject, MapPoint, SavedFeatures};
-
-/// The stereo camera a map was made with: the left camera's intrinsics, the baseline and the image
-/// size.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MapCamera {
-    /// Focal lengths and principal point, pixels.
-    pub fx: f64,
-    /// See `fx`.
-    pub fy: f64,
-    /// See `fx`.
-    pub cx: f64,
-    /// See `fx`.
-    pub cy: f64,
-    /// Baseline, metres.
-    pub baseline: f64,
-    /// Image width, pixels.
-    pub width: f64,
-    /// Image height, pixels.
-    pub height: f64,
-}
+use super::{
+    pose_from_array, pose_to_array, MapCamera, SavedFeatures, SavedKeyframe, SavedMap, SavedMapPoint, SavedObject,
+};
 
 impl MapCamera {
     /// The camera of a rig with images of `size` (width, height).
@@ -79,11 +60,11 @@ pub struct LoadedMap {
     /// The live map: keyframes with their features, points, covisibility.
     pub map: slam_core::Map,
     /// The objects, as stored.
-    pub objects: Vec<MapObject>,
+    pub objects: Vec<SavedObject>,
     /// The keyframes' keypoints were re-expressed in the run's camera (another calibration of a
     /// rectified rig, accepted for localisation only).
     pub reexpressed: bool,
-    /// The frame whose camera is the map's world ([`Map::first_frame`]).
+    /// The frame whose camera is the map's world ([`SavedMap::first_frame`]).
     pub first_frame: Option<usize>,
     /// The map's world in the ground truth of the run that made it, when it says.
     pub ground_truth_world: Option<super::GroundTruthWorld>,
@@ -109,15 +90,15 @@ pub enum ToLiveError {
     Inconsistent(#[from] slam_core::map::RestoreError),
 }
 
-impl Map {
-    /// The database of a run's live map (`slam_core::Map`): its keyframes with their observations and
+impl SavedMap {
+    /// The saved form of a run's live map (`slam_core::Map`): its keyframes with their observations and
     /// features, the keyframes culled from it (at their poses, without observations, marked culled),
     /// its points, its camera; no objects and no trajectory yet.
     pub fn from_live(live: &slam_core::Map) -> Self {
-        let mut m = Map::default();
+        let mut m = SavedMap::default();
         for k in live.keyframes() {
             let observations = k.observations().map(|(kp, p)| (p, k.features.keypoints[kp].observation())).collect();
-            let stored = MapKeyframe {
+            let stored = SavedKeyframe {
                 frame: k.frame,
                 pose: pose_to_array(&k.pose),
                 parent: k.parent,
@@ -137,7 +118,7 @@ impl Map {
         }
         for (&id, r) in live.retired() {
             let pose = live.keyframe_pose(id).unwrap_or_else(Isometry3::identity);
-            let stored = MapKeyframe {
+            let stored = SavedKeyframe {
                 frame: r.frame,
                 pose: pose_to_array(&pose),
                 parent: Some(r.parent),
@@ -149,7 +130,7 @@ impl Map {
         for (id, p) in live.points() {
             let observed_by: Vec<KeyframeId> =
                 p.observations.iter().map(|o| o.keyframe).filter(|k| live.keyframe(*k).is_some()).collect();
-            m.points.insert(id, MapPoint { position: [p.position.x, p.position.y, p.position.z], observed_by });
+            m.points.insert(id, SavedMapPoint { position: [p.position.x, p.position.y, p.position.z], observed_by });
         }
         m
     }
@@ -174,47 +155,11 @@ impl Map {
             return Err(CameraMismatch(differences).into());
         }
         let moved = !differences.is_empty();
-        let (sx, sy) = (run.fx / made.fx, run.fy / made.fy);
-        let disparity = (run.fx * run.baseline) / (made.fx * made.baseline);
-        let mut keyframes = Vec::with_capacity(self.keyframe_features.len());
         let pyramid = slam_core::map::ScalePyramid::default();
+        let mut keyframes = Vec::with_capacity(self.keyframe_features.len());
         for (&id, f) in &self.keyframe_features {
             let Some(k) = self.keyframes.get(&id) else { continue };
-            let bad = |why: String| slam_core::map::RestoreError::Keyframe { id, why };
-            if f.size != (made.width, made.height) {
-                return Err(bad(format!(
-                    "features of a {}×{} image, the map's camera {}×{}",
-                    f.size.0, f.size.1, made.width, made.height
-                ))
-                .into());
-            }
-            if let Some(kp) = f.keypoints.iter().find(|kp| kp.level >= pyramid.levels) {
-                return Err(bad(format!(
-                    "a keypoint of pyramid level {}, the map has {} levels",
-                    kp.level, pyramid.levels
-                ))
-                .into());
-            }
-            let mut keypoints = f.keypoints.clone();
-            if moved {
-                for kp in &mut keypoints {
-                    let d = kp.u - kp.u_right;
-                    kp.u = sx * (kp.u - made.cx) + run.cx;
-                    kp.v = sy * (kp.v - made.cy) + run.cy;
-                    kp.u_right = kp.u - d * disparity;
-                }
-            }
-            let size = if moved { (run.width, run.height) } else { f.size };
-            let features = Features::new(keypoints, f.descriptors.clone(), size).ok_or_else(|| {
-                slam_core::map::RestoreError::Keyframe { id, why: "keypoints and descriptors differ in number".into() }
-            })?;
-            let mut kf = Keyframe::new(id, k.frame, pose_from_array(&k.pose), k.parent, Arc::new(features));
-            for &(kp, p) in &f.observations {
-                if let Some(slot) = kf.points.get_mut(kp as usize) {
-                    *slot = Some(p);
-                }
-            }
-            keyframes.push(kf);
+            keyframes.push(live_keyframe(id, k, f, &made, moved.then_some(run), pyramid.levels)?);
         }
         let points: Vec<SavedPoint> = self
             .points
@@ -242,6 +187,52 @@ impl Map {
             ground_truth_world: self.ground_truth_world,
         })
     }
+}
+
+/// One keyframe of the live map, from its saved pose and features: checked against the camera the map
+/// was made with (`made`: the image size) and the pyramid's `levels`, its keypoints re-expressed for
+/// the run's camera `to` when it differs ([`SavedMap::to_live`]), its observations put in their
+/// keypoints' slots.
+fn live_keyframe(
+    id: KeyframeId,
+    k: &SavedKeyframe,
+    f: &SavedFeatures,
+    made: &MapCamera,
+    to: Option<&MapCamera>,
+    levels: u8,
+) -> Result<Keyframe, ToLiveError> {
+    let bad = |why: String| slam_core::map::RestoreError::Keyframe { id, why };
+    if f.size != (made.width, made.height) {
+        return Err(bad(format!(
+            "features of a {}×{} image, the map's camera {}×{}",
+            f.size.0, f.size.1, made.width, made.height
+        ))
+        .into());
+    }
+    if let Some(kp) = f.keypoints.iter().find(|kp| kp.level >= levels) {
+        return Err(bad(format!("a keypoint of pyramid level {}, the map has {} levels", kp.level, levels)).into());
+    }
+    let mut keypoints = f.keypoints.clone();
+    if let Some(run) = to {
+        let (sx, sy) = (run.fx / made.fx, run.fy / made.fy);
+        let disparity = (run.fx * run.baseline) / (made.fx * made.baseline);
+        for kp in &mut keypoints {
+            let d = kp.u - kp.u_right;
+            kp.u = sx * (kp.u - made.cx) + run.cx;
+            kp.v = sy * (kp.v - made.cy) + run.cy;
+            kp.u_right = kp.u - d * disparity;
+        }
+    }
+    let size = to.map_or(f.size, |run| (run.width, run.height));
+    let features = Features::new(keypoints, f.descriptors.clone(), size)
+        .ok_or_else(|| bad("keypoints and descriptors differ in number".into()))?;
+    let mut kf = Keyframe::new(id, k.frame, pose_from_array(&k.pose), k.parent, Arc::new(features));
+    for &(kp, p) in &f.observations {
+        if let Some(slot) = kf.points.get_mut(kp as usize) {
+            *slot = Some(p);
+        }
+    }
+    Ok(kf)
 }
 
 #[cfg(test)]
@@ -306,13 +297,13 @@ mod tests {
     #[test]
     fn a_saved_map_loads_back_and_rebuilds_its_live_map() {
         let live = live();
-        let map = Map::from_live(&live);
+        let map = SavedMap::from_live(&live);
         assert_eq!(map.camera, Some(MapCamera::of(&camera(), (1226.0, 370.0))));
         let d = folder("roundtrip");
         let file = d.join("map.json");
         map.save(&file).expect("saved");
         assert!(super::super::features_path(&file).is_file(), "features beside the JSON");
-        let back = Map::load(&file).expect("loads");
+        let back = SavedMap::load(&file).expect("loads");
         assert_eq!(back.keyframe_features.len(), 2);
         for (id, f) in &map.keyframe_features {
             let g = &back.keyframe_features[id];
@@ -340,7 +331,7 @@ mod tests {
     /// each keypoint moved to where the run's camera sees its ray.
     #[test]
     fn damage_other_cameras_and_old_maps_are_refused_with_the_reason() {
-        let map = Map::from_live(&live());
+        let map = SavedMap::from_live(&live());
         let d = folder("damage");
         let file = d.join("map.json");
         map.save(&file).expect("saved");
@@ -349,10 +340,10 @@ mod tests {
         let last = bytes.len() - 1;
         bytes[last] ^= 1;
         std::fs::write(&side, &bytes).expect("damaged");
-        let e = Map::load(&file).expect_err("damaged").to_string();
+        let e = SavedMap::load(&file).expect_err("damaged").to_string();
         assert!(e.contains("map.features") && e.contains("checksum"), "{e}");
         std::fs::remove_file(&side).expect("removed");
-        let e = Map::load(&file).expect_err("missing").to_string();
+        let e = SavedMap::load(&file).expect_err("missing").to_string();
         assert!(e.contains("map.features"), "{e}");
         let run = MapCamera { fx: 718.856, cx: 607.19, ..MapCamera::of(&camera(), (1241.0, 376.0)) };
         let e = map.to_live(&run, false).expect_err("another camera").to_string();
@@ -364,7 +355,7 @@ mod tests {
         assert!((b.u - (718.856 / 707.0 * (a.u - 601.9) + 607.19)).abs() < 1e-9);
         // the same depth: disparity scaled by the focal lengths (same baseline)
         assert!(((b.u - b.u_right) - (a.u - a.u_right) * 718.856 / 707.0).abs() < 1e-9);
-        let old = Map { keyframe_features: Default::default(), features: None, ..map.clone() };
+        let old = SavedMap { keyframe_features: Default::default(), features: None, ..map.clone() };
         let e = old.to_live(&MapCamera::of(&camera(), (1226.0, 370.0)), false).expect_err("no features");
         assert!(matches!(e, ToLiveError::NoFeatures(_)), "{e}");
         let _ = std::fs::remove_dir_all(d);
@@ -380,18 +371,18 @@ mod tests {
     #[test]
     fn a_map_is_checked_whole_and_refused_naming_what_and_where() {
         let d = folder("whole");
-        let good = Map::from_live(&live());
-        let refused = |name: &str, m: &Map| -> String {
+        let good = SavedMap::from_live(&live());
+        let refused = |name: &str, m: &SavedMap| -> String {
             let file = d.join(format!("{name}.json"));
             m.save(&file).expect("saved");
-            Map::load(&file).expect_err(name).to_string()
+            SavedMap::load(&file).expect_err(name).to_string()
         };
-        let with = |edit: &dyn Fn(&mut Map)| {
+        let with = |edit: &dyn Fn(&mut SavedMap)| {
             let mut m = good.clone();
             edit(&mut m);
             m
         };
-        let expect = |name: &str, m: &Map, field: &str, why: &str| {
+        let expect = |name: &str, m: &SavedMap, field: &str, why: &str| {
             let e = refused(name, m);
             assert!(e.contains(&format!("{name}.json: {field}")) && e.contains(why), "{name}: {e}");
         };
@@ -402,7 +393,7 @@ mod tests {
         let at = text.find("\"1\":{\"frame\"").expect("keyframe 1");
         let copy = text[at..].split_once("},\"").map(|(k, _)| k).expect("its end");
         std::fs::write(&file, format!("{}{copy},{}", &text[..at], &text[at..])).expect("edited");
-        let e = Map::load(&file).expect_err("twice").to_string();
+        let e = SavedMap::load(&file).expect_err("twice").to_string();
         assert!(e.contains("keyframes") && e.contains("id 1 appears twice"), "{e}");
         // the camera
         for (name, edit, field) in [
@@ -411,22 +402,22 @@ mod tests {
             ("baseline-zero", |c| c.baseline = 0.0, "camera.baseline"),
             ("baseline-negative", |c| c.baseline = -0.54, "camera.baseline"),
         ] {
-            let m = with(&|m: &mut Map| edit(m.camera.as_mut().expect("camera")));
+            let m = with(&|m: &mut SavedMap| edit(m.camera.as_mut().expect("camera")));
             expect(name, &m, field, "must be a finite number in");
         }
         // both sides of an observation
-        let m = with(&|m: &mut Map| m.keyframes.get_mut(&1).expect("kf").observations.clear());
+        let m = with(&|m: &mut SavedMap| m.keyframes.get_mut(&1).expect("kf").observations.clear());
         expect("no-observations", &m, "points.", "each side must name the other");
-        let m = with(&|m: &mut Map| {
+        let m = with(&|m: &mut SavedMap| {
             let p = m.points.values_mut().next().expect("point");
             p.observed_by = vec![0];
         });
         expect("observed-by", &m, "points.", "the keyframes observing it are [0, 1]");
         // positions that disagree with the observations
-        let m = with(&|m: &mut Map| m.points.values_mut().next().expect("point").position[0] = 1e5);
+        let m = with(&|m: &mut SavedMap| m.points.values_mut().next().expect("point").position[0] = 1e5);
         expect("far-point", &m, "keyframes.0.observations[", "farther than the image is wide");
         let moved = |dx: f64| {
-            move |m: &mut Map| {
+            move |m: &mut SavedMap| {
                 let k = m.keyframes.get_mut(&1).expect("kf");
                 k.pose[4] += dx;
             }
@@ -434,23 +425,23 @@ mod tests {
         expect("pose-1m", &with(&moved(1.0)), "keyframes.1.pose", "60 of its 60 observations");
         expect("pose-100m", &with(&moved(100.0)), "keyframes.1.observations[", "the image is wide");
         // the features file against the JSON (the features file written anew, its checksum right)
-        let m = with(&|m: &mut Map| drop(m.keyframe_features.remove(&1)));
+        let m = with(&|m: &mut SavedMap| drop(m.keyframe_features.remove(&1)));
         expect("no-features", &m, "keyframes.1", "holds no features of it");
-        let m = with(&|m: &mut Map| m.keyframe_features.values_mut().for_each(|f| f.observations.clear()));
+        let m = with(&|m: &mut SavedMap| m.keyframe_features.values_mut().for_each(|f| f.observations.clear()));
         expect("features-emptied", &m, "keyframes.0.observations", "not in the features file");
         // the right pair through a link, and copied under another name
         let made = d.join("made");
         std::fs::create_dir_all(&made).expect("folder");
         good.save(&made.join("map.json")).expect("saved");
         std::os::unix::fs::symlink(made.join("map.json"), d.join("06.json")).expect("link");
-        assert_eq!(Map::load(&d.join("06.json")).expect("through the link").keyframe_features.len(), 2);
+        assert_eq!(SavedMap::load(&d.join("06.json")).expect("through the link").keyframe_features.len(), 2);
         let copy = d.join("copy");
         std::fs::create_dir_all(&copy).expect("folder");
         std::fs::copy(made.join("map.json"), copy.join("06.json")).expect("json");
         std::fs::copy(made.join("map.features"), copy.join("06.features")).expect("features");
-        assert_eq!(Map::load(&copy.join("06.json")).expect("renamed pair").keyframe_features.len(), 2);
+        assert_eq!(SavedMap::load(&copy.join("06.json")).expect("renamed pair").keyframe_features.len(), 2);
         std::fs::remove_file(copy.join("06.features")).expect("removed");
-        let e = Map::load(&copy.join("06.json")).expect_err("no features").to_string();
+        let e = SavedMap::load(&copy.join("06.json")).expect_err("no features").to_string();
         assert!(e.contains("is in none of") && e.contains("06.features"), "{e}");
         let _ = std::fs::remove_dir_all(d);
     }
