@@ -50,13 +50,10 @@ pub fn suppress_duplicate_boxes(detections: Vec<Detection>) -> (Vec<Detection>, 
     (detections.into_iter().zip(keep).filter_map(|(d, k)| k.then_some(d)).collect(), dropped)
 }
 
-/// Scene-flow readings a moving object's rate is the median of ([`predict_box`]).
-const RATE_READINGS: usize = 3;
-
 /// Where an object is expected in the view of `camera` at `frame` (a frame id), from its 3-D position
 /// and the camera's motion: its latest box, placed at the depth of its latest stereo centroid in that
 /// box's camera (a rectangle facing that camera), moved by the object's own motion since (a moving
-/// object's rate from its latest scene-flow readings; none for a static one) and projected into `camera`, clipped to the
+/// object's rate now, [`super::motion::current_rate`]; none for a static one) and projected into `camera`, clipped to the
 /// image. The camera's motion between the two frames is what moves and grows a box when frames are far
 /// apart; a constant image velocity (the Kalman filter's) does not follow it. `None` without a
 /// centroid, for a moving object without a measured rate, or when the box does not lie in front of
@@ -64,21 +61,7 @@ const RATE_READINGS: usize = 3;
 pub fn predict_box(o: &MappedObject, frame: usize, camera: &Camera, image: &ImageSize) -> Option<BBox> {
     let last = o.observations.last()?;
     let (seen, centroid) = o.observations.iter().rev().find_map(|x| x.centroid.map(|c| (x.frame, c)))?;
-    let rate = if o.moving {
-        // world motion per frame id: the per-axis median of its latest scene-flow readings' (up to
-        // three, so that one reading that slid onto another surface does not carry the box away)
-        let recent = &o.flows[o.flows.len().saturating_sub(RATE_READINGS)..];
-        if recent.is_empty() {
-            return None;
-        }
-        let axis = |k: usize| {
-            let mut v: Vec<f64> = recent.iter().map(|(_, gap, f)| f.motion[k] / (*gap).max(1) as f64).collect();
-            slam_core::figure::median(&mut v).unwrap_or(f64::NAN)
-        };
-        Vector3::new(axis(0), axis(1), axis(2))
-    } else {
-        Vector3::zeros()
-    };
+    let rate = if o.moving { super::motion::current_rate(o)? } else { Vector3::zeros() };
     let at_last = centroid + rate * last.frame.saturating_sub(seen) as f64;
     let from_last = last.camera.camera_from_world();
     let depth = (from_last * Point3::from(at_last)).z;

@@ -6,7 +6,7 @@ use nalgebra::Vector3;
 use slam_core::figure::median;
 use slam_core::{PointId, TrackId};
 
-use super::{class_prior, object::TrendFlag, ObjectMapper, PointsCentroid};
+use super::{class_prior, object::TrendFlag, MappedObject, ObjectMapper, PointsCentroid};
 
 impl ObjectMapper {
     /// Keep a sample of the object's stereo points in the frame of its latest box (its left camera's
@@ -342,6 +342,69 @@ fn trend(c: &[(usize, Vector3<f64>, f64)]) -> Vector3<f64> {
     Vector3::new(slope(0), slope(1), slope(2)) * span
 }
 
+/// A moving object's world motion per frame id now, for predicting where it is next
+/// ([`super::association::predict_box`]): two measurements of it fused by their noise, along the
+/// viewing ray (where stereo is poor) and across it, each where it has one:
+/// - the repeated-median slope ([`trend`]) of its latest [`MIN_MOTION_CENTROIDS`] centroids (the
+///   fewest over which one centroid on another object cannot move it), its σ the motion test's
+///   ([`ObjectMapper::add_points`]: the depth noise at both ends and the visible surface's wander
+///   over the object, `a / √3` for the class's half-length `a`) over the frames they span;
+/// - the per-axis median of its latest [`RATE_READINGS`] scene-flow readings (one reading that slid
+///   onto another surface cannot carry the box away) that are fresh, ending in one of its latest
+///   [`RATE_READINGS`] observed frames; σ the latest one's over its gap. A reading older than that tells the motion of
+///   another moment: at low frame rates the optical flow loses a thin object (a rider) for several
+///   frames, and its last reading would otherwise be replayed while the object turns.
+///
+/// `None` with neither.
+pub(super) fn current_rate(o: &MappedObject) -> Option<Vector3<f64>> {
+    let last = o.observations.last()?;
+    let camera = last.camera.centre();
+    let centroids: Vec<(usize, Vector3<f64>, f64)> =
+        o.observations.iter().filter_map(|x| x.centroid.map(|c| (x.frame, c, x.depth_sigma))).collect();
+    let by_centroids = (centroids.len() >= MIN_MOTION_CENTROIDS)
+        .then(|| &centroids[centroids.len() - MIN_MOTION_CENTROIDS..])
+        .and_then(|c| {
+            let span = (c[c.len() - 1].0 - c[0].0) as f64;
+            let ray = (c[c.len() - 1].1 - camera).try_normalize(1e-9)?;
+            let (first, now) = (median_sigma(&c[..2]), median_sigma(&c[2..]));
+            let s = class_prior(o.class).axes.x / 3f64.sqrt();
+            let sigmas = ((first.powi(2) + now.powi(2) + s * s).sqrt() / span, (first.powi(2) + s * s).sqrt() / span);
+            (span > 0.0 && sigmas.0 > 0.0).then(|| (trend(c) / span, ray, sigmas))
+        });
+    let since = o.observations.iter().rev().nth(RATE_READINGS - 1).map_or(0, |x| x.frame);
+    let recent = &o.flows[o.flows.len().saturating_sub(RATE_READINGS)..];
+    let fresh: Vec<&(usize, usize, SceneFlow)> = recent.iter().filter(|r| r.0 >= since).collect();
+    let by_flow = fresh.last().map(|&&(_, gap, latest)| {
+        let axis = |k: usize| {
+            let mut v: Vec<f64> = fresh.iter().map(|(_, gap, f)| f.motion[k] / (*gap).max(1) as f64).collect();
+            median(&mut v).unwrap_or(f64::NAN)
+        };
+        let g = gap.max(1) as f64;
+        (Vector3::new(axis(0), axis(1), axis(2)), latest.ray, (latest.sigma_along / g, latest.sigma_across / g))
+    });
+    match (by_centroids, by_flow) {
+        (Some(c), Some(f)) => Some(fuse_along_ray(c, f)),
+        (c, f) => c.or(f).map(|x| x.0),
+    }
+}
+
+/// Two measurements of one motion `(value, ray, (σ along, σ across))` fused by inverse variance
+/// along the first's ray and across it.
+fn fuse_along_ray(
+    (a, ray, (sa, sa_x)): (Vector3<f64>, Vector3<f64>, (f64, f64)),
+    (b, _, (sb, sb_x)): (Vector3<f64>, Vector3<f64>, (f64, f64)),
+) -> Vector3<f64> {
+    let w = |x: f64| 1.0 / (x * x).max(1e-18);
+    let blend = |s: f64, t: f64, u: f64, v: f64| (w(s) * u + w(t) * v) / (w(s) + w(t));
+    let (ia, ib) = (a.dot(&ray), b.dot(&ray));
+    let along = blend(sa, sb, ia, ib);
+    let across = (a - ray * ia) * (w(sa_x) / (w(sa_x) + w(sb_x))) + (b - ray * ib) * (w(sb_x) / (w(sa_x) + w(sb_x)));
+    ray * along + across
+}
+
+/// Scene-flow readings a moving object's rate is the median of ([`current_rate`]).
+const RATE_READINGS: usize = 3;
+
 /// Most centroids the motion test reads (the latest ones): 30 frames, three seconds of KITTI; the
 /// slope is the object's motion now, and the pairs of the repeated median stay few.
 const TREND_CENTROIDS: usize = 30;
@@ -361,6 +424,57 @@ mod tests {
                 (i, at(i) + jitter, 0.4)
             })
             .collect()
+    }
+
+    /// A rider 8 m ahead crossing at 0.35 m per frame id towards -x, seen every third frame: its rate
+    /// comes from its centroids when its only scene-flow reading is stale (the optical flow lost it
+    /// 12 frames ago, when it still rode straight ahead), from both fused by their noise when a fresh
+    /// reading exists (a reading precise along the viewing ray wins along it, the centroids across
+    /// it), from a fresh reading alone before it
+    /// has centroids enough, and not at all with neither.
+    #[test]
+    fn a_moving_object_s_rate_is_read_from_fresh_evidence() {
+        use crate::objects::Observation;
+        use slam_core::ClassId;
+        use slam_quadric::{Camera, Intrinsics};
+        let k = Intrinsics::new(721.5, 721.5, 609.6, 172.9);
+        let mut rider = MappedObject::new(TrackId(1), ClassId(0));
+        let at = |f: usize| Vector3::new(2.0 - 0.35 * f as f64, 0.5, 8.0 + 0.4 * f as f64);
+        for f in (0..=15).step_by(3) {
+            let camera = Camera::new(k, nalgebra::Isometry3::translation(0.0, 0.0, 0.4 * f as f64));
+            let bbox = slam_core::geometry::BBox::new(600.0, 150.0, 680.0, 330.0);
+            rider.observations.push(Observation {
+                frame: f,
+                camera,
+                bbox,
+                class: ClassId(0),
+                detection: 0,
+                centroid: Some(at(f)),
+                depth_sigma: 0.05,
+                reference: None,
+            });
+        }
+        let truth = Vector3::new(-0.35, 0.0, 0.4);
+        let straight = SceneFlow::new(Vector3::new(0.0, 0.0, 1.2), Vector3::z(), (0.02, 0.02), 30);
+        rider.flows = vec![(3, 3, straight)];
+        let stale = current_rate(&rider).expect("centroids");
+        assert!((stale - truth).norm() < 1e-9, "{stale:?}");
+        // a fresh reading, precise along the ray and vague across it, pulls the along part only
+        let fresh = SceneFlow::new(Vector3::new(-0.6, 0.0, 1.5), Vector3::z(), (0.003, 3.0), 30);
+        rider.flows.push((15, 3, fresh));
+        let fused = current_rate(&rider).expect("both");
+        let ray = (at(15) - Vector3::new(0.0, 0.0, 6.0)).normalize();
+        let (read, split) = (fresh.motion / 3.0, |v: Vector3<f64>| (v.dot(&ray), v - ray * v.dot(&ray)));
+        assert!((split(fused).0 - split(read).0).abs() < 0.01, "along the ray the reading wins: {fused:?}");
+        assert!((split(fused).1 - split(truth).1).norm() < 0.01, "across it the centroids win: {fused:?}");
+        assert!((split(read).0 - split(truth).0).abs() > 0.03, "the two differ along the ray");
+        // before four centroids: the fresh reading alone
+        let mut young = rider.clone();
+        young.observations.truncate(3);
+        young.flows = vec![(6, 3, fresh)];
+        assert!((current_rate(&young).expect("a reading") - fresh.motion / 3.0).norm() < 1e-9);
+        young.flows.clear();
+        assert!(current_rate(&young).is_none());
     }
 
     /// Scene flow: twenty points on a car 15 m ahead, each with its stereo depth noise (σ_z at 15 m,
