@@ -1,8 +1,8 @@
 //! Shared vocabulary and trait seams of the quadric-SLAM workspace.
 //!
 //! Implementation crates meet here instead of depending on each other: `slam-assoc` implements
-//! [`assoc::Associator`], `slam-frontend` implements [`tracking::StereoTracker`] and
-//! [`source::DetectionSource`], and the pipeline holds `Box<dyn …>` values chosen from configuration.
+//! [`assoc::Associator`], `slam-frontend` implements [`tracking::StereoTracker`] (with what the objects
+//! ask of it, [`tracking::object_inputs`]) and [`source::DetectionSource`], and the pipeline holds `Box<dyn …>` values chosen from configuration.
 //! The crate is deliberately small: typed ids, object classes, detections with optional instance masks,
 //! images, the association, detection and tracking contracts (the tracking one with its conformance
 //! suite, [`tracker_conformance`]), and the rules every file reader and writer
@@ -30,8 +30,8 @@ pub use assoc::{Assignment, AssociationInput, Associator, PointPair, TrackView};
 pub use detection::{ClassId, Detection, Mask, Region, TrackId, COCO_NAMES};
 pub use source::{DetectError, DetectionSource, Image};
 pub use tracking::{
-    BoxQuery, FramePoint, KeyframeId, KeyframePoint, Map, MovingRegion, NewKeyframe, PointId, SegmentJoin, Sightings,
-    StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
+    BoxQuery, FramePoint, KeyframeId, KeyframePoint, Map, MovingRegion, NewKeyframe, ObjectInputs, ObjectMeasurements,
+    PointId, SegmentJoin, Sightings, StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
 };
 
 /// The map crate, re-exported so that users of the tracking seam need one dependency.

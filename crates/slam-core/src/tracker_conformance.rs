@@ -13,7 +13,7 @@ use slam_quadric::BBox;
 
 use crate::{
     source::Image,
-    tracking::{BoxQuery, Map, MovingRegion, StereoTracker, TrackedFrame},
+    tracking::{BoxQuery, Map, MovingRegion, ObjectMeasurements, StereoTracker, TrackedFrame},
 };
 
 /// A tracker and the map it tracks against, fresh: what the suite plays frames through.
@@ -100,10 +100,11 @@ pub fn check_frame(i: usize, tf: &TrackedFrame, exclude: &[MovingRegion], map: &
         }
     }
     let covered = |o: &[f64; 3], z: f64| exclude.iter().any(|r| r.covers(o[0], o[1], Some(z)));
-    if let Some(p) = tf.points.iter().find(|p| covered(&p.observation, p.camera_point.z)) {
+    let inputs = &tf.object_inputs;
+    if let Some(p) = inputs.points.iter().find(|p| covered(&p.observation, p.camera_point.z)) {
         return Err(format!("point at {:?} lies on a moving region", p.observation));
     }
-    if let Some(p) = tf.masked_points.iter().find(|p| !covered(&p.observation, p.camera_point.z)) {
+    if let Some(p) = inputs.masked_points.iter().find(|p| !covered(&p.observation, p.camera_point.z)) {
         return Err(format!("masked point at {:?} lies on no moving region", p.observation));
     }
     if tf.joined.is_some() && !tf.placed {
@@ -112,9 +113,10 @@ pub fn check_frame(i: usize, tf: &TrackedFrame, exclude: &[MovingRegion], map: &
     Ok(())
 }
 
-/// The queries about the last frame: flow starts inside the regions asked about, and dense box
-/// points come one list per query, inside the box (to the pixel) and at its depths.
-pub fn check_queries(tracker: &mut dyn StereoTracker, left: &Image) -> Result<(), String> {
+/// The object side's queries about the last frame ([`ObjectMeasurements`]): flow starts inside the
+/// regions asked about, and dense box points come one list per query, inside the box (to the pixel)
+/// and at its depths.
+pub fn check_queries<T: ObjectMeasurements + ?Sized>(tracker: &mut T, left: &Image) -> Result<(), String> {
     let (w, h) = (f64::from(left.width), f64::from(left.height));
     let regions = [BBox::new(0.0, 0.0, 0.5 * w, h), BBox::new(0.6 * w, 0.2 * h, 0.9 * w, 0.8 * h)];
     let inside = |p: &[f64; 2]| regions.iter().any(|b| b.contains_point(p[0], p[1]));
@@ -164,7 +166,7 @@ pub fn check_deterministic(make: Factory<'_>, frames: &[(Image, Image)], first: 
                     "state",
                     format!("{:?} {} {} {}", t.state, t.stereo_points, t.tracked_map_points, t.reprojection_rms_px),
                 ),
-                ("points", format!("{:?} {:?}", t.points, t.masked_points)),
+                ("object inputs", format!("{:?}", t.object_inputs)),
                 ("keyframe", format!("{:?}", t.keyframe)),
                 ("sightings", format!("{:?}", t.sightings)),
             ]

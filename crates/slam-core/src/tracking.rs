@@ -5,14 +5,21 @@
 //! keyframe (its features and the map points its keypoints matched) for the pipeline to insert. The
 //! pipeline (`slam-pipeline`) depends on this trait only; the OpenCV implementation lives in
 //! `slam-frontend`.
+//!
+//! This module is the pose tracking: [`StereoTracker::track`] and what it returns for the map side
+//! ([`TrackedFrame`]: pose, reference, state, keyframe, sightings, times). What the object side reads
+//! of the same frames is in [`object_inputs`]: the frame's stereo points handed over with each frame
+//! ([`ObjectInputs`], the one field [`TrackedFrame::object_inputs`]), the questions about the last
+//! frame ([`ObjectMeasurements`], a supertrait of [`StereoTracker`]) and the moving regions tracking is
+//! told to keep out ([`MovingRegion`]).
 
-use slam_quadric::{
-    nalgebra::{Isometry3, Vector3},
-    BBox,
-};
+use slam_quadric::nalgebra::{Isometry3, Vector3};
 
-use crate::{assoc::PointPair, source::Image};
+use crate::source::Image;
 
+pub mod object_inputs;
+
+pub use object_inputs::{BoxQuery, FramePoint, MovingRegion, ObjectInputs, ObjectMeasurements};
 pub use slam_map::{KeyframeId, Map, NewKeyframe, PointId};
 
 /// One observation of a map point in a keyframe: stereo, or left image only for a point triangulated
@@ -32,17 +39,6 @@ impl KeyframePoint {
     pub fn is_stereo(&self) -> bool {
         self.observation[2].is_finite()
     }
-}
-
-/// A stereo point of a tracked frame: where the stereo match puts it and where it was seen. Unlike a
-/// [`KeyframePoint`] it has no map identity (most points of a frame that is not a keyframe never
-/// become map points); the pipeline uses them for per-frame object depth.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FramePoint {
-    /// Position in the frame's left-camera frame, metres (from the stereo disparity).
-    pub camera_point: Vector3<f64>,
-    /// Observation `[u_left, v, u_right]`, pixels.
-    pub observation: [f64; 3],
 }
 
 /// Tracking outcome of a frame.
@@ -131,14 +127,8 @@ pub struct TrackedFrame {
     pub state: TrackState,
     /// Stereo points found in this frame.
     pub stereo_points: usize,
-    /// Those stereo points (empty from a tracker that does not hand them over): the pipeline reads the
-    /// depth of detected objects from them in every frame, not only on keyframes. Without the points on
-    /// the moving regions the tracker was told about.
-    pub points: Vec<FramePoint>,
-    /// The stereo points on those moving regions, kept out of tracking, the map and `points` (empty
-    /// from a tracker that does not hand them over): only the scene flow reads them, so that an object
-    /// masked as moving goes on being measured.
-    pub masked_points: Vec<FramePoint>,
+    /// Those stereo points as the object side reads them (nothing of the pose tracking uses them).
+    pub object_inputs: ObjectInputs,
     /// Map points matched in this frame and kept by the pose refinement (reference keyframe and local
     /// map together; 0 when no pose was accepted).
     pub tracked_map_points: usize,
@@ -213,44 +203,11 @@ impl TrackError {
     }
 }
 
-/// Where a moving object is expected in a frame: its box (left image) and, when its stereo points
-/// measured it, the depths it spans. A keypoint inside the box belongs to the object unless its
-/// stereo depth lies outside `depth` (the background seen around the object or through an oversized
-/// box stays usable).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MovingRegion {
-    /// The box, pixels.
-    pub bbox: BBox,
-    /// Nearest and farthest depth of the object, metres (`None`: unknown, the whole box is the object).
-    pub depth: Option<(f64, f64)>,
-}
-
-impl MovingRegion {
-    /// Whether a keypoint at `(u, v)` with stereo depth `z` (if any) belongs to the object.
-    pub fn covers(&self, u: f64, v: f64, z: Option<f64>) -> bool {
-        self.bbox.contains_point(u, v)
-            && match (self.depth, z) {
-                (Some((near, far)), Some(z)) => (near..=far).contains(&z),
-                _ => true,
-            }
-    }
-}
-
-/// A box of the last tracked frame whose own stereo points are asked for
-/// ([`StereoTracker::box_points`]): where it is and the depths its object can lie at (from the class's
-/// sizes and the box's height), so that the search covers only the disparities that depth range allows.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BoxQuery {
-    /// The box, left image, pixels.
-    pub bbox: BBox,
-    /// Nearest and farthest depth of the object, metres (`near` may be 0: no near limit).
-    pub depth: (f64, f64),
-}
-
-/// A stereo visual front end.
-pub trait StereoTracker: Send {
+/// A stereo visual front end: pose tracking against the map. The questions the object side asks about
+/// the last tracked frame come with it ([`ObjectMeasurements`], a supertrait).
+pub trait StereoTracker: ObjectMeasurements + Send {
     /// Track one rectified stereo pair against `map`. Keypoints on the `exclude` regions (moving
-    /// objects) are not used for the pose, the map or [`TrackedFrame::points`]. The map changes only
+    /// objects) are not used for the pose, the map or [`ObjectInputs::points`]. The map changes only
     /// between calls, by its owner (a keyframe handed over is inserted before the next call, local
     /// mapping's edits are applied at moments that do not depend on thread timing), so runs are
     /// reproducible.
@@ -263,54 +220,11 @@ pub trait StereoTracker: Send {
         map: &Map,
     ) -> Result<TrackedFrame, TrackError>;
 
-    /// Keypoints of the last tracked frame's predecessor followed into the last frame by optical flow
-    /// (for the associator's semantic-inlier cue), restricted to `regions` of the predecessor. Trackers
-    /// without flow return an empty list.
-    fn flow(&mut self, regions: &[BBox]) -> Result<Vec<PointPair>, TrackError>;
-
-    /// As [`StereoTracker::flow`], from the keypoints that have a stereo point in the predecessor (the
-    /// 3-D motion of objects, scene flow, is read from them). Trackers without stereo points or flow
-    /// return an empty list (the default).
-    fn stereo_flow(&mut self, regions: &[BBox]) -> Result<Vec<PointPair>, TrackError> {
-        let _ = regions;
-        Ok(Vec::new())
-    }
-
-    /// Dense stereo points inside each box of the last tracked frame (one list per query, in the
-    /// queries' order): the objects' own points, measured where the object is, whatever the features
-    /// tracking chose (which are spread over the image for the pose and leave a distant car a handful).
-    /// The points of a list lie inside its box, at the query's depths; each has its observation
-    /// `[u_left, v, u_right]`. A tracker without dense stereo returns empty lists (the default): the
-    /// objects then read the frame's own stereo points ([`TrackedFrame::points`]).
-    fn box_points(&mut self, queries: &[BoxQuery]) -> Result<Vec<Vec<FramePoint>>, TrackError> {
-        Ok(vec![Vec::new(); queries.len()])
-    }
     /// The run starts in `map`, loaded from an earlier run: get ready to localise in it before the
     /// first frame (e.g. index its keyframes for retrieval), so that loading, not the first frame,
     /// pays for it. Called once, before [`StereoTracker::track`]; trackers that need nothing do
     /// nothing (the default).
     fn load_map(&mut self, map: &Map) {
         let _ = map;
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A moving region covers keypoints inside its box at the object's depths, and those without a
-    /// stereo depth; the background seen around the object (same box, other depth) stays usable; with
-    /// no depth known the whole box is the object.
-    #[test]
-    fn a_moving_region_covers_its_object_and_not_the_background_in_its_box() {
-        let b = BBox::new(100.0, 50.0, 300.0, 200.0);
-        let r = MovingRegion { bbox: b, depth: Some((10.0, 16.0)) };
-        assert!(r.covers(150.0, 100.0, Some(12.0)));
-        assert!(r.covers(150.0, 100.0, None));
-        assert!(!r.covers(150.0, 100.0, Some(35.0)), "the street behind the car");
-        assert!(!r.covers(150.0, 100.0, Some(5.0)), "a post in front of it");
-        assert!(!r.covers(350.0, 100.0, Some(12.0)), "outside the box");
-        let whole = MovingRegion { bbox: b, depth: None };
-        assert!(whole.covers(150.0, 100.0, Some(35.0)));
     }
 }

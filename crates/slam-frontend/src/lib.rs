@@ -1,7 +1,8 @@
 //! The OpenCV side of quadric SLAM's tracking: stereo visual odometry ([`StereoVo`], a
-//! `slam_core::StereoTracker`, with its helpers in [`stereo_vo`]), rectification, the disparity offset's
-//! estimate, and image I/O and overlays ([`image_io`]). The object detector is the crate `slam-detect`,
-//! which reads and converts its images through [`image_io`].
+//! `slam_core::StereoTracker` that answers the objects' `slam_core::ObjectMeasurements` too, with its
+//! helpers in [`stereo_vo`]), rectification, the disparity offset's estimate, and image I/O and
+//! overlays ([`image_io`]). The object detector is the crate `slam-detect`, which reads and converts
+//! its images through [`image_io`].
 //!
 //! This crate links OpenCV but not ONNX Runtime. OpenCV's types stay out of its API (images are
 //! `slam_core::Image`), but for the two conversions [`image_io::image_to_mat`] and

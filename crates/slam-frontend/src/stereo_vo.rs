@@ -27,8 +27,8 @@ use std::time::Instant;
 use nalgebra::Isometry3;
 use opencv::prelude::*;
 use slam_core::{
-    geometry::BBox, BoxQuery, FramePoint, Image, KeyframeId, MovingRegion, PointId, PointPair, SegmentJoin, Sightings,
-    StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
+    geometry::BBox, BoxQuery, FramePoint, Image, KeyframeId, MovingRegion, ObjectInputs, ObjectMeasurements, PointId,
+    PointPair, SegmentJoin, Sightings, StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
 };
 use slam_map::{CreationPolicy, Map};
 use slam_optim::SharedOptimizer;
@@ -109,9 +109,9 @@ pub struct StereoVo {
     segment: Option<KeyframeId>,
 }
 
-/// What [`StereoVo::prepare`] makes of a stereo pair: the frame, its stereo points, the stereo points
-/// on the moving regions (kept out of the frame), and the extraction and stereo times, ms.
-type Prepared = (Frame, Vec<FramePoint>, Vec<FramePoint>, (f64, f64));
+/// What [`StereoVo::prepare`] makes of a stereo pair: the frame, its stereo points for the object side
+/// (those on the moving regions, kept out of the frame, apart), and the extraction and stereo times, ms.
+type Prepared = (Frame, ObjectInputs, (f64, f64));
 
 /// The stereo keypoints of one rectified pair exactly as the tracker measures them (features, stereo
 /// matching, sub-pixel disparity, `config`'s depth range and disparity offset): for checks of the
@@ -191,8 +191,8 @@ impl StereoVo {
         exclude: &[MovingRegion],
         map: &Map,
     ) -> Result<TrackedFrame, FrontendError> {
-        let (frame, points, masked_points, times) = self.prepare(left, right, exclude)?;
-        self.track_frame(frame_index, frame, (points, masked_points), times, map)
+        let (frame, object_inputs, times) = self.prepare(left, right, exclude)?;
+        self.track_frame(frame_index, frame, object_inputs, times, map)
     }
 
     /// The reference keyframe for this frame and the local map around the view: the keyframes
@@ -218,14 +218,14 @@ impl StereoVo {
         (reference, LocalMap::of(map, reference, &local.keyframes))
     }
 
-    /// Track a prepared frame (its stereo points as the pipeline sees them, and those on moving
-    /// regions; the extraction and stereo times, ms) against `map`: everything [`StereoVo::process`]
+    /// Track a prepared frame (its stereo points for the object side, handed over as they are; the
+    /// extraction and stereo times, ms) against `map`: everything [`StereoVo::process`]
     /// does after the images are turned into a frame.
     fn track_frame(
         &mut self,
         frame_index: usize,
         frame: Frame,
-        (points, masked_points): (Vec<FramePoint>, Vec<FramePoint>),
+        object_inputs: ObjectInputs,
         (extraction, stereo): (f64, f64),
         map: &Map,
     ) -> Result<TrackedFrame, FrontendError> {
@@ -239,9 +239,7 @@ impl StereoVo {
             } else {
                 self.initialise(frame, frame_index, map)
             };
-            tf.times = times(Instant::now());
-            tf.points = points;
-            tf.masked_points = masked_points;
+            (tf.times, tf.object_inputs) = (times(Instant::now()), object_inputs);
             return Ok(tf);
         };
         let (reference, local) = self.local_map(map, reference);
@@ -283,7 +281,7 @@ impl StereoVo {
         // keyframe (a view the map may not hold yet, at a fully supported pose): placed, it joins it
         if let (Some(root), true) = (self.segment, wants && support == Support::Full) {
             if let Some(mut tf) = self.join(frame_index, &frame, root, &world_from_curr, map)? {
-                (tf.times, tf.points, tf.masked_points) = (times(Instant::now()), points, masked_points);
+                (tf.times, tf.object_inputs) = (times(Instant::now()), object_inputs);
                 return Ok(tf);
             }
         }
@@ -324,8 +322,7 @@ impl StereoVo {
             reference,
             state,
             stereo_points,
-            points,
-            masked_points,
+            object_inputs,
             tracked_map_points,
             reprojection_rms_px: rms,
             keyframe,
@@ -408,7 +405,7 @@ impl StereoVo {
     /// extraction and stereo times, ms. Keypoints on an `exclude` region ([`MovingRegion::covers`]) are
     /// dropped after stereo matching (their depth decides), so neither tracking, the map, the optical
     /// flow of association nor the pipeline's object points see them; their stereo points are handed
-    /// over apart (`TrackedFrame::masked_points`) and the stereo points' optical flow (the scene flow)
+    /// over apart (`ObjectInputs::masked_points`) and the stereo points' optical flow (the scene flow)
     /// still starts from them.
     fn prepare(&mut self, left: &Image, right: &Image, exclude: &[MovingRegion]) -> Result<Prepared, FrontendError> {
         let t0 = Instant::now();
@@ -452,10 +449,10 @@ impl StereoVo {
                 .collect();
             (all.retain_keypoints(&keep), masked)
         };
-        let points = frame.stereo_points();
+        let object_inputs = ObjectInputs { points: frame.stereo_points(), masked_points: masked };
         let t2 = Instant::now();
         self.flow.push((lm, rm), frame.keypoints.clone(), flow_keypoints);
-        Ok((frame, points, masked, ((t1 - t0).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3)))
+        Ok((frame, object_inputs, ((t1 - t0).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3)))
     }
 
     /// The first frame of the run, or of a map whose reference keyframe is gone: the first keyframe, at
@@ -476,8 +473,7 @@ impl StereoVo {
             reference: (kf.id, Isometry3::identity()),
             state: TrackState::Initialised,
             stereo_points,
-            points: Vec::new(),
-            masked_points: Vec::new(),
+            object_inputs: ObjectInputs::default(),
             tracked_map_points: 0,
             reprojection_rms_px: f64::NAN,
             keyframe: Some(kf),
@@ -521,8 +517,7 @@ impl StereoVo {
                 reference: (0, Isometry3::identity()),
                 state: TrackState::Lost,
                 stereo_points: frame.points.len(),
-                points: Vec::new(),
-                masked_points: Vec::new(),
+                object_inputs: ObjectInputs::default(),
                 tracked_map_points: 0,
                 reprojection_rms_px: f64::NAN,
                 keyframe: None,
@@ -569,8 +564,7 @@ impl StereoVo {
             reference,
             state: TrackState::Relocalised { inliers: ransac },
             stereo_points: frame.points.len(),
-            points: Vec::new(),
-            masked_points: Vec::new(),
+            object_inputs: ObjectInputs::default(),
             tracked_map_points: r.inliers.len(),
             reprojection_rms_px: r.rms,
             keyframe: None,
@@ -845,6 +839,14 @@ impl StereoTracker for StereoVo {
         self.process(frame, left, right, exclude, map).map_err(TrackError::backend)
     }
 
+    fn load_map(&mut self, map: &Map) {
+        if self.relocaliser.index.is_empty() {
+            self.index_map(map);
+        }
+    }
+}
+
+impl ObjectMeasurements for StereoVo {
     fn flow(&mut self, regions: &[BBox]) -> Result<Vec<PointPair>, TrackError> {
         self.optical_flow(regions, false).map_err(TrackError::backend)
     }
@@ -855,12 +857,6 @@ impl StereoTracker for StereoVo {
 
     fn box_points(&mut self, queries: &[BoxQuery]) -> Result<Vec<Vec<FramePoint>>, TrackError> {
         self.dense_box_points(queries).map_err(TrackError::backend)
-    }
-
-    fn load_map(&mut self, map: &Map) {
-        if self.relocaliser.index.is_empty() {
-            self.index_map(map);
-        }
     }
 }
 
@@ -1123,7 +1119,7 @@ mod tests {
         let at = Isometry3::translation(0.1, 0.0, 0.6);
         let view = keyframe_of(&s.k, s.b, &in_camera(&at, &s.world), &s.desc);
         let mut vo = fresh(false);
-        let tf = vo.track_frame(7, view, (Vec::new(), Vec::new()), (0.0, 0.0), &map).expect("tracks");
+        let tf = vo.track_frame(7, view, ObjectInputs::default(), (0.0, 0.0), &map).expect("tracks");
         assert!(tf.placed && matches!(tf.state, TrackState::Relocalised { .. }), "{:?}", tf.state);
         assert!((tf.world_from_camera.translation.vector - at.translation.vector).norm() < 0.01);
         assert!(tf.keyframe.is_none());
@@ -1145,7 +1141,7 @@ mod tests {
                     &in_camera(&Isometry3::translation(0.0, 0.0, i as f64 * 0.5), &other),
                     &desc,
                 );
-                let tf = vo.track_frame(i, f, (Vec::new(), Vec::new()), (0.0, 0.0), &map).expect("tracks");
+                let tf = vo.track_frame(i, f, ObjectInputs::default(), (0.0, 0.0), &map).expect("tracks");
                 assert!(!tf.placed, "frame {i}: never a pose in the map's frame");
                 if let Some(k) = &tf.keyframe {
                     keyframes.push((i, k.parent));
@@ -1164,11 +1160,11 @@ mod tests {
         // `max_lost_s`, not predicted on: its frames are no longer placed
         let mut vo = fresh(true);
         let view = keyframe_of(&s.k, s.b, &in_camera(&at, &s.world), &s.desc);
-        assert!(vo.track_frame(0, view, (Vec::new(), Vec::new()), (0.0, 0.0), &map).expect("tracks").placed);
+        assert!(vo.track_frame(0, view, ObjectInputs::default(), (0.0, 0.0), &map).expect("tracks").placed);
         let placed: Vec<bool> = (1..9usize)
             .map(|i| {
                 let f = keyframe_of(&s.k, s.b, &in_camera(&Isometry3::translation(0.0, 0.0, 0.6), &other), &desc);
-                vo.track_frame(i, f, (Vec::new(), Vec::new()), (0.0, 0.0), &map).expect("tracks").placed
+                vo.track_frame(i, f, ObjectInputs::default(), (0.0, 0.0), &map).expect("tracks").placed
             })
             .collect();
         assert_eq!(placed, [true, true, true, true, true, false, false, false], "predicted for 0.5 s, then not placed");

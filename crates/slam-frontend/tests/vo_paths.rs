@@ -270,10 +270,11 @@ fn every_frame_hands_over_its_stereo_points() {
     for i in 0..4 {
         let (l, r) = kitti_frame(i);
         let t = vo.track(i, &l, &r, &[]).expect("tracks");
-        assert_eq!(t.points.len(), t.stereo_points, "frame {i}");
-        assert!(t.points.len() > 200, "frame {i}: {} stereo points", t.points.len());
+        let points = &t.object_inputs.points;
+        assert_eq!(points.len(), t.stereo_points, "frame {i}");
+        assert!(points.len() > 200, "frame {i}: {} stereo points", points.len());
         without_keyframe += usize::from(t.keyframe.is_none());
-        for p in &t.points {
+        for p in points {
             let [ul, v, ur] = p.observation;
             let z = f * b / (ul - ur);
             let c = p.camera_point;

@@ -177,9 +177,12 @@ impl slam_core::StereoTracker for Withholding {
         map: &slam_core::Map,
     ) -> Result<slam_core::TrackedFrame, slam_core::TrackError> {
         let mut tf = self.0.track(frame, left, right, exclude, map)?;
-        tf.masked_points.clear();
+        tf.object_inputs.masked_points.clear();
         Ok(tf)
     }
+}
+
+impl slam_core::ObjectMeasurements for Withholding {
     fn flow(
         &mut self,
         regions: &[slam_core::geometry::BBox],

@@ -144,7 +144,7 @@ pub(crate) fn track_map(
         .enumerate()
         .map(|(i, pose)| {
             let frame = street.frame(pose, sigma_px, &mut rng);
-            let t = vo.track_frame(i, frame, (Vec::new(), Vec::new()), (0.0, 0.0), &map).expect("tracks");
+            let t = vo.track_frame(i, frame, slam_core::ObjectInputs::default(), (0.0, 0.0), &map).expect("tracks");
             map.count_sightings(&t.sightings.visible, &t.sightings.found);
             if let Some(kf) = t.keyframe {
                 map.insert_keyframe(kf, &policy).expect("inserted");

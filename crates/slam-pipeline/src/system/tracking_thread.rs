@@ -516,7 +516,7 @@ impl TrackingThread {
         let own = |k: usize| -> &[FramePoint] {
             match dense.get(k) {
                 Some(p) if !p.is_empty() => p,
-                _ => &tf.points,
+                _ => &tf.object_inputs.points,
             }
         };
         // each detection's object in its stereo points: where they put it, the depths they span
@@ -534,7 +534,7 @@ impl TrackingThread {
         // tracking, the map and the objects' points above): a masked object goes on being measured
         // (the frame's own points first, then the masked ones)
         let all_points: Vec<FramePoint> = if self.config.scene_flow {
-            tf.points.iter().chain(&tf.masked_points).chain(dense.iter().flatten()).copied().collect()
+            tf.object_inputs.all_points().chain(dense.iter().flatten()).copied().collect()
         } else {
             Vec::new()
         };
@@ -554,7 +554,7 @@ impl TrackingThread {
                 .iter()
                 .zip(&on_frame)
                 .map(|(d, o)| {
-                    if tf.masked_points.is_empty() || !masked_object(d) {
+                    if tf.object_inputs.masked_points.is_empty() || !masked_object(d) {
                         return o.clone();
                     }
                     let (kept, centroid) = object_points(&all_points, &tf.world_from_camera, d, &geometry);
@@ -570,7 +570,7 @@ impl TrackingThread {
             times.flow += stereo_flow_ms;
         }
         if tf.state.is_measured() {
-            self.objects.check_free_space(&camera, &tf.points, &geometry.noise);
+            self.objects.check_free_space(&camera, &tf.object_inputs.points, &geometry.noise);
             self.counts.free_space_removals = self.objects.free_space_removals();
         }
         // where each moving object is expected in the next frame, from its points in this one (not
@@ -664,7 +664,7 @@ impl TrackingThread {
         for ((d, t), o) in detections.iter().zip(tracks).zip(on_frame) {
             let Some(id) = t else { continue };
             let on_keyframe = keyframe.map(|(points, pose)| object_points(points, pose, d, geometry));
-            let centroid = match (&on_keyframe, measured && !tf.points.is_empty()) {
+            let centroid = match (&on_keyframe, measured && !tf.object_inputs.points.is_empty()) {
                 (_, true) => o.centroid,
                 (Some((_, c)), false) => *c,
                 (None, false) => None,

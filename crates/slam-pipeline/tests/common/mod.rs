@@ -12,7 +12,8 @@ use slam_core::{
     geometry::BBox,
     map::{Features, Keypoint},
     ClassId, DetectError, Detection, DetectionSource, FramePoint, Image, KeyframeId, KeyframePoint, Map, MovingRegion,
-    NewKeyframe, PointId, PointPair, Sightings, StageTimes, StereoTracker, TrackError, TrackState, TrackedFrame,
+    NewKeyframe, ObjectInputs, ObjectMeasurements, PointId, PointPair, Sightings, StageTimes, StereoTracker,
+    TrackError, TrackState, TrackedFrame,
 };
 use slam_pipeline::system::FrameInput;
 use slam_quadric::{Camera, Ellipsoid, ImageSize, Intrinsics};
@@ -200,8 +201,10 @@ impl StereoTracker for ScriptedTracker {
             reference: (ref_id, if frame == 0 { Isometry3::identity() } else { relative }),
             state: if frame == 0 { TrackState::Initialised } else { TrackState::Tracked { inliers: 100 } },
             stereo_points: 100,
-            points: frame_points(&seen, exclude, false),
-            masked_points: frame_points(&seen, exclude, true),
+            object_inputs: ObjectInputs {
+                points: frame_points(&seen, exclude, false),
+                masked_points: frame_points(&seen, exclude, true),
+            },
             tracked_map_points: 100,
             reprojection_rms_px: 0.5,
             keyframe,
@@ -212,11 +215,10 @@ impl StereoTracker for ScriptedTracker {
             joined: None,
         })
     }
+}
 
-    fn flow(&mut self, _: &[BBox]) -> Result<Vec<PointPair>, TrackError> {
-        Ok(Vec::new())
-    }
-
+/// No optical flow of boxes and no dense stereo (the defaults); the scene flow is exact.
+impl ObjectMeasurements for ScriptedTracker {
     /// Exact flow: the points of the frame before inside `regions` to the same ids in the last frame.
     fn stereo_flow(&mut self, regions: &[BBox]) -> Result<Vec<PointPair>, TrackError> {
         let [before, now] = &self.seen;
