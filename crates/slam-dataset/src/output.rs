@@ -91,6 +91,86 @@ fn alive(pid: &str) -> bool {
     slam_core::files::process_alive(pid)
 }
 
+/// Clear up what killed runs left beside `dir`: their temporary folders, and a backup whose swap was cut short.
+fn remove_leftovers(dir: &Path, parent: &Path, name: &str, pid: u32) -> Result<()> {
+    let partial = format!(".{name}.partial-");
+    let old = format!(".{name}.old-");
+    let mut backups = Vec::new();
+    if let Ok(rd) = std::fs::read_dir(parent) {
+        for e in rd.flatten() {
+            let n = e.file_name().to_string_lossy().into_owned();
+            if let Some(p) = n.strip_prefix(&partial) {
+                if p != pid.to_string() && !alive(p) {
+                    let _ = std::fs::remove_dir_all(e.path());
+                    tracing::info!("removed {} (left by a run that was killed)", e.path().display());
+                }
+            } else if let Some(p) = n.strip_prefix(&old) {
+                if !alive(p) {
+                    backups.push(e.path());
+                }
+            }
+        }
+    }
+    backups.sort();
+    for b in backups {
+        if !dir.exists() {
+            std::fs::rename(&b, dir).with_context(|| format!("cannot restore {} to {}", b.display(), dir.display()))?;
+            tracing::warn!(
+                "{}: restored the previous output from {} (a run was killed while replacing it)",
+                dir.display(),
+                b.display()
+            );
+        } else {
+            let _ = std::fs::remove_dir_all(&b);
+        }
+    }
+    Ok(())
+}
+
+/// Refuse an existing `dir` that is a file or holds entries its marker does not list (or has no marker).
+fn check_replaceable(dir: &Path, option: &str, command: &str) -> Result<()> {
+    let meta = std::fs::metadata(dir).with_context(|| format!("{option} {}", dir.display()))?;
+    if !meta.is_dir() {
+        bail!("{option} {}: is a file, not a folder", dir.display());
+    }
+    let listed: Vec<String> = slam_core::files::read_text(&dir.join(MARKER), &slam_core::files::SMALL)
+        .map(|t| t.lines().skip(1).map(str::to_string).collect())
+        .unwrap_or_default();
+    let marked = dir.join(MARKER).is_file();
+    let mut foreign: Vec<String> = std::fs::read_dir(dir)
+        .with_context(|| format!("{option} {}: cannot list it", dir.display()))?
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n != MARKER && !(marked && listed.contains(n)))
+        .collect();
+    foreign.sort();
+    if !foreign.is_empty() && !marked {
+        let shown: Vec<&str> = foreign.iter().take(5).map(String::as_str).collect();
+        bail!(
+            "{option} {}: holds {} entr{} ({}{}) and no `{MARKER}` file, so `slam-app {command}` did not \
+             write it: the folder is replaced as a whole, so choose a new or empty folder",
+            dir.display(),
+            foreign.len(),
+            if foreign.len() == 1 { "y" } else { "ies" },
+            shown.join(", "),
+            if foreign.len() > 5 { ", …" } else { "" }
+        );
+    }
+    if !foreign.is_empty() {
+        let shown: Vec<&str> = foreign.iter().take(5).map(String::as_str).collect();
+        bail!(
+            "{option} {}: holds {} entr{} that `slam-app {command}` did not write ({}{}): the folder is \
+             replaced as a whole, so choose a new or empty folder or move them away",
+            dir.display(),
+            foreign.len(),
+            if foreign.len() == 1 { "y" } else { "ies" },
+            shown.join(", "),
+            if foreign.len() > 5 { ", …" } else { "" }
+        );
+    }
+    Ok(())
+}
+
 /// A folder being written: files go into [`OutputDir::path`]; [`OutputDir::commit`] puts it in place.
 /// Dropped without a commit, the temporary folder is removed and the old folder is untouched.
 pub struct OutputDir {
@@ -114,83 +194,14 @@ impl OutputDir {
             OutputError::Refused(format!("{option} {}: cannot create its parent folder: {e}", dir.display()))
         })?;
         let pid = std::process::id();
-        // leftovers of runs that were killed: temporary folders, and a backup whose swap was cut short
         let partial = format!(".{name}.partial-");
-        let old = format!(".{name}.old-");
-        let mut backups = Vec::new();
-        if let Ok(rd) = std::fs::read_dir(&parent) {
-            for e in rd.flatten() {
-                let n = e.file_name().to_string_lossy().into_owned();
-                if let Some(p) = n.strip_prefix(&partial) {
-                    if p != pid.to_string() && !alive(p) {
-                        let _ = std::fs::remove_dir_all(e.path());
-                        tracing::info!("removed {} (left by a run that was killed)", e.path().display());
-                    }
-                } else if let Some(p) = n.strip_prefix(&old) {
-                    if !alive(p) {
-                        backups.push(e.path());
-                    }
-                }
-            }
-        }
-        backups.sort();
-        for b in backups {
-            if !dir.exists() {
-                std::fs::rename(&b, dir)
-                    .with_context(|| format!("cannot restore {} to {}", b.display(), dir.display()))?;
-                tracing::warn!(
-                    "{}: restored the previous output from {} (a run was killed while replacing it)",
-                    dir.display(),
-                    b.display()
-                );
-            } else {
-                let _ = std::fs::remove_dir_all(&b);
-            }
-        }
+        remove_leftovers(dir, &parent, &name, pid)?;
         if std::fs::symlink_metadata(dir).is_ok_and(|m| m.file_type().is_symlink()) {
             // swapping would replace the link, not the folder it points to
             bail!("{option} {}: is a symbolic link; give the folder it points to", dir.display());
         }
         if dir.exists() {
-            let meta = std::fs::metadata(dir).with_context(|| format!("{option} {}", dir.display()))?;
-            if !meta.is_dir() {
-                bail!("{option} {}: is a file, not a folder", dir.display());
-            }
-            let listed: Vec<String> = slam_core::files::read_text(&dir.join(MARKER), &slam_core::files::SMALL)
-                .map(|t| t.lines().skip(1).map(str::to_string).collect())
-                .unwrap_or_default();
-            let marked = dir.join(MARKER).is_file();
-            let mut foreign: Vec<String> = std::fs::read_dir(dir)
-                .with_context(|| format!("{option} {}: cannot list it", dir.display()))?
-                .flatten()
-                .map(|e| e.file_name().to_string_lossy().into_owned())
-                .filter(|n| n != MARKER && !(marked && listed.contains(n)))
-                .collect();
-            foreign.sort();
-            if !foreign.is_empty() && !marked {
-                let shown: Vec<&str> = foreign.iter().take(5).map(String::as_str).collect();
-                bail!(
-                    "{option} {}: holds {} entr{} ({}{}) and no `{MARKER}` file, so `slam-app {command}` did not \
-                     write it: the folder is replaced as a whole, so choose a new or empty folder",
-                    dir.display(),
-                    foreign.len(),
-                    if foreign.len() == 1 { "y" } else { "ies" },
-                    shown.join(", "),
-                    if foreign.len() > 5 { ", …" } else { "" }
-                );
-            }
-            if !foreign.is_empty() {
-                let shown: Vec<&str> = foreign.iter().take(5).map(String::as_str).collect();
-                bail!(
-                    "{option} {}: holds {} entr{} that `slam-app {command}` did not write ({}{}): the folder is \
-                     replaced as a whole, so choose a new or empty folder or move them away",
-                    dir.display(),
-                    foreign.len(),
-                    if foreign.len() == 1 { "y" } else { "ies" },
-                    shown.join(", "),
-                    if foreign.len() > 5 { ", …" } else { "" }
-                );
-            }
+            check_replaceable(dir, option, command)?;
         }
         let tmp = parent.join(format!("{partial}{pid}"));
         let _ = std::fs::remove_dir_all(&tmp);

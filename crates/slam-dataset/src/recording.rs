@@ -356,53 +356,12 @@ pub fn open_bag(path: &Path, opts: &SourceOptions) -> Result<StereoSequence, Dat
     for t in [&choice.left, &choice.right] {
         check_layouts(&bag, t).map_err(|m| invalid(path, m))?;
     }
-    let (rig, calibration, calib_text) = match &calib {
-        Some(c) => (c.rig.clone(), c.path.clone(), format!("calibration from {} ({})", c.path.display(), c.format)),
-        None => {
-            let (li, ri) = (camera_info_topic(&choice.left), camera_info_topic(&choice.right));
-            let info = |t: &str| {
-                bag.camera_infos.get(t).ok_or_else(|| {
-                    invalid(
-                        path,
-                        format!("{t}: no readable {CAMERA_INFO}: give the rig's calibration with --calib FILE"),
-                    )
-                })
-            };
-            let rig = from_camera_infos(info(&li)?, info(&ri)?, (&li, &ri)).map_err(|m| invalid(path, m))?;
-            (rig, path.to_path_buf(), format!("calibration from {li} and {ri}"))
-        }
-    };
+    let (rig, calibration, calib_text) = bag_rig(path, &bag, &choice, calib.as_ref())?;
     let no_images = Vec::new();
     let l = bag.images.get(&choice.left).unwrap_or(&no_images);
     let r = bag.images.get(&choice.right).unwrap_or(&no_images);
-    let stamps = |v: &[IndexedImage]| v.iter().map(|m| m.stamp_ns).collect::<Vec<_>>();
-    let pairing = pair_by_stamp(&stamps(l), &stamps(r));
     let mut warnings = bag.warnings.clone();
-    if !pairing.unpaired_left.is_empty() {
-        let first: Vec<String> =
-            pairing.unpaired_left.iter().take(3).map(|&i| format!("{} ns", l[i].stamp_ns)).collect();
-        warnings.push(format!(
-            "{} left image(s) have no right image within {:.1} ms (a quarter of the frame period {:.1} ms) and are skipped (first stamps: {}); {} right image(s) are left without a partner",
-            pairing.unpaired_left.len(),
-            pairing.tolerance_ns as f64 * 1e-6,
-            pairing.period_ns as f64 * 1e-6,
-            first.join(", "),
-            pairing.unpaired_right
-        ));
-    }
-    if pairing.pairs.is_empty() {
-        return Err(invalid(
-            path,
-            format!(
-                "no stereo pair: {} has {} images, {} has {}, and none are within {:.1} ms of each other",
-                choice.left,
-                l.len(),
-                choice.right,
-                r.len(),
-                pairing.tolerance_ns as f64 * 1e-6
-            ),
-        ));
-    }
+    let pairing = pair_images(path, &choice, l, r, &mut warnings)?;
     let t0 = l[0].stamp_ns;
     let ids: Vec<usize> = pairing.pairs.iter().map(|p| p.0).collect();
     let times: Vec<f64> = pairing.pairs.iter().map(|p| (l[p.0].stamp_ns - t0) as f64 * 1e-9).collect();
@@ -442,6 +401,69 @@ pub fn open_bag(path: &Path, opts: &SourceOptions) -> Result<StereoSequence, Dat
     })
 }
 
+/// A bag's rig, where it came from and the words saying so: the --calib file, else the topics' camera info.
+fn bag_rig(
+    path: &Path,
+    bag: &Bag,
+    choice: &TopicChoice,
+    calib: Option<&CalibrationFile>,
+) -> Result<(slam_core::rig::RigCalibration, PathBuf, String), DatasetError> {
+    Ok(match calib {
+        Some(c) => (c.rig.clone(), c.path.clone(), format!("calibration from {} ({})", c.path.display(), c.format)),
+        None => {
+            let (li, ri) = (camera_info_topic(&choice.left), camera_info_topic(&choice.right));
+            let info = |t: &str| {
+                bag.camera_infos.get(t).ok_or_else(|| {
+                    invalid(
+                        path,
+                        format!("{t}: no readable {CAMERA_INFO}: give the rig's calibration with --calib FILE"),
+                    )
+                })
+            };
+            let rig = from_camera_infos(info(&li)?, info(&ri)?, (&li, &ri)).map_err(|m| invalid(path, m))?;
+            (rig, path.to_path_buf(), format!("calibration from {li} and {ri}"))
+        }
+    })
+}
+
+/// Pair left and right images by stamp, warning of unpaired left ones and refusing a bag without a pair.
+fn pair_images(
+    path: &Path,
+    choice: &TopicChoice,
+    l: &[IndexedImage],
+    r: &[IndexedImage],
+    warnings: &mut Vec<String>,
+) -> Result<Pairing, DatasetError> {
+    let stamps = |v: &[IndexedImage]| v.iter().map(|m| m.stamp_ns).collect::<Vec<_>>();
+    let pairing = pair_by_stamp(&stamps(l), &stamps(r));
+    if !pairing.unpaired_left.is_empty() {
+        let first: Vec<String> =
+            pairing.unpaired_left.iter().take(3).map(|&i| format!("{} ns", l[i].stamp_ns)).collect();
+        warnings.push(format!(
+            "{} left image(s) have no right image within {:.1} ms (a quarter of the frame period {:.1} ms) and are skipped (first stamps: {}); {} right image(s) are left without a partner",
+            pairing.unpaired_left.len(),
+            pairing.tolerance_ns as f64 * 1e-6,
+            pairing.period_ns as f64 * 1e-6,
+            first.join(", "),
+            pairing.unpaired_right
+        ));
+    }
+    if pairing.pairs.is_empty() {
+        return Err(invalid(
+            path,
+            format!(
+                "no stereo pair: {} has {} images, {} has {}, and none are within {:.1} ms of each other",
+                choice.left,
+                l.len(),
+                choice.right,
+                r.len(),
+                pairing.tolerance_ns as f64 * 1e-6
+            ),
+        ));
+    }
+    Ok(pairing)
+}
+
 /// What a run tracks on with rig `rig`: the rectified pair's intrinsics and baseline (the rig's own when
 /// it is rectified already, else those its rectification gives), the size it was calibrated at, the rig
 /// to rectify with (none when rectified already) and the words that say so in the source's description.
@@ -479,58 +501,9 @@ pub fn open_folder(path: &Path, opts: &SourceOptions) -> Result<StereoSequence, 
         return Err(invalid(path, "a folder of left/ and right/ images needs the rig's calibration: --calib FILE (a Kalibr camchain or ORB-SLAM's stereo settings)".into()));
     };
     let calib = read_calibration(calib_path)?;
-    let (left, right) = (images_in(&path.join("left"))?, images_in(&path.join("right"))?);
-    let names = |v: &[PathBuf]| v.iter().map(|p| p.file_name().map(|n| n.to_os_string())).collect::<Vec<_>>();
-    if names(&left) != names(&right) && left.len() != right.len() {
-        return Err(invalid(
-            path,
-            format!("left/ holds {} images and right/ {}, under different names: images are paired by name, or by place when both hold as many", left.len(), right.len()),
-        ));
-    }
-    if left.is_empty() {
-        return Err(invalid(path, "left/ and right/ hold no PNG or JPEG image".into()));
-    }
+    let (left, right) = folder_images(path)?;
     let n = left.len();
-    let times_path = path.join("times.txt");
-    let times =
-        match (times_path.exists(), opts.rate_hz) {
-            (true, Some(_)) => return Err(invalid(&times_path, "--rate given beside times.txt: use one".into())),
-            (true, None) => {
-                let text = crate::read_text(&times_path, &slam_core::files::TABLE)?;
-                let lines = crate::frame_lines(&times_path, &text)?;
-                if lines.len() < n {
-                    return Err(invalid(&times_path, format!("{} times for {n} frames", lines.len())));
-                }
-                let mut t = Vec::with_capacity(n);
-                for (line, l) in lines.iter().take(n) {
-                    let v = crate::parse_exact(&times_path, *line, &l.split_whitespace().collect::<Vec<_>>(), 1)?[0];
-                    if t.last().is_some_and(|&p: &f64| v <= p) {
-                        return Err(DatasetError::Parse {
-                            path: times_path.clone(),
-                            line: *line,
-                            message: format!("time {v} is not after the one before"),
-                        });
-                    }
-                    t.push(v);
-                }
-                let t0 = t[0];
-                t.into_iter().map(|v| v - t0).collect()
-            }
-            (false, Some(hz)) => {
-                if !(hz.is_finite() && hz > 0.0 && hz <= 1000.0) {
-                    return Err(invalid(
-                        path,
-                        format!("--rate {hz}: frames a second in (0, 1000] (no camera of a moving rig records faster)"),
-                    ));
-                }
-                (0..n).map(|k| k as f64 / hz).collect()
-            }
-            (false, None) => return Err(invalid(
-                path,
-                "the frames' times: a times.txt beside left/ and right/ (one line of seconds per frame) or --rate HZ"
-                    .into(),
-            )),
-        };
+    let times = folder_times(path, opts, n)?;
     let (intrinsics, baseline, calibrated_size, rectify, rectified_here) = tracked_geometry(calib.rig.clone());
     let source = format!(
         "left/ and right/ images, calibration from {} ({}){rectified_here}",
@@ -555,6 +528,70 @@ pub fn open_folder(path: &Path, opts: &SourceOptions) -> Result<StereoSequence, 
         warnings: Vec::new(),
         recording: Some(Recording { bag: None, rectify, calibration: calib.path, calibrated_size, source }),
     })
+}
+
+/// The images of `left/` and `right/`, refused when none, or when paired neither by name nor by place.
+fn folder_images(path: &Path) -> Result<(Vec<PathBuf>, Vec<PathBuf>), DatasetError> {
+    let (left, right) = (images_in(&path.join("left"))?, images_in(&path.join("right"))?);
+    let names = |v: &[PathBuf]| v.iter().map(|p| p.file_name().map(|n| n.to_os_string())).collect::<Vec<_>>();
+    if names(&left) != names(&right) && left.len() != right.len() {
+        return Err(invalid(
+            path,
+            format!("left/ holds {} images and right/ {}, under different names: images are paired by name, or by place when both hold as many", left.len(), right.len()),
+        ));
+    }
+    if left.is_empty() {
+        return Err(invalid(path, "left/ and right/ hold no PNG or JPEG image".into()));
+    }
+    Ok((left, right))
+}
+
+/// The times of a folder's `n` frames, seconds from the first: from its `times.txt` or at `--rate`.
+fn folder_times(path: &Path, opts: &SourceOptions, n: usize) -> Result<Vec<f64>, DatasetError> {
+    let times_path = path.join("times.txt");
+    let times =
+        match (times_path.exists(), opts.rate_hz) {
+            (true, Some(_)) => return Err(invalid(&times_path, "--rate given beside times.txt: use one".into())),
+            (true, None) => read_times(&times_path, n)?,
+            (false, Some(hz)) => {
+                if !(hz.is_finite() && hz > 0.0 && hz <= 1000.0) {
+                    return Err(invalid(
+                        path,
+                        format!("--rate {hz}: frames a second in (0, 1000] (no camera of a moving rig records faster)"),
+                    ));
+                }
+                (0..n).map(|k| k as f64 / hz).collect()
+            }
+            (false, None) => return Err(invalid(
+                path,
+                "the frames' times: a times.txt beside left/ and right/ (one line of seconds per frame) or --rate HZ"
+                    .into(),
+            )),
+        };
+    Ok(times)
+}
+
+/// The first `n` times of `times.txt` (one a line, each after the one before), counted from the first.
+fn read_times(times_path: &Path, n: usize) -> Result<Vec<f64>, DatasetError> {
+    let text = crate::read_text(times_path, &slam_core::files::TABLE)?;
+    let lines = crate::frame_lines(times_path, &text)?;
+    if lines.len() < n {
+        return Err(invalid(times_path, format!("{} times for {n} frames", lines.len())));
+    }
+    let mut t = Vec::with_capacity(n);
+    for (line, l) in lines.iter().take(n) {
+        let v = crate::parse_exact(times_path, *line, &l.split_whitespace().collect::<Vec<_>>(), 1)?[0];
+        if t.last().is_some_and(|&p: &f64| v <= p) {
+            return Err(DatasetError::Parse {
+                path: times_path.to_path_buf(),
+                line: *line,
+                message: format!("time {v} is not after the one before"),
+            });
+        }
+        t.push(v);
+    }
+    let t0 = t[0];
+    Ok(t.into_iter().map(|v| v - t0).collect())
 }
 
 #[cfg(test)]

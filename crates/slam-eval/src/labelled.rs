@@ -347,14 +347,37 @@ pub fn score_sequence(
     criteria: &VehicleCriteria,
     image: &ImageSize,
 ) -> SequenceScore {
-    let mut moving = (0usize, 0usize, 0usize);
     let gts = gt_vehicles(seq, criteria.min_frames, criteria.static_m);
+    let moving = moving_outcomes(name, seq, mapper, truth, criteria);
+    let best = static_votes(mapper, truth, &gts);
+    let mut row = Row { vehicles: gts.len(), ..Row::default() };
+    for (id, gt) in &gts {
+        let Some((_, e)) = best.get(id) else {
+            log_unfound_vehicle(name, seq, mapper, truth, id, gt);
+            continue;
+        };
+        row.found += 1;
+        let yaw = add_found_vehicle(&mut row, seq, image, gt, e);
+        log_matched_vehicle(name, seq, id, gt, e, yaw);
+    }
+    SequenceScore { row, moving }
+}
+
+/// What became of the moving vehicles: (count, mapped as a static ellipsoid, flagged dynamic only).
+fn moving_outcomes(
+    name: &str,
+    seq: &LabelledSequence,
+    mapper: &ObjectMapper,
+    truth: &DetectionTruth,
+    criteria: &VehicleCriteria,
+) -> (usize, usize, usize) {
+    let mut moving = (0usize, 0usize, 0usize);
     let movers: BTreeSet<i64> = vehicle_tracks(seq, criteria.min_frames)
         .into_iter()
         .filter(|t| t.spread > criteria.moving_m)
         .map(|t| t.id)
         .collect();
-    // moving vehicles: what became of the objects built mostly from their boxes (flagged, mapped)
+    // each mover: (flagged dynamic, mapped as static)
     let mut fate: BTreeMap<i64, (bool, bool)> = movers.iter().map(|&t| (t, (false, false))).collect();
     for o in mapper.objects() {
         let Some((t, _)) = majority_track(o, truth) else { continue };
@@ -370,7 +393,15 @@ pub fn score_sequence(
     moving.0 += fate.len();
     moving.1 += fate.values().filter(|f| f.1).count();
     moving.2 += fate.values().filter(|f| f.0 && !f.1).count();
-    // each object votes for the GT track that supplied most of its detections
+    moving
+}
+
+/// The best static object (most boxes) of each static vehicle, by each object's majority label track.
+fn static_votes(
+    mapper: &ObjectMapper,
+    truth: &DetectionTruth,
+    gts: &BTreeMap<i64, GtVehicle>,
+) -> BTreeMap<i64, (usize, Ellipsoid)> {
     let mut best: BTreeMap<i64, (usize, Ellipsoid)> = BTreeMap::new();
     for o in mapper.objects() {
         let (Some(e), false) = (o.ellipsoid, o.dynamic) else { continue };
@@ -380,82 +411,90 @@ pub fn score_sequence(
             }
         }
     }
-    let mut row = Row { vehicles: gts.len(), ..Row::default() };
-    for (id, gt) in &gts {
-        let Some((_, e)) = best.get(id) else {
-            // why: the objects that took this vehicle's boxes, and what became of them
-            let mut took: Vec<String> = Vec::new();
-            for o in mapper.objects() {
-                let n = o.observations.iter().filter(|obs| truth.get(&(obs.frame, obs.detection)) == Some(id)).count();
-                if n > 0 {
-                    took.push(format!(
-                        "object {} ({n} of its {} boxes, ellipsoid {}, dynamic {})",
-                        o.id,
-                        o.observations.len(),
-                        o.ellipsoid.is_some(),
-                        o.dynamic
-                    ));
-                }
-            }
-            let first = gt.boxes.keys().next().copied().unwrap_or(0);
-            let last = gt.boxes.keys().last().copied().unwrap_or(0);
-            tracing::debug!(
-                sequence = %name,
-                vehicle = id,
-                frames = gt.boxes.len(),
-                travel = (seq.poses[last].translation.vector - seq.poses[first].translation.vector).norm(),
-                first_depth = (seq.poses[first].inverse() * Point3::from(gt.ellipsoid.centre())).z,
-                "vehicle not found; its boxes went to: {}",
-                if took.is_empty() { "no object".to_string() } else { took.join("; ") }
-            );
-            continue;
-        };
-        row.found += 1;
-        let ious: Vec<f64> = gt
-            .boxes
-            .iter()
-            .map(|(&f, b)| metrics::projected_iou(e, &Camera::new(seq.k, seq.poses[f]), image, b))
-            .collect();
-        row.iou += ious.iter().sum::<f64>() / ious.len().max(1) as f64;
-        // the mean over the vehicle's labelled frames of an IoU of `of`'s box with the label box
-        let mean_over_frames = |of: &Ellipsoid, iou: fn(&Ellipsoid, &Camera, &ImageSize, &BBox) -> f64| {
-            let v: Vec<f64> =
-                gt.boxes.iter().map(|(&f, b)| iou(of, &Camera::new(seq.k, seq.poses[f]), image, b)).collect();
-            v.iter().sum::<f64>() / v.len().max(1) as f64
-        };
-        row.box_iou += mean_over_frames(e, metrics::box_iou);
-        row.iou_truth += mean_over_frames(&gt.ellipsoid, metrics::projected_iou);
-        row.box_iou_truth += mean_over_frames(&gt.ellipsoid, metrics::box_iou);
-        row.e_trans += metrics::e_trans(e, &gt.ellipsoid);
-        row.e_axe += metrics::e_axe(e, &gt.ellipsoid);
-        let up = seq.poses[gt.boxes.keys().next().copied().unwrap_or(0)].rotation * Vector3::y();
-        let yaw = metrics::e_yaw(e, &gt.ellipsoid, &up);
-        row.e_yaw += yaw;
-        row.yaw_within += usize::from(yaw <= 15.0);
-        if let Some(c) = gt.ray_centre {
-            row.e_ray += (c - gt.ellipsoid.centre()).norm();
-            row.rays += 1;
+    best
+}
+
+/// Log why a static vehicle was not found: the objects that took its boxes, and what became of them.
+fn log_unfound_vehicle(
+    name: &str,
+    seq: &LabelledSequence,
+    mapper: &ObjectMapper,
+    truth: &DetectionTruth,
+    id: &i64,
+    gt: &GtVehicle,
+) {
+    let mut took: Vec<String> = Vec::new();
+    for o in mapper.objects() {
+        let n = o.observations.iter().filter(|obs| truth.get(&(obs.frame, obs.detection)) == Some(id)).count();
+        if n > 0 {
+            took.push(format!(
+                "object {} ({n} of its {} boxes, ellipsoid {}, dynamic {})",
+                o.id,
+                o.observations.len(),
+                o.ellipsoid.is_some(),
+                o.dynamic
+            ));
         }
-        let first = gt.boxes.keys().next().copied().unwrap_or(0);
-        let depth = (seq.poses[first].inverse() * nalgebra::Point3::from(gt.ellipsoid.centre())).z;
-        let err_cam = seq.poses[first].inverse().rotation * (e.centre() - gt.ellipsoid.centre());
-        let last = gt.boxes.keys().last().copied().unwrap_or(0);
-        let travel = (seq.poses[last].translation.vector - seq.poses[first].translation.vector).norm();
-        tracing::debug!(
-            sequence = %name,
-            vehicle = id,
-            e_trans = metrics::e_trans(e, &gt.ellipsoid),
-            e_axe = metrics::e_axe(e, &gt.ellipsoid),
-            e_yaw = yaw,
-            frames = gt.boxes.len(),
-            first_depth = depth,
-            travel,
-            err = format!("{:.2} {:.2} {:.2}", err_cam.x, err_cam.y, err_cam.z),
-            axes = format!("{:.2} {:.2} {:.2} vs {:.2} {:.2} {:.2}", e.semi_axes.x, e.semi_axes.y, e.semi_axes.z, gt.ellipsoid.semi_axes.x, gt.ellipsoid.semi_axes.y, gt.ellipsoid.semi_axes.z),
-            "matched vehicle"
-        );
     }
-    SequenceScore { row, moving }
+    let first = gt.boxes.keys().next().copied().unwrap_or(0);
+    let last = gt.boxes.keys().last().copied().unwrap_or(0);
+    tracing::debug!(
+        sequence = %name,
+        vehicle = id,
+        frames = gt.boxes.len(),
+        travel = (seq.poses[last].translation.vector - seq.poses[first].translation.vector).norm(),
+        first_depth = (seq.poses[first].inverse() * Point3::from(gt.ellipsoid.centre())).z,
+        "vehicle not found; its boxes went to: {}",
+        if took.is_empty() { "no object".to_string() } else { took.join("; ") }
+    );
+}
+
+/// Add a found vehicle's figures (estimate `e` against its ground truth) to `row`; returns its e_yaw.
+fn add_found_vehicle(row: &mut Row, seq: &LabelledSequence, image: &ImageSize, gt: &GtVehicle, e: &Ellipsoid) -> f64 {
+    let ious: Vec<f64> =
+        gt.boxes.iter().map(|(&f, b)| metrics::projected_iou(e, &Camera::new(seq.k, seq.poses[f]), image, b)).collect();
+    row.iou += ious.iter().sum::<f64>() / ious.len().max(1) as f64;
+    // the mean over the vehicle's labelled frames of an IoU of `of`'s box with the label box
+    let mean_over_frames = |of: &Ellipsoid, iou: fn(&Ellipsoid, &Camera, &ImageSize, &BBox) -> f64| {
+        let v: Vec<f64> = gt.boxes.iter().map(|(&f, b)| iou(of, &Camera::new(seq.k, seq.poses[f]), image, b)).collect();
+        v.iter().sum::<f64>() / v.len().max(1) as f64
+    };
+    row.box_iou += mean_over_frames(e, metrics::box_iou);
+    row.iou_truth += mean_over_frames(&gt.ellipsoid, metrics::projected_iou);
+    row.box_iou_truth += mean_over_frames(&gt.ellipsoid, metrics::box_iou);
+    row.e_trans += metrics::e_trans(e, &gt.ellipsoid);
+    row.e_axe += metrics::e_axe(e, &gt.ellipsoid);
+    let up = seq.poses[gt.boxes.keys().next().copied().unwrap_or(0)].rotation * Vector3::y();
+    let yaw = metrics::e_yaw(e, &gt.ellipsoid, &up);
+    row.e_yaw += yaw;
+    row.yaw_within += usize::from(yaw <= 15.0);
+    if let Some(c) = gt.ray_centre {
+        row.e_ray += (c - gt.ellipsoid.centre()).norm();
+        row.rays += 1;
+    }
+    yaw
+}
+
+/// Log a matched vehicle: its errors, its first depth, how far the camera travelled and the axes.
+fn log_matched_vehicle(name: &str, seq: &LabelledSequence, id: &i64, gt: &GtVehicle, e: &Ellipsoid, yaw: f64) {
+    let first = gt.boxes.keys().next().copied().unwrap_or(0);
+    let depth = (seq.poses[first].inverse() * nalgebra::Point3::from(gt.ellipsoid.centre())).z;
+    let err_cam = seq.poses[first].inverse().rotation * (e.centre() - gt.ellipsoid.centre());
+    let last = gt.boxes.keys().last().copied().unwrap_or(0);
+    let travel = (seq.poses[last].translation.vector - seq.poses[first].translation.vector).norm();
+    tracing::debug!(
+        sequence = %name,
+        vehicle = id,
+        e_trans = metrics::e_trans(e, &gt.ellipsoid),
+        e_axe = metrics::e_axe(e, &gt.ellipsoid),
+        e_yaw = yaw,
+        frames = gt.boxes.len(),
+        first_depth = depth,
+        travel,
+        err = format!("{:.2} {:.2} {:.2}", err_cam.x, err_cam.y, err_cam.z),
+        axes = format!("{:.2} {:.2} {:.2} vs {:.2} {:.2} {:.2}", e.semi_axes.x, e.semi_axes.y, e.semi_axes.z, gt.ellipsoid.semi_axes.x, gt.ellipsoid.semi_axes.y, gt.ellipsoid.semi_axes.z),
+        "matched vehicle"
+    );
 }
 
 impl Row {

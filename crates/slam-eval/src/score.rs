@@ -515,81 +515,136 @@ fn vehicle_scores(
     geometry: &LabelGeometry,
     config: &ScoreConfig,
 ) -> (VehicleFigures, Vec<TrackScore>) {
-    let (k, image) = (geometry.intrinsics(), geometry.image());
-    let pose_of = &scene.pose_of;
     let mut figures = VehicleFigures::default();
-    let (mut iou_sum, mut et_sum, mut ea_sum, mut ey_sum, mut within) = (0.0, 0.0, 0.0, 0.0, 0usize);
-    // box IoU2D, and both IoUs of the ground truth
-    let (mut box_sum, mut iou_truth_sum, mut box_truth_sum) = (0.0, 0.0, 0.0);
+    let mut sums = VehicleSums::default();
     let mut track_scores = Vec::new();
     for (&id, t) in &scene.tracks {
-        let kind = t.labels[0].kind.clone();
-        let motion = if t.spread <= config.static_m {
-            "static"
-        } else if t.spread > config.moving_m {
-            "moving"
-        } else {
-            "unclear"
-        };
-        let vehicle = (kind == "Car" || kind == "Van") && motion == "static" && t.labels.len() >= config.min_frames;
-        let object = best_of.get(&id).filter(|_| !scene.is_moving(id, config)).map(|b| objects[b.2].id);
-        let mut ts = TrackScore {
-            track: id,
-            kind,
-            frames: t.labels.len(),
-            spread_m: t.spread,
-            motion,
-            vehicle,
-            object,
-            flagged: flagged.remove(&id).unwrap_or_default(),
-            iou2d: None,
-            box_iou2d: None,
-            e_trans: None,
-            e_axe: None,
-            e_yaw: None,
-        };
-        if vehicle {
+        let mut ts = track_score(scene, objects, best_of, &mut flagged, config, id, t);
+        if ts.vehicle {
             figures.vehicles += 1;
-            let l0 = t.labels[0];
-            let truth = label_ellipsoid(l0, &pose_of[&l0.frame], t.mean);
-            // the mean over the labelled frames of an IoU of `of`'s box with the label box
-            let mean_iou = |of: &Ellipsoid, iou: fn(&Ellipsoid, &Camera, &ImageSize, &BBox) -> f64| {
-                let v: Vec<f64> = t
-                    .labels
-                    .iter()
-                    .filter_map(|l| Some(iou(of, &Camera::new(k, pose_of[&l.frame]), &image, &geometry.label_box(l)?)))
-                    .collect();
-                v.iter().sum::<f64>() / v.len().max(1) as f64
-            };
+            let found = best_of.get(&id).map(|b| &objects[b.2].ellipsoid);
+            let (iou_truth, box_truth, matched) = vehicle_figures(scene, t, found, geometry);
             // what the metrics give the truth itself, found or not
-            iou_truth_sum += mean_iou(&truth, metrics::projected_iou);
-            box_truth_sum += mean_iou(&truth, metrics::box_iou);
-            if let Some(b) = best_of.get(&id) {
-                let e = &objects[b.2].ellipsoid;
-                let iou = mean_iou(e, metrics::projected_iou);
-                let box_iou = mean_iou(e, metrics::box_iou);
-                box_sum += box_iou;
-                let up = pose_of[&l0.frame].rotation * Vector3::y();
-                let (et, ea, ey) =
-                    (metrics::e_trans(e, &truth), metrics::e_axe(e, &truth), metrics::e_yaw(e, &truth, &up));
+            sums.iou_truth += iou_truth;
+            sums.box_truth += box_truth;
+            if let Some(m) = matched {
+                sums.box_iou += m.box_iou;
                 figures.found += 1;
-                iou_sum += iou;
-                et_sum += et;
-                ea_sum += ea;
-                ey_sum += ey;
-                within += usize::from(ey <= config.yaw_within_deg);
+                sums.iou += m.iou;
+                sums.e_trans += m.e_trans;
+                sums.e_axe += m.e_axe;
+                sums.e_yaw += m.e_yaw;
+                sums.within += usize::from(m.e_yaw <= config.yaw_within_deg);
                 (ts.iou2d, ts.box_iou2d, ts.e_trans, ts.e_axe, ts.e_yaw) =
-                    (Some(iou), Some(box_iou), Some(et), Some(ea), Some(ey));
+                    (Some(m.iou), Some(m.box_iou), Some(m.e_trans), Some(m.e_axe), Some(m.e_yaw));
             }
         }
         track_scores.push(ts);
     }
+    mean_figures(&mut figures, &sums);
+    (figures, track_scores)
+}
+
+/// Running sums over the static vehicles: the found ones' figures, and the ground truth's IoUs over all.
+#[derive(Default)]
+struct VehicleSums {
+    iou: f64,
+    box_iou: f64,
+    e_trans: f64,
+    e_axe: f64,
+    e_yaw: f64,
+    within: usize,
+    iou_truth: f64,
+    box_truth: f64,
+}
+
+/// The figures of a found vehicle's best object.
+struct Matched {
+    iou: f64,
+    box_iou: f64,
+    e_trans: f64,
+    e_axe: f64,
+    e_yaw: f64,
+}
+
+/// A label track's score without a match's figures: kind, motion, vehicle or not, its objects.
+fn track_score(
+    scene: &LabelScene,
+    objects: &[ScoredInput],
+    best_of: &BestOf,
+    flagged: &mut BTreeMap<i64, Vec<u64>>,
+    config: &ScoreConfig,
+    id: i64,
+    t: &Track,
+) -> TrackScore {
+    let kind = t.labels[0].kind.clone();
+    let motion = if t.spread <= config.static_m {
+        "static"
+    } else if t.spread > config.moving_m {
+        "moving"
+    } else {
+        "unclear"
+    };
+    let vehicle = (kind == "Car" || kind == "Van") && motion == "static" && t.labels.len() >= config.min_frames;
+    let object = best_of.get(&id).filter(|_| !scene.is_moving(id, config)).map(|b| objects[b.2].id);
+    TrackScore {
+        track: id,
+        kind,
+        frames: t.labels.len(),
+        spread_m: t.spread,
+        motion,
+        vehicle,
+        object,
+        flagged: flagged.remove(&id).unwrap_or_default(),
+        iou2d: None,
+        box_iou2d: None,
+        e_trans: None,
+        e_axe: None,
+        e_yaw: None,
+    }
+}
+
+/// A static vehicle's figures: its ground truth's two IoUs, and the found object's IoUs and errors.
+fn vehicle_figures(
+    scene: &LabelScene,
+    t: &Track,
+    found: Option<&Ellipsoid>,
+    geometry: &LabelGeometry,
+) -> (f64, f64, Option<Matched>) {
+    let (k, image) = (geometry.intrinsics(), geometry.image());
+    let pose_of = &scene.pose_of;
+    let l0 = t.labels[0];
+    let truth = label_ellipsoid(l0, &pose_of[&l0.frame], t.mean);
+    // the mean over the labelled frames of an IoU of `of`'s box with the label box
+    let mean_iou = |of: &Ellipsoid, iou: fn(&Ellipsoid, &Camera, &ImageSize, &BBox) -> f64| {
+        let v: Vec<f64> = t
+            .labels
+            .iter()
+            .filter_map(|l| Some(iou(of, &Camera::new(k, pose_of[&l.frame]), &image, &geometry.label_box(l)?)))
+            .collect();
+        v.iter().sum::<f64>() / v.len().max(1) as f64
+    };
+    let iou_truth = mean_iou(&truth, metrics::projected_iou);
+    let box_truth = mean_iou(&truth, metrics::box_iou);
+    let matched = found.map(|e| {
+        let iou = mean_iou(e, metrics::projected_iou);
+        let box_iou = mean_iou(e, metrics::box_iou);
+        let up = pose_of[&l0.frame].rotation * Vector3::y();
+        let (e_trans, e_axe, e_yaw) =
+            (metrics::e_trans(e, &truth), metrics::e_axe(e, &truth), metrics::e_yaw(e, &truth, &up));
+        Matched { iou, box_iou, e_trans, e_axe, e_yaw }
+    });
+    (iou_truth, box_truth, matched)
+}
+
+/// The vehicle figures from the sums: success and the means (NaN where there is nothing to average).
+fn mean_figures(figures: &mut VehicleFigures, sums: &VehicleSums) {
     let f = figures.found.max(1) as f64;
     figures.success = if figures.vehicles > 0 { figures.found as f64 / figures.vehicles as f64 } else { f64::NAN };
     if figures.found > 0 {
         (figures.iou2d, figures.e_trans, figures.e_axe, figures.e_yaw, figures.yaw_within) =
-            (iou_sum / f, et_sum / f, ea_sum / f, ey_sum / f, within as f64 / f);
-        figures.box_iou2d = box_sum / f;
+            (sums.iou / f, sums.e_trans / f, sums.e_axe / f, sums.e_yaw / f, sums.within as f64 / f);
+        figures.box_iou2d = sums.box_iou / f;
     } else {
         (figures.iou2d, figures.e_trans, figures.e_axe, figures.e_yaw, figures.yaw_within) =
             (f64::NAN, f64::NAN, f64::NAN, f64::NAN, f64::NAN);
@@ -597,11 +652,10 @@ fn vehicle_scores(
     }
     if figures.vehicles > 0 {
         let n = figures.vehicles as f64;
-        (figures.iou2d_truth, figures.box_iou2d_truth) = (iou_truth_sum / n, box_truth_sum / n);
+        (figures.iou2d_truth, figures.box_iou2d_truth) = (sums.iou_truth / n, sums.box_truth / n);
     } else {
         (figures.iou2d_truth, figures.box_iou2d_truth) = (f64::NAN, f64::NAN);
     }
-    (figures, track_scores)
 }
 
 /// Score a run's objects. `poses`: world from the run's camera, one per played frame; `frame_ids`: the
@@ -632,20 +686,101 @@ pub fn score_run(
     }
 }
 
+/// A figure with `digits` decimals and its unit, or "–" when it is not finite.
+fn fig(x: f64, digits: usize, unit: &str) -> String {
+    // a figure over no vehicle is no figure: "–", not NaN (its unit goes with the number)
+    if x.is_finite() {
+        format!("{x:.digits$}{unit}")
+    } else {
+        "–".to_string()
+    }
+}
+
+/// The report's census line: what the static map objects matched, and the objects flagged dynamic.
+fn census_line(c: &Census) -> String {
+    format!(
+        "static map objects {}: matched {}, duplicate {}, moving object mapped as static {}, in a DontCare \
+         region {}, matching nothing {}{}{}; objects flagged dynamic (with an ellipsoid) {}, {} of them on a \
+         moving label (an object found moving before its first fit has no ellipsoid and is not counted)\n",
+        c.static_objects,
+        c.matched,
+        c.duplicate,
+        c.moving,
+        c.dont_care,
+        c.nothing,
+        if c.nothing_unlabelled_class > 0 {
+            format!(
+                " ({} of them bicycles or motorcycles, which KITTI labels only with a rider)",
+                c.nothing_unlabelled_class
+            )
+        } else {
+            String::new()
+        },
+        if c.unscored > 0 { format!(", never in view {}", c.unscored) } else { String::new() },
+        c.dynamic_objects,
+        c.dynamic_on_moving
+    )
+}
+
+/// The report's line of a label track (a static vehicle or a moving track): what it was mapped as.
+fn track_line(t: &TrackScore) -> String {
+    format!(
+        "  label {:>3} {:<10} {:>3} frames, spread {:5.2} m ({}): {}\n",
+        t.track,
+        t.kind,
+        t.frames,
+        t.spread_m,
+        t.motion,
+        match (t.object, t.e_trans) {
+            (Some(o), Some(e)) => format!(
+                "object {o}, e_trans {e:.2} m, e_axe {:.2} m, e_yaw {:.1} deg, IoU2D {:.2}, box IoU2D {:.2}",
+                t.e_axe.unwrap_or(f64::NAN),
+                t.e_yaw.unwrap_or(f64::NAN),
+                t.iou2d.unwrap_or(f64::NAN),
+                t.box_iou2d.unwrap_or(f64::NAN)
+            ),
+            (Some(o), None) => format!("mapped as static object {o}"),
+            (None, _) if !t.flagged.is_empty() => format!("flagged dynamic {:?}", t.flagged),
+            (None, _) => "not mapped".into(),
+        }
+    )
+}
+
 impl RunScore {
     /// The figures as text (several lines).
     pub fn report(&self) -> String {
-        let v = &self.vehicles;
-        let c = &self.census;
-        // a figure over no vehicle is no figure: "–", not NaN (its unit goes with the number)
-        let fig = |x: f64, digits: usize, unit: &str| {
-            if x.is_finite() {
-                format!("{x:.digits$}{unit}")
-            } else {
-                "–".to_string()
-            }
+        let mut s = self.vehicles_line();
+        s.push_str(&census_line(&self.census));
+        if let Some(a) = &self.association {
+            s.push_str(&format!(
+                "association vs labels: {} detection boxes on {} label tracks (IoU ≥ {ASSOCIATION_IOU}); {:.2} tracks \
+                 per label track (1: one track per object), {} track switches, {} tracks holding two or more \
+                 label tracks\n",
+                a.boxes, a.label_tracks, a.tracks_per_label, a.switches, a.mixed_tracks
+            ));
+        }
+        let tracks_of = |label: i64| {
+            self.association
+                .as_ref()
+                .and_then(|a| a.per_label.iter().find(|(l, _)| *l == label))
+                .map_or(String::new(), |(_, t)| format!("; its boxes on tracks {t:?}"))
         };
-        let mut s = if v.vehicles == 0 {
+        for t in self.tracks.iter().filter(|t| t.vehicle || t.motion == "moving") {
+            s.push_str(&track_line(t));
+            // the track list goes on the line just written
+            if s.ends_with('\n') {
+                s.pop();
+                s.push_str(&tracks_of(t.track));
+                s.push('\n');
+            }
+        }
+        s
+    }
+
+    /// The report's first line: the static labelled vehicles, how many were found and their figures.
+    fn vehicles_line(&self) -> String {
+        let v = &self.vehicles;
+        if v.vehicles == 0 {
             format!(
                 "objects vs labels ({} frames): static labelled vehicles 0 (no Car or Van track of at least {} \
                  labelled frames stays within {} m under this run's poses), so no success, IoU2D or errors; \
@@ -671,72 +806,7 @@ impl RunScore {
                 self.config.yaw_within_deg,
                 fig(100.0 * v.yaw_within, 0, " %")
             )
-        };
-        s.push_str(&format!(
-            "static map objects {}: matched {}, duplicate {}, moving object mapped as static {}, in a DontCare \
-             region {}, matching nothing {}{}{}; objects flagged dynamic (with an ellipsoid) {}, {} of them on a \
-             moving label (an object found moving before its first fit has no ellipsoid and is not counted)\n",
-            c.static_objects,
-            c.matched,
-            c.duplicate,
-            c.moving,
-            c.dont_care,
-            c.nothing,
-            if c.nothing_unlabelled_class > 0 {
-                format!(
-                    " ({} of them bicycles or motorcycles, which KITTI labels only with a rider)",
-                    c.nothing_unlabelled_class
-                )
-            } else {
-                String::new()
-            },
-            if c.unscored > 0 { format!(", never in view {}", c.unscored) } else { String::new() },
-            c.dynamic_objects,
-            c.dynamic_on_moving
-        ));
-        if let Some(a) = &self.association {
-            s.push_str(&format!(
-                "association vs labels: {} detection boxes on {} label tracks (IoU ≥ {ASSOCIATION_IOU}); {:.2} tracks \
-                 per label track (1: one track per object), {} track switches, {} tracks holding two or more \
-                 label tracks\n",
-                a.boxes, a.label_tracks, a.tracks_per_label, a.switches, a.mixed_tracks
-            ));
         }
-        let tracks_of = |label: i64| {
-            self.association
-                .as_ref()
-                .and_then(|a| a.per_label.iter().find(|(l, _)| *l == label))
-                .map_or(String::new(), |(_, t)| format!("; its boxes on tracks {t:?}"))
-        };
-        for t in self.tracks.iter().filter(|t| t.vehicle || t.motion == "moving") {
-            s.push_str(&format!(
-                "  label {:>3} {:<10} {:>3} frames, spread {:5.2} m ({}): {}\n",
-                t.track,
-                t.kind,
-                t.frames,
-                t.spread_m,
-                t.motion,
-                match (t.object, t.e_trans) {
-                    (Some(o), Some(e)) => format!(
-                        "object {o}, e_trans {e:.2} m, e_axe {:.2} m, e_yaw {:.1} deg, IoU2D {:.2}, box IoU2D {:.2}",
-                        t.e_axe.unwrap_or(f64::NAN),
-                        t.e_yaw.unwrap_or(f64::NAN),
-                        t.iou2d.unwrap_or(f64::NAN),
-                        t.box_iou2d.unwrap_or(f64::NAN)
-                    ),
-                    (Some(o), None) => format!("mapped as static object {o}"),
-                    (None, _) if !t.flagged.is_empty() => format!("flagged dynamic {:?}", t.flagged),
-                    (None, _) => "not mapped".into(),
-                }
-            ));
-            // the track list goes on the line just written
-            if s.ends_with('\n') {
-                s.pop();
-                s.push_str(&tracks_of(t.track));
-                s.push('\n');
-            }
-        }
-        s
     }
 
     /// Write as JSON.

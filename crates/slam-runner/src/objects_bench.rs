@@ -195,13 +195,27 @@ impl ObjectsBench {
     /// The bench's tables (markdown) and notes, line by line.
     pub fn lines(&self) -> Vec<String> {
         let mut out = Vec::new();
+        self.drive_lines(&mut out);
+        if let Some(f) = &self.image_free {
+            out.push(String::new());
+            image_free_lines(f, &mut out);
+        }
+        out.push(String::new());
+        street_lines(&self.street, &mut out);
+        out
+    }
+
+    /// A row of the drive's table: its name and a cell a stride, `f` giving the cell.
+    fn row(&self, name: &str, f: &dyn Fn(&DriveRow) -> String) -> String {
+        format!("| {name} | {} |", self.drive.iter().map(f).collect::<Vec<_>>().join(" | "))
+    }
+
+    /// The drive's table, a column a stride: census, flags, association, vehicles, ATE and speed.
+    fn drive_lines(&self, out: &mut Vec<String>) {
         let strides: Vec<String> = self.drive.iter().map(|r| format!("stride {}", r.stride)).collect();
         out.push(format!("| drive 0005 against its labels | {} |", strides.join(" | ")));
         out.push(format!("|---|{}", "---:|".repeat(self.drive.len())));
-        let row = |name: &str, f: &dyn Fn(&DriveRow) -> String| {
-            format!("| {name} | {} |", self.drive.iter().map(f).collect::<Vec<_>>().join(" | "))
-        };
-        out.push(row(
+        out.push(self.row(
             "static map objects: matched / duplicate / moving as static / DontCare / nothing (of which parked bicycles or motorcycles, which KITTI does not label)",
             &|r| {
                 let c = &r.score.census;
@@ -211,14 +225,24 @@ impl ObjectsBench {
                 )
             },
         ));
-        out.push(row("flagged dynamic (on moving labels)", &|r| {
+        out.push(self.row("flagged dynamic (on moving labels)", &|r| {
             format!("{} ({})", r.score.census.dynamic_objects, r.score.census.dynamic_on_moving)
         }));
-        out.push(row("tracks per labelled object / switches / mixed", &|r| match &r.score.association {
+        out.push(self.row("tracks per labelled object / switches / mixed", &|r| match &r.score.association {
             Some(a) => format!("{:.2} / {} / {}", a.tracks_per_label, a.switches, a.mixed_tracks),
             None => DASH.to_string(),
         }));
-        // every static labelled vehicle of the drive (on drive 0005: the parked van, label 3)
+        self.vehicle_lines(out);
+        out.push(self.row("ATE aligned m (vs OXTS)", &|r| cell(r.ate_aligned_m, 3)));
+        out.push(self.row("object stage median ms a keyframe that ran a fit (keyframes)", &|r| {
+            format!("{} ({})", cell(r.object_ms.0, 1), r.object_ms.1)
+        }));
+        out.push(self.row("median frames/s", &|r| cell(r.fps, 1)));
+    }
+
+    /// Two rows of the drive's table for every static labelled vehicle: its errors, and its IoUs.
+    fn vehicle_lines(&self, out: &mut Vec<String>) {
+        // on drive 0005: the parked van, label 3
         let vehicles: Vec<i64> = self
             .drive
             .iter()
@@ -229,7 +253,7 @@ impl ObjectsBench {
         for id in vehicles {
             let track = |r: &DriveRow| r.score.tracks.iter().find(|t| t.track == id && t.vehicle).cloned();
             let kind = self.drive.iter().find_map(|r| track(r).map(|t| t.kind)).unwrap_or_default();
-            out.push(row(
+            out.push(self.row(
                 &format!("static {kind} (label {id}): e_trans m / e_yaw deg / e_axe m"),
                 &|r| match track(r) {
                     Some(t) if t.object.is_some() => {
@@ -239,7 +263,7 @@ impl ObjectsBench {
                     None => "not static here".to_string(),
                 },
             ));
-            out.push(row(&format!("label {id}: IoU2D / box IoU2D (the ground truth's)"), &|r| match track(r) {
+            out.push(self.row(&format!("label {id}: IoU2D / box IoU2D (the ground truth's)"), &|r| match track(r) {
                 Some(t) if t.object.is_some() => format!(
                     "{} / {} ({} / {})",
                     cell(t.iou2d, 2),
@@ -250,61 +274,58 @@ impl ObjectsBench {
                 _ => DASH.to_string(),
             }));
         }
-        out.push(row("ATE aligned m (vs OXTS)", &|r| cell(r.ate_aligned_m, 3)));
-        out.push(row("object stage median ms a keyframe that ran a fit (keyframes)", &|r| {
-            format!("{} ({})", cell(r.object_ms.0, 1), r.object_ms.1)
-        }));
-        out.push(row("median frames/s", &|r| cell(r.fps, 1)));
-        if let Some(f) = &self.image_free {
-            out.push(String::new());
-            out.push("| image-free, 17 tracks (label boxes) | success | IoU2D | box IoU2D | e_trans m | e_axe m | e_yaw deg | within 15 deg |".into());
-            out.push("|---|---:|---:|---:|---:|---:|---:|---:|".into());
-            let line = |name: &str, x: &Figures| {
-                format!(
-                    "| {name} | {} | {} | {} | {} | {} | {} | {} |",
-                    cell(x.success, 3),
-                    cell(x.iou2d, 3),
-                    cell(x.box_iou2d, 3),
-                    cell(x.e_trans, 3),
-                    cell(x.e_axe, 3),
-                    cell(x.e_yaw, 1),
-                    cell(x.yaw_within.map(|w| 100.0 * w), 0)
-                )
-            };
-            out.push(line("mean of sequences", &f.means));
-            out.push(line("pooled over vehicles", &f.pooled));
-            out.push(format!(
-                "| the ground-truth ellipsoids themselves (found vehicles) | | {} | {} | | | | |",
-                cell(f.truth.0, 3),
-                cell(f.truth.1, 3)
-            ));
-            out.push(format!(
-                "moving vehicles: {}; mapped as a static ellipsoid {}, flagged dynamic {}",
-                f.moving.0, f.moving.1, f.moving.2
-            ));
-        }
-        let s = &self.street;
-        out.push(String::new());
-        out.push(format!(
-            "main job (odometry 06, frames 0-50): {} static objects with an ellipsoid, {} dynamic; object stage {} ms a keyframe that ran a fit (median of {}), {} frames/s",
-            s.static_objects,
-            s.dynamic,
-            cell(s.object_ms.0, 1),
-            s.object_ms.1,
-            cell(s.fps, 1)
-        ));
-        out.push("| vehicle | along the street m | from the path m | angle to the street deg |".into());
-        out.push("|---|---:|---:|---:|".into());
-        for (id, name, lateral, angle, along) in &s.cars {
-            let tag = if *lateral <= STREET_SIDE_M { "street side" } else { "off the street" };
-            out.push(format!("| #{id} {name} ({tag}) | {along:.1} | {lateral:.1} | {} |", cell(*angle, 1)));
-        }
-        let side: Vec<f64> = s.cars.iter().filter(|c| c.2 <= STREET_SIDE_M).filter_map(|c| c.3).collect();
-        out.push(format!(
-            "street-side cars (within {STREET_SIDE_M} m of the path): {}, largest angle to the street {} deg",
-            side.len(),
-            cell(side.iter().copied().reduce(f64::max), 1)
-        ));
-        out
     }
+}
+
+/// The image-free study's table (means of sequences, pooled, the ground truth's) and its moving vehicles.
+fn image_free_lines(f: &slam_eval::labelled::StudyFigures, out: &mut Vec<String>) {
+    out.push("| image-free, 17 tracks (label boxes) | success | IoU2D | box IoU2D | e_trans m | e_axe m | e_yaw deg | within 15 deg |".into());
+    out.push("|---|---:|---:|---:|---:|---:|---:|---:|".into());
+    let line = |name: &str, x: &Figures| {
+        format!(
+            "| {name} | {} | {} | {} | {} | {} | {} | {} |",
+            cell(x.success, 3),
+            cell(x.iou2d, 3),
+            cell(x.box_iou2d, 3),
+            cell(x.e_trans, 3),
+            cell(x.e_axe, 3),
+            cell(x.e_yaw, 1),
+            cell(x.yaw_within.map(|w| 100.0 * w), 0)
+        )
+    };
+    out.push(line("mean of sequences", &f.means));
+    out.push(line("pooled over vehicles", &f.pooled));
+    out.push(format!(
+        "| the ground-truth ellipsoids themselves (found vehicles) | | {} | {} | | | | |",
+        cell(f.truth.0, 3),
+        cell(f.truth.1, 3)
+    ));
+    out.push(format!(
+        "moving vehicles: {}; mapped as a static ellipsoid {}, flagged dynamic {}",
+        f.moving.0, f.moving.1, f.moving.2
+    ));
+}
+
+/// The main job's summary line and its table of vehicles against the street, with the street-side count.
+fn street_lines(s: &StreetRow, out: &mut Vec<String>) {
+    out.push(format!(
+        "main job (odometry 06, frames 0-50): {} static objects with an ellipsoid, {} dynamic; object stage {} ms a keyframe that ran a fit (median of {}), {} frames/s",
+        s.static_objects,
+        s.dynamic,
+        cell(s.object_ms.0, 1),
+        s.object_ms.1,
+        cell(s.fps, 1)
+    ));
+    out.push("| vehicle | along the street m | from the path m | angle to the street deg |".into());
+    out.push("|---|---:|---:|---:|".into());
+    for (id, name, lateral, angle, along) in &s.cars {
+        let tag = if *lateral <= STREET_SIDE_M { "street side" } else { "off the street" };
+        out.push(format!("| #{id} {name} ({tag}) | {along:.1} | {lateral:.1} | {} |", cell(*angle, 1)));
+    }
+    let side: Vec<f64> = s.cars.iter().filter(|c| c.2 <= STREET_SIDE_M).filter_map(|c| c.3).collect();
+    out.push(format!(
+        "street-side cars (within {STREET_SIDE_M} m of the path): {}, largest angle to the street {} deg",
+        side.len(),
+        cell(side.iter().copied().reduce(f64::max), 1)
+    ));
 }

@@ -91,7 +91,38 @@ const HEIGHT: f64 = 375.0;
 /// and cross often: the hard case for association.
 pub fn simulate(config: &SimConfig, seed: u64) -> Vec<SimFrame> {
     let mut rng = SimRng::new(seed);
-    let mut objs: Vec<Obj> = (0..config.objects)
+    let mut objs = initial_objects(config, &mut rng);
+    let class = ClassId(2);
+    let mut frames = Vec::with_capacity(config.frames);
+    for _ in 0..config.frames {
+        let prev: Vec<BBox> = objs.iter().map(|o| o.bbox()).collect();
+        move_objects(&mut objs);
+        let boxes: Vec<BBox> = objs.iter().map(|o| o.bbox()).collect();
+        let occluded_by = |i: usize, x: f64, y: f64| {
+            boxes.iter().enumerate().any(|(j, b)| {
+                j != i && objs[j].depth < objs[i].depth && x >= b.xmin && x <= b.xmax && y >= b.ymin && y <= b.ymax
+            })
+        };
+        let mut detections = Vec::new();
+        let mut truth = Vec::new();
+        let mut flow = Vec::new();
+        for (i, b) in boxes.iter().enumerate() {
+            let occluded = |x: f64, y: f64| occluded_by(i, x, y);
+            if visible_share(b, &occluded) >= 0.3 && rng.unit() >= config.dropout {
+                detections.push(noisy_detection(config, &mut rng, class, b, &occluded));
+                truth.push(Some(i as u64));
+            }
+            track_points(config, &mut rng, b, &prev[i], &occluded, &mut flow);
+        }
+        add_clutter(config, &mut rng, class, &mut detections, &mut truth);
+        frames.push(SimFrame { detections, truth, flow, objects_present: objs.len() });
+    }
+    frames
+}
+
+/// The scene's objects at the start: random boxes in two lanes, each with a speed and a depth.
+fn initial_objects(config: &SimConfig, rng: &mut SimRng) -> Vec<Obj> {
+    (0..config.objects)
         .map(|k| {
             let w = rng.uniform(60.0, 130.0);
             let lane = (k % 2) as f64;
@@ -104,81 +135,99 @@ pub fn simulate(config: &SimConfig, seed: u64) -> Vec<SimFrame> {
                 depth: rng.uniform(5.0, 40.0),
             }
         })
-        .collect();
-    let class = ClassId(2);
-    let mut frames = Vec::with_capacity(config.frames);
-    for _ in 0..config.frames {
-        let prev: Vec<BBox> = objs.iter().map(|o| o.bbox()).collect();
-        for o in &mut objs {
-            o.x += o.vx;
-            if o.x < 0.0 || o.x + o.w > WIDTH {
-                o.vx = -o.vx;
-                o.x = o.x.clamp(0.0, WIDTH - o.w);
-            }
+        .collect()
+}
+
+/// Move each object one frame on, bouncing it off the image's sides.
+fn move_objects(objs: &mut [Obj]) {
+    for o in objs {
+        o.x += o.vx;
+        if o.x < 0.0 || o.x + o.w > WIDTH {
+            o.vx = -o.vx;
+            o.x = o.x.clamp(0.0, WIDTH - o.w);
         }
-        let boxes: Vec<BBox> = objs.iter().map(|o| o.bbox()).collect();
-        let occluded_by = |i: usize, x: f64, y: f64| {
-            boxes.iter().enumerate().any(|(j, b)| {
-                j != i && objs[j].depth < objs[i].depth && x >= b.xmin && x <= b.xmax && y >= b.ymin && y <= b.ymax
-            })
-        };
-        let mut detections = Vec::new();
-        let mut truth = Vec::new();
-        let mut flow = Vec::new();
-        for (i, b) in boxes.iter().enumerate() {
-            // visibility by sampling a grid
-            let (mut vis, mut tot) = (0, 0);
-            for gx in 0..10 {
-                for gy in 0..10 {
-                    let x = b.xmin + (gx as f64 + 0.5) * b.width() / 10.0;
-                    let y = b.ymin + (gy as f64 + 0.5) * b.height() / 10.0;
-                    tot += 1;
-                    if !occluded_by(i, x, y) {
-                        vis += 1;
-                    }
-                }
-            }
-            if (vis as f64) / (tot as f64) >= 0.3 && rng.unit() >= config.dropout {
-                let n = config.box_noise_px;
-                let nb = BBox::new(
-                    b.xmin + n * rng.normal(),
-                    b.ymin + n * rng.normal(),
-                    b.xmax + n * rng.normal(),
-                    b.ymax + n * rng.normal(),
-                );
-                let mut det = Detection::new(class, 0.9, nb);
-                if config.masks {
-                    det.mask = Some(visible_mask(b, |x, y| !occluded_by(i, x, y)));
-                }
-                detections.push(det);
-                truth.push(Some(i as u64));
-            }
-            for _ in 0..config.flow_points {
-                let x = rng.uniform(b.xmin, b.xmax);
-                let y = rng.uniform(b.ymin, b.ymax);
-                if occluded_by(i, x, y) {
-                    continue;
-                }
-                let (dx, dy) = (b.xmin - prev[i].xmin, b.ymin - prev[i].ymin);
-                let reference = if rng.unit() < config.flow_outliers {
-                    [rng.uniform(0.0, WIDTH), rng.uniform(0.0, HEIGHT)]
-                } else {
-                    [x - dx + 0.5 * rng.normal(), y - dy + 0.5 * rng.normal()]
-                };
-                flow.push(PointPair { reference, current: [x, y] });
-            }
-        }
-        let n_clutter = (config.clutter + rng.uniform(-0.5, 0.5)).round().max(0.0) as usize;
-        for _ in 0..n_clutter {
-            let w = rng.uniform(40.0, 120.0);
-            let x = rng.uniform(0.0, WIDTH - w);
-            let y = rng.uniform(100.0, 250.0);
-            detections.push(Detection::new(class, 0.4, BBox::new(x, y, x + w, y + 0.6 * w)));
-            truth.push(None);
-        }
-        frames.push(SimFrame { detections, truth, flow, objects_present: objs.len() });
     }
-    frames
+}
+
+/// The share of box `b` not hidden by nearer objects (`occluded` at a point), sampled on a 10 × 10 grid.
+fn visible_share(b: &BBox, occluded: &impl Fn(f64, f64) -> bool) -> f64 {
+    let (mut vis, mut tot) = (0, 0);
+    for gx in 0..10 {
+        for gy in 0..10 {
+            let x = b.xmin + (gx as f64 + 0.5) * b.width() / 10.0;
+            let y = b.ymin + (gy as f64 + 0.5) * b.height() / 10.0;
+            tot += 1;
+            if !occluded(x, y) {
+                vis += 1;
+            }
+        }
+    }
+    (vis as f64) / (tot as f64)
+}
+
+/// The detection of box `b`: corners with Gaussian noise, and the mask of its visible pixels if asked.
+fn noisy_detection(
+    config: &SimConfig,
+    rng: &mut SimRng,
+    class: ClassId,
+    b: &BBox,
+    occluded: &impl Fn(f64, f64) -> bool,
+) -> Detection {
+    let n = config.box_noise_px;
+    let nb = BBox::new(
+        b.xmin + n * rng.normal(),
+        b.ymin + n * rng.normal(),
+        b.xmax + n * rng.normal(),
+        b.ymax + n * rng.normal(),
+    );
+    let mut det = Detection::new(class, 0.9, nb);
+    if config.masks {
+        det.mask = Some(visible_mask(b, |x, y| !occluded(x, y)));
+    }
+    det
+}
+
+/// Keypoints on the visible part of box `b`, tracked from `prev` with noise and outliers, onto `flow`.
+fn track_points(
+    config: &SimConfig,
+    rng: &mut SimRng,
+    b: &BBox,
+    prev: &BBox,
+    occluded: &impl Fn(f64, f64) -> bool,
+    flow: &mut Vec<PointPair>,
+) {
+    for _ in 0..config.flow_points {
+        let x = rng.uniform(b.xmin, b.xmax);
+        let y = rng.uniform(b.ymin, b.ymax);
+        if occluded(x, y) {
+            continue;
+        }
+        let (dx, dy) = (b.xmin - prev.xmin, b.ymin - prev.ymin);
+        let reference = if rng.unit() < config.flow_outliers {
+            [rng.uniform(0.0, WIDTH), rng.uniform(0.0, HEIGHT)]
+        } else {
+            [x - dx + 0.5 * rng.normal(), y - dy + 0.5 * rng.normal()]
+        };
+        flow.push(PointPair { reference, current: [x, y] });
+    }
+}
+
+/// The frame's clutter: about `config.clutter` false boxes at random, pushed with no true object.
+fn add_clutter(
+    config: &SimConfig,
+    rng: &mut SimRng,
+    class: ClassId,
+    detections: &mut Vec<Detection>,
+    truth: &mut Vec<Option<u64>>,
+) {
+    let n_clutter = (config.clutter + rng.uniform(-0.5, 0.5)).round().max(0.0) as usize;
+    for _ in 0..n_clutter {
+        let w = rng.uniform(40.0, 120.0);
+        let x = rng.uniform(0.0, WIDTH - w);
+        let y = rng.uniform(100.0, 250.0);
+        detections.push(Detection::new(class, 0.4, BBox::new(x, y, x + w, y + 0.6 * w)));
+        truth.push(None);
+    }
 }
 
 /// The mask of the pixels of `b` (pixel centres) for which `visible` holds.

@@ -265,8 +265,38 @@ where
     };
     let shown: Vec<&MapShape> = m.objects.iter().filter(|o| o.state != ObjectState::Moving).collect();
     let moving = m.objects.len() - shown.len();
-    // frame: the trajectories and objects, plus a margin; points only inside it
     let (lo, hi) = frame_of(m)?;
+    let view = square_view(lo, hi);
+    let (x0, x1, z0, z1) = view;
+    let mut chart = ChartBuilder::on(&root)
+        .caption("Top-down map: x right, z forward of the first camera (metres)", ("sans-serif", 20))
+        .margin(10)
+        .x_label_area_size(30)
+        .y_label_area_size(40)
+        .build_cartesian_2d(x0..x1, z0..z1)
+        .map_err(err)?;
+    chart.configure_mesh().light_line_style(WHITE).x_desc("x (m)").y_desc("z (m)").draw().map_err(err)?;
+    draw_map_points(&mut chart, m, view)?;
+    // the estimate, each step coloured by its position error when there is ground truth
+    let errors: Option<Vec<f64>> = m.truth.map(|t| {
+        m.estimate.iter().zip(t).map(|(e, g)| ((e[0] - g[0]).powi(2) + (e[1] - g[1]).powi(2)).sqrt()).collect()
+    });
+    draw_trajectories(&mut chart, m, &errors)?;
+    draw_objects(&mut chart, &shown)?;
+    draw_legend(&mut chart, moving)?;
+    if let (Some(e), Some(t), Some(side)) = (&errors, m.truth, side) {
+        draw_error_inset(side, e, t)?;
+    }
+    root.present().map_err(err)?;
+    Ok(())
+}
+
+/// The chart of a top-down map: x and z in metres.
+type MapChart<'a, DB> =
+    ChartContext<'a, DB, Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>>;
+
+/// The map's view `(x0, x1, z0, z1)`: the frame `lo`..`hi` with a margin, both axes at one scale.
+fn square_view(lo: [f64; 2], hi: [f64; 2]) -> (f64, f64, f64, f64) {
     let margin = 15.0;
     let (mut x0, mut x1, mut z0, mut z1) = (lo[0] - margin, hi[0] + margin, lo[1] - margin, hi[1] + margin);
     // equal scale on both axes
@@ -278,16 +308,20 @@ where
         let c = 0.5 * (z0 + z1);
         (z0, z1) = (c - 0.5 * w, c + 0.5 * w);
     }
-    let mut chart = ChartBuilder::on(&root)
-        .caption("Top-down map: x right, z forward of the first camera (metres)", ("sans-serif", 20))
-        .margin(10)
-        .x_label_area_size(30)
-        .y_label_area_size(40)
-        .build_cartesian_2d(x0..x1, z0..z1)
-        .map_err(err)?;
-    chart.configure_mesh().light_line_style(WHITE).x_desc("x (m)").y_desc("z (m)").draw().map_err(err)?;
+    (x0, x1, z0, z1)
+}
+
+/// The map points inside the view, grey, evenly thinned to at most MAX_POINTS.
+fn draw_map_points<DB: DrawingBackend>(
+    chart: &mut MapChart<'_, DB>,
+    m: &TopDown<'_>,
+    (x0, x1, z0, z1): (f64, f64, f64, f64),
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| format!("{e:?}");
     let grey = RGBColor(170, 170, 170);
-    // at most MAX_POINTS drawn (evenly thinned), so the SVG stays small on long runs
     let inside: Vec<&[f64; 2]> = m.points.iter().filter(|p| p[0] > x0 && p[0] < x1 && p[1] > z0 && p[1] < z1).collect();
     let step = inside.len().div_ceil(MAX_POINTS).max(1);
     chart
@@ -295,10 +329,19 @@ where
         .map_err(err)?
         .label("map points")
         .legend(move |(x, y)| Circle::new((x + 8, y), 2, grey.filled()));
-    // the estimate, each step coloured by its position error when there is ground truth
-    let errors: Option<Vec<f64>> = m.truth.map(|t| {
-        m.estimate.iter().zip(t).map(|(e, g)| ((e[0] - g[0]).powi(2) + (e[1] - g[1]).powi(2)).sqrt()).collect()
-    });
+    Ok(())
+}
+
+/// The ground truth (dashed) and the estimate, coloured by its position error `errors` when given.
+fn draw_trajectories<DB: DrawingBackend>(
+    chart: &mut MapChart<'_, DB>,
+    m: &TopDown<'_>,
+    errors: &Option<Vec<f64>>,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| format!("{e:?}");
     if let Some(t) = m.truth {
         let c = BLACK;
         chart
@@ -307,7 +350,7 @@ where
             .label("ground truth (dashed)")
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
     }
-    match &errors {
+    match errors {
         Some(e) if !e.is_empty() => {
             let max = e.iter().cloned().fold(0.0, f64::max).max(1e-3);
             let segs: Vec<PathElement<(f64, f64)>> = m
@@ -336,7 +379,15 @@ where
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
         }
     }
-    draw_objects(&mut chart, &shown)?;
+    Ok(())
+}
+
+/// The legend box, with an entry for the `moving` objects left out of the map when there are any.
+fn draw_legend<'a, DB: DrawingBackend + 'a>(chart: &mut MapChart<'a, DB>, moving: usize) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| format!("{e:?}");
     if moving > 0 {
         let c = RGBColor(220, 30, 40);
         chart
@@ -352,10 +403,6 @@ where
         .position(SeriesLabelPosition::UpperLeft)
         .draw()
         .map_err(err)?;
-    if let (Some(e), Some(t), Some(side)) = (&errors, m.truth, side) {
-        draw_error_inset(side, e, t)?;
-    }
-    root.present().map_err(err)?;
     Ok(())
 }
 

@@ -61,98 +61,129 @@ pub fn parse_tracking_labels(path: &Path, text: &str) -> Result<Vec<TrackingLabe
         if line.trim().is_empty() {
             continue;
         }
-        let f: Vec<&str> = line.split_whitespace().collect();
-        let err = |message: String| DatasetError::Parse { path: path.to_path_buf(), line: i + 1, message };
-        if f.len() != 17 {
-            return Err(err(format!("expected 17 fields, found {}", f.len())));
-        }
-        let frame = f[0].parse::<usize>().map_err(|_| err(format!("bad frame index '{}'", f[0])))?;
-        let track_id = f[1].parse::<i64>().map_err(|_| err(format!("bad track id '{}'", f[1])))?;
-        let occluded = f[4].parse::<i32>().map_err(|_| err(format!("bad occlusion '{}'", f[4])))?;
-        let v = parse_numbers(path, i + 1, &[&f[3..4], &f[5..17]].concat())?;
-        let bbox = BBox::new(v[2], v[3], v[4], v[5]);
-        let kind = f[2].to_string();
-        if !KITTI_TYPES.contains(&kind.as_str()) {
-            return Err(err(format!("unknown type '{kind}' (KITTI's are {})", KITTI_TYPES.join(", "))));
-        }
-        if kind != "DontCare" && bbox.validated().is_err() {
-            return Err(err(format!("empty box [{}, {}, {}, {}]", v[2], v[3], v[4], v[5])));
-        }
-        // truncation: 0–1 (object benchmark, a fraction) or 0, 1, 2 (tracking benchmark, levels)
-        if kind != "DontCare" && !(0.0..=2.0).contains(&v[0]) {
-            return Err(err(format!("truncated {} outside 0-2", v[0])));
-        }
-        if kind != "DontCare" && !(v[6] > 0.0 && v[7] > 0.0 && v[8] > 0.0) {
-            return Err(err(format!(
-                "3-D size {} × {} × {} m (height, width, length): each must be positive",
-                v[6], v[7], v[8]
-            )));
-        }
-        if kind != "DontCare" {
-            let most = max_label_size_m(&kind);
-            if let Some(k) = (0..3).find(|&k| v[6 + k] > most[k]) {
-                let name = ["height", "width", "length"][k];
-                return Err(err(format!(
-                    "{name} {} m for a {kind}: at most {} m (a {kind} box is at most {} × {} × {} m, height × width × length; {})",
-                    v[6 + k],
-                    most[k],
-                    most[0],
-                    most[1],
-                    most[2],
-                    LABEL_SIZE_REASON
-                )));
+        let label = parse_label_line(path, i, line)?;
+        if !label.is_dont_care() {
+            if let Some(first) = seen.insert((label.frame, label.track_id), i + 1) {
+                let (track_id, frame) = (label.track_id, label.frame);
+                return Err(DatasetError::Parse {
+                    path: path.to_path_buf(),
+                    line: i + 1,
+                    message: format!(
+                        "track {track_id} again in frame {frame} (first on line {first}): a track is one object, labelled once per frame"
+                    ),
+                });
             }
         }
-        // occlusion is a level 0-3 (3: unknown) and alpha an angle of the circle, for every object
-        if kind != "DontCare" && !(0..=3).contains(&occluded) {
-            return Err(err(format!(
-                "occluded {occluded}: KITTI's occlusion levels are 0 (visible), 1 (partly), 2 (largely) and 3 (unknown)"
-            )));
-        }
-        for (name, a) in [("alpha", v[1]), ("rotation_y", v[12])] {
-            // written with 6 decimals: π rounds up by at most 5e-7
-            if kind != "DontCare" && a.abs() > std::f64::consts::PI + 1e-6 {
-                return Err(err(format!("{name} {a} rad: an angle in [-π, π] (KITTI's range)")));
-            }
-        }
-        // KITTI numbers tracks from 0 and gives DontCare regions -1
-        let valid_id = if kind == "DontCare" { track_id == -1 } else { track_id >= 0 };
-        if !valid_id {
-            return Err(err(format!(
-                "track id {track_id} for a {kind}: tracks are numbered from 0, and -1 marks a DontCare region"
-            )));
-        }
-        if kind != "DontCare" {
-            if let Some(a) = v[9..12].iter().find(|a| a.abs() > MAX_LABEL_DISTANCE_M) {
-                return Err(err(format!(
-                    "location coordinate {a:.3e} m: a labelled object lies within {MAX_LABEL_DISTANCE_M} m of the camera (at 1 km a car is 3 px wide at KITTI's focal length; its labels reach 150 m)"
-                )));
-            }
-            if let Some(first) = seen.insert((frame, track_id), i + 1) {
-                return Err(err(format!(
-                    "track {track_id} again in frame {frame} (first on line {first}): a track is one object, labelled once per frame"
-                )));
-            }
-        }
-        out.push(TrackingLabel {
-            frame,
-            track_id,
-            class: kitti_class(&kind),
-            kind,
-            truncated: v[0],
-            occluded,
-            bbox,
-            dimensions: [v[6], v[7], v[8]],
-            location: [v[9], v[10], v[11]],
-            rotation_y: v[12],
-            line: i + 1,
-        });
+        out.push(label);
     }
     if out.is_empty() {
         return Err(DatasetError::Invalid { path: path.to_path_buf(), message: "no labels in the file".into() });
     }
+    in_frame_order(path, &mut out);
+    Ok(out)
+}
+
+/// One label line (line `i + 1`) parsed and checked; the caller checks a track is labelled once a frame.
+fn parse_label_line(path: &Path, i: usize, line: &str) -> Result<TrackingLabel, DatasetError> {
+    let f: Vec<&str> = line.split_whitespace().collect();
+    let err = |message: String| DatasetError::Parse { path: path.to_path_buf(), line: i + 1, message };
+    if f.len() != 17 {
+        return Err(err(format!("expected 17 fields, found {}", f.len())));
+    }
+    let frame = f[0].parse::<usize>().map_err(|_| err(format!("bad frame index '{}'", f[0])))?;
+    let track_id = f[1].parse::<i64>().map_err(|_| err(format!("bad track id '{}'", f[1])))?;
+    let occluded = f[4].parse::<i32>().map_err(|_| err(format!("bad occlusion '{}'", f[4])))?;
+    let v = parse_numbers(path, i + 1, &[&f[3..4], &f[5..17]].concat())?;
+    let bbox = BBox::new(v[2], v[3], v[4], v[5]);
+    let kind = f[2].to_string();
+    check_label_box(&kind, &bbox, &v).map_err(err)?;
+    check_label_codes(&kind, occluded, track_id, &v).map_err(err)?;
+    Ok(TrackingLabel {
+        frame,
+        track_id,
+        class: kitti_class(&kind),
+        kind,
+        truncated: v[0],
+        occluded,
+        bbox,
+        dimensions: [v[6], v[7], v[8]],
+        location: [v[9], v[10], v[11]],
+        rotation_y: v[12],
+        line: i + 1,
+    })
+}
+
+/// Check a label's type, 2-D box, truncation and 3-D size (`v`: its numbers); the first failure's message.
+fn check_label_box(kind: &str, bbox: &BBox, v: &[f64]) -> Result<(), String> {
+    if !KITTI_TYPES.contains(&kind) {
+        return Err(format!("unknown type '{kind}' (KITTI's are {})", KITTI_TYPES.join(", ")));
+    }
+    if kind != "DontCare" && bbox.validated().is_err() {
+        return Err(format!("empty box [{}, {}, {}, {}]", v[2], v[3], v[4], v[5]));
+    }
+    // truncation: 0–1 (object benchmark, a fraction) or 0, 1, 2 (tracking benchmark, levels)
+    if kind != "DontCare" && !(0.0..=2.0).contains(&v[0]) {
+        return Err(format!("truncated {} outside 0-2", v[0]));
+    }
+    if kind != "DontCare" && !(v[6] > 0.0 && v[7] > 0.0 && v[8] > 0.0) {
+        return Err(format!(
+            "3-D size {} × {} × {} m (height, width, length): each must be positive",
+            v[6], v[7], v[8]
+        ));
+    }
+    if kind != "DontCare" {
+        let most = max_label_size_m(kind);
+        if let Some(k) = (0..3).find(|&k| v[6 + k] > most[k]) {
+            let name = ["height", "width", "length"][k];
+            return Err(format!(
+                "{name} {} m for a {kind}: at most {} m (a {kind} box is at most {} × {} × {} m, height × width × length; {})",
+                v[6 + k],
+                most[k],
+                most[0],
+                most[1],
+                most[2],
+                LABEL_SIZE_REASON
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Check a label's occlusion level, angles, track id and location; the first failure's message.
+fn check_label_codes(kind: &str, occluded: i32, track_id: i64, v: &[f64]) -> Result<(), String> {
+    // occlusion is a level 0-3 (3: unknown) and alpha an angle of the circle, for every object
+    if kind != "DontCare" && !(0..=3).contains(&occluded) {
+        return Err(format!(
+            "occluded {occluded}: KITTI's occlusion levels are 0 (visible), 1 (partly), 2 (largely) and 3 (unknown)"
+        ));
+    }
+    for (name, a) in [("alpha", v[1]), ("rotation_y", v[12])] {
+        // written with 6 decimals: π rounds up by at most 5e-7
+        if kind != "DontCare" && a.abs() > std::f64::consts::PI + 1e-6 {
+            return Err(format!("{name} {a} rad: an angle in [-π, π] (KITTI's range)"));
+        }
+    }
+    // KITTI numbers tracks from 0 and gives DontCare regions -1
+    let valid_id = if kind == "DontCare" { track_id == -1 } else { track_id >= 0 };
+    if !valid_id {
+        return Err(format!(
+            "track id {track_id} for a {kind}: tracks are numbered from 0, and -1 marks a DontCare region"
+        ));
+    }
+    if kind != "DontCare" {
+        if let Some(a) = v[9..12].iter().find(|a| a.abs() > MAX_LABEL_DISTANCE_M) {
+            return Err(format!(
+                "location coordinate {a:.3e} m: a labelled object lies within {MAX_LABEL_DISTANCE_M} m of the camera (at 1 km a car is 3 px wide at KITTI's focal length; its labels reach 150 m)"
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Put the labels in (frame, track) order when the file's lines are not, saying so in the log.
+fn in_frame_order(path: &Path, out: &mut [TrackingLabel]) {
     // every consumer walks labels by frame, and takes a track's first label as its reference: the file's
-    // line order must not matter, so the labels come in (frame, track) order, whatever the file's
+    // line order must not matter
     if let Some(k) = out.windows(2).position(|w| (w[1].frame, w[1].track_id) < (w[0].frame, w[0].track_id)) {
         tracing::warn!(
             "{}: labels are not in frame order (line {}: frame {} after frame {} on line {}): read in frame order",
@@ -164,7 +195,6 @@ pub fn parse_tracking_labels(path: &Path, text: &str) -> Result<Vec<TrackingLabe
         );
         out.sort_by_key(|l| (l.frame, l.track_id));
     }
-    Ok(out)
 }
 
 /// Refuse a label whose frame is not one of the sequence's `frames` (frames `0..frames`, counted from

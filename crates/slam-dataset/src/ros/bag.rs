@@ -421,6 +421,78 @@ impl Scan<'_> {
     }
 }
 
+impl Scan<'_> {
+    /// Read this scan's file up to the end of its data (or to a cut, said in `warnings`).
+    fn file_records(&mut self, warnings: &mut Vec<String>) -> Result<(), DatasetError> {
+        let file = self.path;
+        let mut records = open_records(file)?;
+        loop {
+            let rec = match records.next(file) {
+                Ok(r) => r,
+                Err(Stop::Cut(at, why)) => {
+                    let kept: usize = self.images.values().map(Vec::len).sum();
+                    warnings.push(format!(
+                        "{} is cut short at byte {at} ({why}), as a recording that stopped without closing its file (a power loss, a killed recorder): the {kept} image messages before the cut are used",
+                        file.display()
+                    ));
+                    break;
+                }
+                Err(Stop::Error(e)) => return Err(e),
+            };
+            if !self.record(&rec)? {
+                break;
+            }
+        }
+        Ok(())
+    }
+
+    /// Take in one top-level record of the file; false when the data ends there.
+    fn record(&mut self, rec: &RawRecord) -> Result<bool, DatasetError> {
+        let file = self.path;
+        let bad_record =
+            |e: mcap::McapError| invalid(file, format!("the record at byte {} cannot be read: {e}", rec.offset));
+        match rec.opcode {
+            op::CHUNK => self.chunk(rec)?,
+            op::SCHEMA => {
+                if let Record::Schema { header, .. } = mcap::parse_record(op::SCHEMA, &rec.body).map_err(bad_record)? {
+                    self.schema(header)
+                }
+            }
+            op::CHANNEL => {
+                if let Record::Channel(c) = mcap::parse_record(op::CHANNEL, &rec.body).map_err(bad_record)? {
+                    self.channel(c)
+                }
+            }
+            op::MESSAGE => {
+                if let Record::Message { header, data } =
+                    mcap::parse_record(op::MESSAGE, &rec.body).map_err(bad_record)?
+                {
+                    let at = MessageRef { file: self.file, record: rec.offset, inner: 0 };
+                    self.message(&header, &data, at).map_err(|m| invalid(file, m))?
+                }
+            }
+            // the data ends here: the summary after it repeats what was read
+            op::DATA_END | op::FOOTER => return Ok(false),
+            _ => {}
+        }
+        Ok(true)
+    }
+}
+
+/// One warning per topic with messages that cannot be read as their type: how many, and the first.
+fn unreadable_warnings(
+    topics: &BTreeMap<String, Topic>,
+    bad: &BTreeMap<String, (u64, String)>,
+    warnings: &mut Vec<String>,
+) {
+    for (topic, (at, why)) in bad {
+        let n = topics.get(topic).map_or(0, |t: &Topic| t.unreadable);
+        warnings.push(format!(
+            "{n} message(s) of {topic} cannot be read as their type and are skipped (first: the record at byte {at}: {why})"
+        ));
+    }
+}
+
 impl Bag {
     /// Read and index a bag (an `.mcap` file or a rosbag2 folder).
     pub fn open(path: &Path) -> Result<Bag, DatasetError> {
@@ -441,61 +513,13 @@ impl Bag {
                 infos: &mut infos,
                 bad: &mut bad,
             };
-            let mut records = open_records(file)?;
-            loop {
-                let rec = match records.next(file) {
-                    Ok(r) => r,
-                    Err(Stop::Cut(at, why)) => {
-                        let kept: usize = scan.images.values().map(Vec::len).sum();
-                        warnings.push(format!(
-                            "{} is cut short at byte {at} ({why}), as a recording that stopped without closing its file (a power loss, a killed recorder): the {kept} image messages before the cut are used",
-                            file.display()
-                        ));
-                        break;
-                    }
-                    Err(Stop::Error(e)) => return Err(e),
-                };
-                let bad_record = |e: mcap::McapError| {
-                    invalid(file, format!("the record at byte {} cannot be read: {e}", rec.offset))
-                };
-                match rec.opcode {
-                    op::CHUNK => scan.chunk(&rec)?,
-                    op::SCHEMA => {
-                        if let Record::Schema { header, .. } =
-                            mcap::parse_record(op::SCHEMA, &rec.body).map_err(bad_record)?
-                        {
-                            scan.schema(header)
-                        }
-                    }
-                    op::CHANNEL => {
-                        if let Record::Channel(c) = mcap::parse_record(op::CHANNEL, &rec.body).map_err(bad_record)? {
-                            scan.channel(c)
-                        }
-                    }
-                    op::MESSAGE => {
-                        if let Record::Message { header, data } =
-                            mcap::parse_record(op::MESSAGE, &rec.body).map_err(bad_record)?
-                        {
-                            let at = MessageRef { file: k as u32, record: rec.offset, inner: 0 };
-                            scan.message(&header, &data, at).map_err(|m| invalid(file, m))?
-                        }
-                    }
-                    // the data ends here: the summary after it repeats what was read
-                    op::DATA_END | op::FOOTER => break,
-                    _ => {}
-                }
-            }
+            scan.file_records(&mut warnings)?;
         }
         for list in images.values_mut() {
             // stable: messages of one stamp keep the bag's order
             list.sort_by_key(|m: &IndexedImage| m.stamp_ns);
         }
-        for (topic, (at, why)) in &bad {
-            let n = topics.get(topic).map_or(0, |t: &Topic| t.unreadable);
-            warnings.push(format!(
-                "{n} message(s) of {topic} cannot be read as their type and are skipped (first: the record at byte {at}: {why})"
-            ));
-        }
+        unreadable_warnings(&topics, &bad, &mut warnings);
         Ok(Bag {
             path: path.to_path_buf(),
             files,
