@@ -17,8 +17,8 @@
 use std::time::Instant;
 
 use slam_optim::{
-    linear::{LinearSystem, Linearization, Step},
-    Graph, IterationInfo, Observer, OptimError, Optimizer, Options, Summary, Termination, Values,
+    linear::{LinearSystem, Linearization, Progress, Step},
+    Graph, Observer, OptimError, Optimizer, Options, Summary, Termination, Values,
 };
 
 /// Settings particular to dog-leg (the common ones are [`Options`]).
@@ -62,6 +62,17 @@ pub struct DogLeg {
     pub params: DogLegParams,
 }
 
+/// What dog-leg carries from one iteration to the next besides the [`Progress`].
+struct Region {
+    /// The trust-region radius.
+    radius: f64,
+    /// The regularisation of the Gauss–Newton system.
+    mu: f64,
+    /// The steps at the current linearisation, kept after a rejected step (recomputed after every
+    /// accepted one).
+    cached: Option<(Option<Step>, Step)>,
+}
+
 impl DogLeg {
     /// A solver with the given settings.
     pub fn new(params: DogLegParams) -> Self {
@@ -88,6 +99,48 @@ impl DogLeg {
             *mu *= 10.0;
         }
         None
+    }
+
+    /// One iteration: the dog-leg step for the current radius, tried and accepted when its gain ratio
+    /// is high enough, then the radius updated. `Err` ends the solve.
+    fn iteration(&self, values: &mut Values, at: &mut Progress, region: &mut Region) -> Result<(), Termination> {
+        let p = &self.params;
+        let (gn, sd) = match region.cached.take() {
+            Some(c) => c,
+            None => self.steps(&at.sys, at.graph, &at.lin, &mut region.mu),
+        };
+        let step = dogleg_step(gn.as_ref(), &sd, region.radius);
+        let step_norm = step.norm();
+        let mut info = at.info(region.radius, step_norm);
+        at.check_step(values, &info)?;
+        let mut accepted = false;
+        let mut rho = f64::NEG_INFINITY;
+        if let Some(trial) = at.trial(values, &step) {
+            info.cost_change = trial.change;
+            rho = trial.rho;
+            if trial.acceptable(p.min_relative_decrease) {
+                accepted = true;
+                at.accept(values, trial, &mut info)?;
+                region.mu = (region.mu / 10.0).max(p.min_mu);
+            }
+        }
+        if !accepted {
+            region.cached = Some((gn, sd));
+        }
+        region.radius = next_radius(region.radius, rho, step_norm, p);
+        info.accepted = accepted;
+        tracing::trace!(
+            iteration = info.iteration,
+            cost = info.cost,
+            radius = region.radius,
+            accepted,
+            "dog-leg iteration"
+        );
+        at.notify(&info);
+        if region.radius < p.min_radius {
+            return Err(Termination::NoProgress);
+        }
+        Ok(())
     }
 }
 
@@ -133,101 +186,19 @@ impl Optimizer for DogLeg {
         graph: &Graph,
         values: &mut Values,
         options: &Options,
-        mut observer: Option<&mut dyn Observer>,
+        observer: Option<&mut dyn Observer>,
     ) -> Result<Summary, OptimError> {
         let start = Instant::now();
         let (p, o) = (self.params, options);
-        let (sys, mut lin, mut summary) = match slam_optim::linear::start(graph, values, o, start)? {
+        let (sys, lin, summary) = match slam_optim::linear::start(graph, values, o, start)? {
             Ok(ready) => ready,
             Err(done) => return Ok(done),
         };
-        let mut cost = lin.cost;
-        let mut radius = o.initial_radius;
-        let mut mu = p.min_mu;
-        // steps at the current linearisation (recomputed after every accepted step)
-        let mut cached: Option<(Option<Step>, Step)> = None;
-        loop {
-            if summary.iterations >= o.max_iterations {
-                summary.termination = Termination::MaxIterations;
-                break;
-            }
-            if sys.gradient_max(&lin) <= o.gradient_tolerance {
-                summary.termination = Termination::GradientTolerance;
-                break;
-            }
-            summary.iterations += 1;
-            let (gn, sd) = match cached.take() {
-                Some(c) => c,
-                None => self.steps(&sys, graph, &lin, &mut mu),
-            };
-            let step = dogleg_step(gn.as_ref(), &sd, radius);
-            let step_norm = step.norm();
-            let mut info = IterationInfo {
-                iteration: summary.iterations,
-                cost,
-                cost_change: f64::NAN,
-                radius,
-                step_norm,
-                accepted: false,
-            };
-            let x_norm = values.iter().map(|(_, v)| v.norm_squared()).sum::<f64>().sqrt();
-            if step_norm <= o.parameter_tolerance * (x_norm + o.parameter_tolerance) {
-                summary.termination = Termination::ParameterTolerance;
-                if let Some(obs) = observer.as_deref_mut() {
-                    obs.on_iteration(&info);
-                }
-                break;
-            }
-            let model = sys.model_decrease(graph, &lin, &step);
-            let trial = sys.retract(values, &step);
-            let mut accepted = false;
-            let mut rho = f64::NEG_INFINITY;
-            if let Ok(new_cost) = sys.cost(graph, &trial) {
-                let change = cost - new_cost;
-                info.cost_change = change;
-                rho = if model > 0.0 { change / model } else { f64::NEG_INFINITY };
-                if new_cost.is_finite() && rho > p.min_relative_decrease {
-                    accepted = true;
-                    *values = trial;
-                    let rel = change.abs() / cost.max(f64::MIN_POSITIVE);
-                    cost = new_cost;
-                    summary.accepted += 1;
-                    info.cost = cost;
-                    if rel < o.function_tolerance {
-                        summary.termination = Termination::FunctionTolerance;
-                        if let Some(obs) = observer.as_deref_mut() {
-                            obs.on_iteration(&IterationInfo { accepted: true, ..info });
-                        }
-                        break;
-                    }
-                    match sys.linearize(graph, values) {
-                        Ok(l) => {
-                            cost = l.cost;
-                            lin = l;
-                            mu = (mu / 10.0).max(p.min_mu);
-                        }
-                        Err(_) => {
-                            summary.termination = Termination::NoProgress;
-                            break;
-                        }
-                    }
-                }
-            }
-            if !accepted {
-                cached = Some((gn, sd));
-            }
-            radius = next_radius(radius, rho, step_norm, &p);
-            info.accepted = accepted;
-            tracing::trace!(iteration = info.iteration, cost = info.cost, radius, accepted, "dog-leg iteration");
-            if let Some(obs) = observer.as_deref_mut() {
-                obs.on_iteration(&info);
-            }
-            if radius < p.min_radius {
-                summary.termination = Termination::NoProgress;
-                break;
-            }
-        }
-        summary.final_cost = cost;
+        let mut at = Progress { sys, graph, options: o, cost: lin.cost, lin, summary, observer };
+        let mut region = Region { radius: o.initial_radius, mu: p.min_mu, cached: None };
+        at.iterate(|at| self.iteration(values, at, &mut region));
+        let mut summary = at.summary;
+        summary.final_cost = at.cost;
         summary.elapsed = start.elapsed();
         tracing::debug!(
             initial = summary.initial_cost,

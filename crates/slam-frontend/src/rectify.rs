@@ -11,7 +11,7 @@
 
 use opencv::{calib3d, core, imgproc, prelude::*};
 use slam_core::{
-    geometry::nalgebra::{Matrix3, Matrix3x4, Vector3},
+    geometry::nalgebra::{Isometry3, Matrix3, Matrix3x4, Vector3},
     rig::{Distortion, RawCamera, RigCalibration},
     Image,
 };
@@ -112,6 +112,82 @@ fn tables(c: &RawCamera, r: &Matrix3<f64>, p: &Matrix3x4<f64>) -> Result<(Mat, M
     Ok((m1, m2))
 }
 
+/// Each camera's rotation into its rectified frame and its rectified projection.
+struct Rectification {
+    r_left: Matrix3<f64>,
+    r_right: Matrix3<f64>,
+    p_left: Matrix3x4<f64>,
+    p_right: Matrix3x4<f64>,
+}
+
+/// OpenCV's stereo rectification of two raw cameras from the right one's pose (fisheye or pinhole,
+/// the same model for both): each camera's rotation `R` into its rectified frame and projection `P`.
+fn stereo_rectification(
+    left: &RawCamera,
+    right: &RawCamera,
+    right_from_left: &Isometry3<f64>,
+) -> Result<Rectification, FrontendError> {
+    if fisheye(left) != fisheye(right) {
+        return Err(FrontendError::OpenCv(
+            "one camera has the equidistant (fisheye) model and the other not: stereo rectification takes one model for both".into(),
+        ));
+    }
+    let rot = right_from_left.rotation.to_rotation_matrix().into_inner();
+    let t: Vector3<f64> = right_from_left.translation.vector;
+    let (r, tv) = (mat3(&rot)?, Mat::from_slice_2d(&[[t.x], [t.y], [t.z]])?);
+    let (kl, dl, kr, dr) =
+        (mat3(&left.k)?, coefficients(&left.distortion)?, mat3(&right.k)?, coefficients(&right.distortion)?);
+    let (mut r1, mut r2, mut p1, mut p2, mut q) =
+        (Mat::default(), Mat::default(), Mat::default(), Mat::default(), Mat::default());
+    if fisheye(left) {
+        calib3d::fisheye_stereo_rectify(
+            &kl,
+            &dl,
+            &kr,
+            &dr,
+            size_of(left),
+            &r,
+            &tv,
+            &mut r1,
+            &mut r2,
+            &mut p1,
+            &mut p2,
+            &mut q,
+            calib3d::CALIB_ZERO_DISPARITY,
+            size_of(left),
+            0.0,
+            1.0,
+        )?;
+    } else {
+        let (mut roi1, mut roi2) = (core::Rect::default(), core::Rect::default());
+        calib3d::stereo_rectify(
+            &kl,
+            &dl,
+            &kr,
+            &dr,
+            size_of(left),
+            &r,
+            &tv,
+            &mut r1,
+            &mut r2,
+            &mut p1,
+            &mut p2,
+            &mut q,
+            calib3d::CALIB_ZERO_DISPARITY,
+            0.0,
+            size_of(left),
+            &mut roi1,
+            &mut roi2,
+        )?;
+    }
+    Ok(Rectification {
+        r_left: from_mat3(&r1)?,
+        r_right: from_mat3(&r2)?,
+        p_left: from_mat34(&p1)?,
+        p_right: from_mat34(&p2)?,
+    })
+}
+
 impl Rectifier {
     /// Compute the rectification of `rig` once (a rectified pair needs none: `Ok(None)`).
     pub fn new(rig: &RigCalibration) -> Result<Option<Rectifier>, FrontendError> {
@@ -121,64 +197,9 @@ impl Rectifier {
                 (left, right, *r_left, *r_right, *p_left, *p_right)
             }
             RigCalibration::Extrinsic { left, right, right_from_left } => {
-                if fisheye(left) != fisheye(right) {
-                    return Err(FrontendError::OpenCv(
-                        "one camera has the equidistant (fisheye) model and the other not: stereo rectification takes one model for both".into(),
-                    ));
-                }
-                let rot = right_from_left.rotation.to_rotation_matrix().into_inner();
-                let t: Vector3<f64> = right_from_left.translation.vector;
-                let (r, tv) = (mat3(&rot)?, Mat::from_slice_2d(&[[t.x], [t.y], [t.z]])?);
-                let (kl, dl, kr, dr) = (
-                    mat3(&left.k)?,
-                    coefficients(&left.distortion)?,
-                    mat3(&right.k)?,
-                    coefficients(&right.distortion)?,
-                );
-                let (mut r1, mut r2, mut p1, mut p2, mut q) =
-                    (Mat::default(), Mat::default(), Mat::default(), Mat::default(), Mat::default());
-                if fisheye(left) {
-                    calib3d::fisheye_stereo_rectify(
-                        &kl,
-                        &dl,
-                        &kr,
-                        &dr,
-                        size_of(left),
-                        &r,
-                        &tv,
-                        &mut r1,
-                        &mut r2,
-                        &mut p1,
-                        &mut p2,
-                        &mut q,
-                        calib3d::CALIB_ZERO_DISPARITY,
-                        size_of(left),
-                        0.0,
-                        1.0,
-                    )?;
-                } else {
-                    let (mut roi1, mut roi2) = (core::Rect::default(), core::Rect::default());
-                    calib3d::stereo_rectify(
-                        &kl,
-                        &dl,
-                        &kr,
-                        &dr,
-                        size_of(left),
-                        &r,
-                        &tv,
-                        &mut r1,
-                        &mut r2,
-                        &mut p1,
-                        &mut p2,
-                        &mut q,
-                        calib3d::CALIB_ZERO_DISPARITY,
-                        0.0,
-                        size_of(left),
-                        &mut roi1,
-                        &mut roi2,
-                    )?;
-                }
-                (left, right, from_mat3(&r1)?, from_mat3(&r2)?, from_mat34(&p1)?, from_mat34(&p2)?)
+                let Rectification { r_left, r_right, p_left, p_right } =
+                    stereo_rectification(left, right, right_from_left)?;
+                (left, right, r_left, r_right, p_left, p_right)
             }
         };
         if left.size != right.size {

@@ -14,7 +14,7 @@
 
 use std::time::Instant;
 
-use slam_optim::{Graph, IterationInfo, Observer, OptimError, Optimizer, Options, Summary, Termination, Values};
+use slam_optim::{linear::Progress, Graph, Observer, OptimError, Optimizer, Options, Summary, Termination, Values};
 
 /// Settings particular to Levenberg–Marquardt (the common ones are [`Options`]); defaults follow Ceres.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -50,10 +50,54 @@ pub struct LevenbergMarquardt {
     pub params: LmParams,
 }
 
+/// What Levenberg–Marquardt carries from one iteration to the next besides the [`Progress`].
+struct Region {
+    /// The trust-region radius `μ`.
+    radius: f64,
+    /// The factor `v` the radius is divided by after the next rejected step.
+    decrease: f64,
+}
+
 impl LevenbergMarquardt {
     /// A solver with the given settings.
     pub fn new(params: LmParams) -> Self {
         Self { params }
+    }
+
+    /// One iteration: the damped step for the current radius (none when the factorisation fails), tried
+    /// and accepted when its gain ratio is high enough; the radius grows with a good step and shrinks
+    /// after a rejected one. `Err` ends the solve.
+    fn iteration(&self, values: &mut Values, at: &mut Progress, region: &mut Region) -> Result<(), Termination> {
+        let p = &self.params;
+        let radius = region.radius;
+        let step = at.sys.solve(&at.lin, |x| x.clamp(p.min_diagonal, p.max_diagonal) / radius);
+        let mut info = at.info(radius, 0.0);
+        let mut accepted = false;
+        if let Some(step) = step {
+            info.step_norm = step.norm();
+            at.check_step(values, &info)?;
+            if let Some(trial) = at.trial(values, &step) {
+                info.cost_change = trial.change;
+                if trial.acceptable(p.min_relative_decrease) {
+                    accepted = true;
+                    let rho = trial.rho;
+                    region.radius = (radius / (1.0f64 / 3.0).max(1.0 - (2.0 * rho - 1.0).powi(3))).min(p.max_radius);
+                    region.decrease = 2.0;
+                    at.accept(values, trial, &mut info)?;
+                }
+            }
+        }
+        info.accepted = accepted;
+        tracing::trace!(iteration = info.iteration, cost = info.cost, radius = region.radius, accepted, "lm iteration");
+        at.notify(&info);
+        if !accepted {
+            region.radius /= region.decrease;
+            region.decrease *= 2.0;
+            if region.radius < p.min_radius {
+                return Err(Termination::NoProgress);
+            }
+        }
+        Ok(())
     }
 }
 
@@ -67,98 +111,19 @@ impl Optimizer for LevenbergMarquardt {
         graph: &Graph,
         values: &mut Values,
         options: &Options,
-        mut observer: Option<&mut dyn Observer>,
+        observer: Option<&mut dyn Observer>,
     ) -> Result<Summary, OptimError> {
         let start = Instant::now();
-        let (p, o) = (self.params, options);
-        let (sys, mut lin, mut summary) = match slam_optim::linear::start(graph, values, o, start)? {
+        let o = options;
+        let (sys, lin, summary) = match slam_optim::linear::start(graph, values, o, start)? {
             Ok(ready) => ready,
             Err(done) => return Ok(done),
         };
-        let mut cost = lin.cost;
-        let mut radius = o.initial_radius;
-        let mut decrease = 2.0;
-        loop {
-            if summary.iterations >= o.max_iterations {
-                summary.termination = Termination::MaxIterations;
-                break;
-            }
-            if sys.gradient_max(&lin) <= o.gradient_tolerance {
-                summary.termination = Termination::GradientTolerance;
-                break;
-            }
-            summary.iterations += 1;
-            let step = sys.solve(&lin, |x| x.clamp(p.min_diagonal, p.max_diagonal) / radius);
-            let mut info = IterationInfo {
-                iteration: summary.iterations,
-                cost,
-                cost_change: f64::NAN,
-                radius,
-                step_norm: 0.0,
-                accepted: false,
-            };
-            let mut accepted = false;
-            if let Some(step) = step {
-                let step_norm = step.norm();
-                info.step_norm = step_norm;
-                let x_norm = values.iter().map(|(_, v)| v.norm_squared()).sum::<f64>().sqrt();
-                if step_norm <= o.parameter_tolerance * (x_norm + o.parameter_tolerance) {
-                    summary.termination = Termination::ParameterTolerance;
-                    if let Some(obs) = observer.as_deref_mut() {
-                        obs.on_iteration(&info);
-                    }
-                    break;
-                }
-                let model = sys.model_decrease(graph, &lin, &step);
-                let trial = sys.retract(values, &step);
-                if let Ok(new_cost) = sys.cost(graph, &trial) {
-                    let change = cost - new_cost;
-                    info.cost_change = change;
-                    let rho = if model > 0.0 { change / model } else { f64::NEG_INFINITY };
-                    if new_cost.is_finite() && rho > p.min_relative_decrease {
-                        accepted = true;
-                        *values = trial;
-                        let rel = change.abs() / cost.max(f64::MIN_POSITIVE);
-                        cost = new_cost;
-                        radius = (radius / (1.0f64 / 3.0).max(1.0 - (2.0 * rho - 1.0).powi(3))).min(p.max_radius);
-                        decrease = 2.0;
-                        summary.accepted += 1;
-                        info.cost = cost;
-                        if rel < o.function_tolerance {
-                            summary.termination = Termination::FunctionTolerance;
-                            if let Some(obs) = observer.as_deref_mut() {
-                                obs.on_iteration(&IterationInfo { accepted: true, ..info });
-                            }
-                            break;
-                        }
-                        match sys.linearize(graph, values) {
-                            Ok(l) => {
-                                cost = l.cost;
-                                lin = l;
-                            }
-                            Err(_) => {
-                                summary.termination = Termination::NoProgress;
-                                break;
-                            }
-                        }
-                    }
-                }
-            }
-            info.accepted = accepted;
-            tracing::trace!(iteration = info.iteration, cost = info.cost, radius, accepted, "lm iteration");
-            if let Some(obs) = observer.as_deref_mut() {
-                obs.on_iteration(&info);
-            }
-            if !accepted {
-                radius /= decrease;
-                decrease *= 2.0;
-                if radius < p.min_radius {
-                    summary.termination = Termination::NoProgress;
-                    break;
-                }
-            }
-        }
-        summary.final_cost = cost;
+        let mut at = Progress { sys, graph, options: o, cost: lin.cost, lin, summary, observer };
+        let mut region = Region { radius: o.initial_radius, decrease: 2.0 };
+        at.iterate(|at| self.iteration(values, at, &mut region));
+        let mut summary = at.summary;
+        summary.final_cost = at.cost;
         summary.elapsed = start.elapsed();
         tracing::debug!(
             initial = summary.initial_cost,

@@ -117,104 +117,144 @@ struct Pattern {
     llt: faer::sparse::linalg::cholesky::SymbolicCholesky<usize>,
 }
 
+/// The compressed-column structure of the reduced system's lower triangle, block by block.
+struct Csc {
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    /// Position of each scalar diagonal entry.
+    diag: Vec<usize>,
+    /// Per block, the position of each entry in column-major order (see [`Pattern::positions`]).
+    positions: Vec<Vec<usize>>,
+}
+
 impl Pattern {
+    /// The block pattern of the reduced system with its symbolic factorisation (`None` when the
+    /// factorisation fails or a needed block is missing).
     fn build(layout: &Layout, graph: &Graph) -> Option<Self> {
-        let mut pairs: BTreeSet<(usize, usize)> = (0..layout.reduced.len()).map(|a| (a, a)).collect();
-        let mut elim_links: Vec<BTreeSet<usize>> = vec![BTreeSet::new(); layout.eliminated.len()];
-        for e in graph.entries() {
-            let mut red = Vec::new();
-            let mut el = None;
-            for k in e.factor.keys() {
-                match layout.slots.get(k.0).copied().flatten() {
-                    Some(Slot::Reduced { var }) => red.push(var),
-                    Some(Slot::Eliminated { var }) => el = Some(var),
-                    None => {}
-                }
-            }
-            for &a in &red {
-                for &b in &red {
-                    if a >= b {
-                        pairs.insert((a, b));
-                    }
-                }
-                if let Some(ev) = el {
-                    elim_links[ev].insert(a);
-                }
-            }
-        }
-        for links in &elim_links {
-            for &a in links {
-                for &b in links {
-                    if a >= b {
-                        pairs.insert((a, b));
-                    }
-                }
-            }
-        }
-        let pairs: Vec<(usize, usize)> = pairs.into_iter().collect();
+        let pairs = block_pairs(layout, graph);
         let n: usize = layout.reduced.iter().map(|r| r.2).sum();
-        // blocks by column var, rows ascending
-        let mut by_col: Vec<Vec<usize>> = vec![Vec::new(); layout.reduced.len()];
-        for (i, &(_, b)) in pairs.iter().enumerate() {
-            by_col[b].push(i);
-        }
-        for col in &mut by_col {
-            col.sort_by_key(|&i| pairs[i].0);
-        }
-        let mut positions: Vec<Vec<usize>> =
-            pairs.iter().map(|&(a, b)| vec![usize::MAX; layout.reduced[a].2 * layout.reduced[b].2]).collect();
-        let mut col_ptr = Vec::with_capacity(n + 1);
-        let mut row_idx = Vec::new();
-        let mut diag = vec![0; n];
-        col_ptr.push(0);
-        for (b, col) in by_col.iter().enumerate() {
-            let (_, rb, db) = layout.reduced[b];
-            for j in 0..db {
-                for &bi in col {
-                    let a = pairs[bi].0;
-                    let (_, ra, da) = layout.reduced[a];
-                    for i in 0..da {
-                        if a == b && i < j {
-                            continue;
-                        }
-                        if a == b && i == j {
-                            diag[rb + j] = row_idx.len();
-                        }
-                        positions[bi][j * da + i] = row_idx.len();
-                        row_idx.push(ra + i);
-                    }
-                }
-                col_ptr.push(row_idx.len());
-            }
-        }
+        let Csc { col_ptr, row_idx, diag, positions } = csc_structure(layout, &pairs, n);
         let symbolic = faer::sparse::SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
-        use faer::sparse::linalg::{
-            cholesky::{factorize_symbolic_cholesky, CholeskySymbolicParams, SymmetricOrdering},
-            SupernodalThreshold,
-        };
-        let llt = factorize_symbolic_cholesky(
-            symbolic.as_ref(),
-            faer::Side::Lower,
-            SymmetricOrdering::Amd,
-            CholeskySymbolicParams {
-                supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-                ..Default::default()
-            },
-        )
-        .ok()?;
+        let llt = symbolic_cholesky(&symbolic)?;
         let index: HashMap<(usize, usize), usize> = pairs.iter().enumerate().map(|(i, p)| (*p, i)).collect();
         let diag_block = (0..layout.reduced.len()).map(|a| index.get(&(a, a)).copied()).collect::<Option<_>>()?;
-        let mut schur_blocks = Vec::new();
-        for ev in 0..layout.eliminated.len() {
-            let links = &layout.link_var[layout.link_start[ev]..layout.link_start[ev + 1]];
-            for (ai, &a) in links.iter().enumerate() {
-                for &b in &links[..=ai] {
-                    schur_blocks.push(*index.get(&(a, b))?);
+        let schur_blocks = schur_blocks(layout, &index)?;
+        Some(Self { index, diag_block, schur_blocks, positions, pairs, diag, symbolic, llt })
+    }
+}
+
+/// The `(a, b)` blocks (`a ≥ b`) of the reduced system, ascending: the diagonal, the pairs of reduced
+/// variables sharing a factor, and the pairs linked to a common eliminated variable (the Schur fill).
+fn block_pairs(layout: &Layout, graph: &Graph) -> Vec<(usize, usize)> {
+    let mut pairs: BTreeSet<(usize, usize)> = (0..layout.reduced.len()).map(|a| (a, a)).collect();
+    let mut elim_links: Vec<BTreeSet<usize>> = vec![BTreeSet::new(); layout.eliminated.len()];
+    for e in graph.entries() {
+        let mut red = Vec::new();
+        let mut el = None;
+        for k in e.factor.keys() {
+            match layout.slots.get(k.0).copied().flatten() {
+                Some(Slot::Reduced { var }) => red.push(var),
+                Some(Slot::Eliminated { var }) => el = Some(var),
+                None => {}
+            }
+        }
+        for &a in &red {
+            for &b in &red {
+                if a >= b {
+                    pairs.insert((a, b));
+                }
+            }
+            if let Some(ev) = el {
+                elim_links[ev].insert(a);
+            }
+        }
+    }
+    for links in &elim_links {
+        for &a in links {
+            for &b in links {
+                if a >= b {
+                    pairs.insert((a, b));
                 }
             }
         }
-        Some(Self { index, diag_block, schur_blocks, positions, pairs, diag, symbolic, llt })
     }
+    pairs.into_iter().collect()
+}
+
+/// The compressed-column lower triangle (size `n`) of the blocks `pairs`: column by column, the
+/// blocks of a column by ascending row variable.
+fn csc_structure(layout: &Layout, pairs: &[(usize, usize)], n: usize) -> Csc {
+    // blocks by column var, rows ascending
+    let mut by_col: Vec<Vec<usize>> = vec![Vec::new(); layout.reduced.len()];
+    for (i, &(_, b)) in pairs.iter().enumerate() {
+        by_col[b].push(i);
+    }
+    for col in &mut by_col {
+        col.sort_by_key(|&i| pairs[i].0);
+    }
+    let mut positions: Vec<Vec<usize>> =
+        pairs.iter().map(|&(a, b)| vec![usize::MAX; layout.reduced[a].2 * layout.reduced[b].2]).collect();
+    let mut col_ptr = Vec::with_capacity(n + 1);
+    let mut row_idx = Vec::new();
+    let mut diag = vec![0; n];
+    col_ptr.push(0);
+    for (b, col) in by_col.iter().enumerate() {
+        let (_, rb, db) = layout.reduced[b];
+        for j in 0..db {
+            for &bi in col {
+                let a = pairs[bi].0;
+                let (_, ra, da) = layout.reduced[a];
+                for i in 0..da {
+                    if a == b && i < j {
+                        continue;
+                    }
+                    if a == b && i == j {
+                        diag[rb + j] = row_idx.len();
+                    }
+                    positions[bi][j * da + i] = row_idx.len();
+                    row_idx.push(ra + i);
+                }
+            }
+            col_ptr.push(row_idx.len());
+        }
+    }
+    Csc { col_ptr, row_idx, diag, positions }
+}
+
+/// The symbolic Cholesky factorisation of the pattern (AMD ordering, supernodal), or `None` when faer
+/// refuses it.
+fn symbolic_cholesky(
+    symbolic: &faer::sparse::SymbolicSparseColMat<usize>,
+) -> Option<faer::sparse::linalg::cholesky::SymbolicCholesky<usize>> {
+    use faer::sparse::linalg::{
+        cholesky::{factorize_symbolic_cholesky, CholeskySymbolicParams, SymmetricOrdering},
+        SupernodalThreshold,
+    };
+    factorize_symbolic_cholesky(
+        symbolic.as_ref(),
+        faer::Side::Lower,
+        SymmetricOrdering::Amd,
+        CholeskySymbolicParams {
+            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+            ..Default::default()
+        },
+    )
+    .ok()
+}
+
+/// The block each link pair's Schur update goes to, in the order the elimination visits them (see
+/// [`Pattern::schur_blocks`]); `None` when a pair has no block.
+fn schur_blocks(layout: &Layout, index: &HashMap<(usize, usize), usize>) -> Option<Vec<usize>> {
+    let mut schur_blocks = Vec::new();
+    for ev in 0..layout.eliminated.len() {
+        let links = &layout.link_var[layout.link_start[ev]..layout.link_start[ev + 1]];
+        for (ai, &a) in links.iter().enumerate() {
+            for &b in &links[..=ai] {
+                schur_blocks.push(*index.get(&(a, b))?);
+            }
+        }
+    }
+    Some(schur_blocks)
 }
 
 /// Inverse of a damped eliminated block: fixed-size for points, dynamic otherwise.
@@ -418,7 +458,21 @@ impl LinearSystem {
     }
 }
 
+/// The layout of the solve: which variables are free, reduced or eliminated, where each sits, and the
+/// links between eliminated and reduced variables.
 fn layout(graph: &Graph, values: &Values) -> Result<Layout, OptimError> {
+    let free = free_variables(graph, values)?;
+    let mut layout = Layout::with_slots(graph, values, free);
+    // Links between eliminated and reduced variables, fixed for the whole solve.
+    let links = layout.links(graph);
+    layout.set_link_offsets(&links);
+    layout.set_key_links(graph);
+    Ok(layout)
+}
+
+/// The keys that some factor moves (not fixed); an error when a factor's key has no value or a factor
+/// has more than one eliminated variable.
+fn free_variables(graph: &Graph, values: &Values) -> Result<BTreeSet<Key>, OptimError> {
     let mut free: BTreeSet<Key> = BTreeSet::new();
     for (i, e) in graph.entries().iter().enumerate() {
         let mut n_elim = 0;
@@ -438,72 +492,107 @@ fn layout(graph: &Graph, values: &Values) -> Result<Layout, OptimError> {
             return Err(OptimError::Elimination { factor: i });
         }
     }
-    let mut slots = vec![None; values.len()];
-    let (mut reduced, mut eliminated) = (Vec::new(), Vec::new());
-    let mut off = 0;
-    for k in free {
-        let dim = values.get(k).map(|v| v.dim()).unwrap_or(0);
-        if graph.is_eliminated(k) {
-            slots[k.0] = Some(Slot::Eliminated { var: eliminated.len() });
-            eliminated.push((k, dim));
-        } else {
-            slots[k.0] = Some(Slot::Reduced { var: reduced.len() });
-            reduced.push((k, off, dim));
-            off += dim;
+    Ok(free)
+}
+
+impl Layout {
+    /// The slots of the free variables in key order (reduced ones with their offsets in the reduced
+    /// system), without links yet.
+    fn with_slots(graph: &Graph, values: &Values, free: BTreeSet<Key>) -> Self {
+        let mut slots = vec![None; values.len()];
+        let (mut reduced, mut eliminated) = (Vec::new(), Vec::new());
+        let mut off = 0;
+        for k in free {
+            let dim = values.get(k).map(|v| v.dim()).unwrap_or(0);
+            if graph.is_eliminated(k) {
+                slots[k.0] = Some(Slot::Eliminated { var: eliminated.len() });
+                eliminated.push((k, dim));
+            } else {
+                slots[k.0] = Some(Slot::Reduced { var: reduced.len() });
+                reduced.push((k, off, dim));
+                off += dim;
+            }
+        }
+        Layout {
+            slots,
+            reduced,
+            eliminated,
+            elim_off: Vec::new(),
+            link_start: Vec::new(),
+            link_var: Vec::new(),
+            link_off: Vec::new(),
+            key_link_start: Vec::new(),
+            key_link: Vec::new(),
         }
     }
-    // Links between eliminated and reduced variables, fixed for the whole solve.
-    let mut links: Vec<BTreeSet<usize>> = vec![BTreeSet::new(); eliminated.len()];
-    let factor_vars = |keys: &[Key]| {
+
+    /// The eliminated variable among a factor's keys, if any.
+    fn eliminated_var(&self, keys: &[Key]) -> Option<usize> {
         let mut el = None;
         for k in keys {
-            if let Some(Slot::Eliminated { var }) = slots.get(k.0).copied().flatten() {
+            if let Some(Slot::Eliminated { var }) = self.slots.get(k.0).copied().flatten() {
                 el = Some(var);
             }
         }
         el
-    };
-    for e in graph.entries() {
-        if let Some(ev) = factor_vars(e.factor.keys()) {
-            for k in e.factor.keys() {
-                if let Some(Slot::Reduced { var }) = slots.get(k.0).copied().flatten() {
-                    links[ev].insert(var);
+    }
+
+    /// Per eliminated variable, the reduced variables it shares a factor with.
+    fn links(&self, graph: &Graph) -> Vec<BTreeSet<usize>> {
+        let mut links: Vec<BTreeSet<usize>> = vec![BTreeSet::new(); self.eliminated.len()];
+        for e in graph.entries() {
+            if let Some(ev) = self.eliminated_var(e.factor.keys()) {
+                for k in e.factor.keys() {
+                    if let Some(Slot::Reduced { var }) = self.slots.get(k.0).copied().flatten() {
+                        links[ev].insert(var);
+                    }
                 }
             }
         }
+        links
     }
-    let (mut link_start, mut link_var, mut link_off) = (vec![0], Vec::new(), vec![0]);
-    let mut elim_off = Vec::with_capacity(eliminated.len());
-    let (mut ho, mut go) = (0, 0);
-    for (ev, set) in links.iter().enumerate() {
-        let de = eliminated[ev].1;
-        elim_off.push((ho, go));
-        ho += de * de;
-        go += de;
-        for &a in set {
-            link_var.push(a);
-            let end = link_off.last().copied().unwrap_or(0) + de * reduced[a].2;
-            link_off.push(end);
+
+    /// Where each eliminated variable's `H_ee` and `g_e` start, and its links with where their `C`
+    /// blocks start.
+    fn set_link_offsets(&mut self, links: &[BTreeSet<usize>]) {
+        let (mut link_start, mut link_var, mut link_off) = (vec![0], Vec::new(), vec![0]);
+        let mut elim_off = Vec::with_capacity(self.eliminated.len());
+        let (mut ho, mut go) = (0, 0);
+        for (ev, set) in links.iter().enumerate() {
+            let de = self.eliminated[ev].1;
+            elim_off.push((ho, go));
+            ho += de * de;
+            go += de;
+            for &a in set {
+                link_var.push(a);
+                let end = link_off.last().copied().unwrap_or(0) + de * self.reduced[a].2;
+                link_off.push(end);
+            }
+            link_start.push(link_var.len());
         }
-        link_start.push(link_var.len());
+        (self.elim_off, self.link_start, self.link_var, self.link_off) = (elim_off, link_start, link_var, link_off);
     }
-    let (mut key_link_start, mut key_link) = (Vec::with_capacity(graph.len() + 1), Vec::new());
-    for e in graph.entries() {
+
+    /// The link each factor key's Jacobian block adds to (see [`Layout::key_link`]).
+    fn set_key_links(&mut self, graph: &Graph) {
+        let (mut key_link_start, mut key_link) = (Vec::with_capacity(graph.len() + 1), Vec::new());
+        for e in graph.entries() {
+            key_link_start.push(key_link.len());
+            let el = self.eliminated_var(e.factor.keys());
+            for k in e.factor.keys() {
+                let l = match (el, self.slots.get(k.0).copied().flatten()) {
+                    (Some(ev), Some(Slot::Reduced { var })) => {
+                        let range = &self.link_var[self.link_start[ev]..self.link_start[ev + 1]];
+                        range.binary_search(&var).map_or(usize::MAX, |p| self.link_start[ev] + p)
+                    }
+                    _ => usize::MAX,
+                };
+                key_link.push(l);
+            }
+        }
         key_link_start.push(key_link.len());
-        let el = factor_vars(e.factor.keys());
-        for k in e.factor.keys() {
-            let l = match (el, slots.get(k.0).copied().flatten()) {
-                (Some(ev), Some(Slot::Reduced { var })) => {
-                    let range = &link_var[link_start[ev]..link_start[ev + 1]];
-                    range.binary_search(&var).map_or(usize::MAX, |p| link_start[ev] + p)
-                }
-                _ => usize::MAX,
-            };
-            key_link.push(l);
-        }
+        (self.key_link_start, self.key_link) = (key_link_start, key_link);
     }
-    key_link_start.push(key_link.len());
-    Ok(Layout { slots, reduced, eliminated, elim_off, link_start, link_var, link_off, key_link_start, key_link })
 }
 
 /// `C += Aᵀ B` for column-major `A` (r × da), `B` (r × db), `C` (da × db), each entry as
@@ -589,19 +678,10 @@ fn linearize(graph: &Graph, values: &Values, jac: bool) -> Result<(f64, Lins), (
     Ok((cost, lins))
 }
 
+/// The normal equations of a linearisation: the reduced Hessian and gradient, and for the eliminated
+/// variables their `H_ee`, `g_e` and link blocks `C`, accumulated factor by factor.
 fn normal_equations(graph: &Graph, layout: &Layout, lins: &Lins, pattern: Option<&Pattern>) -> Normal {
-    let n_red: usize = layout.reduced.iter().map(|r| r.2).sum();
-    let mut h = match pattern {
-        None => Reduced::Dense(DMatrix::zeros(n_red, n_red)),
-        Some(p) => Reduced::Sparse(
-            p.pairs.iter().map(|&(a, b)| DMatrix::zeros(layout.reduced[a].2, layout.reduced[b].2)).collect(),
-        ),
-    };
-    let mut g = DVector::zeros(n_red);
-    let n_hee: usize = layout.eliminated.iter().map(|&(_, d)| d * d).sum();
-    let n_ge: usize = layout.eliminated.iter().map(|&(_, d)| d).sum();
-    let (mut hee, mut ge) = (vec![0.0; n_hee], vec![0.0; n_ge]);
-    let mut c = vec![0.0; layout.link_off.last().copied().unwrap_or(0)];
+    let mut ne = Normal::zeros(layout, pattern);
     // (reduced var, column-major Jacobian block with the residual's rows)
     let mut red: Vec<(usize, &[f64])> = Vec::new();
     let mut rowmajor: Vec<Vec<f64>> = Vec::new();
@@ -624,16 +704,53 @@ fn normal_equations(graph: &Graph, layout: &Layout, lins: &Lins, pattern: Option
         for (ai, &(_, ja)) in red.iter().enumerate() {
             transpose_into(ja, rdim, &mut rowmajor[ai]);
         }
+        ne.add_reduced(layout, pattern, &red, &rowmajor, r);
+        if let Some(el) = el {
+            ne.add_eliminated(layout, lins, i, el, r);
+        }
+    }
+    ne
+}
+
+impl Normal {
+    /// Zero normal equations shaped by the layout (and, on the sparse path, by the block pattern).
+    fn zeros(layout: &Layout, pattern: Option<&Pattern>) -> Self {
+        let n_red: usize = layout.reduced.iter().map(|r| r.2).sum();
+        let h = match pattern {
+            None => Reduced::Dense(DMatrix::zeros(n_red, n_red)),
+            Some(p) => Reduced::Sparse(
+                p.pairs.iter().map(|&(a, b)| DMatrix::zeros(layout.reduced[a].2, layout.reduced[b].2)).collect(),
+            ),
+        };
+        let g = DVector::zeros(n_red);
+        let n_hee: usize = layout.eliminated.iter().map(|&(_, d)| d * d).sum();
+        let n_ge: usize = layout.eliminated.iter().map(|&(_, d)| d).sum();
+        let (hee, ge) = (vec![0.0; n_hee], vec![0.0; n_ge]);
+        let c = vec![0.0; layout.link_off.last().copied().unwrap_or(0)];
+        Normal { h, g, hee, ge, c }
+    }
+
+    /// Adds one factor's part to the reduced gradient and Hessian: `red` are its reduced variables
+    /// with their Jacobian blocks, `rowmajor` the same blocks transposed, `r` its residual.
+    fn add_reduced(
+        &mut self,
+        layout: &Layout,
+        pattern: Option<&Pattern>,
+        red: &[(usize, &[f64])],
+        rowmajor: &[Vec<f64>],
+        r: &[f64],
+    ) {
+        let (n_red, rdim) = (self.g.len(), r.len());
         let rv = nalgebra::DVectorView::from_slice(r, rdim);
         for ai in 0..red.len() {
             let (a, ja) = red[ai];
             let (_, ra, da) = layout.reduced[a];
-            g.rows_mut(ra, da).gemv_tr(1.0, &view(ja, rdim), &rv, 1.0);
+            self.g.rows_mut(ra, da).gemv_tr(1.0, &view(ja, rdim), &rv, 1.0);
             for (bi, &(b, jb)) in red[..=ai].iter().enumerate() {
                 // H_rc += J_rᵀ J_c with r ≥ c
                 let (row, col, tr, jc) = if a >= b { (a, b, ai, jb) } else { (b, a, bi, ja) };
                 let dr = layout.reduced[row].2;
-                match (&mut h, pattern) {
+                match (&mut self.h, pattern) {
                     (Reduced::Dense(m), _) => {
                         let (rr, rc) = (layout.reduced[row].1, layout.reduced[col].1);
                         add_atb(m.as_mut_slice(), n_red, (rr, rc), 1.0, (&rowmajor[tr], dr), (jc, rdim), row == col);
@@ -656,23 +773,26 @@ fn normal_equations(graph: &Graph, layout: &Layout, lins: &Lins, pattern: Option
                 }
             }
         }
-        if let Some((ev, je)) = el {
-            let de = layout.eliminated[ev].1;
-            let (ho, go) = layout.elim_off[ev];
-            atb_add(&mut hee[ho..ho + de * de], je, je, rdim, de, de);
-            atb_add(&mut ge[go..go + de], je, r, rdim, de, 1);
-            let kl = layout.key_link_start[i];
-            for (t, &l) in layout.key_link[kl..layout.key_link_start[i + 1]].iter().enumerate() {
-                if l == usize::MAX {
-                    continue;
-                }
-                let (ja, _) = lins.jacobian(i, t);
-                let dr = layout.reduced[layout.link_var[l]].2;
-                atb_add(&mut c[layout.link_off[l]..layout.link_off[l + 1]], je, ja, rdim, de, dr);
+    }
+
+    /// Adds factor `i`'s part for its eliminated variable `ev` (Jacobian block `je`): to `H_ee`, `g_e`
+    /// and the `C` block of each of the factor's reduced variables linked to it.
+    fn add_eliminated(&mut self, layout: &Layout, lins: &Lins, i: usize, (ev, je): (usize, &[f64]), r: &[f64]) {
+        let rdim = r.len();
+        let de = layout.eliminated[ev].1;
+        let (ho, go) = layout.elim_off[ev];
+        atb_add(&mut self.hee[ho..ho + de * de], je, je, rdim, de, de);
+        atb_add(&mut self.ge[go..go + de], je, r, rdim, de, 1);
+        let kl = layout.key_link_start[i];
+        for (t, &l) in layout.key_link[kl..layout.key_link_start[i + 1]].iter().enumerate() {
+            if l == usize::MAX {
+                continue;
             }
+            let (ja, _) = lins.jacobian(i, t);
+            let dr = layout.reduced[layout.link_var[l]].2;
+            atb_add(&mut self.c[layout.link_off[l]..layout.link_off[l + 1]], je, ja, rdim, de, dr);
         }
     }
-    Normal { h, g, hee, ge, c }
 }
 
 /// Largest dense reduced system whose Schur complement is accumulated in [`BlockLower`] (its lower block
@@ -740,81 +860,122 @@ fn damped_step(
     pattern: Option<&Pattern>,
 ) -> Option<(DVector<f64>, Vec<DVector<f64>>)> {
     let n_red: usize = layout.reduced.iter().map(|r| r.2).sum();
-    let mut rhs = ne.g.clone();
-    let (mut dense, mut vals) = damped_reduced(n_red, ne, &damp, pattern)?;
+    let rhs = ne.g.clone();
+    let (dense, vals) = damped_reduced(n_red, ne, &damp, pattern)?;
     // Schur complement of the eliminated variables (dense path: into contiguous blocks when small).
-    let mut blocked = match &dense {
+    let blocked = match &dense {
         Some(m) if !layout.eliminated.is_empty() && n_red <= BLOCKED_SCHUR_MAX => Some(BlockLower::new(m, layout)),
         _ => None,
     };
-    let mut hinvs = Vec::with_capacity(layout.eliminated.len());
-    let mut vt: Vec<Vec<f64>> = Vec::new();
-    let mut prod = DMatrix::zeros(0, 0);
-    let mut pair = 0; // running index of the link pairs ([`Pattern::schur_blocks`])
-    for (ev, &(_, de)) in layout.eliminated.iter().enumerate() {
-        let (ho, go) = layout.elim_off[ev];
-        let (hee, ge) = (&ne.hee[ho..ho + de * de], &ne.ge[go..go + de]);
-        // this variable's links: (reduced var, C block)
-        let links = (layout.link_start[ev]..layout.link_start[ev + 1])
-            .map(|l| (layout.link_var[l], &ne.c[layout.link_off[l]..layout.link_off[l + 1]]));
-        let hinv = damped_inverse(hee, de, &damp)?;
-        let hg: Vec<f64> = hinv.mul_vec(ge);
-        let n_links = layout.link_start[ev + 1] - layout.link_start[ev];
-        while vt.len() < n_links {
-            vt.push(Vec::new());
-        }
-        for (ai, (a, ca)) in links.clone().enumerate() {
-            let (_, ra, da) = layout.reduced[a];
-            hinv.mul_mat_rowmajor(ca, da, &mut vt[ai]);
-            // rhs_a −= C_aᵀ H⁻¹ g_e
-            for (i, col) in ca.chunks_exact(de).enumerate().take(da) {
-                let dot: f64 = col.iter().zip(&hg).map(|(x, y)| x * y).sum();
-                rhs[ra + i] -= dot;
-            }
-        }
-        for (ai, (a, _)) in links.clone().enumerate() {
-            let (_, ra, da) = layout.reduced[a];
-            for (b, cb) in links.clone().take(ai + 1) {
-                let (_, rb, db) = layout.reduced[b];
-                pair += 1;
-                // S_ab −= C_aᵀ H⁻¹ C_b = V_aᵀ C_b
-                if let Some(bl) = blocked.as_mut() {
-                    add_atb(bl.block_mut(a, b), da, (0, 0), -1.0, (&vt[ai], da), (cb, de), a == b);
-                } else if let Some(m) = dense.as_mut() {
-                    add_atb(m.as_mut_slice(), n_red, (ra, rb), -1.0, (&vt[ai], da), (cb, de), a == b);
-                } else if let Some(pat) = pattern {
-                    let i = *pat.schur_blocks.get(pair - 1)?;
-                    if prod.shape() != (da, db) {
-                        prod = DMatrix::zeros(da, db);
-                    }
-                    prod.fill(0.0);
-                    add_atb(prod.as_mut_slice(), da, (0, 0), 1.0, (&vt[ai], da), (cb, de), a == b);
-                    for (x, &q) in prod.iter().zip(&pat.positions[i]) {
-                        if q != usize::MAX {
-                            vals[q] -= x;
-                        }
-                    }
-                }
-            }
-        }
-        hinvs.push(hinv);
-    }
-    if let (Some(m), Some(bl)) = (dense.as_mut(), blocked.as_ref()) {
-        bl.write_back(m, layout);
-    }
-    let dred = if n_red == 0 {
-        DVector::zeros(0)
-    } else if let Some(m) = dense {
-        dense_solve(&m, &rhs)?
-    } else {
-        let pat = pattern?;
-        sparse_solve(pat, &vals, &rhs)?
-    };
+    let mut schur = Schur { n_red, rhs, dense, blocked, vals, pattern };
+    let hinvs = schur.eliminate(layout, ne, &damp)?;
+    let dred = schur.solve()?;
     if !dred.iter().all(|v| v.is_finite()) {
         return None;
     }
     let delim = back_substitute(layout, ne, &hinvs, &dred);
     Some((dred, delim))
+}
+
+/// The damped reduced system of [`damped_step`] while the eliminated variables are taken out of it:
+/// its right-hand side and its matrix (dense, possibly with a blocked copy, or sparse CSC values).
+struct Schur<'p> {
+    n_red: usize,
+    rhs: DVector<f64>,
+    dense: Option<DMatrix<f64>>,
+    blocked: Option<BlockLower>,
+    vals: Vec<f64>,
+    pattern: Option<&'p Pattern>,
+}
+
+impl Schur<'_> {
+    /// Takes every eliminated variable out of the system by the Schur complement, returning their
+    /// damped `H_ee⁻¹` (`None` when one is not positive definite or a block is missing).
+    fn eliminate(&mut self, layout: &Layout, ne: &Normal, damp: &impl Fn(f64) -> f64) -> Option<Vec<HInv>> {
+        let mut hinvs = Vec::with_capacity(layout.eliminated.len());
+        let mut vt: Vec<Vec<f64>> = Vec::new();
+        let mut prod = DMatrix::zeros(0, 0);
+        let mut pair = 0; // running index of the link pairs ([`Pattern::schur_blocks`])
+        for (ev, &(_, de)) in layout.eliminated.iter().enumerate() {
+            let (ho, go) = layout.elim_off[ev];
+            let (hee, ge) = (&ne.hee[ho..ho + de * de], &ne.ge[go..go + de]);
+            // this variable's links: (reduced var, C block)
+            let links = (layout.link_start[ev]..layout.link_start[ev + 1])
+                .map(|l| (layout.link_var[l], &ne.c[layout.link_off[l]..layout.link_off[l + 1]]));
+            let hinv = damped_inverse(hee, de, damp)?;
+            let hg: Vec<f64> = hinv.mul_vec(ge);
+            let n_links = layout.link_start[ev + 1] - layout.link_start[ev];
+            while vt.len() < n_links {
+                vt.push(Vec::new());
+            }
+            for (ai, (a, ca)) in links.clone().enumerate() {
+                let (_, ra, da) = layout.reduced[a];
+                hinv.mul_mat_rowmajor(ca, da, &mut vt[ai]);
+                // rhs_a −= C_aᵀ H⁻¹ g_e
+                for (i, col) in ca.chunks_exact(de).enumerate().take(da) {
+                    let dot: f64 = col.iter().zip(&hg).map(|(x, y)| x * y).sum();
+                    self.rhs[ra + i] -= dot;
+                }
+            }
+            for (ai, (a, _)) in links.clone().enumerate() {
+                for (b, cb) in links.clone().take(ai + 1) {
+                    pair += 1;
+                    self.subtract_pair(layout, (a, &vt[ai]), (b, cb), de, pair, &mut prod)?;
+                }
+            }
+            hinvs.push(hinv);
+        }
+        if let (Some(m), Some(bl)) = (self.dense.as_mut(), self.blocked.as_ref()) {
+            bl.write_back(m, layout);
+        }
+        Some(hinvs)
+    }
+
+    /// `S_ab −= C_aᵀ H⁻¹ C_b = V_aᵀ C_b` for the link pair numbered `pair` (from 1) of an eliminated
+    /// variable of dimension `de`, into whichever form the matrix has (`prod` is scratch for the sparse
+    /// path; `None` when the pattern lacks the pair).
+    fn subtract_pair(
+        &mut self,
+        layout: &Layout,
+        (a, va): (usize, &[f64]),
+        (b, cb): (usize, &[f64]),
+        de: usize,
+        pair: usize,
+        prod: &mut DMatrix<f64>,
+    ) -> Option<()> {
+        let (_, ra, da) = layout.reduced[a];
+        let (_, rb, db) = layout.reduced[b];
+        if let Some(bl) = self.blocked.as_mut() {
+            add_atb(bl.block_mut(a, b), da, (0, 0), -1.0, (va, da), (cb, de), a == b);
+        } else if let Some(m) = self.dense.as_mut() {
+            add_atb(m.as_mut_slice(), self.n_red, (ra, rb), -1.0, (va, da), (cb, de), a == b);
+        } else if let Some(pat) = self.pattern {
+            let i = *pat.schur_blocks.get(pair - 1)?;
+            if prod.shape() != (da, db) {
+                *prod = DMatrix::zeros(da, db);
+            }
+            prod.fill(0.0);
+            add_atb(prod.as_mut_slice(), da, (0, 0), 1.0, (va, da), (cb, de), a == b);
+            for (x, &q) in prod.iter().zip(&pat.positions[i]) {
+                if q != usize::MAX {
+                    self.vals[q] -= x;
+                }
+            }
+        }
+        Some(())
+    }
+
+    /// The reduced step from the Schur complement: dense or sparse Cholesky (`None` when it fails).
+    fn solve(self) -> Option<DVector<f64>> {
+        Some(if self.n_red == 0 {
+            DVector::zeros(0)
+        } else if let Some(m) = self.dense {
+            dense_solve(&m, &self.rhs)?
+        } else {
+            let pat = self.pattern?;
+            sparse_solve(pat, &self.vals, &self.rhs)?
+        })
+    }
 }
 
 /// The damped reduced matrix of [`damped_step`]: dense, or the CSC values following the sparse
@@ -1088,4 +1249,131 @@ pub fn start(
         return Ok(Err(summary));
     }
     Ok(Ok((sys, lin, summary)))
+}
+
+/// Where a trust-region solve stands between iterations: its problem and linear system, the
+/// linearisation and cost at the current values, the report so far, and the observer told of each
+/// iteration.
+pub struct Progress<'p, 'o> {
+    /// The linear system of the problem.
+    pub sys: LinearSystem,
+    /// The problem.
+    pub graph: &'p Graph,
+    /// The common settings.
+    pub options: &'p crate::Options,
+    /// The linearisation at the current values.
+    pub lin: Linearization,
+    /// The cost of the current values.
+    pub cost: f64,
+    /// The report so far.
+    pub summary: crate::Summary,
+    /// Told of every iteration.
+    pub observer: Option<&'o mut dyn crate::Observer>,
+}
+
+/// A trial point: the values after a step, their cost, the decrease from the current cost and its ratio
+/// to the decrease the linear model predicted (the gain ratio).
+pub struct Trial {
+    /// The values after the step.
+    pub values: Values,
+    /// Their cost.
+    pub cost: f64,
+    /// The current cost minus the trial cost.
+    pub change: f64,
+    /// `change` over the model's decrease (minus infinity when the model predicts none).
+    pub rho: f64,
+}
+
+impl Trial {
+    /// Whether the trial cost is finite and the gain ratio above `min_relative_decrease`.
+    pub fn acceptable(&self, min_relative_decrease: f64) -> bool {
+        self.cost.is_finite() && self.rho > min_relative_decrease
+    }
+}
+
+impl Progress<'_, '_> {
+    /// Runs `iteration` (after counting it) until it ends the solve or the checks before each iteration
+    /// do (the iteration cap, then the gradient tolerance), and records why the solve ended.
+    pub fn iterate(&mut self, mut iteration: impl FnMut(&mut Self) -> Result<(), crate::Termination>) {
+        use crate::Termination;
+        self.summary.termination = loop {
+            if self.summary.iterations >= self.options.max_iterations {
+                break Termination::MaxIterations;
+            }
+            if self.sys.gradient_max(&self.lin) <= self.options.gradient_tolerance {
+                break Termination::GradientTolerance;
+            }
+            self.summary.iterations += 1;
+            if let Err(termination) = iteration(self) {
+                break termination;
+            }
+        };
+    }
+
+    /// The report of the current iteration before its step is tried: cost unchanged, not accepted.
+    pub fn info(&self, radius: f64, step_norm: f64) -> crate::IterationInfo {
+        crate::IterationInfo {
+            iteration: self.summary.iterations,
+            cost: self.cost,
+            cost_change: f64::NAN,
+            radius,
+            step_norm,
+            accepted: false,
+        }
+    }
+
+    /// Tells the observer, if any, of an iteration.
+    pub fn notify(&mut self, info: &crate::IterationInfo) {
+        if let Some(obs) = self.observer.as_deref_mut() {
+            obs.on_iteration(info);
+        }
+    }
+
+    /// Ends the solve (after telling the observer of the iteration) when the step of `info` is within the
+    /// parameter tolerance of the size of `values`.
+    pub fn check_step(&mut self, values: &Values, info: &crate::IterationInfo) -> Result<(), crate::Termination> {
+        let options = self.options;
+        let x_norm = values.iter().map(|(_, v)| v.norm_squared()).sum::<f64>().sqrt();
+        if info.step_norm <= options.parameter_tolerance * (x_norm + options.parameter_tolerance) {
+            self.notify(info);
+            return Err(crate::Termination::ParameterTolerance);
+        }
+        Ok(())
+    }
+
+    /// The trial point of `step` from `values`, or `None` when a factor cannot be evaluated there.
+    pub fn trial(&self, values: &Values, step: &Step) -> Option<Trial> {
+        let (sys, graph) = (&self.sys, self.graph);
+        let model = sys.model_decrease(graph, &self.lin, step);
+        let trial = sys.retract(values, step);
+        let new_cost = sys.cost(graph, &trial).ok()?;
+        let change = self.cost - new_cost;
+        let rho = if model > 0.0 { change / model } else { f64::NEG_INFINITY };
+        Some(Trial { values: trial, cost: new_cost, change, rho })
+    }
+
+    /// Moves `values` to an accepted trial point, counts the step in the report and in `info`, and
+    /// linearises there. Ends the solve when the relative cost decrease is within the function
+    /// tolerance (telling the observer of the iteration; no new linearisation) or when the new point
+    /// cannot be linearised.
+    pub fn accept(
+        &mut self,
+        values: &mut Values,
+        trial: Trial,
+        info: &mut crate::IterationInfo,
+    ) -> Result<(), crate::Termination> {
+        *values = trial.values;
+        let rel = trial.change.abs() / self.cost.max(f64::MIN_POSITIVE);
+        self.cost = trial.cost;
+        self.summary.accepted += 1;
+        info.cost = self.cost;
+        if rel < self.options.function_tolerance {
+            self.notify(&crate::IterationInfo { accepted: true, ..*info });
+            return Err(crate::Termination::FunctionTolerance);
+        }
+        let lin = self.sys.linearize(self.graph, values).map_err(|_| crate::Termination::NoProgress)?;
+        self.cost = lin.cost;
+        self.lin = lin;
+        Ok(())
+    }
 }

@@ -90,11 +90,7 @@ pub fn point_yaw(
     baseline_m: f64,
     config: &PointYawConfig,
 ) -> PointYaw {
-    let n = up.normalize();
-    // a horizontal basis
-    let seed = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::z() };
-    let b1 = (seed - n * n.dot(&seed)).normalize();
-    let b2 = n.cross(&b1);
+    let (b1, b2) = horizontal_basis(up);
     let flat = |p: &Vector3<f64>| Vector2::new(b1.dot(p), b2.dot(p));
     let all: Vec<Vector2<f64>> = points.iter().filter(|p| p.iter().all(|c| c.is_finite())).map(flat).collect();
     if all.len() < config.min_points {
@@ -102,13 +98,7 @@ pub fn point_yaw(
     }
     // gate: within the class's full length of the median (points of the object lie within its length of
     // any point of it, wherever on the car the median falls)
-    let median = |k: usize| {
-        let mut v: Vec<f64> = all.iter().map(|p| p[k]).collect();
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
-    let m = Vector2::new(median(0), median(1));
-    let near: Vec<Vector2<f64>> = all.iter().copied().filter(|p| (p - m).norm() <= 2.0 * prior.axes.x).collect();
+    let near = near_median(&all, 2.0 * prior.axes.x);
     if near.len() < config.min_points {
         return PointYaw::TooFew(near.len());
     }
@@ -127,24 +117,14 @@ pub fn point_yaw(
         return PointYaw::Ambiguous { ratio: 1.0, extent_m: 0.0 };
     };
     let sigma_z = depth * depth * config.disparity_sigma_px / (focal_px * baseline_m).max(1e-9);
-    let corrected = cov - d * d.transpose() * (sigma_z * sigma_z);
-    let eig = corrected.symmetric_eigen();
-    let (i1, i2) = if eig.eigenvalues[0] >= eig.eigenvalues[1] { (0, 1) } else { (1, 0) };
-    let (l1, l2) = (eig.eigenvalues[i1], eig.eigenvalues[i2].max(0.0));
-    let v1: Vector2<f64> = eig.eigenvectors.column(i1).into_owned();
+    let (l1, l2, v1) = principal_axis(cov, d, sigma_z);
     let extent_m = (12.0 * l1.max(0.0)).sqrt();
     let ratio = if l1 > 0.0 { l2 / l1 } else { 1.0 };
     // the direction must stand above the noise: at least twice the depth noise's σ in extent
     if l1 <= 0.0 || ratio > config.max_ratio || l1 < 4.0 * sigma_z * sigma_z {
         return PointYaw::Ambiguous { ratio, extent_m };
     }
-    // angular standard error of a principal direction from `count` points (spread λ₁ along, the raw
-    // spread across it), never below the floor
-    let along_raw = (v1.transpose() * cov * v1)[0];
-    let across = (cov.trace() - along_raw).max(0.0);
-    let along = l1;
-    let stat = (along * across / (count * (along - across).powi(2).max(1e-12))).sqrt();
-    let sigma_rad = stat.max(config.floor_deg.to_radians());
+    let sigma_rad = direction_sigma(cov, v1, l1, count, config.floor_deg);
     let (length, width) = (2.0 * prior.axes.x, 2.0 * prior.axes.z);
     // points of one object span at most the diagonal of a large one of its class (2 σ above the prior):
     // a longer spread is background or a streak of mismatched depths, not the object's faces
@@ -168,6 +148,50 @@ pub fn point_yaw(
         return PointYaw::Cue { cue: YawCue { direction: to3(normal), sigma_rad }, ratio, extent_m, rear_face: true };
     }
     PointYaw::Ambiguous { ratio, extent_m }
+}
+
+/// Two unit vectors spanning the plane normal to `up` (the horizontal).
+fn horizontal_basis(up: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    let n = up.normalize();
+    // a horizontal basis
+    let seed = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::z() };
+    let b1 = (seed - n * n.dot(&seed)).normalize();
+    let b2 = n.cross(&b1);
+    (b1, b2)
+}
+
+/// The points within `reach` of the points' median (taken coordinate by coordinate).
+fn near_median(all: &[Vector2<f64>], reach: f64) -> Vec<Vector2<f64>> {
+    let median = |k: usize| {
+        let mut v: Vec<f64> = all.iter().map(|p| p[k]).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let m = Vector2::new(median(0), median(1));
+    all.iter().copied().filter(|p| (p - m).norm() <= reach).collect()
+}
+
+/// The principal axis of the spread `cov` once the depth noise (`sigma_z` along the unit viewing ray
+/// `d`) is taken out: the larger eigenvalue, the smaller one (at least 0), and the larger one's direction.
+fn principal_axis(cov: Matrix2<f64>, d: Vector2<f64>, sigma_z: f64) -> (f64, f64, Vector2<f64>) {
+    let corrected = cov - d * d.transpose() * (sigma_z * sigma_z);
+    let eig = corrected.symmetric_eigen();
+    let (i1, i2) = if eig.eigenvalues[0] >= eig.eigenvalues[1] { (0, 1) } else { (1, 0) };
+    let (l1, l2) = (eig.eigenvalues[i1], eig.eigenvalues[i2].max(0.0));
+    let v1: Vector2<f64> = eig.eigenvectors.column(i1).into_owned();
+    (l1, l2, v1)
+}
+
+/// Angular standard error of the principal direction `v1` from `count` points (spread `l1` along it,
+/// the raw spread `cov` across it), never below `floor_deg`.
+fn direction_sigma(cov: Matrix2<f64>, v1: Vector2<f64>, l1: f64, count: f64, floor_deg: f64) -> f64 {
+    // angular standard error of a principal direction from `count` points (spread λ₁ along, the raw
+    // spread across it), never below the floor
+    let along_raw = (v1.transpose() * cov * v1)[0];
+    let across = (cov.trace() - along_raw).max(0.0);
+    let along = l1;
+    let stat = (along * across / (count * (along - across).powi(2).max(1e-12))).sqrt();
+    stat.max(floor_deg.to_radians())
 }
 
 /// The axis nearest `principal` of the rectangle that fits `points` best: over orientations in steps of

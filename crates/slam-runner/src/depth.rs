@@ -10,10 +10,14 @@ use std::path::{Path, PathBuf};
 
 use slam_dataset::kitti::{
     raw::RawCalib,
-    stereo::{open_stereo, Layout},
+    stereo::{open_stereo, Layout, StereoSequence},
     velodyne::{project_into_left, read_scan, ProjectedPoint},
 };
-use slam_frontend::{read_image, stereo_vo::stereo_keypoints, StereoRig, VoConfig};
+use slam_frontend::{
+    read_image,
+    stereo_vo::{stereo_keypoints, StereoKeypoint},
+    StereoRig, VoConfig,
+};
 use slam_quadric::Intrinsics;
 
 use crate::error::{Result, RunnerError};
@@ -322,14 +326,7 @@ fn motion_depth(
 /// Compare the stereo keypoints of every frame of the raw drive at `path` that has a Velodyne scan,
 /// with `tracking`'s stereo settings.
 pub fn depth_check(path: &Path, tracking: &VoConfig) -> Result<DepthReport> {
-    let seq = open_stereo(path)?;
-    if seq.layout != Layout::Raw {
-        return Err(RunnerError::Invalid(format!(
-            "{}: depth-check needs a KITTI raw drive (…/YYYY_MM_DD_drive_NNNN_sync with velodyne_points/)",
-            path.display()
-        )));
-    }
-    crate::run::checked_size(&seq)?;
+    let seq = open_raw_drive(path)?;
     let date: PathBuf = seq.dir.parent().map(Path::to_path_buf).unwrap_or_default();
     let calib = RawCalib::read(&date)?;
     let [fx, fy, cx, cy] = seq.intrinsics;
@@ -354,30 +351,8 @@ pub fn depth_check(path: &Path, tracking: &VoConfig) -> Result<DepthReport> {
         let keypoints = stereo_keypoints(rig, tracking, &left, &right).map_err(RunnerError::other)?;
         let lidar = project_into_left(&read_scan(&scan)?, &calib, size, 1.0);
         in_image += lidar.len();
-        // bucket the lidar points by pixel column for the window queries
-        let mut by_col: Vec<Vec<ProjectedPoint>> = vec![Vec::new(); size.0 as usize + 1];
-        for p in &lidar {
-            by_col[p.u as usize].push(*p);
-        }
         let before = samples.len();
-        for k in &keypoints {
-            let (lo, hi) =
-                ((k.u - WINDOW_PX.0).max(0.0) as usize, ((k.u + WINDOW_PX.0) as usize).min(by_col.len() - 1));
-            let near: Vec<ProjectedPoint> = by_col[lo..=hi]
-                .iter()
-                .flatten()
-                .filter(|p| (p.u - k.u).abs() <= WINDOW_PX.0 && (p.v - k.v).abs() <= WINDOW_PX.1)
-                .copied()
-                .collect();
-            if let Some(d) = lidar_disparity(&near, (k.u, k.v), fx_b) {
-                samples.push(DepthSample {
-                    level: k.level,
-                    depth_m: fx_b / d,
-                    diff_px: k.disparity - d,
-                    left_half: k.u < cx,
-                });
-            }
-        }
+        sample_keypoints(&keypoints, &lidar, size.0, (fx_b, cx), &mut samples);
         frames.push((id, keypoints.len(), samples.len() - before));
     }
     if frames.is_empty() {
@@ -404,6 +379,52 @@ pub fn depth_check(path: &Path, tracking: &VoConfig) -> Result<DepthReport> {
         ));
     }
     Ok(DepthReport { header, frames, samples, fx_b })
+}
+
+/// The KITTI raw drive at `path` (refused when it is another layout), its images checked for size.
+fn open_raw_drive(path: &Path) -> Result<StereoSequence> {
+    let seq = open_stereo(path)?;
+    if seq.layout != Layout::Raw {
+        return Err(RunnerError::Invalid(format!(
+            "{}: depth-check needs a KITTI raw drive (…/YYYY_MM_DD_drive_NNNN_sync with velodyne_points/)",
+            path.display()
+        )));
+    }
+    crate::run::checked_size(&seq)?;
+    Ok(seq)
+}
+
+/// One frame's samples: each stereo keypoint against the lidar points projected near it (an image
+/// `width` pixels wide; `fx_b` is `fx` times the baseline, `cx` splits the image in halves).
+fn sample_keypoints(
+    keypoints: &[StereoKeypoint],
+    lidar: &[ProjectedPoint],
+    width: f64,
+    (fx_b, cx): (f64, f64),
+    samples: &mut Vec<DepthSample>,
+) {
+    // bucket the lidar points by pixel column for the window queries
+    let mut by_col: Vec<Vec<ProjectedPoint>> = vec![Vec::new(); width as usize + 1];
+    for p in lidar {
+        by_col[p.u as usize].push(*p);
+    }
+    for k in keypoints {
+        let (lo, hi) = ((k.u - WINDOW_PX.0).max(0.0) as usize, ((k.u + WINDOW_PX.0) as usize).min(by_col.len() - 1));
+        let near: Vec<ProjectedPoint> = by_col[lo..=hi]
+            .iter()
+            .flatten()
+            .filter(|p| (p.u - k.u).abs() <= WINDOW_PX.0 && (p.v - k.v).abs() <= WINDOW_PX.1)
+            .copied()
+            .collect();
+        if let Some(d) = lidar_disparity(&near, (k.u, k.v), fx_b) {
+            samples.push(DepthSample {
+                level: k.level,
+                depth_m: fx_b / d,
+                diff_px: k.disparity - d,
+                left_half: k.u < cx,
+            });
+        }
+    }
 }
 
 impl DepthReport {

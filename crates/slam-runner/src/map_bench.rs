@@ -61,41 +61,13 @@ fn cases(
     let seq06 = slam_dataset::layout::write_layout(odometry, Order::Reversed, &back)?;
     print("\n**Saved map** (06 frames 0-50, then runs that start from it: `run --map`)\n".into());
     print("| case | frames | placed | first placed | ATE in the map's frame m | the map run's, same frames m | keyframes added | objects kept / added |\n|---|---:|---:|---:|---:|---:|---:|---:|".into());
-    // name, sequence, frame ids (all: None), localising only
-    type Case<'a> = (&'a str, PathBuf, Option<(usize, usize)>, bool);
     let cases: [Case<'_>; 3] = [
         ("06 frames 20-50 again", odometry.to_path_buf(), Some((20, 51)), false),
         ("06 driven back, 50 down to 0", seq06, None, false),
         ("01 (another road), localising only", highway.to_path_buf(), Some((0, 51)), true),
     ];
-    for (name, path, range, localise_only) in cases {
-        let mut c = base.clone();
-        c.path = path;
-        c.selection = FrameSelection { first: range.map(|r| r.0), end: range.map(|r| r.1), stride: 1 };
-        (c.map, c.localise_only) = (Some(file.clone()), localise_only);
-        let o = play(&c).context_with(|| format!("case {name}"))?;
-        let load = o.loaded.as_ref().ok_or_else(|| RunnerError::Invalid(format!("case {name}: no map loaded")))?;
-        let m = in_map(&o.out, &o.seq, load);
-        // the map run's frames these frames show: the same ids, or the layout's source frames
-        let ids: Vec<usize> = if range.is_some() { o.seq.ids.clone() } else { (0..=50).collect() };
-        let same = if localise_only {
-            None
-        } else {
-            let truth = first.seq.truth_from_first().unwrap_or_default();
-            unaligned_errors(&first.out, &truth, &first.seq.ids, |id| ids.contains(&id)).map(|e| e.0)
-        };
-        let objects = &o.out.map.objects;
-        let kept = objects.iter().filter(|x| max_id.is_some_and(|m| x.id <= m)).count();
-        let added = objects.iter().filter(|x| max_id.is_none_or(|m| x.id > m) && !x.dynamic).count();
-        print(format!(
-            "| {name} | {} | {} | {} | {} | {} | {} | {kept} / {added} |",
-            m.frames,
-            m.placed,
-            m.first_placed.map_or("–".into(), |f| f.to_string()),
-            cell(m.errors.map(|e| e.0), 3),
-            cell(same, 3),
-            o.out.map.stats().keyframes.saturating_sub(kfs),
-        ));
+    for case in cases {
+        print(case_row(base, &file, (&first, max_id, kfs), case)?);
     }
     let place = placement(&file, &first, base.tracking)?;
     // a map of 50 keyframes (the size): the same frames with a keyframe at every frame
@@ -117,6 +89,46 @@ fn cases(
     let dense_kfs = dense_run.out.map.stats().keyframes;
     print(format!("placing a frame: in the map of {kfs} keyframes {place}; in a map of {dense_kfs} keyframes (a keyframe every frame) {dense_place}"));
     Ok(())
+}
+
+/// A case of the table: name, sequence, frame ids (all: None), localising only.
+type Case<'a> = (&'a str, PathBuf, Option<(usize, usize)>, bool);
+
+/// One case run from the saved map `file` and its row of the table; `first` is the map run with its
+/// largest object id and its keyframe count.
+fn case_row(
+    base: &RunSettings,
+    file: &Path,
+    (first, max_id, kfs): (&Outcome, Option<u64>, usize),
+    (name, path, range, localise_only): Case<'_>,
+) -> Result<String> {
+    let mut c = base.clone();
+    c.path = path;
+    c.selection = FrameSelection { first: range.map(|r| r.0), end: range.map(|r| r.1), stride: 1 };
+    (c.map, c.localise_only) = (Some(file.to_path_buf()), localise_only);
+    let o = play(&c).context_with(|| format!("case {name}"))?;
+    let load = o.loaded.as_ref().ok_or_else(|| RunnerError::Invalid(format!("case {name}: no map loaded")))?;
+    let m = in_map(&o.out, &o.seq, load);
+    // the map run's frames these frames show: the same ids, or the layout's source frames
+    let ids: Vec<usize> = if range.is_some() { o.seq.ids.clone() } else { (0..=50).collect() };
+    let same = if localise_only {
+        None
+    } else {
+        let truth = first.seq.truth_from_first().unwrap_or_default();
+        unaligned_errors(&first.out, &truth, &first.seq.ids, |id| ids.contains(&id)).map(|e| e.0)
+    };
+    let objects = &o.out.map.objects;
+    let kept = objects.iter().filter(|x| max_id.is_some_and(|m| x.id <= m)).count();
+    let added = objects.iter().filter(|x| max_id.is_none_or(|m| x.id > m) && !x.dynamic).count();
+    Ok(format!(
+        "| {name} | {} | {} | {} | {} | {} | {} | {kept} / {added} |",
+        m.frames,
+        m.placed,
+        m.first_placed.map_or("–".into(), |f| f.to_string()),
+        cell(m.errors.map(|e| e.0), 3),
+        cell(same, 3),
+        o.out.map.stats().keyframes.saturating_sub(kfs),
+    ))
 }
 
 /// Every frame of 06 frames 0-50 placed in the saved map `file` from scratch ([`StereoVo::place`]: features,

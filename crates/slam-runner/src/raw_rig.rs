@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix3, Matrix3x4, Rotation3, Unit, Vector3};
 use slam_core::rig::{Distortion, RawCamera};
-use slam_dataset::kitti::stereo::{open_stereo, Layout};
+use slam_dataset::kitti::stereo::{open_stereo, Layout, StereoSequence};
 use slam_frontend::{read_image, rectify::raw_from_rectified, write_image};
 
 use crate::error::{Result, RunnerError};
@@ -75,6 +75,34 @@ fn matrix_text(m: &[f64]) -> String {
 /// Write the first `frames` frames (all without a count) of the KITTI odometry sequence `seq` into
 /// `out` (created; an existing folder is refused) as the raw rig `spec`.
 pub fn write_raw_rig(seq: &Path, out: &Path, frames: Option<usize>, spec: &RawRigSpec) -> Result<RawRig> {
+    let s = open_odometry(seq, out)?;
+    let n = frames.unwrap_or(s.len()).min(s.len());
+    let first = read_image(&s.left[0], false)?;
+    let size = (first.width, first.height);
+    let rig = RigGeometry::new(&s, spec, size);
+    let tmp = partial_dir(out)?;
+    write_frames(&s, n, &tmp, &rig)?;
+    let times: String = s.times.iter().take(n).map(|t| format!("{t:.6}\n")).collect();
+    let write = |name: &str, text: &str| {
+        std::fs::write(tmp.join(name), text)
+            .map_err(|e| RunnerError::Invalid(format!("{}: {e}", tmp.join(name).display())))
+    };
+    write("times.txt", &times)?;
+    write("camchain.yaml", &kalibr_text(seq, spec, &rig))?;
+    write("orbslam.yaml", &orbslam_text(seq, spec, &rig))?;
+    std::fs::rename(&tmp, out).map_err(|e| RunnerError::Invalid(format!("{}: {e}", out.display())))?;
+    Ok(RawRig {
+        dir: out.to_path_buf(),
+        kalibr: out.join("camchain.yaml"),
+        orbslam: out.join("orbslam.yaml"),
+        frames: n,
+        size,
+    })
+}
+
+/// The KITTI odometry sequence `seq`, checked to be one (grey, rectified) and `out` checked not to
+/// exist yet.
+fn open_odometry(seq: &Path, out: &Path) -> Result<StereoSequence> {
     let s = open_stereo(seq)?;
     if s.layout != Layout::Odometry {
         return Err(RunnerError::Invalid(format!(
@@ -88,20 +116,46 @@ pub fn write_raw_rig(seq: &Path, out: &Path, frames: Option<usize>, spec: &RawRi
             out.display()
         )));
     }
-    let n = frames.unwrap_or(s.len()).min(s.len());
-    let [fx, fy, cx, cy] = s.intrinsics;
-    let b = s.baseline;
-    let first = read_image(&s.left[0], false)?;
-    let size = (first.width, first.height);
-    let q = Rotation3::from_axis_angle(&Unit::new_normalize(Vector3::from(spec.axis)), spec.turn_deg.to_radians())
-        .into_inner();
-    // rectified right from raw right: Qᵀ
-    let (r_left, r_right) = (Matrix3::identity(), q.transpose());
-    let k = Matrix3::new(fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0);
-    let p_left = Matrix3x4::new(fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0);
-    let p_right = Matrix3x4::new(fx, 0.0, cx, -fx * b, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0);
-    let left = RawCamera { k, distortion: Distortion::RadialTangential(spec.d_left.to_vec()), size };
-    let right = RawCamera { k, distortion: Distortion::RadialTangential(spec.d_right.to_vec()), size };
+    Ok(s)
+}
+
+/// The raw rig's geometry: the rectified pair's intrinsics, baseline and image size, the right
+/// camera's turn `Q`, each camera's exact rectification `R` and projection `P`, and the raw cameras.
+struct RigGeometry {
+    intrinsics: [f64; 4],
+    baseline: f64,
+    size: (u32, u32),
+    q: Matrix3<f64>,
+    k: Matrix3<f64>,
+    r_left: Matrix3<f64>,
+    r_right: Matrix3<f64>,
+    p_left: Matrix3x4<f64>,
+    p_right: Matrix3x4<f64>,
+    left: RawCamera,
+    right: RawCamera,
+}
+
+impl RigGeometry {
+    /// The raw rig `spec` made from the rectified pair of `s`, with images of `size`.
+    fn new(s: &StereoSequence, spec: &RawRigSpec, size: (u32, u32)) -> Self {
+        let [fx, fy, cx, cy] = s.intrinsics;
+        let b = s.baseline;
+        let q = Rotation3::from_axis_angle(&Unit::new_normalize(Vector3::from(spec.axis)), spec.turn_deg.to_radians())
+            .into_inner();
+        // rectified right from raw right: Qᵀ
+        let (r_left, r_right) = (Matrix3::identity(), q.transpose());
+        let k = Matrix3::new(fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0);
+        let p_left = Matrix3x4::new(fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0);
+        let p_right = Matrix3x4::new(fx, 0.0, cx, -fx * b, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0);
+        let left = RawCamera { k, distortion: Distortion::RadialTangential(spec.d_left.to_vec()), size };
+        let right = RawCamera { k, distortion: Distortion::RadialTangential(spec.d_right.to_vec()), size };
+        Self { intrinsics: s.intrinsics, baseline: b, size, q, k, r_left, r_right, p_left, p_right, left, right }
+    }
+}
+
+/// A fresh hidden folder beside `out` with `left/` and `right/` inside, where the rig is written before
+/// it is renamed to `out`.
+fn partial_dir(out: &Path) -> Result<PathBuf> {
     let tmp = out.with_file_name(format!(
         ".{}.partial-{}",
         out.file_name().map(|n| n.to_string_lossy()).unwrap_or_default(),
@@ -111,18 +165,24 @@ pub fn write_raw_rig(seq: &Path, out: &Path, frames: Option<usize>, spec: &RawRi
     for sub in ["left", "right"] {
         std::fs::create_dir_all(tmp.join(sub)).map_err(|e| RunnerError::Invalid(format!("{}: {e}", tmp.display())))?;
     }
+    Ok(tmp)
+}
+
+/// The first `n` frames of `s` as the raw cameras would have taken them, into `tmp`'s `left/` and
+/// `right/`.
+fn write_frames(s: &StereoSequence, n: usize, tmp: &Path, rig: &RigGeometry) -> Result<()> {
     for i in 0..n {
         let (l, r) = (read_image(&s.left[i], false)?, read_image(&s.right[i], false)?);
         let name = format!("{:06}.png", s.ids[i]);
-        write_image(tmp.join("left").join(&name), &raw_from_rectified(&l, &left, &r_left, &p_left)?)?;
-        write_image(tmp.join("right").join(&name), &raw_from_rectified(&r, &right, &r_right, &p_right)?)?;
+        write_image(tmp.join("left").join(&name), &raw_from_rectified(&l, &rig.left, &rig.r_left, &rig.p_left)?)?;
+        write_image(tmp.join("right").join(&name), &raw_from_rectified(&r, &rig.right, &rig.r_right, &rig.p_right)?)?;
     }
-    let times: String = s.times.iter().take(n).map(|t| format!("{t:.6}\n")).collect();
-    let write = |name: &str, text: &str| {
-        std::fs::write(tmp.join(name), text)
-            .map_err(|e| RunnerError::Invalid(format!("{}: {e}", tmp.join(name).display())))
-    };
-    write("times.txt", &times)?;
+    Ok(())
+}
+
+/// Kalibr's `camchain.yaml` of the rig: both cameras and the right one's pose from the left.
+fn kalibr_text(seq: &Path, spec: &RawRigSpec, rig: &RigGeometry) -> String {
+    let ([fx, fy, cx, cy], b, size, q) = (rig.intrinsics, rig.baseline, rig.size, rig.q);
     // Kalibr: x_right = T · x_left with T = [Q | −Q (b, 0, 0)]
     let t = -(q * Vector3::new(b, 0.0, 0.0));
     let row = |r: usize| format!("  - [{:.12e}, {:.12e}, {:.12e}, {:.12e}]\n", q[(r, 0)], q[(r, 1)], q[(r, 2)], t[r]);
@@ -134,13 +194,19 @@ pub fn write_raw_rig(seq: &Path, out: &Path, frames: Option<usize>, spec: &RawRi
             size.1
         )
     };
-    let kalibr = format!(
+    format!(
         "# a raw rig made from {} by slam-runner's raw_rig\n{}{}",
         seq.display(),
         cam("cam0", &spec.d_left, ""),
         cam("cam1", &spec.d_right, &format!("  T_cn_cnm1:\n{}{}{}  - [0.0, 0.0, 0.0, 1.0]\n", row(0), row(1), row(2)))
-    );
-    write("camchain.yaml", &kalibr)?;
+    )
+}
+
+/// ORB-SLAM's `orbslam.yaml` of the rig: the rectified pair's settings and each camera's `K`, `D` and
+/// exact rectification `R`, `P`.
+fn orbslam_text(seq: &Path, spec: &RawRigSpec, rig: &RigGeometry) -> String {
+    let ([fx, fy, cx, cy], b, size, k) = (rig.intrinsics, rig.baseline, rig.size, rig.k);
+    let (r_left, r_right, p_left, p_right) = (rig.r_left, rig.r_right, rig.p_left, rig.p_right);
     let block = |name: &str, rows: usize, cols: usize, data: &[f64]| {
         format!(
             "{name}: !!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n   data: [{}]\n",
@@ -163,13 +229,5 @@ pub fn write_raw_rig(seq: &Path, out: &Path, frames: Option<usize>, spec: &RawRi
         orb.push_str(&block(&format!("{side}.R"), 3, 3, &row_major(r)));
         orb.push_str(&block(&format!("{side}.P"), 3, 4, &row_major34(p)));
     }
-    write("orbslam.yaml", &orb)?;
-    std::fs::rename(&tmp, out).map_err(|e| RunnerError::Invalid(format!("{}: {e}", out.display())))?;
-    Ok(RawRig {
-        dir: out.to_path_buf(),
-        kalibr: out.join("camchain.yaml"),
-        orbslam: out.join("orbslam.yaml"),
-        frames: n,
-        size,
-    })
+    orb
 }

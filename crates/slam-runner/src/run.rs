@@ -389,37 +389,14 @@ impl Prepared {
     pub fn run(self, s: &RunSettings, on_frame: &mut dyn FnMut(&FrameView<'_>), stop: fn() -> bool) -> Result<Outcome> {
         let Prepared { seq, k, colour, selection, image, sizes, rectifier, .. } = self;
         let mut tracking = s.tracking;
-        if tracking.frame_period_s <= 0.0 {
-            let n = seq.len().min(seq.times.len());
-            let stamped: Vec<(usize, f64)> = (0..n).map(|i| (seq.ids[i], seq.times[i])).collect();
-            tracking.frame_period_s = frame_period(&stamped);
-        }
+        tracking.frame_period_s = frame_period_of(&tracking, &seq);
         let optimizer = (s.optimizer)();
         let rig = StereoRig { k, baseline: seq.baseline };
-        let (map, loaded) = match &s.map {
-            Some(path) => {
-                let (m, info) = load_map(path, &rig, image, s.localise_only)?;
-                (Some(m), Some(info))
-            }
-            None => (None, None),
-        };
+        let (map, loaded) = starting_map(s, &rig, image)?;
         tracking.localise_only = s.localise_only;
         let tracker = Box::new(StereoVo::new(rig, tracking, optimizer.clone())?);
         let labels = run_labels(s, &seq, image)?;
-        let mut notes = Vec::new();
-        // labels of frames the run does not play score nothing: said as unused detections are (with
-        // --detector labels they are those detections, reported below)
-        if let (Some(path), Some((l, _))) = (&s.labels, &labels) {
-            if !matches!(s.detector, DetectorChoice::Labels { .. }) {
-                let mut per_frame: std::collections::BTreeMap<usize, usize> = Default::default();
-                for label in l.iter().filter(|l| !l.is_dont_care()) {
-                    *per_frame.entry(label.frame).or_default() += 1;
-                }
-                let source = path.display().to_string();
-                let unused = slam_detect::detectors::unused_frames(&source, per_frame.into_iter(), &seq.ids);
-                notes.extend(unused.map(|n| format!("unused labels: {}", n.replace(" boxes)", " labels)"))));
-            }
-        }
+        let mut notes = unused_label_notes(s, &seq, labels.as_ref());
         let mut unused_detections = Vec::new();
         // localising only maps no objects: no detector runs
         let (det, detections) = match s.localise_only {
@@ -432,11 +409,7 @@ impl Prepared {
         }
         let frames = frame_source(FrameReader::new(&seq, colour, rectifier.clone()), &seq, sizes, stop);
         let start = std::time::Instant::now();
-        let mut sys = s.system;
-        sys.objects.image = image;
-        // the map makes points and local BA weighs disparities by the tracker's near bound
-        sys.mapping.near_baselines = tracking.far_baselines;
-        sys.localise_only = s.localise_only;
+        let sys = system_config(s, image, &tracking);
         let mut out = SystemBuilder::new(k, seq.baseline)
             .map(map)
             .config(sys)
@@ -481,6 +454,64 @@ impl Prepared {
 
 /// Where a map made by a run over `seq` lies in the sequence's ground truth: its first frame and that
 /// frame's ground-truth pose (none without ground truth or keyframes).
+/// The tracker's frame period: the settings' own, else (when 0 or less) the one the sequence's times give.
+fn frame_period_of(tracking: &VoConfig, seq: &StereoSequence) -> f64 {
+    if tracking.frame_period_s <= 0.0 {
+        let n = seq.len().min(seq.times.len());
+        let stamped: Vec<(usize, f64)> = (0..n).map(|i| (seq.ids[i], seq.times[i])).collect();
+        return frame_period(&stamped);
+    }
+    tracking.frame_period_s
+}
+
+/// The map the run starts from (`--map`, rebuilt for `rig`) and what loading it found; none without one.
+fn starting_map(
+    s: &RunSettings,
+    rig: &StereoRig,
+    image: ImageSize,
+) -> Result<(Option<slam_pipeline::map::LoadedMap>, Option<MapLoad>)> {
+    Ok(match &s.map {
+        Some(path) => {
+            let (m, info) = load_map(path, rig, image, s.localise_only)?;
+            (Some(m), Some(info))
+        }
+        None => (None, None),
+    })
+}
+
+/// Notes on `--labels` files' frames the run does not play (they score nothing); said as unused
+/// detections are, except with `--detector labels`, where they are those detections (reported later).
+fn unused_label_notes(
+    s: &RunSettings,
+    seq: &StereoSequence,
+    labels: Option<&(Vec<TrackingLabel>, LabelGeometry)>,
+) -> Vec<String> {
+    let mut notes = Vec::new();
+    if let (Some(path), Some((l, _))) = (&s.labels, labels) {
+        if !matches!(s.detector, DetectorChoice::Labels { .. }) {
+            let mut per_frame: std::collections::BTreeMap<usize, usize> = Default::default();
+            for label in l.iter().filter(|l| !l.is_dont_care()) {
+                *per_frame.entry(label.frame).or_default() += 1;
+            }
+            let source = path.display().to_string();
+            let unused = slam_detect::detectors::unused_frames(&source, per_frame.into_iter(), &seq.ids);
+            notes.extend(unused.map(|n| format!("unused labels: {}", n.replace(" boxes)", " labels)"))));
+        }
+    }
+    notes
+}
+
+/// The system's settings for this run: the sequence's image size, the tracker's near bound for the
+/// map's points and local BA's disparity weights, and whether it only localises.
+fn system_config(s: &RunSettings, image: ImageSize, tracking: &VoConfig) -> SystemConfig {
+    let mut sys = s.system;
+    sys.objects.image = image;
+    // the map makes points and local BA weighs disparities by the tracker's near bound
+    sys.mapping.near_baselines = tracking.far_baselines;
+    sys.localise_only = s.localise_only;
+    sys
+}
+
 fn ground_truth_world(
     map: &slam_pipeline::saved_map::SavedMap,
     seq: &StereoSequence,
