@@ -469,7 +469,7 @@ fn starting_map(
     s: &RunSettings,
     rig: &StereoRig,
     image: ImageSize,
-) -> Result<(Option<slam_pipeline::map::LoadedMap>, Option<MapLoad>)> {
+) -> Result<(Option<slam_pipeline::saved_map::LoadedMap>, Option<MapLoad>)> {
     Ok(match &s.map {
         Some(path) => {
             let (m, info) = load_map(path, rig, image, s.localise_only)?;
