@@ -492,6 +492,7 @@ fn log_matched_vehicle(name: &str, seq: &LabelledSequence, id: &i64, gt: &GtVehi
         first_depth = depth,
         travel,
         err = format!("{:.2} {:.2} {:.2}", err_cam.x, err_cam.y, err_cam.z),
+        e_ray = ?gt.ray_centre.map(|c| (c - gt.ellipsoid.centre()).norm()),
         axes = format!("{:.2} {:.2} {:.2} vs {:.2} {:.2} {:.2}", e.semi_axes.x, e.semi_axes.y, e.semi_axes.z, gt.ellipsoid.semi_axes.x, gt.ellipsoid.semi_axes.y, gt.ellipsoid.semi_axes.z),
         "matched vehicle"
     );
@@ -623,6 +624,10 @@ pub struct StudyFigures {
     pub pooled: Figures,
     /// What the ground-truth ellipsoids score on the found vehicles: IoU2D and box IoU2D.
     pub truth: (Option<f64>, Option<f64>),
+    /// `e_ray` (the centre error of the point where the rays through the labels' own 3-D centres
+    /// meet, under the sequences' poses: what these poses allow a method that places objects by
+    /// bearings), mean of sequences and pooled over vehicles.
+    pub e_ray: (Option<f64>, Option<f64>),
     /// Moving vehicles: (count, mapped as a static ellipsoid, flagged dynamic only).
     pub moving: (usize, usize, usize),
 }
@@ -709,6 +714,7 @@ impl Study {
             means,
             pooled,
             truth: (mean(tot.iou_truth, tot.found), mean(tot.box_iou_truth, tot.found)),
+            e_ray: (mean(self.sum_ray, self.n_ray_seq), tot.e_ray_mean()),
             moving: self.moving,
         }
     }

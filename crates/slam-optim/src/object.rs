@@ -121,10 +121,11 @@ pub struct RefineConfig {
     /// Huber threshold in pixels (converted to σ units for each pass, so re-estimating σ does not
     /// change which residuals count as outliers).
     pub huber_px: f64,
-    /// Passes; after each, every view's σ is re-estimated as its RMS box residual (at least half the
-    /// overall RMS, clamped to `[min_sigma_px, max_sigma_px]`), so the axis prior weighs as much as the
-    /// boxes' actual misfit warrants (little when they fit: no bias at zero noise) and views whose pose or
-    /// box is off count less.
+    /// Passes; after each, every view's σ is re-estimated as its RMS box residual, times each side's
+    /// share of the misfit as the first pass measured it (at least half the overall RMS, clamped to
+    /// `[min_sigma_px, max_sigma_px]`), so the axis prior weighs as much as the boxes' actual misfit
+    /// warrants (little when they fit: no bias at zero noise) and views whose pose or box is off count
+    /// less.
     pub passes: usize,
     /// Lower clamp of the re-estimated σ, pixels.
     pub min_sigma_px: f64,
@@ -199,25 +200,46 @@ pub fn box_residual(v: &BoxView, image: &ImageSize, e: &Ellipsoid, shape: BoxSha
     }
 }
 
+/// Each box side's share of an ellipsoid's misfit: side `s`'s mean square over the views divided by
+/// the overall mean square (1 each when the misfit is zero). It measures the detector's bias on that
+/// side of this object (e.g. a part of a large vehicle it leaves out, a neighbour it merges in) and is
+/// taken once, from the first pass, whose boxes were all weighed alike. Re-measured after passes that
+/// used it, it would also take up the object's own misfit along that side (a class prior too small for
+/// the object shows as the same one-sided misfit in every view): the side's σ would grow from pass to
+/// pass and free the extent it should hold. On drive 0005 at every 3rd frame that turned the parked
+/// van's bottom σ from 5 to 20 px over 9 passes while its height shrank from 1.11 to 0.70 m, and the
+/// 10th pass lifted it 5 m off the road. `None` when the ellipsoid does not project into a view.
+fn side_shares(views: &[BoxView], image: &ImageSize, e: &Ellipsoid, shape: BoxShape) -> Option<[f64; 4]> {
+    let r: Vec<Vector4<f64>> = views.iter().map(|v| box_residual(v, image, e, shape)).collect::<Option<_>>()?;
+    let n = r.len().max(1) as f64;
+    let all = r.iter().map(|x| x.norm_squared()).sum::<f64>() / (4.0 * n);
+    let mut out = [1.0; 4];
+    if all > 0.0 {
+        for (k, o) in out.iter_mut().enumerate() {
+            *o = r.iter().map(|x| x[k] * x[k]).sum::<f64>() / n / all;
+        }
+    }
+    Some(out)
+}
+
 /// Box noise σ of each view's four sides (pixels) from an ellipsoid's misfit, for the re-weighted
-/// passes: a view's error (its pose, a partial box) and a side's (the detector's bias on that side of
-/// this object across views, e.g. a part of a large vehicle it leaves out) multiply, so side `s` of
-/// view `v` gets `σ² = σ_v² σ_s² / σ²` (the view's mean square over its sides, the side's over the
-/// views, the overall), never below half the overall RMS (one view or side cannot claim to be much
-/// better than the data as a whole), clamped to `[min_sigma, max_sigma_px]`. `None` when the ellipsoid
-/// does not project into a view.
+/// passes: a view's error (its pose, a partial box) and a side's ([`side_shares`], measured once)
+/// multiply, so side `s` of view `v` gets `σ² = σ_v² · share_s` (the view's mean square over its
+/// sides), never below half the overall RMS (one view or side cannot claim to be much better than the
+/// data as a whole), clamped to `[min_sigma, max_sigma_px]`. `None` when the ellipsoid does not
+/// project into a view.
 fn side_sigmas(
     views: &[BoxView],
     image: &ImageSize,
     e: &Ellipsoid,
     config: &RefineConfig,
     min_sigma: f64,
+    shares: &[f64; 4],
 ) -> Option<Vec<[f64; 4]>> {
     let r: Vec<Vector4<f64>> =
         views.iter().map(|v| box_residual(v, image, e, config.box_shape)).collect::<Option<_>>()?;
     let n = r.len().max(1) as f64;
     let all = r.iter().map(|x| x.norm_squared()).sum::<f64>() / (4.0 * n);
-    let side: Vec<f64> = (0..4).map(|k| r.iter().map(|x| x[k] * x[k]).sum::<f64>() / n).collect();
     let floor = 0.5 * all.sqrt();
     Some(
         r.iter()
@@ -225,8 +247,7 @@ fn side_sigmas(
                 let view = x.norm_squared() / 4.0;
                 let mut out = [0.0; 4];
                 for k in 0..4 {
-                    let var = if all > 0.0 { view * side[k] / all } else { 0.0 };
-                    out[k] = var.sqrt().max(floor).clamp(min_sigma, config.max_sigma_px);
+                    out[k] = (view * shares[k]).sqrt().max(floor).clamp(min_sigma, config.max_sigma_px);
                 }
                 out
             })
@@ -560,8 +581,9 @@ fn polish(
     // shifted box); with planes, a box is never trusted below `plane_box_floor_px`.
     let min_sigma =
         if cues.planes.is_empty() { config.min_sigma_px } else { config.min_sigma_px.max(config.plane_box_floor_px) };
+    let Some(shares) = side_shares(views, image, &e, config.box_shape) else { return e };
     for _ in 1..config.passes {
-        let Some(sigmas) = side_sigmas(views, image, &e, config, min_sigma) else { break };
+        let Some(sigmas) = side_sigmas(views, image, &e, config, min_sigma, &shares) else { break };
         match optimise_object_weighted(
             views,
             image,
@@ -583,7 +605,7 @@ fn polish(
         // the edges independently. Free the cameras only when the misfit is mostly such shifts.
         let (shift, size) = shift_and_size_rms(views, image, &e, config.box_shape).unwrap_or((0.0, 0.0));
         if all > config.consistent_rms_px && shift > config.shift_ratio * size {
-            let Some(sigmas) = side_sigmas(views, image, &e, config, min_sigma) else { return e };
+            let Some(sigmas) = side_sigmas(views, image, &e, config, min_sigma, &shares) else { return e };
             if let Some(j) = optimise_object_weighted(
                 views,
                 image,

@@ -301,6 +301,11 @@ fn image_free_lines(f: &slam_eval::labelled::StudyFigures, out: &mut Vec<String>
         cell(f.truth.1, 3)
     ));
     out.push(format!(
+        "| the rays through the labels' own centres (e_ray: what these poses allow placing by bearings), mean of sequences / pooled | | | | {} / {} | | | |",
+        cell(f.e_ray.0, 3),
+        cell(f.e_ray.1, 3)
+    ));
+    out.push(format!(
         "moving vehicles: {}; mapped as a static ellipsoid {}, flagged dynamic {}",
         f.moving.0, f.moving.1, f.moving.2
     ));
