@@ -2,6 +2,61 @@
 
 use std::process::Command;
 
+/// A scratch file or folder under the system's temporary folder, removed when the test that made it
+/// ends, and kept (its path printed) when the test fails, for a look.
+struct Scratch(std::path::PathBuf);
+
+impl Scratch {
+    /// `<temp>/slam-app-<name>-<process id>` (after removing what an earlier run may have left there).
+    fn new(name: &str) -> Self {
+        let path = std::env::temp_dir().join(format!("slam-app-{name}-{}", std::process::id()));
+        remove(&path);
+        Self(path)
+    }
+
+    /// The same with a file extension: `<temp>/slam-app-<name>-<process id>.<ext>`.
+    fn file(name: &str, ext: &str) -> Self {
+        Self(Self::new(name).0.with_extension(ext))
+    }
+}
+
+fn remove(path: &std::path::Path) {
+    if path.is_dir() {
+        let _ = std::fs::remove_dir_all(path);
+    } else {
+        let _ = std::fs::remove_file(path);
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            eprintln!("kept for a look: {}", self.0.display());
+        } else {
+            remove(&self.0);
+        }
+    }
+}
+
+impl std::ops::Deref for Scratch {
+    type Target = std::path::PathBuf;
+    fn deref(&self) -> &std::path::PathBuf {
+        &self.0
+    }
+}
+
+impl AsRef<std::path::Path> for Scratch {
+    fn as_ref(&self) -> &std::path::Path {
+        &self.0
+    }
+}
+
+impl AsRef<std::ffi::OsStr> for Scratch {
+    fn as_ref(&self) -> &std::ffi::OsStr {
+        self.0.as_os_str()
+    }
+}
+
 fn app() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_slam-app"));
     c.current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
@@ -38,7 +93,7 @@ fn help_lists_commands() {
 
 #[test]
 fn sim_small_sweep_writes_csv_and_plots() {
-    let out = std::env::temp_dir().join(format!("slam-app-sim-{}", std::process::id()));
+    let out = Scratch::new("sim");
     let o = app().args(["sim", "--objects", "2", "--noise-seeds", "1", "--out"]).arg(&out).output().expect("runs");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8_lossy(&o.stdout);
@@ -85,7 +140,7 @@ fn detect_recall_of_the_default_detector_reaches_the_targets() {
 
 #[test]
 fn detect_writes_json_and_overlays() {
-    let out = std::env::temp_dir().join(format!("slam-app-detect-{}", std::process::id()));
+    let out = Scratch::new("detect");
     let o = app()
         .args(["detect", "fixtures/kitti_raw_0052/2011_09_26/2011_09_26_drive_0052_sync", "--out"])
         .arg(out.join("d.json"))
@@ -106,7 +161,7 @@ fn detect_writes_json_and_overlays() {
 
 #[test]
 fn objects_writes_the_object_map() {
-    let out = std::env::temp_dir().join(format!("slam-app-objects-{}.json", std::process::id()));
+    let out = Scratch::file("objects", "json");
     let o = app().args(["objects", "fixtures/kitti_tracking/0003", "--out"]).arg(&out).output().expect("runs");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = std::fs::read_to_string(&out).expect("json");
@@ -137,7 +192,7 @@ fn number_after(text: &str, key: &str) -> f64 {
 
 #[test]
 fn run_on_the_shipped_sequence() {
-    let out = std::env::temp_dir().join(format!("slam-app-run-{}", std::process::id()));
+    let out = Scratch::new("run");
     let o = app().args(["run", "--overlays", "--overlay-every", "25", "--out"]).arg(&out).output().expect("runs");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8_lossy(&o.stdout);
@@ -266,7 +321,7 @@ fn run_survives_missing_corrupt_and_black_frames_and_a_jump() {
     // a copy of the sequence with frame 10 missing on the right, frame 20 corrupt, frame 25 black, and
     // a jump after frame 32 (the next input frames are source frames 42–50: about 11 m ahead)
     let src = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06"));
-    let dst = std::env::temp_dir().join(format!("slam-app-broken-{}", std::process::id()));
+    let dst = Scratch::new("broken");
     let seq = dst.join("sequences/06");
     let source_of = |i: usize| if i <= 32 { i } else { i + 9 };
     for d in ["image_0", "image_1"] {
@@ -347,7 +402,7 @@ fn trajectory_eval_reads_kitti_and_tum_and_names_bad_files() {
         "{text}"
     );
     // a TUM file of the same poses, 2 m too far along z at the end: the drift shows
-    let dir = std::env::temp_dir().join(format!("slam-app-traj-{}", std::process::id()));
+    let dir = Scratch::new("traj");
     std::fs::create_dir_all(&dir).expect("dir");
     let lines: Vec<String> =
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06/poses/06.txt"))
@@ -397,7 +452,7 @@ fn trajectory_eval_reads_kitti_and_tum_and_names_bad_files() {
 /// excerpt, more than 3 % more tracked map points per frame.
 #[test]
 fn local_map_lengthens_point_tracks() {
-    let out = std::env::temp_dir().join(format!("slam-app-local-{}", std::process::id()));
+    let out = Scratch::new("local");
     std::fs::create_dir_all(&out).expect("dir");
     let per_point = |config: &str| -> f64 {
         let cfg = out.join(format!("{config}.toml"));
@@ -425,7 +480,8 @@ fn local_map_lengthens_point_tracks() {
 #[test]
 fn run_on_a_tracking_layout_with_label_boxes() {
     let src = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06/sequences/06"));
-    let training = std::env::temp_dir().join(format!("slam-app-tracking-{}/training", std::process::id()));
+    let root = Scratch::new("tracking");
+    let training = root.join("training");
     for (from, to) in [("image_0", "image_02/0007"), ("image_1", "image_03/0007")] {
         std::fs::create_dir_all(training.join(to)).expect("dir");
         for i in 0..12 {
@@ -469,7 +525,7 @@ fn run_on_a_tracking_layout_with_label_boxes() {
 /// Threads or not, a run is reproducible: two runs write the same map file byte for byte.
 #[test]
 fn two_runs_write_the_same_map() {
-    let out = std::env::temp_dir().join(format!("slam-app-repro-{}", std::process::id()));
+    let out = Scratch::new("repro");
     let run = |name: &str| {
         let o = app().args(["run", "--max-frames", "20", "--out"]).arg(out.join(name)).output().expect("runs");
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -483,7 +539,7 @@ fn stereo_check_finds_a_shifted_right_camera() {
     // the shipped frames, and again with every right image shifted 1 px to the left (each disparity 1 px
     // too large): the estimated offset is small, then 1 px lower
     let src = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06/sequences/06"));
-    let dst = std::env::temp_dir().join(format!("slam-app-shifted-{}", std::process::id()));
+    let dst = Scratch::new("shifted");
     for d in ["image_0", "image_1"] {
         std::fs::create_dir_all(dst.join(d)).expect("dir");
     }
@@ -523,7 +579,7 @@ fn stereo_check_finds_a_shifted_right_camera() {
 #[test]
 fn eval_scores_a_tracking_sequence_with_both_box_models() {
     // sequence 0003 alone: 6 static vehicles, all found; the table, the CSV and the e_ray column
-    let dir = std::env::temp_dir().join(format!("slam-app-eval-{}", std::process::id()));
+    let dir = Scratch::new("eval");
     std::fs::create_dir_all(&dir).expect("dir");
     let src = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_tracking/0003"));
     std::fs::create_dir_all(dir.join("0003")).expect("dir");
@@ -577,7 +633,7 @@ fn eval_scores_a_tracking_sequence_with_both_box_models() {
 fn run_with_triangulated_points_saves_and_reads_them() {
     // local mapping triangulates keypoints without a stereo match between keyframes: the map file holds
     // their left-only observations (`null` right column) and reads back
-    let dir = std::env::temp_dir().join(format!("slam-app-tri-{}", std::process::id()));
+    let dir = Scratch::new("tri");
     std::fs::create_dir_all(&dir).expect("dir");
     let o = app()
         .args(["run", "--detector", "none", "--max-frames", "25", "--out"])
@@ -609,7 +665,7 @@ fn run_with_triangulated_points_saves_and_reads_them() {
 #[test]
 fn replaced_and_black_frames_are_lost_and_the_next_relocalise() {
     let src = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06"));
-    let dst = std::env::temp_dir().join(format!("slam-app-states-{}", std::process::id()));
+    let dst = Scratch::new("states");
     let seq = dst.join("sequences/06");
     // frame 8 shows frame 30's images (18 m ahead: another place), frame 14 is black
     let source_of = |i: usize| if i == 8 { 30 } else { i };
@@ -664,11 +720,11 @@ fn replaced_and_black_frames_are_lost_and_the_next_relocalise() {
 
 /// A copy of the shipped odometry excerpt holding source frame `source[k]` as frame id `ids[k]` in both
 /// cameras (and the matching lines of `poses/06.txt`, and a `times.txt` of `0.1037 · source id`, so
-/// every line says which source frame it is), with `lines` lines of each per-frame file.
-fn odometry_copy(name: &str, frames: &[(usize, usize)], lines: usize) -> std::path::PathBuf {
+/// every line says which source frame it is), with `lines` lines of each per-frame file: the copy (removed
+/// with the test) and its sequence folder.
+fn odometry_copy(name: &str, frames: &[(usize, usize)], lines: usize) -> (Scratch, std::path::PathBuf) {
     let src = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_odom_06"));
-    let dst = std::env::temp_dir().join(format!("slam-app-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dst);
+    let dst = Scratch::new(name);
     let seq = dst.join("sequences/06");
     for d in ["image_0", "image_1"] {
         std::fs::create_dir_all(seq.join(d)).expect("dir");
@@ -695,7 +751,7 @@ fn odometry_copy(name: &str, frames: &[(usize, usize)], lines: usize) -> std::pa
     std::fs::create_dir_all(dst.join("poses")).expect("dir");
     std::fs::write(dst.join("poses/06.txt"), poses).expect("poses");
     std::fs::write(seq.join("times.txt"), times).expect("times");
-    seq
+    (dst, seq)
 }
 
 fn tum_times(dir: &std::path::Path) -> Vec<f64> {
@@ -711,8 +767,9 @@ fn frames_and_stride_keep_ids_and_ground_truth_aligned() {
     // frames 10..=30, every 2nd id, of a copy with times: the same run as a copy that holds only those
     // frames under the ids 0..=10; ids, times and ground truth follow the file names
     let ids: Vec<usize> = (10..=30).step_by(2).collect();
-    let full = odometry_copy("select", &(0..=30).map(|i| (i, i)).collect::<Vec<_>>(), 31);
-    let packed = odometry_copy("packed", &ids.iter().enumerate().map(|(k, &i)| (k, i)).collect::<Vec<_>>(), ids.len());
+    let (_full_copy, full) = odometry_copy("select", &(0..=30).map(|i| (i, i)).collect::<Vec<_>>(), 31);
+    let (_packed_copy, packed) =
+        odometry_copy("packed", &ids.iter().enumerate().map(|(k, &i)| (k, i)).collect::<Vec<_>>(), ids.len());
     let out = full.parent().and_then(|p| p.parent()).expect("root").join("out");
     let run = |seq: &std::path::Path, extra: &[&str], to: &str| {
         let o = app()
@@ -790,7 +847,7 @@ fn frames_and_stride_keep_ids_and_ground_truth_aligned() {
 fn missing_frames_keep_the_ids_of_the_rest() {
     // frames 0..=24 with frame 12 missing in both cameras: skipped, the rest keep their ids
     let frames: Vec<(usize, usize)> = (0..=24).filter(|&i| i != 12).map(|i| (i, i)).collect();
-    let seq = odometry_copy("gap", &frames, 25);
+    let (_seq_copy, seq) = odometry_copy("gap", &frames, 25);
     let root = seq.parent().and_then(|p| p.parent()).expect("root").to_path_buf();
     let run = |seq: &std::path::Path, extra: &[&str], to: &str| {
         app()
@@ -819,7 +876,7 @@ fn missing_frames_keep_the_ids_of_the_rest() {
     // makes one step twice as long to track: about 0.1 m more here), and far from what the estimate
     // would show if its poses were paired with ground truth by position (a shift by one frame, 1.2 m,
     // after frame 12)
-    let whole = odometry_copy("nogap", &(0..=24).map(|i| (i, i)).collect::<Vec<_>>(), 25);
+    let (_whole_copy, whole) = odometry_copy("nogap", &(0..=24).map(|i| (i, i)).collect::<Vec<_>>(), 25);
     let o2 = run(&whole, &[], "nogap");
     assert!(o2.status.success(), "{}", String::from_utf8_lossy(&o2.stderr));
     let base = String::from_utf8_lossy(&o2.stdout);
@@ -866,7 +923,7 @@ fn missing_frames_keep_the_ids_of_the_rest() {
 #[test]
 fn run_on_a_raw_drive_prints_errors_against_oxts() {
     let drive = "fixtures/kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync";
-    let out = std::env::temp_dir().join(format!("slam-app-raw-{}", std::process::id()));
+    let out = Scratch::new("raw");
     let o = app()
         .args(["run", drive, "--detector", "none", "--frames", "0..=40", "--out"])
         .arg(&out)
@@ -887,7 +944,7 @@ fn run_on_a_raw_drive_prints_errors_against_oxts() {
 /// conflict; the overlay options switch overlays on.
 #[test]
 fn mode_options_select_their_mode_or_name_the_conflict() {
-    let out = std::env::temp_dir().join(format!("slam-app-modes-{}", std::process::id()));
+    let out = Scratch::new("modes");
     let file = "fixtures/kitti_odom_06/detections/yolo_fastest_tiles3.json";
     let o = app()
         .args(["run", "--max-frames", "6", "--detections", file, "--overlay-every", "5", "--out"])
@@ -916,7 +973,8 @@ fn mode_options_select_their_mode_or_name_the_conflict() {
 #[test]
 fn detect_reads_a_raw_drive_folder() {
     let src = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/kitti_raw_0005/2011_09_26"));
-    let date = std::env::temp_dir().join(format!("slam-app-rawdrive-{}/2011_09_26", std::process::id()));
+    let root = Scratch::new("rawdrive");
+    let date = root.join("2011_09_26");
     let drive = date.join("2011_09_26_drive_0005_sync");
     std::fs::create_dir_all(&date).expect("dir");
     std::fs::copy(src.join("calib_cam_to_cam.txt"), date.join("calib_cam_to_cam.txt")).expect("calib");
@@ -942,7 +1000,7 @@ fn detect_reads_a_raw_drive_folder() {
 /// the output says which.
 #[test]
 fn trajectory_eval_matches_tum_by_time() {
-    let dir = std::env::temp_dir().join(format!("slam-app-tum-{}", std::process::id()));
+    let dir = Scratch::new("tum");
     std::fs::create_dir_all(&dir).expect("dir");
     let gt = "fixtures/kitti_odom_06/poses/06.txt";
     let lines: Vec<String> =
@@ -995,7 +1053,7 @@ fn trajectory_eval_matches_tum_by_time() {
 /// prints the same figures and both write objects_score.json.
 #[test]
 fn run_scores_its_objects_against_labels_and_eval_repeats_it() {
-    let out = std::env::temp_dir().join(format!("slam-app-labels-{}", std::process::id()));
+    let out = Scratch::new("labels");
     let labels = "fixtures/kitti_tracking/0000/label_02.txt";
     let o = app()
         .args(["run", "fixtures/kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync", "--detector", "labels"])
@@ -1045,7 +1103,7 @@ fn run_scores_its_objects_against_labels_and_eval_repeats_it() {
 /// tracking.csv and repeats the figures.
 #[test]
 fn labels_scoring_of_a_run_not_starting_at_frame_0_goes_by_frame_id() {
-    let out = std::env::temp_dir().join(format!("slam-app-labels-from-20-{}", std::process::id()));
+    let out = Scratch::new("labels-from-20");
     let labels = "fixtures/kitti_tracking/0000/label_02.txt";
     let o = app()
         .args(["run", "fixtures/kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync", "--detector", "labels"])
@@ -1086,7 +1144,7 @@ fn labels_scoring_of_a_run_not_starting_at_frame_0_goes_by_frame_id() {
 #[test]
 fn track_bench_counts_every_state_like_tracking_csv() {
     let frames: Vec<(usize, usize)> = (0..12).map(|i| (i, i)).collect();
-    let seq = odometry_copy("bench-states", &frames, 12);
+    let (_seq_copy, seq) = odometry_copy("bench-states", &frames, 12);
     let black = slam_core::Image::new(1226, 370, 1, vec![0; 1226 * 370]).expect("image");
     for i in [6, 7] {
         for d in ["image_0", "image_1"] {
@@ -1127,7 +1185,7 @@ fn track_bench_counts_every_state_like_tracking_csv() {
 /// shows its keys.
 #[test]
 fn vehicle_motion_prior_tracks_the_fixture_when_enabled() {
-    let dir = std::env::temp_dir().join(format!("slam-app-prior-{}", std::process::id()));
+    let dir = Scratch::new("prior");
     std::fs::create_dir_all(&dir).expect("tmp");
     let cfg = dir.join("prior.toml");
     std::fs::write(&cfg, "[tracking]\nvehicle_slip_rad = 0.03\n").expect("config");
@@ -1163,7 +1221,7 @@ fn vehicle_motion_prior_tracks_the_fixture_when_enabled() {
 /// associators give an object map of their own.
 #[test]
 fn objects_methods_and_associators_each_give_their_own_map() {
-    let dir = std::env::temp_dir().join(format!("slam-app-seams-{}", std::process::id()));
+    let dir = Scratch::new("seams");
     let map = |args: &[&str]| {
         let out = dir.join(format!("{}.json", args.join("_")));
         let o = app()
@@ -1191,7 +1249,7 @@ fn objects_methods_and_associators_each_give_their_own_map() {
 /// object map follows `--method`, the trajectory does not (objects do not move the cameras here).
 #[test]
 fn run_method_changes_the_objects_not_the_trajectory() {
-    let dir = std::env::temp_dir().join(format!("slam-app-run-methods-{}", std::process::id()));
+    let dir = Scratch::new("run-methods");
     let file = "fixtures/kitti_odom_06/detections/yolo_fastest_tiles3.json";
     let run = |args: &[&str]| {
         let out = dir.join(args.join("_"));
@@ -1221,7 +1279,7 @@ fn run_method_changes_the_objects_not_the_trajectory() {
 /// without refinement (Q-SLAM, Tri) run too and map other objects than ODA + Tri+Yaw+refine.
 #[test]
 fn run_associator_changes_the_objects() {
-    let dir = std::env::temp_dir().join(format!("slam-app-run-assoc-{}", std::process::id()));
+    let dir = Scratch::new("run-assoc");
     let file = "fixtures/kitti_odom_06/detections/yolo_fastest_tiles3.json";
     let run_with = |assoc: &str, method: &str| {
         let out = dir.join(format!("{assoc}-{method}"));
@@ -1251,7 +1309,7 @@ fn run_associator_changes_the_objects() {
 /// (drive 0005 at every 4th frame, frames 0-59, culled 5 points some object held).
 #[test]
 fn a_saved_map_refers_only_to_points_it_holds() {
-    let out = std::env::temp_dir().join(format!("slam-app-culled-{}", std::process::id()));
+    let out = Scratch::new("culled");
     let o = app()
         .args(["run", "fixtures/kitti_raw_0005/2011_09_26/2011_09_26_drive_0005_sync", "--stride", "4"])
         .args(["--frames", "0..60", "--out"])
@@ -1345,7 +1403,7 @@ fn a_bag_is_inspected_and_run_with_its_results_as_mcap() {
         ),
         "{text}"
     );
-    let dir = std::env::temp_dir().join(format!("slam-app-bag-{}", std::process::id()));
+    let dir = Scratch::new("bag");
     let _ = std::fs::remove_dir_all(&dir);
     let mcap = dir.join("run.mcap");
     let o = app()
