@@ -200,6 +200,19 @@ pub fn box_residual(v: &BoxView, image: &ImageSize, e: &Ellipsoid, shape: BoxSha
     }
 }
 
+/// An ellipsoid's box residual in each view and their mean square over all sides of all views
+/// (pixels²); `None` when it does not project into a view.
+fn box_misfit(
+    views: &[BoxView],
+    image: &ImageSize,
+    e: &Ellipsoid,
+    shape: BoxShape,
+) -> Option<(Vec<Vector4<f64>>, f64)> {
+    let r: Vec<Vector4<f64>> = views.iter().map(|v| box_residual(v, image, e, shape)).collect::<Option<_>>()?;
+    let all = r.iter().map(|x| x.norm_squared()).sum::<f64>() / (4.0 * r.len().max(1) as f64);
+    Some((r, all))
+}
+
 /// Each box side's share of an ellipsoid's misfit: side `s`'s mean square over the views divided by
 /// the overall mean square (1 each when the misfit is zero). It measures the detector's bias on that
 /// side of this object (e.g. a part of a large vehicle it leaves out, a neighbour it merges in) and is
@@ -210,9 +223,8 @@ pub fn box_residual(v: &BoxView, image: &ImageSize, e: &Ellipsoid, shape: BoxSha
 /// van's bottom σ from 5 to 20 px over 9 passes while its height shrank from 1.11 to 0.70 m, and the
 /// 10th pass lifted it 5 m off the road. `None` when the ellipsoid does not project into a view.
 fn side_shares(views: &[BoxView], image: &ImageSize, e: &Ellipsoid, shape: BoxShape) -> Option<[f64; 4]> {
-    let r: Vec<Vector4<f64>> = views.iter().map(|v| box_residual(v, image, e, shape)).collect::<Option<_>>()?;
+    let (r, all) = box_misfit(views, image, e, shape)?;
     let n = r.len().max(1) as f64;
-    let all = r.iter().map(|x| x.norm_squared()).sum::<f64>() / (4.0 * n);
     let mut out = [1.0; 4];
     if all > 0.0 {
         for (k, o) in out.iter_mut().enumerate() {
@@ -236,10 +248,7 @@ fn side_sigmas(
     min_sigma: f64,
     shares: &[f64; 4],
 ) -> Option<Vec<[f64; 4]>> {
-    let r: Vec<Vector4<f64>> =
-        views.iter().map(|v| box_residual(v, image, e, config.box_shape)).collect::<Option<_>>()?;
-    let n = r.len().max(1) as f64;
-    let all = r.iter().map(|x| x.norm_squared()).sum::<f64>() / (4.0 * n);
+    let (r, all) = box_misfit(views, image, e, config.box_shape)?;
     let floor = 0.5 * all.sqrt();
     Some(
         r.iter()
